@@ -1,0 +1,89 @@
+"""What the console scripts share: simulation options on argparse, and clean error exits."""
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Callable, NoReturn
+
+from modal_spring_ros.filter_band import FILTER_TYPES, BandError, FilterBand, parse_mode_range
+from modal_spring_ros.newmark import INTEGRATORS
+from modal_spring_ros.scene import DEFAULT_SCENE, SceneError
+from modal_spring_ros.simulation import METHODS
+from modal_spring_ros.simulation_factory import SimulationConfig
+
+#: Exit status for bad input (as argparse uses).
+EXIT_USAGE = 2
+
+
+def fail(prog: str, message: str, status: int = EXIT_USAGE) -> NoReturn:
+    print(f"{prog}: error: {message}", file=sys.stderr)
+    raise SystemExit(status)
+
+
+def add_simulation_options(parser: argparse.ArgumentParser) -> None:
+    g = parser.add_argument_group("simulation")
+    g.add_argument("--scene", default=DEFAULT_SCENE,
+                   help=f"built-in scene name or YAML path (default {DEFAULT_SCENE})")
+    g.add_argument("--method", choices=METHODS, default="modal")
+    g.add_argument("--filter", dest="filter_type", choices=FILTER_TYPES, default=None,
+                   help="filter band type (default allpass)")
+    g.add_argument("--low-hz", type=float, default=None, help="lower band edge, Hz")
+    g.add_argument("--high-hz", type=float, default=None, help="upper band edge, Hz")
+    g.add_argument("--modes", default=None, metavar="FIRST:LAST",
+                   help="keep modes FIRST..LAST (zero-based, inclusive) instead of a Hz band;"
+                        " with --filter bandstop, drop them")
+    g.add_argument("--integrator", choices=INTEGRATORS, default="explicit")
+    g.add_argument("--dt", type=float, default=None,
+                   help="time step, s (default: the scene's, else half the stability limit)")
+    g.add_argument("--transition-s", type=float, default=0.5,
+                   help="fade time of modes leaving the band, s")
+    g.add_argument("--max-modes", type=int, default=None,
+                   help="most modes computed on large scenes (default 256)")
+
+
+def band_from_args(args: argparse.Namespace) -> FilterBand:
+    """The filter band the options describe. Raises BandError naming the option."""
+    kind = args.filter_type or ("bandpass" if args.modes else "allpass")
+    if args.modes is not None:
+        if args.low_hz is not None or args.high_hz is not None:
+            raise BandError("--modes and --low-hz/--high-hz exclude each other")
+        band = parse_mode_range(args.modes)
+        if kind == "bandstop":
+            return FilterBand("bandstop", band.low, band.high, "index").validate(
+                ("FIRST", "LAST"))
+        if kind not in ("bandpass", "lowpass"):
+            raise BandError(f"--modes keeps a range of modes: use it with --filter bandpass "
+                            f"or bandstop, not {kind}")
+        return band
+    if kind != "allpass":
+        needs_low = kind in ("highpass", "bandpass", "bandstop")
+        needs_high = kind in ("lowpass", "bandpass", "bandstop")
+        if needs_low and args.low_hz is None:
+            raise BandError(f"--filter {kind} needs --low-hz")
+        if needs_high and args.high_hz is None:
+            raise BandError(f"--filter {kind} needs --high-hz")
+    low = args.low_hz if args.low_hz is not None else 0.0
+    high = args.high_hz if args.high_hz is not None else float("inf")
+    return FilterBand(kind, low, high, "hz").validate(("--low-hz", "--high-hz"))
+
+
+def config_from_args(args: argparse.Namespace) -> SimulationConfig:
+    if args.dt is not None and not args.dt > 0:
+        raise ValueError(f"--dt ({args.dt}) must be positive")
+    if args.transition_s < 0:
+        raise ValueError(f"--transition-s ({args.transition_s}) must not be negative")
+    if args.max_modes is not None and args.max_modes < 1:
+        raise ValueError(f"--max-modes ({args.max_modes}) must be at least 1")
+    return SimulationConfig(method=args.method, band=band_from_args(args),
+                            integrator=args.integrator, dt=args.dt,
+                            transition_s=args.transition_s, max_modes=args.max_modes)
+
+
+def run_main(prog: str, body: Callable[[], int]) -> int:
+    """Run a command body, turning known errors into one clear line and exit status 2."""
+    try:
+        return body()
+    except (SceneError, BandError, ValueError) as exc:
+        fail(prog, str(exc))
+    except KeyboardInterrupt:
+        return 130

@@ -1,0 +1,112 @@
+"""Nonlinear spring forces (paper eq. 20) and gravity in generalized coordinates.
+
+For free-DOF displacement ``u = Phi q`` (``Phi`` = the retained modes, or the identity for the
+full physical run), measured from the rigidly moving base (see
+:mod:`modal_spring_ros.anchor_motion`), each spring's vector ``x_j - x_i`` is an affine
+function of ``q``:
+
+    delta = delta_rest + G q,     G = D Phi
+
+with ``D`` the sparse spring-difference matrix. The force on the free DOF is ``-D^T`` of the
+per-spring force vectors, so its projection on the modes (paper fig. 5, step 4) is
+``Q = -G^T f_spring + Phi^T (f_gravity - M 1 a_base(t))``.
+
+Per step this is one product with ``G``, a few vectorised operations over the springs and one
+product with ``G^T``: no Python loop over particles or springs. ``G`` is stored dense when that
+is cheap (small scenes, few modes) and applied as ``D`` after ``Phi`` otherwise.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+#: Largest dense ``G`` (entries) kept; beyond it ``G q`` is computed as ``D (Phi q)``.
+DENSE_G_LIMIT = 400_000
+
+
+def spring_difference_matrix(springs: np.ndarray, free_index: np.ndarray, dimension: int,
+                             n_free: int) -> sp.csr_matrix:
+    """Sparse ``D`` with ``(D u)[a*E + e] = u_j[a] - u_i[a]`` over the free DOF (fixed: 0).
+
+    Rows are component-major (all x components, then all y, ...), so that the per-spring
+    arithmetic runs over contiguous rows of a ``(d, E)`` array.
+    """
+    n_springs = springs.shape[0]
+    rows, cols, vals = [], [], []
+    for end, sign in ((1, 1.0), (0, -1.0)):
+        p = free_index[springs[:, end]]
+        ok = p >= 0
+        for a in range(dimension):
+            rows.append(a * n_springs + np.flatnonzero(ok))
+            cols.append(p[ok] * dimension + a)
+            vals.append(np.full(int(ok.sum()), sign))
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(n_springs * dimension, n_free * dimension))
+
+
+class GeneralizedForces:
+    """``Q(q, t)``: total force on the free DOF projected on ``Phi`` (identity when None).
+
+    Attributes:
+        last_max_strain: largest ``|L - l| / l`` over all springs at the last evaluation.
+    """
+
+    def __init__(self, model, basis: np.ndarray | None):
+        s = model.scene
+        d = model.dimension
+        self.dimension = d
+        # Spring force magnitudes k (L - l) / L are applied by -G^T (eq. 20 pulls i towards j).
+        self._k = np.asarray(s.stiffness, dtype=float)
+        self._l = np.asarray(s.rest_length, dtype=float)
+        self._inv_l = 1.0 / self._l
+        rest = model.rest
+        self._delta_rest = (rest[s.springs[:, 1]] - rest[s.springs[:, 0]]).T.ravel()
+        self._anchors_move = not s.anchor_motion.is_static
+        self._base_acceleration = model.base_acceleration
+        # Inertial load of a unit base acceleration along each moving axis: -M 1_axis.
+        base_load = -(model.mass_dof[:, None]
+                      * (np.arange(model.n_free_dof)[:, None] % d == np.arange(d)[None, :]))
+        free_index = np.full(s.n_particles, -1)
+        free_index[model.free_particles] = np.arange(model.free_particles.size)
+        d_mat = spring_difference_matrix(s.springs, free_index, d, model.free_particles.size)
+        g = model.gravity_force
+        self._phi = None
+        if basis is None:
+            self._g, self._gt = d_mat, (-d_mat.T).tocsr()
+            self._gravity, self._base_load = g.copy(), base_load
+        else:
+            self._gravity, self._base_load = basis.T @ g, basis.T @ base_load
+            if d_mat.shape[0] * basis.shape[1] <= DENSE_G_LIMIT:
+                dense = np.asarray(d_mat @ basis)
+                self._g, self._gt = dense, -np.ascontiguousarray(dense.T)
+            else:
+                self._phi, self._phit = basis, np.ascontiguousarray(basis.T)
+                self._g, self._gt = d_mat, (-d_mat.T).tocsr()
+        self._abs_stretch = np.empty(self._l.size)
+        self.last_max_strain = 0.0
+
+    def spring_deltas(self, q: np.ndarray) -> np.ndarray:
+        """(d, E) spring vectors ``x_j - x_i`` for generalized coordinates ``q``."""
+        u = q if self._phi is None else self._phi @ q
+        delta = self._g @ u
+        delta += self._delta_rest
+        return delta.reshape(self.dimension, -1)
+
+    def __call__(self, q: np.ndarray, t: float) -> np.ndarray:
+        delta = self.spring_deltas(q)
+        length = np.einsum("de,de->e", delta, delta)
+        np.sqrt(length, out=length)
+        stretch = length - self._l
+        np.abs(stretch, out=self._abs_stretch)
+        self._abs_stretch *= self._inv_l
+        self.last_max_strain = float(self._abs_stretch.max())
+        stretch *= self._k
+        stretch /= length
+        delta *= stretch
+        f = self._gt @ delta.ravel()
+        if self._phi is not None:
+            f = self._phit @ f
+        f += self._gravity
+        if self._anchors_move:
+            f += self._base_load @ self._base_acceleration(t)
+        return f

@@ -1,0 +1,454 @@
+"""Stepping a scene: the modal method (paper fig. 5) and the full physical reference.
+
+:class:`ModalSimulation` steps only the retained modes ``R``. Each step (paper fig. 5):
+advance the modal coordinates ``q`` (Newmark), map to positions ``x = x_rest + Phi_R q`` (fixed
+particles follow their prescribed motion), evaluate the nonlinear spring forces and gravity in
+physical space (eq. 20), project them back, ``Q = Phi_R^T f``, and solve the uncoupled modal
+equations ``q'' + C q' = Q``. ``K`` only gives the basis; the dynamics stay nonlinear.
+
+:class:`FullSimulation` steps every free DOF with the same integrators and the equivalent
+damping, and is what the modal run is compared with. With every mode kept, the two agree to
+round-off.
+
+Both detect divergence on the step it happens (a non-finite state, a spring strained beyond
+``strain_limit``, or an implicit step that does not converge), raise :class:`DivergenceError`
+and keep the last good state, so no caller ever sees NaN.
+"""
+from __future__ import annotations
+
+import abc
+import math
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from modal_spring_ros.filter_band import BandError, FilterBand
+from modal_spring_ros.generalized_forces import GeneralizedForces
+from modal_spring_ros.mass_spring import MassSpringModel
+from modal_spring_ros.modal_basis import ModalBasis
+from modal_spring_ros.newmark import (INTEGRATORS, DiagonalOperators, NonConvergence,
+                                      average_step, explicit_step)
+from modal_spring_ros.scene import Damping
+
+METHODS = ("modal", "full")
+
+#: Default spring strain treated as divergence (the simulation has left any meaningful regime).
+DEFAULT_STRAIN_LIMIT = 1.0
+
+
+class DivergenceError(RuntimeError):
+    """The step diverged. The simulation keeps its last good state."""
+
+    def __init__(self, reason: str, time: float, step: int):
+        super().__init__(f"diverged at t = {time:.6g} s (step {step}): {reason}")
+        self.reason = reason
+        self.time = time
+        self.step = step
+
+
+def stable_step_limit(omega_max: float) -> float:
+    """Largest stable explicit Newmark step for an undamped mode: ``2 / omega_max``."""
+    return math.inf if omega_max <= 0.0 else 2.0 / omega_max
+
+
+class Simulation(abc.ABC):
+    """What both methods share: time, state in physical terms, divergence checks."""
+
+    method: str
+
+    def __init__(self, model: MassSpringModel, *, dt: float, integrator: str,
+                 damping: Damping | None, strain_limit: float):
+        if not (dt > 0.0 and math.isfinite(dt)):
+            raise ValueError(f"dt ({dt}) must be a positive finite number of seconds")
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"integrator '{integrator}' must be one of {', '.join(INTEGRATORS)}")
+        self.model = model
+        self.dt = float(dt)
+        self.integrator = integrator
+        self.damping = model.scene.damping if damping is None else damping
+        self.strain_limit = float(strain_limit)
+        self.time = 0.0
+        self.steps = 0
+        self.last_iterations = 1
+        self.diverged: DivergenceError | None = None
+
+    # -- state in physical terms ---------------------------------------------------------------
+    @abc.abstractmethod
+    def displacement(self) -> np.ndarray:
+        """Free-DOF displacement ``u`` from rest, relative to the moving base (flat)."""
+
+    @abc.abstractmethod
+    def velocity(self) -> np.ndarray:
+        """Free-DOF velocity relative to the base (flat)."""
+
+    @abc.abstractmethod
+    def stability_limit(self) -> float:
+        """``2 / omega_max`` over the modes this run steps (explicit integrator), s."""
+
+    @abc.abstractmethod
+    def reset(self) -> None:
+        """Back to the rest shape, at rest, at t = 0."""
+
+    def positions(self) -> np.ndarray:
+        """(n, 3) particle positions (scene order)."""
+        x = self.model.positions(self.displacement(), self.time)
+        return self.model.positions3(x)
+
+    def energy(self) -> dict[str, float]:
+        x = self.model.positions(self.displacement(), self.time)
+        v = self.velocity().reshape(-1, self.model.dimension) + self.model.base_velocity(self.time)
+        return self.model.energy(x, v.ravel())
+
+    def max_strain(self) -> float:
+        return self.model.max_strain(self.model.positions(self.displacement(), self.time))
+
+    # -- stepping ------------------------------------------------------------------------------
+    def step(self, count: int = 1) -> None:
+        """Advance ``count`` steps. Raises :class:`DivergenceError` (state kept at last good)."""
+        for _ in range(count):
+            self._step_once()
+
+    def _checked(self, a1: np.ndarray) -> None:
+        """Divergence checks of a step. ``u1`` and ``v1`` derive from the (finite) last state
+        and ``a1``, so a finite ``a1`` (squared norm, which also catches overflow) is enough."""
+        t1 = self.time + self.dt
+        reason = None
+        if not math.isfinite(float(a1 @ a1)):
+            reason = "non-finite state"
+        elif self._forces.last_max_strain > self.strain_limit:
+            reason = (f"spring strain {self._forces.last_max_strain:.3g} exceeds the limit "
+                      f"{self.strain_limit:g}")
+        if reason is not None:
+            self.diverged = DivergenceError(reason, t1, self.steps + 1)
+            raise self.diverged
+
+    def _advance(self, u, v, a, force: Callable[[np.ndarray], np.ndarray], ops):
+        """One integrator step in whatever coordinates ``u`` is; checks, does not commit."""
+        if self.integrator == "explicit":
+            u1, v1, a1 = explicit_step(u, v, a, self.dt, force, ops)
+            self.last_iterations = 1
+        else:
+            try:
+                u1, v1, a1, self.last_iterations = average_step(u, v, a, self.dt, force, ops)
+            except NonConvergence as exc:
+                self.diverged = DivergenceError(str(exc), self.time + self.dt, self.steps + 1)
+                raise self.diverged from None
+        self._checked(a1)
+        return u1, v1, a1
+
+    def _commit(self) -> None:
+        self.steps += 1
+        self.time = self.steps * self.dt
+        self.diverged = None
+
+    @abc.abstractmethod
+    def _step_once(self) -> None:
+        ...
+
+
+# ----------------------------------------------------------------------------------------------
+# Modal
+
+
+class ModalSimulation(Simulation):
+    """The seed method: step only the modes the filter band keeps.
+
+    Changing the band while running is smooth: a mode that leaves the band fades out over
+    ``transition_s`` (its amplitude follows a raised-cosine envelope to zero, so positions do
+    not jump); a mode that enters starts from rest. Modes not computed yet are computed when a
+    band first needs them (at most ``max_modes``).
+    """
+
+    method = "modal"
+
+    def __init__(self, model: MassSpringModel, basis: ModalBasis, band: FilterBand, *,
+                 dt: float, integrator: str = "explicit", damping: Damping | None = None,
+                 transition_s: float = 0.5, max_modes: int | None = None,
+                 strain_limit: float = DEFAULT_STRAIN_LIMIT):
+        super().__init__(model, dt=dt, integrator=integrator, damping=damping,
+                         strain_limit=strain_limit)
+        self.basis = basis
+        self.max_modes = int(max_modes) if max_modes else (basis.n_dof if basis.dense else 256)
+        self.transition_s = float(transition_s)
+        self.band = band.validate()
+        self.truncated = False
+        self._active = np.empty(0, dtype=np.int64)
+        self._target = np.empty(0, dtype=bool)
+        self._fade = np.empty(0)  # fade progress per active mode: 0 = full, 1 = gone
+        self._fading = False
+        self._q = self._v = self._a = np.empty(0)
+        self._set_active(self.select_modes(band))
+        self.reset()
+
+    # -- band ----------------------------------------------------------------------------------
+    def prepare_band(self, band: FilterBand) -> None:
+        """Compute the modes ``band`` needs (the slow part of a band change; no state change)."""
+        band.validate()
+        limit = min(self.max_modes, self.basis.n_dof)
+        if band.by == "index":
+            needed = int(band.high) + 1 if band.bounded_above else limit
+            self.basis.ensure_count(min(needed, limit))
+        elif band.bounded_above:
+            self.basis.ensure_frequency(band.high, limit)
+        else:
+            self.basis.ensure_count(limit)
+
+    def select_modes(self, band: FilterBand) -> np.ndarray:
+        """Indices of the computed modes ``band`` keeps (computing what it needs first).
+
+        Raises:
+            BandError: the band keeps no mode.
+        """
+        self.prepare_band(band)
+        f = self.basis.frequencies_hz
+        keep = np.flatnonzero(band.keeps(f))
+        if band.by == "index":
+            keep = keep[keep < self.max_modes]
+        self.truncated = (not self.basis.complete and
+                          (not band.bounded_above or (band.by == "hz" and f[-1] <= band.high)))
+        if keep.size == 0:
+            span = f"{f[0]:.4g} .. {f[-1]:.4g} Hz" if band.by == "hz" else f"0 .. {f.size - 1}"
+            raise BandError(f"filter band {band.describe()} keeps no mode "
+                            f"(the computed modes span {span})")
+        return keep
+
+    def set_band(self, band: FilterBand, transition_s: float | None = None) -> None:
+        """Change the band; leaving modes fade out, entering modes start from rest."""
+        keep = self.select_modes(band)
+        if transition_s is not None:
+            self.transition_s = float(transition_s)
+        self.band = band
+        self._set_active(keep)
+
+    @property
+    def kept_modes(self) -> np.ndarray:
+        """Indices of the modes in the band (fading-out modes excluded)."""
+        return self._active[self._target]
+
+    @property
+    def stepped_modes(self) -> np.ndarray:
+        """Indices of the modes being stepped (band plus modes still fading out)."""
+        return self._active.copy()
+
+    @property
+    def fading(self) -> bool:
+        """Some modes are still fading out after a band change."""
+        return self._fading
+
+    def stability_limit(self) -> float:
+        return stable_step_limit(float(self.basis.omega[self._active].max()))
+
+    def _set_active(self, keep: np.ndarray) -> None:
+        """New active set: ``keep`` plus old modes not in it (fading). Re-projects the state."""
+        keep = np.asarray(keep, dtype=np.int64)
+        old_active, old_target, old_fade = self._active, self._target, self._fade
+        leaving = old_active[~np.isin(old_active, keep)]
+        if self.transition_s <= 0.0:
+            leaving = leaving[:0]
+        active = np.union1d(keep, leaving)
+        target = np.isin(active, keep)
+        fade = np.zeros(active.size)
+        pos_old = {m: k for k, m in enumerate(old_active.tolist())}
+        for k, m in enumerate(active.tolist()):
+            if m in pos_old and not target[k]:
+                fade[k] = old_fade[pos_old[m]] if not old_target[pos_old[m]] else 0.0
+        new_phi = np.ascontiguousarray(self.basis.vectors[:, active])
+        if old_active.size:
+            # Map the state onto the new active modes: q_new = Phi_new^T M Phi_old q_old
+            # (exact for modes in both sets; modes new to the set start from rest).
+            old_phi = self._phi
+            overlap = new_phi.T @ (self.model.mass_dof[:, None] * old_phi)
+            overlap[np.abs(overlap) < 1e-9] = 0.0
+            entering = ~np.isin(active, old_active)
+            overlap[entering] = 0.0
+            self._q, self._v, self._a = overlap @ self._q, overlap @ self._v, overlap @ self._a
+        else:
+            self._q = np.zeros(active.size)
+            self._v = np.zeros(active.size)
+            self._a = np.zeros(active.size)
+        self._active, self._target, self._fade = active, target, fade
+        self._fading = bool(np.any(~target))
+        self._phi = new_phi
+        omega = self.basis.omega[active]
+        self._omega = omega
+        self._damp = self.damping.modal_coefficients(omega)
+        self._ops = DiagonalOperators(1.0, self._damp, omega**2, self.dt)
+        self._forces = GeneralizedForces(self.model, new_phi)
+        self._basis_size = self.basis.count
+
+    def _drop_faded(self) -> None:
+        gone = (~self._target) & (self._fade >= 1.0)
+        if gone.any():
+            self._set_active(self._active[~gone])
+
+    def _apply_fade(self) -> None:
+        """Advance the fade envelope of leaving modes by one step; scales their state."""
+        fading = ~self._target
+        old = 0.5 + 0.5 * np.cos(np.pi * self._fade[fading])
+        self._fade[fading] = np.minimum(self._fade[fading] + self.dt / self.transition_s, 1.0)
+        new = 0.5 + 0.5 * np.cos(np.pi * self._fade[fading])
+        ratio = np.where(old > 0.0, new / np.where(old > 0.0, old, 1.0), 0.0)
+        self._q[fading] *= ratio
+        self._v[fading] *= ratio
+        self._a[fading] *= ratio
+
+    # -- state ---------------------------------------------------------------------------------
+    def reset(self) -> None:
+        if self.fading:
+            self._set_active(self.kept_modes)
+        self.time = 0.0
+        self.steps = 0
+        self.diverged = None
+        self.set_state(np.zeros(self.model.n_free_dof), np.zeros(self.model.n_free_dof))
+
+    def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
+        """Project a physical state onto the stepped modes (paper eq. 15: ``q = Phi^T M u``)."""
+        m = self.model.mass_dof
+        self._q = self._phi.T @ (m * displacement)
+        self._v = self._phi.T @ (m * velocity)
+        self._a = self._forces(self._q, self.time) - self._damp * self._v
+
+    @property
+    def modal_coordinates(self) -> np.ndarray:
+        return self._q.copy()
+
+    def displacement(self) -> np.ndarray:
+        return self._phi @ self._q
+
+    def velocity(self) -> np.ndarray:
+        return self._phi @ self._v
+
+    def _force(self, q: np.ndarray) -> np.ndarray:
+        return self._forces(q, self.time + self.dt)
+
+    def _step_once(self) -> None:
+        if self.basis.count != self._basis_size:
+            self._set_active(self.kept_modes)  # the basis grew: re-project onto it
+        q1, v1, a1 = self._advance(self._q, self._v, self._a, self._force, self._ops)
+        self._q, self._v, self._a = q1, v1, a1
+        self._commit()
+        if self.fading:
+            self._apply_fade()
+            self._drop_faded()
+
+
+# ----------------------------------------------------------------------------------------------
+# Full physical reference
+
+
+class PhysicalOperators:
+    """``M`` (lumped), ``C`` and ``K`` of the free DOF in physical coordinates.
+
+    Damping is Rayleigh ``alpha M + beta K`` (sparse) when the scene has no modal ratio; with a
+    modal ratio ``h`` it is the paper's equivalent ``c = M Phi C Phi^T M`` over every mode, which
+    needs the complete (dense) basis.
+    """
+
+    def __init__(self, model: MassSpringModel, damping: Damping, dt: float,
+                 basis: ModalBasis | None):
+        self.m = model.mass_dof
+        self.k = model.stiffness_free
+        self.dt = dt
+        self.damping = damping
+        self._modal = None
+        self._c = None
+        if damping.ratio != 0.0:
+            if basis is None or not basis.complete:
+                raise ValueError(
+                    "full method with a modal damping ratio needs every mode (equivalent "
+                    f"damping c = M Phi C Phi^T M); this scene has {model.n_free_dof} free DOF, "
+                    "above the dense limit. Use Rayleigh damping (damping.rayleigh) instead.")
+            phi = basis.vectors
+            cm = damping.modal_coefficients(basis.omega)
+            self._modal = (phi, cm, basis.omega)
+        elif damping.rayleigh_alpha or damping.rayleigh_beta:
+            self._c = (sp.diags(damping.rayleigh_alpha * self.m)
+                       + damping.rayleigh_beta * self.k).tocsc()
+        self._explicit = None
+        self._average = None
+
+    def _modal_solve(self, rhs, diag):
+        phi = self._modal[0]
+        return phi @ ((phi.T @ rhs) / diag)
+
+    def damp(self, v):
+        if self._modal is not None:
+            phi, cm, _ = self._modal
+            return self.m * (phi @ (cm * (phi.T @ (self.m * v))))
+        if self._c is not None:
+            return self._c @ v
+        return 0.0
+
+    def stiff(self, u):
+        return self.k @ u
+
+    def solve_explicit(self, rhs):
+        if self._modal is not None:
+            return self._modal_solve(rhs, 1.0 + 0.5 * self.dt * self._modal[1])
+        if self._c is None:
+            return rhs / self.m
+        if self._explicit is None:
+            self._explicit = spla.splu((sp.diags(self.m) + 0.5 * self.dt * self._c).tocsc())
+        return self._explicit.solve(rhs)
+
+    def solve_average(self, rhs):
+        h = 0.5 * self.dt
+        if self._modal is not None:
+            _, cm, omega = self._modal
+            return self._modal_solve(rhs, 1.0 + h * cm + h * h * omega**2)
+        if self._average is None:
+            a = sp.diags(self.m) + h * h * self.k
+            if self._c is not None:
+                a = a + h * self._c
+            self._average = spla.splu(sp.csc_matrix(a))
+        return self._average.solve(rhs)
+
+
+class FullSimulation(Simulation):
+    """Every free DOF in physical coordinates: the reference the modal run is compared with."""
+
+    method = "full"
+
+    def __init__(self, model: MassSpringModel, *, dt: float, integrator: str = "explicit",
+                 damping: Damping | None = None, basis: ModalBasis | None = None,
+                 strain_limit: float = DEFAULT_STRAIN_LIMIT):
+        super().__init__(model, dt=dt, integrator=integrator, damping=damping,
+                         strain_limit=strain_limit)
+        self.basis = basis
+        self._ops = PhysicalOperators(model, self.damping, self.dt, basis)
+        self._forces = GeneralizedForces(model, None)
+        self.reset()
+
+    def stability_limit(self) -> float:
+        if self.basis is None:
+            raise ValueError("stability limit needs the modal basis")
+        return stable_step_limit(self.basis.omega_max_estimate())
+
+    def reset(self) -> None:
+        self.time = 0.0
+        self.steps = 0
+        self.diverged = None
+        n = self.model.n_free_dof
+        self.set_state(np.zeros(n), np.zeros(n))
+
+    def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
+        self._u = np.array(displacement, dtype=float)
+        self._v = np.array(velocity, dtype=float)
+        f = self._forces(self._u, self.time) - self._ops.damp(self._v)
+        self._a = f / self.model.mass_dof
+
+    def displacement(self) -> np.ndarray:
+        return self._u.copy()
+
+    def velocity(self) -> np.ndarray:
+        return self._v.copy()
+
+    def _force(self, u: np.ndarray) -> np.ndarray:
+        return self._forces(u, self.time + self.dt)
+
+    def _step_once(self) -> None:
+        self._u, self._v, self._a = self._advance(self._u, self._v, self._a, self._force,
+                                                  self._ops)
+        self._commit()

@@ -1,0 +1,116 @@
+"""Build a ready-to-step simulation from user-level options (shared by every front end).
+
+The command-line tools, the ROS node, the recorder's re-simulation and the benchmark all go
+through :func:`build_simulation`, so a run described by the same :class:`SimulationConfig` is
+the same run everywhere (bit for bit: the engine is deterministic).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+from modal_spring_ros.filter_band import FilterBand
+from modal_spring_ros.mass_spring import MassSpringModel
+from modal_spring_ros.modal_basis import ModalBasis, Progress
+from modal_spring_ros.scene import DEFAULT_SCENE, Scene, load_scene, scene_from_dict
+from modal_spring_ros.simulation import (DEFAULT_STRAIN_LIMIT, METHODS, FullSimulation,
+                                         ModalSimulation, Simulation)
+
+#: Fraction of the explicit stability limit used when no time step is given.
+AUTO_DT_SAFETY = 0.5
+
+
+class UnstableStepError(ValueError):
+    """The explicit integrator would be unstable for the modes stepped at this ``dt``."""
+
+
+@dataclasses.dataclass(frozen=True)
+class SimulationConfig:
+    """Everything that defines a run (the scene itself aside)."""
+
+    method: str = "modal"
+    band: FilterBand = FilterBand()
+    integrator: str = "explicit"
+    dt: float | None = None
+    transition_s: float = 0.5
+    max_modes: int | None = None
+    strain_limit: float = DEFAULT_STRAIN_LIMIT
+
+    def to_dict(self) -> dict[str, Any]:
+        out = dataclasses.asdict(self)
+        out["band"] = dataclasses.asdict(self.band)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "SimulationConfig":
+        data = dict(data)
+        band = data.pop("band", {}) or {}
+        return cls(band=FilterBand(**band), **data)
+
+
+def resolve_scene(scene: Scene | str | dict) -> Scene:
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, dict):
+        return scene_from_dict(scene, source="<embedded scene>")
+    return load_scene(scene or DEFAULT_SCENE)
+
+
+def build_simulation(scene: Scene | str | dict, config: SimulationConfig, *,
+                     progress: Progress | None = None, allow_unstable: bool = False
+                     ) -> Simulation:
+    """Scene + options -> a simulation at rest at t = 0.
+
+    Raises:
+        SceneError: invalid scene (including a mechanism).
+        BandError: impossible filter band.
+        UnstableStepError: explicit stepping above ``2 / omega_max`` (unless allowed).
+        ValueError: other bad options (method, integrator, dt).
+    """
+    if config.method not in METHODS:
+        raise ValueError(f"method '{config.method}' must be one of {', '.join(METHODS)}")
+    config.band.validate()
+    scene = resolve_scene(scene)
+    model = MassSpringModel(scene)
+    basis = ModalBasis(model, progress=progress)
+    dt = config.dt if config.dt is not None else scene.default_dt
+    probe_dt = dt if dt is not None else 1e-3
+    if config.method == "modal":
+        sim: Simulation = ModalSimulation(
+            model, basis, config.band, dt=probe_dt, integrator=config.integrator,
+            transition_s=config.transition_s, max_modes=config.max_modes,
+            strain_limit=config.strain_limit)
+    else:
+        sim = FullSimulation(model, dt=probe_dt, integrator=config.integrator, basis=basis,
+                             strain_limit=config.strain_limit)
+    if dt is None:
+        limit = sim.stability_limit()
+        dt = AUTO_DT_SAFETY * limit if math.isfinite(limit) else 1e-3
+        sim = _with_dt(sim, dt)
+    if not allow_unstable:
+        check_stable(sim)
+    return sim
+
+
+def _with_dt(sim: Simulation, dt: float) -> Simulation:
+    """The same simulation (at rest) with another time step."""
+    if isinstance(sim, ModalSimulation):
+        return ModalSimulation(sim.model, sim.basis, sim.band, dt=dt, integrator=sim.integrator,
+                               transition_s=sim.transition_s, max_modes=sim.max_modes,
+                               strain_limit=sim.strain_limit)
+    return FullSimulation(sim.model, dt=dt, integrator=sim.integrator, basis=sim.basis,
+                          strain_limit=sim.strain_limit)
+
+
+def check_stable(sim: Simulation, dt_name: str = "dt") -> None:
+    """Refuse explicit stepping at or above ``2 / omega_max`` of the stepped modes."""
+    if sim.integrator != "explicit":
+        return
+    limit = sim.stability_limit()
+    if sim.dt >= limit:
+        raise UnstableStepError(
+            f"{dt_name} ({sim.dt:g} s) is at or above the explicit stability limit "
+            f"2/omega_max = {limit:.4g} s of the {sim.method} run's highest mode "
+            f"({1.0 / (math.pi * limit):.4g} Hz): lower {dt_name}, keep fewer high modes "
+            f"(a lower filter.high_hz), or use the 'average' integrator")

@@ -1,0 +1,36 @@
+"""ament_python package setup (also installable with pip into a plain venv)."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "modal_spring_ros"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/config", glob("config/*.yaml")),
+        ("share/" + package_name + "/config/scenes", glob("config/scenes/*.yaml")),
+    ],
+    python_requires=">=3.10",
+    install_requires=["setuptools", "numpy", "scipy", "PyYAML", "matplotlib", "mcap",
+                      "mcap-ros2-support"],
+    extras_require={
+        # ROS 2 Jazzy from PyPI wheels, for machines without a ROS install.
+        "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
+        "test": ["pytest", "rosbags"],
+    },
+    zip_safe=True,
+    maintainer="modal_spring_ros maintainers",
+    maintainer_email="maintainers@modal-spring-ros.invalid",
+    description="Stream frequency-filtered mass-spring deformations (modal analysis) into ROS 2",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "modal_spring_sim = modal_spring_ros.sim_cli:main",
+        ],
+    },
+)
