@@ -157,8 +157,9 @@ class ModalSimulation(Simulation):
 
     Changing the band while running is smooth: a mode that leaves the band fades out over
     ``transition_s`` (its amplitude follows a raised-cosine envelope to zero, so positions do
-    not jump); a mode that enters starts from rest. Modes not computed yet are computed when a
-    band first needs them (at most ``max_modes``).
+    not jump); a mode that enters starts from rest and takes on its load along the same
+    envelope, so it eases into place rather than dropping. Modes not computed yet are computed
+    when a band first needs them (at most ``max_modes``).
     """
 
     method = "modal"
@@ -176,7 +177,7 @@ class ModalSimulation(Simulation):
         self.truncated = False
         self._active = np.empty(0, dtype=np.int64)
         self._target = np.empty(0, dtype=bool)
-        self._fade = np.empty(0)  # fade progress per active mode: 0 = full, 1 = gone
+        self._progress = np.empty(0)  # fade progress per active mode: 1 = fully in, 0 = out
         self._fading = False
         self._q = self._v = self._a = np.empty(0)
         self._set_active(self.select_modes(band))
@@ -234,70 +235,81 @@ class ModalSimulation(Simulation):
 
     @property
     def fading(self) -> bool:
-        """Some modes are still fading out after a band change."""
+        """Some modes are still fading in or out after a band change."""
         return self._fading
 
     def stability_limit(self) -> float:
         return stable_step_limit(float(self.basis.omega[self._active].max()))
 
     def _set_active(self, keep: np.ndarray) -> None:
-        """New active set: ``keep`` plus old modes not in it (fading). Re-projects the state."""
+        """New active set: ``keep`` plus old modes still fading out. Re-projects the state.
+
+        Each active mode has a fade progress ``p`` in [0, 1] (1 = fully in) and an envelope
+        ``w = (1 - cos(pi p)) / 2``. Modes of ``keep`` ramp ``p`` up, the others down.
+        """
         keep = np.asarray(keep, dtype=np.int64)
-        old_active, old_target, old_fade = self._active, self._target, self._fade
-        leaving = old_active[~np.isin(old_active, keep)]
-        if self.transition_s <= 0.0:
+        old_active, old_progress = self._active, self._progress
+        instant = self.transition_s <= 0.0
+        leaving = old_active[~np.isin(old_active, keep) & (old_progress > 0.0)]
+        if instant:
             leaving = leaving[:0]
         active = np.union1d(keep, leaving)
         target = np.isin(active, keep)
-        fade = np.zeros(active.size)
-        pos_old = {m: k for k, m in enumerate(old_active.tolist())}
-        for k, m in enumerate(active.tolist()):
-            if m in pos_old and not target[k]:
-                fade[k] = old_fade[pos_old[m]] if not old_target[pos_old[m]] else 0.0
+        was = np.isin(active, old_active)
+        progress = np.zeros(active.size)  # modes new to the set fade in from 0
+        progress[was] = old_progress[np.searchsorted(old_active, active[was])]
+        if instant or not old_active.size:
+            progress[target] = 1.0
         new_phi = np.ascontiguousarray(self.basis.vectors[:, active])
         if old_active.size:
             # Map the state onto the new active modes: q_new = Phi_new^T M Phi_old q_old
             # (exact for modes in both sets; modes new to the set start from rest).
-            old_phi = self._phi
-            overlap = new_phi.T @ (self.model.mass_dof[:, None] * old_phi)
+            overlap = new_phi.T @ (self.model.mass_dof[:, None] * self._phi)
             overlap[np.abs(overlap) < 1e-9] = 0.0
-            entering = ~np.isin(active, old_active)
-            overlap[entering] = 0.0
+            overlap[~was] = 0.0
             self._q, self._v, self._a = overlap @ self._q, overlap @ self._v, overlap @ self._a
         else:
             self._q = np.zeros(active.size)
             self._v = np.zeros(active.size)
             self._a = np.zeros(active.size)
-        self._active, self._target, self._fade = active, target, fade
-        self._fading = bool(np.any(~target))
+        self._active, self._target, self._progress = active, target, progress
+        self._fading = bool(np.any(progress < 1.0) or np.any(~target))
         self._phi = new_phi
         omega = self.basis.omega[active]
-        self._omega = omega
+        self._omega2 = omega**2
         self._damp = self.damping.modal_coefficients(omega)
-        self._ops = DiagonalOperators(1.0, self._damp, omega**2, self.dt)
+        self._ops = DiagonalOperators(1.0, self._damp, self._omega2, self.dt)
         self._forces = GeneralizedForces(self.model, new_phi)
         self._basis_size = self.basis.count
+        self._update_envelope()
 
-    def _drop_faded(self) -> None:
-        gone = (~self._target) & (self._fade >= 1.0)
-        if gone.any():
-            self._set_active(self._active[~gone])
+    def _update_envelope(self) -> None:
+        self._envelope = 0.5 - 0.5 * np.cos(np.pi * self._progress)
+        self._fading_in = self._target & (self._progress < 1.0)
 
-    def _apply_fade(self) -> None:
-        """Advance the fade envelope of leaving modes by one step; scales their state."""
-        fading = ~self._target
-        old = 0.5 + 0.5 * np.cos(np.pi * self._fade[fading])
-        self._fade[fading] = np.minimum(self._fade[fading] + self.dt / self.transition_s, 1.0)
-        new = 0.5 + 0.5 * np.cos(np.pi * self._fade[fading])
-        ratio = np.where(old > 0.0, new / np.where(old > 0.0, old, 1.0), 0.0)
-        self._q[fading] *= ratio
-        self._v[fading] *= ratio
-        self._a[fading] *= ratio
+    def _advance_fade(self) -> None:
+        """Move every fading mode's progress one step; leaving modes' state follows the
+        envelope down to zero (no jump), and modes that reach zero are dropped."""
+        step = self.dt / self.transition_s
+        old = self._envelope
+        self._progress = np.clip(self._progress + np.where(self._target, step, -step), 0.0, 1.0)
+        self._update_envelope()
+        out = ~self._target
+        ratio = np.divide(self._envelope[out], old[out], out=np.zeros(int(out.sum())),
+                          where=old[out] > 0.0)
+        self._q[out] *= ratio
+        self._v[out] *= ratio
+        self._a[out] *= ratio
+        if np.any(out & (self._progress <= 0.0)):
+            self._set_active(self._active[self._target])
+        self._fading = bool(np.any(self._progress < 1.0) or np.any(~self._target))
 
     # -- state ---------------------------------------------------------------------------------
     def reset(self) -> None:
-        if self.fading:
-            self._set_active(self.kept_modes)
+        if self._fading:  # settle the band: every kept mode fully in, none fading out
+            kept = self.kept_modes
+            self._active = np.empty(0, dtype=np.int64)
+            self._set_active(kept)
         self.time = 0.0
         self.steps = 0
         self.diverged = None
@@ -321,7 +333,14 @@ class ModalSimulation(Simulation):
         return self._phi @ self._v
 
     def _force(self, q: np.ndarray) -> np.ndarray:
-        return self._forces(q, self.time + self.dt)
+        force = self._forces(q, self.time + self.dt)
+        if self._fading:
+            # An entering mode takes on its load (all but its own linear restoring force)
+            # along its envelope, so it eases into place instead of dropping from rest.
+            w = self._envelope
+            restoring = -self._omega2 * q
+            force = np.where(self._fading_in, restoring + w * (force - restoring), force)
+        return force
 
     def _step_once(self) -> None:
         if self.basis.count != self._basis_size:
@@ -329,9 +348,8 @@ class ModalSimulation(Simulation):
         q1, v1, a1 = self._advance(self._q, self._v, self._a, self._force, self._ops)
         self._q, self._v, self._a = q1, v1, a1
         self._commit()
-        if self.fading:
-            self._apply_fade()
-            self._drop_faded()
+        if self._fading:
+            self._advance_fade()
 
 
 # ----------------------------------------------------------------------------------------------

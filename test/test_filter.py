@@ -1,0 +1,157 @@
+"""The filter band: validation, mode choice, spectral effect, smooth changes."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from modal_spring_ros.filter_band import BandError, FilterBand, parse_mode_range
+from modal_spring_ros.mass_spring import MassSpringModel
+from modal_spring_ros.modal_basis import ModalBasis
+from modal_spring_ros.scene import load_scene
+from modal_spring_ros.simulation import ModalSimulation
+
+FREQS = np.array([1.0, 2.0, 5.0, 9.0, 20.0])
+
+
+@pytest.mark.parametrize("band, kept", [
+    (FilterBand(), [0, 1, 2, 3, 4]),
+    (FilterBand("lowpass", high=5.0), [0, 1, 2]),
+    (FilterBand("highpass", low=5.0), [2, 3, 4]),
+    (FilterBand("bandpass", 2.0, 9.0), [1, 2, 3]),
+    (FilterBand("bandstop", 2.0, 9.0), [0, 4]),
+    (FilterBand("lowpass", high=1, by="index"), [0, 1]),
+    (FilterBand("bandpass", 1, 3, by="index"), [1, 2, 3]),
+    (FilterBand("bandstop", 1, 3, by="index"), [0, 4]),
+])
+def test_band_keeps_the_documented_modes(band, kept):
+    assert np.flatnonzero(band.validate().keeps(FREQS)).tolist() == kept
+
+
+@pytest.mark.parametrize("band, message", [
+    (FilterBand("bandpass", 5.0, 2.0),
+     "filter.low_hz (5) must be below filter.high_hz (2) for bandpass"),
+    (FilterBand("bandstop", 3.0, 3.0), "filter.low_hz (3) must be below filter.high_hz (3)"),
+    (FilterBand("lowpass", high=-1.0), "filter.high_hz (-1) must not be negative"),
+    (FilterBand("highpass", low=math.nan), "filter.low_hz (nan) must be finite for highpass"),
+    (FilterBand("lowpass", high=math.inf), "filter.high_hz (inf) must be finite for lowpass"),
+    (FilterBand("notch"), "filter.type 'notch' is not one of allpass, lowpass"),
+    (FilterBand("lowpass", high=2.5, by="index"), "filter.high_mode (2.5) must be a whole"),
+])
+def test_impossible_bands_are_rejected_with_the_rule(band, message):
+    with pytest.raises(BandError) as err:
+        band.validate()
+    assert message in str(err.value)
+
+
+def test_mode_ranges_reproduce_the_papers_figures():
+    assert parse_mode_range("0:14") == FilterBand("lowpass", 0, 14, "index")
+    assert parse_mode_range("2:48") == FilterBand("bandpass", 2, 48, "index")
+    for bad in ("14", "a:b", "5:2", "-1:3"):
+        with pytest.raises(BandError):
+            parse_mode_range(bad)
+
+
+def test_fig_10_bands_keep_the_papers_mode_counts(sheet_10x10):
+    model, basis = sheet_10x10
+    low = ModalSimulation(model, basis, parse_mode_range("0:14"), dt=5e-4)
+    assert low.kept_modes.tolist() == list(range(15))           # 165 of 180 dropped
+    band = ModalSimulation(model, basis, parse_mode_range("2:48"), dt=5e-4)
+    assert band.kept_modes.tolist() == list(range(2, 49))      # 2 low + 131 high dropped
+    assert 180 - band.kept_modes.size - 2 == 131
+
+
+def test_a_band_that_keeps_no_mode_is_rejected(sheet_10x10):
+    model, basis = sheet_10x10
+    with pytest.raises(BandError, match=r"keeps no mode \(the computed modes span 4.7"):
+        ModalSimulation(model, basis, FilterBand("lowpass", high=1.0), dt=5e-4)
+    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4)
+    with pytest.raises(BandError):
+        sim.set_band(FilterBand("bandpass", 5.0, 6.0))
+    assert sim.band == FilterBand() and sim.kept_modes.size == 180  # nothing changed
+
+
+def _power_above(sim, cutoff_hz: float, steps: int) -> float:
+    frames = np.empty((steps, sim.model.n_free_dof))
+    for k in range(steps):
+        sim.step()
+        frames[k] = sim.displacement()
+    frames -= frames.mean(axis=0)
+    spectrum = np.abs(np.fft.rfft(frames * np.hanning(steps)[:, None], axis=0)) ** 2
+    power = spectrum.sum(axis=1)
+    f = np.fft.rfftfreq(steps, sim.dt)
+    return float(power[f > cutoff_hz].sum() / power.sum())
+
+
+def test_lowpass_leaves_under_one_percent_of_power_above_the_cutoff(sheet_undamped_still):
+    model, basis = sheet_undamped_still
+    # Broadband excitation: every mode displaced by the same modal amplitude (white).
+    u0 = basis.vectors @ np.random.default_rng(1).normal(scale=2e-4, size=basis.count)
+    cutoff = 20.0
+    low = ModalSimulation(model, basis, FilterBand("lowpass", high=cutoff), dt=5e-4)
+    low.set_state(u0, np.zeros(model.n_free_dof))
+    every = ModalSimulation(model, basis, FilterBand(), dt=5e-4)
+    every.set_state(u0, np.zeros(model.n_free_dof))
+    assert _power_above(low, cutoff, 6000) < 0.01
+    assert _power_above(every, cutoff, 6000) > 0.2     # the excitation really is broadband
+
+
+def test_changing_the_band_mid_run_moves_no_particle_more_than_ordinary_motion(sheet_10x10):
+    model, basis = sheet_10x10
+    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4, transition_s=0.3)
+    sim.step(4000)                                        # 2 s: swaying steadily
+
+    def max_step_motion(steps: int) -> float:
+        worst, prev = 0.0, sim.positions()
+        for _ in range(steps):
+            sim.step()
+            now = sim.positions()
+            worst = max(worst, float(np.linalg.norm(now - prev, axis=1).max()))
+            prev = now
+        return worst
+
+    ordinary = max_step_motion(2000)
+    for band in (FilterBand("lowpass", high=14, by="index"), FilterBand("highpass", low=10.0),
+                 FilterBand("bandpass", 2, 48, by="index"), FilterBand()):
+        sim.set_band(band)
+        assert max_step_motion(800) <= ordinary
+    assert not sim.fading and sim.stepped_modes.size == 180
+
+
+def test_a_leaving_mode_fades_out_and_is_then_dropped(sheet_10x10):
+    model, basis = sheet_10x10
+    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4, transition_s=0.1)
+    sim.step(1000)
+    q_before = sim.modal_coordinates[0]
+    sim.set_band(FilterBand("highpass", low=6.0))      # drops mode 0 (4.7 Hz)
+    assert sim.fading and 0 in sim.stepped_modes and 0 not in sim.kept_modes
+    assert sim.modal_coordinates[0] == pytest.approx(q_before)   # no jump at the change
+    sim.step(100)                                        # half the transition
+    assert sim.fading and abs(sim.modal_coordinates[0]) < abs(q_before)
+    sim.step(100)
+    assert not sim.fading and 0 not in sim.stepped_modes
+
+
+def test_an_entering_mode_starts_from_rest(sheet_10x10):
+    model, basis = sheet_10x10
+    sim = ModalSimulation(model, basis, FilterBand("highpass", low=6.0), dt=5e-4)
+    sim.step(1000)
+    sim.set_band(FilterBand())
+    k = int(np.flatnonzero(sim.stepped_modes == 0)[0])
+    assert sim.modal_coordinates[k] == 0.0
+
+
+def test_modes_not_computed_yet_are_computed_when_a_band_needs_them():
+    model = MassSpringModel(load_scene("sheet_32x32"))
+    basis = ModalBasis(model, initial_modes=16)
+    sim = ModalSimulation(model, basis, FilterBand("lowpass", high=15, by="index"), dt=5e-4)
+    sim.step(400)
+    before = sim.positions()
+    high = float(basis.frequencies_hz[-1]) * 2.0
+    sim.set_band(FilterBand("lowpass", high=high))
+    assert basis.count > 16 and basis.frequencies_hz[-1] > high
+    assert sim.kept_modes.size == int(np.sum(basis.frequencies_hz <= high))
+    np.testing.assert_allclose(sim.positions(), before, atol=1e-12)  # state carried over
+    sim.step(100)
+    assert np.isfinite(sim.positions()).all()

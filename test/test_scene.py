@@ -1,0 +1,159 @@
+"""Scenes: built-ins as documented, and every invalid case with its message."""
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from modal_spring_ros.mass_spring import MassSpringModel
+from modal_spring_ros.modal_basis import ModalBasis
+from modal_spring_ros.scene import (SceneError, builtin_scene_names, load_scene,
+                                    scene_from_dict, scene_from_yaml)
+from modal_spring_ros.simulation import FullSimulation
+from conftest import variant
+
+
+def test_builtin_scenes_are_listed():
+    names = builtin_scene_names()
+    for expected in ("sheet_10x10", "chain_2", "sheet_32x32", "sheet_100x100", "cantilever_3d"):
+        assert expected in names
+
+
+def test_sheet_10x10_is_the_papers_scene():
+    s = load_scene("sheet_10x10")
+    assert s.n_particles == 100
+    assert s.dimension == 2
+    assert s.fixed.sum() == 10                     # the top row
+    assert np.all(s.rest_positions[s.fixed, 1] == s.rest_positions[:, 1].max())
+    assert s.n_free_dof == 180                     # paper: 180 vibration systems
+    assert s.n_springs == 2 * 9 * 10 + 2 * 9 * 9   # edges + both diagonals per cell
+    assert np.allclose(s.gravity, [0.0, -9.81, 0.0])
+
+
+def test_sheet_10x10_stays_in_the_small_deformation_regime():
+    """Largest spring strain under gravity below 5 % (the drop from rest included)."""
+    scene = variant("sheet_10x10", anchor_motion=[])
+    model = MassSpringModel(scene)
+    sim = FullSimulation(model, dt=5e-4, basis=ModalBasis(model))
+    worst = 0.0
+    for _ in range(400):
+        sim.step(5)
+        worst = max(worst, sim.max_strain())
+    assert 0.001 < worst < 0.05
+
+
+def test_3d_scene_has_out_of_plane_motion():
+    s = load_scene("cantilever_3d")
+    assert s.dimension == 3 and np.ptp(s.rest_positions[:, 2]) > 0
+    model = MassSpringModel(s)
+    basis = ModalBasis(model)
+    # The square section bends equally in y and z: a degenerate pair of lowest modes.
+    assert basis.frequencies_hz[0] == pytest.approx(basis.frequencies_hz[1], rel=1e-8)
+    z_share = np.abs(basis.vectors[2::3, :2]).sum()
+    assert z_share > 0.1 * np.abs(basis.vectors[:, :2]).sum()
+
+
+def test_scene_round_trips_through_its_full_definition():
+    s = load_scene("sheet_10x10")
+    again = scene_from_yaml(s.to_yaml())
+    for field in ("rest_positions", "mass", "springs", "stiffness", "rest_length", "fixed",
+                  "gravity"):
+        assert np.array_equal(getattr(s, field), getattr(again, field)), field
+    assert again.damping == s.damping and again.anchor_motion == s.anchor_motion
+
+
+def _chain(**override):
+    data = {
+        "name": "bad", "dimension": 2,
+        "particles": {"positions": [[0, 0], [1, 0], [1, 1]], "mass": 1.0},
+        "springs": {"pairs": [[0, 1], [1, 2], [0, 2]], "stiffness": 10.0},
+        "fixed": {"indices": [0]},
+    }
+    for key, value in override.items():
+        section, _, field = key.partition("__")
+        if field:
+            data[section] = dict(data[section], **{field: value})
+        else:
+            data[section] = value
+    return data
+
+
+@pytest.mark.parametrize("override, message", [
+    ({"particles__mass": -1.0}, "particles.mass: must be positive, got -1"),
+    ({"particles__mass": [1.0, 0.0, 1.0]}, "particles.mass[1]: must be positive, got 0"),
+    ({"springs__stiffness": 0.0}, "springs.stiffness: must be positive, got 0"),
+    ({"springs__stiffness": [1.0, -2.0, 1.0]}, "springs.stiffness[1]: must be positive"),
+    ({"particles__positions": [[0, 0], [1, 0], [1, 0]]},
+     "springs.pairs[1]: zero-length spring: particles 1 and 2 are at the same position"),
+    ({"springs__pairs": [[0, 1], [1, 2], [1, 0]]},
+     "springs.pairs[2]: duplicate spring 0-1 (same as springs.pairs[0])"),
+    ({"springs__pairs": [[0, 1], [1, 3], [0, 2]]},
+     "springs.pairs[1]: particle index 3 out of range (0..2)"),
+    ({"springs__pairs": [[0, 1], [1, 1], [0, 2]]},
+     "springs.pairs[1]: connects particle 1 to itself"),
+    ({"springs__pairs": [[0, 1]], "springs__stiffness": 1.0},
+     "springs: 1 particle(s) no spring reaches: 2"),
+    ({"fixed": {"indices": []}}, "fixed: no particle is fixed"),
+    ({"fixed": None}, "fixed: missing: at least one particle must be fixed"),
+    ({"fixed": {"indices": [7]}}, "fixed.indices[0]: particle index 7 out of range (0..2)"),
+    ({"dimension": 4}, "dimension: must be 1, 2 or 3, got 4"),
+    ({"gravity": [0, 0, -9.81]}, "gravity: a 2D scene moves along x, y only"),
+    ({"particles__positions": [[0, 0, 0], [1, 0, 0], [1, 1, 1]]},
+     "particles: a 2D scene must have equal z for every particle"),
+    ({"anchor_motion": [{"axis": "z", "amplitude": 1, "frequency_hz": 1}]},
+     "anchor_motion[0].axis: must be one of x, y"),
+    ({"damping": {"ratio": -0.1}}, "damping.ratio: must not be negative"),
+    ({"colour": "red"}, "colour: unknown key"),
+])
+def test_invalid_scene_names_field_and_problem(override, message):
+    with pytest.raises(SceneError) as err:
+        scene_from_dict(_chain(**override), source="bad.yaml")
+    assert str(err.value).startswith("bad.yaml: ")
+    assert message in str(err.value)
+
+
+def test_valid_minimal_scene_loads():
+    s = scene_from_dict(_chain())
+    assert s.n_particles == 3 and s.n_springs == 3
+
+
+def test_mechanism_reports_zero_mode_count_and_advice():
+    # A square of four particles, top two fixed, edge springs only: the bottom edge can sway
+    # sideways with no spring stretched: exactly one zero-stiffness mode.
+    data = {
+        "name": "mechanism", "dimension": 2,
+        "particles": {"positions": [[0, 0], [1, 0], [0, 1], [1, 1]], "mass": 1.0},
+        "springs": {"pairs": [[0, 1], [0, 2], [1, 3], [2, 3]], "stiffness": 10.0},
+        "fixed": {"indices": [2, 3]},
+    }
+    with pytest.raises(SceneError, match=r"1 zero-stiffness mode\(s\) \(a mechanism\)") as err:
+        ModalBasis(MassSpringModel(scene_from_dict(data)))
+    assert "shear (diagonal) springs" in str(err.value)
+    # The same square with one diagonal is rigid.
+    data["springs"]["pairs"].append([0, 3])
+    assert ModalBasis(MassSpringModel(scene_from_dict(data))).count == 4
+
+
+def test_sheet_without_diagonals_is_a_mechanism_on_the_sparse_path_too():
+    data = copy.deepcopy(load_scene("sheet_32x32").to_dict())
+    keep = [p for p in data["springs"]["pairs"]
+            if abs(data["particles"]["positions"][p[0]][0]
+                   - data["particles"]["positions"][p[1]][0]) < 1e-12
+            or abs(data["particles"]["positions"][p[0]][1]
+                   - data["particles"]["positions"][p[1]][1]) < 1e-12]
+    data["springs"] = {"pairs": keep, "stiffness": 1000.0}
+    model = MassSpringModel(scene_from_dict(data))
+    with pytest.raises(SceneError, match="zero-stiffness mode"):
+        ModalBasis(model)
+
+
+def test_unknown_scene_and_unreadable_file(tmp_path):
+    with pytest.raises(SceneError, match="unknown scene 'nope'.*built-in: .*sheet_10x10"):
+        load_scene("nope")
+    with pytest.raises(SceneError, match="cannot read scene file"):
+        load_scene(tmp_path / "missing.yaml")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("particles: [1, 2\n")
+    with pytest.raises(SceneError, match="invalid YAML"):
+        load_scene(bad)
