@@ -31,6 +31,7 @@ setup(
     entry_points={
         "console_scripts": [
             "modal_spring_sim = modal_spring_ros.sim_cli:main",
+            "modal_spring_node = modal_spring_ros.node:main",
         ],
     },
 )

@@ -71,6 +71,7 @@ class Simulation(abc.ABC):
         self.strain_limit = float(strain_limit)
         self.time = 0.0
         self.steps = 0
+        self._t0 = 0.0
         self.last_iterations = 1
         self.diverged: DivergenceError | None = None
 
@@ -140,8 +141,17 @@ class Simulation(abc.ABC):
 
     def _commit(self) -> None:
         self.steps += 1
-        self.time = self.steps * self.dt
+        self.time = self._t0 + self.steps * self.dt
         self.diverged = None
+
+    def take_over(self, other: "Simulation") -> None:
+        """Continue from another simulation's physical state and time (a settings change)."""
+        self._t0, self.steps, self.time = other.time, 0, other.time
+        self.set_state(other.displacement(), other.velocity())
+
+    @abc.abstractmethod
+    def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
+        """Start from a free-DOF displacement and velocity (relative to the base)."""
 
     @abc.abstractmethod
     def _step_once(self) -> None:
@@ -280,7 +290,6 @@ class ModalSimulation(Simulation):
         self._damp = self.damping.modal_coefficients(omega)
         self._ops = DiagonalOperators(1.0, self._damp, self._omega2, self.dt)
         self._forces = GeneralizedForces(self.model, new_phi)
-        self._basis_size = self.basis.count
         self._update_envelope()
 
     def _update_envelope(self) -> None:
@@ -310,7 +319,7 @@ class ModalSimulation(Simulation):
             kept = self.kept_modes
             self._active = np.empty(0, dtype=np.int64)
             self._set_active(kept)
-        self.time = 0.0
+        self.time = self._t0 = 0.0
         self.steps = 0
         self.diverged = None
         self.set_state(np.zeros(self.model.n_free_dof), np.zeros(self.model.n_free_dof))
@@ -343,8 +352,6 @@ class ModalSimulation(Simulation):
         return force
 
     def _step_once(self) -> None:
-        if self.basis.count != self._basis_size:
-            self._set_active(self.kept_modes)  # the basis grew: re-project onto it
         q1, v1, a1 = self._advance(self._q, self._v, self._a, self._force, self._ops)
         self._q, self._v, self._a = q1, v1, a1
         self._commit()
@@ -445,7 +452,7 @@ class FullSimulation(Simulation):
         return stable_step_limit(self.basis.omega_max_estimate())
 
     def reset(self) -> None:
-        self.time = 0.0
+        self.time = self._t0 = 0.0
         self.steps = 0
         self.diverged = None
         n = self.model.n_free_dof

@@ -15,7 +15,7 @@ from modal_spring_ros.mass_spring import MassSpringModel
 from modal_spring_ros.modal_basis import ModalBasis, Progress
 from modal_spring_ros.scene import DEFAULT_SCENE, Scene, load_scene, scene_from_dict
 from modal_spring_ros.simulation import (DEFAULT_STRAIN_LIMIT, METHODS, FullSimulation,
-                                         ModalSimulation, Simulation)
+                                         ModalSimulation, Simulation, stable_step_limit)
 
 #: Fraction of the explicit stability limit used when no time step is given.
 AUTO_DT_SAFETY = 0.5
@@ -87,13 +87,13 @@ def build_simulation(scene: Scene | str | dict, config: SimulationConfig, *,
     if dt is None:
         limit = sim.stability_limit()
         dt = AUTO_DT_SAFETY * limit if math.isfinite(limit) else 1e-3
-        sim = _with_dt(sim, dt)
+        sim = with_dt(sim, dt)
     if not allow_unstable:
         check_stable(sim)
     return sim
 
 
-def _with_dt(sim: Simulation, dt: float) -> Simulation:
+def with_dt(sim: Simulation, dt: float) -> Simulation:
     """The same simulation (at rest) with another time step."""
     if isinstance(sim, ModalSimulation):
         return ModalSimulation(sim.model, sim.basis, sim.band, dt=dt, integrator=sim.integrator,
@@ -105,12 +105,25 @@ def _with_dt(sim: Simulation, dt: float) -> Simulation:
 
 def check_stable(sim: Simulation, dt_name: str = "dt") -> None:
     """Refuse explicit stepping at or above ``2 / omega_max`` of the stepped modes."""
-    if sim.integrator != "explicit":
-        return
-    limit = sim.stability_limit()
-    if sim.dt >= limit:
+    _check_limit(sim.integrator, sim.dt, sim.stability_limit(), sim.method, dt_name)
+
+
+def check_band(sim: ModalSimulation, band: FilterBand, dt_name: str = "dt") -> None:
+    """Would ``band`` work in ``sim``? Computes the modes it needs; changes no state.
+
+    Raises:
+        BandError: it keeps no mode.
+        UnstableStepError: its highest mode is unstable at ``sim.dt`` (explicit).
+    """
+    keep = sim.select_modes(band)
+    limit = stable_step_limit(float(sim.basis.omega[keep].max()))
+    _check_limit(sim.integrator, sim.dt, limit, "modal", dt_name)
+
+
+def _check_limit(integrator: str, dt: float, limit: float, method: str, dt_name: str) -> None:
+    if integrator == "explicit" and dt >= limit:
         raise UnstableStepError(
-            f"{dt_name} ({sim.dt:g} s) is at or above the explicit stability limit "
-            f"2/omega_max = {limit:.4g} s of the {sim.method} run's highest mode "
+            f"{dt_name} ({dt:g} s) is at or above the explicit stability limit "
+            f"2/omega_max = {limit:.4g} s of the {method} run's highest mode "
             f"({1.0 / (math.pi * limit):.4g} Hz): lower {dt_name}, keep fewer high modes "
             f"(a lower filter.high_hz), or use the 'average' integrator")

@@ -1,0 +1,124 @@
+"""Run the real node as a subprocess and talk to it over DDS from an rclpy client node."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+
+# One DDS domain per test session, loopback discovery only: parallel sessions stay apart.
+DOMAIN_ID = 20 + os.getpid() % 70
+os.environ["ROS_DOMAIN_ID"] = str(DOMAIN_ID)
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+
+
+def console_script(name: str) -> str:
+    """The installed console script next to this interpreter (how a user starts it)."""
+    path = Path(sys.executable).parent / name
+    if not path.exists():
+        raise RuntimeError(f"{name} is not installed next to {sys.executable}")
+    return str(path)
+
+
+class NodeProcess:
+    """``modal_spring_node`` with ``--ros-args -p`` overrides, in its own process group."""
+
+    def __init__(self, *params: str, namespace: str = "",
+                 executable: str = "modal_spring_node"):
+        args = [console_script(executable)]
+        ros_args = [x for p in params for x in ("-p", p)]
+        if namespace:
+            ros_args += ["-r", f"__ns:=/{namespace}"]
+        if ros_args:
+            args += ["--ros-args"] + ros_args
+        self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                     text=True, env=dict(os.environ), start_new_session=True)
+
+    def interrupt(self, timeout: float = 15.0) -> tuple[int, str, str]:
+        self.proc.send_signal(signal.SIGINT)
+        out, err = self.proc.communicate(timeout=timeout)
+        return self.proc.returncode, out, err
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.communicate()
+
+
+class Client:
+    """A test node in its own context, spinning in a background thread."""
+
+    def __init__(self, name: str = "test_client"):
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=DOMAIN_ID)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except Exception:
+            pass
+
+    def collect(self, msg_type, topic: str, qos: int = 50) -> list:
+        """Subscribe and return the list messages are appended to (with receive time)."""
+        received: list = []
+        self.node.create_subscription(
+            msg_type, topic, lambda m: received.append((time.monotonic(), m)), qos)
+        return received
+
+    def call(self, srv_type, name: str, request, timeout: float = 20.0):
+        client = self.node.create_client(srv_type, name)
+        if not client.wait_for_service(timeout_sec=timeout):
+            raise TimeoutError(f"service {name} not available")
+        future = client.call_async(request)
+        end = time.monotonic() + timeout
+        while not future.done() and time.monotonic() < end:
+            time.sleep(0.01)
+        if not future.done():
+            raise TimeoutError(f"service {name} did not answer")
+        return future.result()
+
+    def set_parameters(self, node: str, atomically: bool = False, **values):
+        from rcl_interfaces.srv import SetParameters, SetParametersAtomically
+        params = [Parameter(k.replace("__", "."), value=v).to_parameter_msg()
+                  for k, v in values.items()]
+        if atomically:
+            req = SetParametersAtomically.Request(parameters=params)
+            return [self.call(SetParametersAtomically, f"/{node}/set_parameters_atomically",
+                              req).result]
+        return self.call(SetParameters, f"/{node}/set_parameters",
+                         SetParameters.Request(parameters=params)).results
+
+    def get_parameters(self, node: str, *names: str) -> list:
+        from rcl_interfaces.srv import GetParameters
+        res = self.call(GetParameters, f"/{node}/get_parameters",
+                        GetParameters.Request(names=list(names)))
+        return [Parameter.from_parameter_msg(
+            __import__("rcl_interfaces.msg", fromlist=["Parameter"]).Parameter(
+                name=n, value=v)).value for n, v in zip(names, res.values)]
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def wait_for(predicate, timeout: float, interval: float = 0.02) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(interval)
+    return predicate()
