@@ -62,3 +62,29 @@ def test_stress_band_changes_every_50ms_keep_the_stream_whole():
         client.close()
         code, _, err = node.interrupt()
         assert code == 0 and "Traceback" not in err
+
+
+def test_params_file_is_accepted_as_ros2_run_would_pass_it():
+    from pathlib import Path
+    from diagnostic_msgs.msg import DiagnosticArray as Diag
+    params = Path(__file__).resolve().parent.parent / "config" / "modal_spring.yaml"
+    import os
+    import subprocess
+    from ros_harness import console_script
+    proc = subprocess.Popen([console_script("modal_spring_node"), "--ros-args",
+                             "--params-file", str(params), "-r", "__ns:=/params"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ))
+    client = Client("params_client")
+    diags = client.collect(Diag, "/diagnostics")
+    try:
+        assert wait_for(lambda: any(d.status[0].name.startswith("/params/")
+                                    for _, d in diags), 30)
+        status = next(d.status[0] for _, d in diags if d.status[0].name.startswith("/params/"))
+        values = {kv.key: kv.value for kv in status.values}
+        assert values["band"] == "lowpass <= 45 Hz" and values["method"] == "modal"
+    finally:
+        client.close()
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=15)
+    assert proc.returncode == 0

@@ -1,0 +1,101 @@
+"""``modal_spring_bench``: time per step and basis cost, as medians, with peak memory.
+
+Each case runs in its own child process (so its peak memory is its own): it builds the
+simulation, warms up, then times repeated batches of steps and reports the median time per
+step. Ratios against the full physical run are measured in the same invocation.
+
+    modal_spring_bench [--quick] [--json out.json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import resource
+import statistics
+import sys
+import time
+
+from modal_spring_ros.filter_band import FilterBand
+from modal_spring_ros.mass_spring import MassSpringModel
+from modal_spring_ros.modal_basis import ModalBasis
+from modal_spring_ros.scene import load_scene
+from modal_spring_ros.simulation import FullSimulation, ModalSimulation
+
+PROG = "modal_spring_bench"
+
+#: (label, scene, method, kept modes or None, dt)
+CASES = [
+    ("sheet_10x10 modal 15 modes", "sheet_10x10", "modal", 15, 5e-4),
+    ("sheet_10x10 full", "sheet_10x10", "full", None, 5e-4),
+    ("sheet_100x100 modal 32 modes", "sheet_100x100", "modal", 32, 1e-4),
+    ("sheet_100x100 full", "sheet_100x100", "full", None, 1e-4),
+]
+
+
+def _measure(scene_name: str, method: str, modes: int | None, dt: float, batches: int,
+             batch_steps: int, out: mp.Queue) -> None:
+    model = MassSpringModel(load_scene(scene_name))
+    start = time.perf_counter()
+    if method == "modal":
+        basis = ModalBasis(model, initial_modes=modes)
+        basis_seconds = time.perf_counter() - start
+        sim = ModalSimulation(model, basis, FilterBand("lowpass", 0, modes - 1, "index"), dt=dt)
+    else:
+        basis = ModalBasis(model, initial_modes=8) if not model.n_free_dof <= 1000 else \
+            ModalBasis(model)
+        basis_seconds = time.perf_counter() - start
+        sim = FullSimulation(model, dt=dt, basis=basis)
+    sim.step(batch_steps)  # warm-up
+    times = []
+    for _ in range(batches):
+        t0 = time.perf_counter()
+        sim.step(batch_steps)
+        times.append((time.perf_counter() - t0) / batch_steps)
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    out.put({"step_us": 1e6 * statistics.median(times), "basis_s": basis_seconds,
+             "peak_mb": peak_mb, "dt": dt})
+
+
+def run(quick: bool) -> list[dict]:
+    ctx = mp.get_context("spawn")
+    results = []
+    for k, (label, scene, method, modes, dt) in enumerate(CASES):
+        print(f"[{PROG}] {k + 1}/{len(CASES)} {label} ...", file=sys.stderr, flush=True)
+        small = scene == "sheet_10x10"
+        batches = 5 if quick else 15
+        batch_steps = (400 if small else 20) if quick else (2000 if small else 100)
+        q: mp.Queue = ctx.Queue()
+        p = ctx.Process(target=_measure, args=(scene, method, modes, dt, batches, batch_steps, q))
+        p.start()
+        res = q.get()
+        p.join()
+        res.update(label=label, scene=scene, method=method, modes=modes)
+        results.append(res)
+    by = {r["label"]: r for r in results}
+    for r in results:
+        full = by.get(f"{r['scene']} full")
+        r["speedup_vs_full"] = full["step_us"] / r["step_us"] if full else None
+    return results
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog=PROG, description="Median time per step, basis cost and "
+                                "peak memory of the modal and full methods.")
+    p.add_argument("--quick", action="store_true", help="fewer repetitions (about 30 s)")
+    p.add_argument("--json", default=None, help="also write the results as JSON")
+    args = p.parse_args(argv)
+    results = run(args.quick)
+    print(f"{'case':32s} {'us/step':>10s} {'basis s':>8s} {'peak MB':>8s} {'x full':>7s}")
+    for r in results:
+        ratio = f"{r['speedup_vs_full']:.1f}" if r["speedup_vs_full"] else "-"
+        print(f"{r['label']:32s} {r['step_us']:10.1f} {r['basis_s']:8.2f} {r['peak_mb']:8.0f} "
+              f"{ratio:>7s}")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(results, fh, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
