@@ -346,7 +346,10 @@ class ModalSpringNode(Node):
     def _run(self) -> None:
         try:
             self._loop()
-        except Exception as exc:  # never die silently: report and stop the stream
+        except Exception as exc:
+            if self._stop.is_set() or not self.context.ok():
+                return  # shutting down: publishers may already be gone
+            # never die silently: report and stop the stream
             self.get_logger().fatal(f"simulation thread failed: {exc!r}")
             self._publish_diagnostics(error=f"simulation thread failed: {exc!r}")
 
@@ -359,7 +362,7 @@ class ModalSpringNode(Node):
         next_diag = wall_anchor + DIAGNOSTICS_PERIOD_S
         st.window_wall, st.window_sim = wall_anchor, self.sim.time
         published_time = None
-        while not self._stop.is_set():
+        while not self._stop.is_set() and self.context.ok():
             period = 1.0 / self._values["publish_rate_hz"]
             rtf = self._values["realtime_factor"]
             if self._apply_requests():

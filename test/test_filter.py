@@ -99,7 +99,7 @@ def test_lowpass_leaves_under_one_percent_of_power_above_the_cutoff(sheet_undamp
 
 def test_changing_the_band_mid_run_moves_no_particle_more_than_ordinary_motion(sheet_10x10):
     model, basis = sheet_10x10
-    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4, transition_s=0.3)
+    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4)   # default 0.5 s transition
     sim.step(4000)                                        # 2 s: swaying steadily
 
     def max_step_motion(steps: int) -> float:
@@ -115,7 +115,7 @@ def test_changing_the_band_mid_run_moves_no_particle_more_than_ordinary_motion(s
     for band in (FilterBand("lowpass", high=14, by="index"), FilterBand("highpass", low=10.0),
                  FilterBand("bandpass", 2, 48, by="index"), FilterBand()):
         sim.set_band(band)
-        assert max_step_motion(800) <= ordinary
+        assert max_step_motion(2700) <= ordinary         # the fade and what follows it
     assert not sim.fading and sim.stepped_modes.size == 180
 
 
