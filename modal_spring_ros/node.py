@@ -29,6 +29,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -105,7 +106,7 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         "Simulation step, s; 0 = the scene's, else half the explicit stability limit", _D,
         float_range=(0.0, 1.0))),
     "sim.strain_limit": (1.0, _descriptor(
-        "Spring strain treated as divergence", _D, read_only=True, float_range=(0.01, 100.0))),
+        "Spring strain treated as divergence", _D, read_only=True, float_range=(0.001, 100.0))),
     "sim.strain_warning": (DEFAULT_STRAIN_WARNING, _descriptor(
         "Spring strain above which the small-deformation basis is reported as strained (WARN)",
         _D, float_range=(0.0, 100.0))),
@@ -526,7 +527,7 @@ def main(args: list[str] | None = None) -> int:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (SceneError, BandError, UnstableStepError, ValueError) as exc:
+    except (SceneError, BandError, UnstableStepError, ValueError, ParameterException) as exc:
         print(f"modal_spring_node: error: {exc}", file=sys.stderr)
         return 2
     finally:

@@ -7,6 +7,7 @@ import signal
 import time
 
 import numpy as np
+import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from sensor_msgs.msg import PointCloud2
 
@@ -88,3 +89,86 @@ def test_params_file_is_accepted_as_ros2_run_would_pass_it():
         proc.send_signal(signal.SIGINT)
         proc.communicate(timeout=15)
     assert proc.returncode == 0
+
+
+def _status(diags, prefix):
+    return [(t, d.status[0]) for t, d in diags if d.status[0].name.startswith(prefix)]
+
+
+def test_mesh_and_clock_are_published_when_asked_for():
+    from rosgraph_msgs.msg import Clock
+    from visualization_msgs.msg import Marker
+    node = NodeProcess("publish_clock:=true", "mesh_rate_hz:=5.0", namespace="extras")
+    client = Client("extras_client")
+    points = client.collect(PointCloud2, "/extras/points")
+    meshes = client.collect(Marker, "/extras/mesh")
+    clocks = client.collect(Clock, "/clock")
+    try:
+        assert wait_for(lambda: len(meshes) >= 3 and len(clocks) > 10, 30)
+        marker = meshes[-1][1]
+        assert marker.type == Marker.TRIANGLE_LIST and marker.header.frame_id == "world"
+        assert len(marker.points) == 3 * 2 * 81 == len(marker.colors)   # 2 per cell
+        assert all(0.0 <= c.r <= 1.0 and c.a == 1.0 for c in marker.colors)
+        t0, t1 = meshes[0][0], meshes[-1][0]
+        assert 0.5 * 5 <= (len(meshes) - 1) / (t1 - t0) <= 1.5 * 5
+        # /clock carries the simulation time of the frames
+        stamps = {(m.header.stamp.sec, m.header.stamp.nanosec) for _, m in points}
+        assert sum((c.clock.sec, c.clock.nanosec) in stamps for _, c in clocks) > 5
+    finally:
+        client.close()
+        assert node.interrupt()[0] == 0
+
+
+def test_divergence_is_reported_not_published_and_recovered_from():
+    # A strain limit below the sheet's ordinary 0.7 %: every drop from rest "diverges".
+    node = NodeProcess("sim.strain_limit:=0.004", namespace="diverge")
+    client = Client("diverge_client")
+    points = client.collect(PointCloud2, "/diverge/points", qos=500)
+    diags = client.collect(DiagnosticArray, "/diagnostics")
+    try:
+        assert wait_for(lambda: any(s.level == DiagnosticStatus.ERROR
+                                    for _, s in _status(diags, "/diverge/")), 30)
+        errors = [s for _, s in _status(diags, "/diverge/") if s.level == DiagnosticStatus.ERROR]
+        assert "exceeds the limit 0.004" in errors[0].message
+        assert "back to the rest state" in errors[0].message
+        start = time.monotonic()
+        time.sleep(3.0)
+        window = [m for t, m in points if t >= start]
+        assert len(window) > 2 * RATE                    # the stream goes on (not frozen)
+        for m in window:                                  # and never carries a bad frame
+            cloud = np.frombuffer(bytes(m.data), dtype="<f4").reshape(-1, 4)
+            assert np.isfinite(cloud).all()
+        values = {kv.key: kv.value for kv in errors[-1].values}
+        assert int(values["divergences"]) >= 1
+    finally:
+        client.close()
+        assert node.interrupt()[0] == 0
+
+
+def test_a_host_that_cannot_keep_real_time_says_so():
+    node = NodeProcess("method:=full", "realtime_factor:=200.0", namespace="slow")
+    client = Client("slow_client")
+    diags = client.collect(DiagnosticArray, "/diagnostics")
+    try:
+        assert wait_for(lambda: any(s.level == DiagnosticStatus.WARN
+                                    for _, s in _status(diags, "/slow/")), 30)
+        warn = next(s for _, s in _status(diags, "/slow/") if s.level == DiagnosticStatus.WARN)
+        assert "cannot keep real time" in warn.message and "of 200" in warn.message
+        achieved = float({kv.key: kv.value for kv in warn.values}["achieved real-time factor"])
+        assert 0.5 < achieved < 180
+    finally:
+        client.close()
+        assert node.interrupt()[0] == 0
+
+
+@pytest.mark.parametrize("param, message", [
+    ("sim.strain_limit:=0.0001", "sim.strain_limit out of range"),
+    ("filter.type:=notch", "filter.type 'notch' is not one of"),
+    ("scene:=no_such_scene", "unknown scene 'no_such_scene'"),
+    ("publish_rate_hz:=30", "publish_rate_hz"),
+])
+def test_bad_startup_parameters_exit_2_with_one_clear_line(param, message):
+    node = NodeProcess(param, namespace="badstart")
+    out, err = node.proc.communicate(timeout=30)
+    assert node.proc.returncode == 2
+    assert "Traceback" not in err and message in err
