@@ -32,7 +32,7 @@ setup(
         "console_scripts": [
             "modal_spring_sim = modal_spring_ros.sim_cli:main",
             "modal_spring_node = modal_spring_ros.node:main",
-            "modal_spring_bench = modal_spring_ros.step_benchmark:main",
+            "modal_spring_bench = modal_spring_ros.bench_cli:main",
         ],
     },
 )

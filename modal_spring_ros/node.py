@@ -119,16 +119,33 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         "Simulated seconds per wall second; 0 = as fast as possible", _D,
         float_range=(0.0, 1000.0))),
     "frame_id": ("world", _descriptor("header.frame_id of points and mesh", _S)),
+    "stamp": ("sim", _descriptor(
+        "header.stamp of points and mesh: sim (simulation time, as /clock) or wall (the "
+        "node's clock when publishing, for latency measurement or wall-time TF)", _S,
+        constraints="sim or wall")),
     "publish_clock": (False, _descriptor("Publish simulation time on /clock", _B)),
     "modal.max_modes": (256, _descriptor(
         "Most modes computed on scenes too large for a dense eigensolver", _I, read_only=True,
         int_range=(1, 100_000))),
 }
 
+STAMPS = ("sim", "wall")
+
 #: parameters whose change rebuilds the simulation (state and time carried over)
 REBUILD = {"method", "integrator", "sim.dt"}
 BAND = {"filter.type", "filter.by", "filter.low_hz", "filter.high_hz", "filter.low_mode",
         "filter.high_mode", "filter.transition_s"}
+
+
+CHOICES = {"method": METHODS, "filter.type": FILTER_TYPES, "filter.by": UNITS,
+           "integrator": INTEGRATORS, "stamp": STAMPS}
+
+
+def check_choices(values: dict[str, Any]) -> None:
+    """Raise ValueError naming the first string parameter whose value is not allowed."""
+    for name, allowed in CHOICES.items():
+        if values[name] not in allowed:
+            raise ValueError(f"{name} '{values[name]}' must be one of {', '.join(allowed)}")
 
 
 def band_from(values: dict[str, Any]) -> FilterBand:
@@ -169,6 +186,7 @@ class ModalSpringNode(Node):
             self.declare_parameter(name, default, descriptor)
         self._values = {name: self.get_parameter(name).value for name in PARAMETERS}
         log = self.get_logger()
+        check_choices(self._values)
         config = self._config(self._values)
         config.band.validate()
         self.sim: Simulation = build_simulation(self._values["scene"], config,
@@ -229,11 +247,7 @@ class ModalSpringNode(Node):
 
     def _validate_and_queue(self, incoming: dict[str, Any]) -> None:
         values = dict(self._values, **incoming)
-        for name in ("method", "filter.type", "filter.by", "integrator"):
-            allowed = {"method": METHODS, "filter.type": FILTER_TYPES, "filter.by": UNITS,
-                       "integrator": INTEGRATORS}[name]
-            if values[name] not in allowed:
-                raise ValueError(f"{name} '{values[name]}' must be one of {', '.join(allowed)}")
+        check_choices(values)
         for name in ("filter.low_hz", "filter.high_hz"):
             v = float(values[name])
             if not math.isfinite(v):
@@ -428,12 +442,14 @@ class ModalSpringNode(Node):
             self._on_divergence(DivergenceError("non-finite positions", self.sim.time,
                                                 self.sim.steps))
             return
-        header = Header(stamp=sim_time_msg(self.sim.time), frame_id=self._values["frame_id"])
+        stamp = (sim_time_msg(self.sim.time) if self._values["stamp"] == "sim"
+                 else self.get_clock().now().to_msg())
+        header = Header(stamp=stamp, frame_id=self._values["frame_id"])
         self._points_pub.publish(to_pointcloud2(positions, self.model.scene.rest_positions,
                                                 header))
         self._stats.frames += 1
         if self._values["publish_clock"]:
-            self._clock_pub.publish(Clock(clock=header.stamp))
+            self._clock_pub.publish(Clock(clock=sim_time_msg(self.sim.time)))
         if (mesh and self._triangles.size and self._values["mesh_rate_hz"] > 0
                 and self._mesh_pub.get_subscription_count() > 0):
             self._mesh_pub.publish(self._mesh_marker(positions, header))

@@ -1,28 +1,22 @@
-"""``modal_spring_bench``: time per step and basis cost, as medians, with peak memory.
+"""Step benchmark: time per step and basis cost, as medians, with peak memory.
 
 Each case runs in its own child process (so its peak memory is its own): it builds the
 simulation, warms up, then times repeated batches of steps and reports the median time per
 step. Ratios against the full physical run are measured in the same invocation.
-
-    modal_spring_bench [--quick] [--json out.json]
 """
 from __future__ import annotations
 
-import argparse
-import json
 import multiprocessing as mp
 import resource
 import statistics
-import sys
 import time
+from typing import Callable
 
 from modal_spring_ros.filter_band import FilterBand
 from modal_spring_ros.mass_spring import MassSpringModel
 from modal_spring_ros.modal_basis import ModalBasis
 from modal_spring_ros.scene import load_scene
 from modal_spring_ros.simulation import FullSimulation, ModalSimulation
-
-PROG = "modal_spring_bench"
 
 #: (label, scene, method, kept modes or None, dt)
 CASES = [
@@ -57,11 +51,11 @@ def _measure(scene_name: str, method: str, modes: int | None, dt: float, batches
              "peak_mb": peak_mb, "dt": dt})
 
 
-def run(quick: bool) -> list[dict]:
+def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:
     ctx = mp.get_context("spawn")
     results = []
     for k, (label, scene, method, modes, dt) in enumerate(CASES):
-        print(f"[{PROG}] {k + 1}/{len(CASES)} {label} ...", file=sys.stderr, flush=True)
+        progress(f"steps {k + 1}/{len(CASES)}: {label}")
         small = scene == "sheet_10x10"
         batches = 5 if quick else 15
         batch_steps = (400 if small else 20) if quick else (2000 if small else 100)
@@ -79,23 +73,10 @@ def run(quick: bool) -> list[dict]:
     return results
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog=PROG, description="Median time per step, basis cost and "
-                                "peak memory of the modal and full methods.")
-    p.add_argument("--quick", action="store_true", help="fewer repetitions (about 30 s)")
-    p.add_argument("--json", default=None, help="also write the results as JSON")
-    args = p.parse_args(argv)
-    results = run(args.quick)
-    print(f"{'case':32s} {'us/step':>10s} {'basis s':>8s} {'peak MB':>8s} {'x full':>7s}")
+def table(results: list[dict]) -> str:
+    lines = [f"{'case':32s} {'us/step':>10s} {'basis s':>8s} {'peak MB':>8s} {'x full':>7s}"]
     for r in results:
         ratio = f"{r['speedup_vs_full']:.1f}" if r["speedup_vs_full"] else "-"
-        print(f"{r['label']:32s} {r['step_us']:10.1f} {r['basis_s']:8.2f} {r['peak_mb']:8.0f} "
-              f"{ratio:>7s}")
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(results, fh, indent=2)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+        lines.append(f"{r['label']:32s} {r['step_us']:10.1f} {r['basis_s']:8.2f} "
+                     f"{r['peak_mb']:8.0f} {ratio:>7s}")
+    return "\n".join(lines)
