@@ -33,6 +33,9 @@ setup(
             "modal_spring_sim = modal_spring_ros.sim_cli:main",
             "modal_spring_node = modal_spring_ros.node:main",
             "modal_spring_bench = modal_spring_ros.bench_cli:main",
+            "modal_spring_replay = modal_spring_ros.replay_cli:main",
+            "modal_spring_compare = modal_spring_ros.compare_cli:main",
+            "modal_spring_record = modal_spring_ros.recorder_node:main",
         ],
     },
 )

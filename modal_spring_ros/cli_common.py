@@ -15,6 +15,15 @@ from modal_spring_ros.simulation_factory import SimulationConfig
 EXIT_USAGE = 2
 
 
+def split_ros_args(argv: list[str] | None) -> tuple[list[str], list[str]]:
+    """(the tool's own arguments, ``--ros-args ...`` for rclpy), as ROS executables take them."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if "--ros-args" in argv:
+        k = argv.index("--ros-args")
+        return argv[:k], argv[k:]
+    return argv, []
+
+
 def fail(prog: str, message: str, status: int = EXIT_USAGE) -> NoReturn:
     print(f"{prog}: error: {message}", file=sys.stderr)
     raise SystemExit(status)

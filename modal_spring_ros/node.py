@@ -24,7 +24,6 @@ from typing import Any, Callable
 
 import numpy as np
 import rclpy
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
@@ -42,12 +41,13 @@ from visualization_msgs.msg import Marker
 from modal_spring_ros.filter_band import FILTER_TYPES, UNITS, BandError, FilterBand
 from modal_spring_ros.newmark import INTEGRATORS
 from modal_spring_ros.pointcloud import to_pointcloud2
+from modal_spring_ros.ros_time import to_time_msg
 from modal_spring_ros.scene import DEFAULT_SCENE, SceneError
 from modal_spring_ros.simulation import (METHODS, DivergenceError, FullSimulation,
                                          ModalSimulation, Simulation)
-from modal_spring_ros.simulation_factory import (AUTO_DT_SAFETY, SimulationConfig,
-                                                 UnstableStepError, build_simulation,
-                                                 check_band, check_stable, with_dt)
+from modal_spring_ros.simulation_factory import (SimulationConfig, UnstableStepError,
+                                                 build_simulation, check_band, check_stable,
+                                                 config_from_parameters, rebuild)
 
 NODE_NAME = "modal_spring"
 #: Largest spring strain still in the small-deformation regime the modal basis assumes.
@@ -148,19 +148,6 @@ def check_choices(values: dict[str, Any]) -> None:
             raise ValueError(f"{name} '{values[name]}' must be one of {', '.join(allowed)}")
 
 
-def band_from(values: dict[str, Any]) -> FilterBand:
-    if values["filter.by"] == "index":
-        return FilterBand(values["filter.type"], float(values["filter.low_mode"]),
-                          float(values["filter.high_mode"]), "index")
-    return FilterBand(values["filter.type"], float(values["filter.low_hz"]),
-                      float(values["filter.high_hz"]), "hz")
-
-
-def sim_time_msg(t: float) -> Time:
-    sec = int(math.floor(t))
-    return Time(sec=sec, nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
-
-
 @dataclasses.dataclass
 class _Stats:
     """Simulation-thread bookkeeping for /diagnostics (written by that thread only)."""
@@ -220,12 +207,7 @@ class ModalSpringNode(Node):
         self._thread.start()
 
     # -- configuration -------------------------------------------------------------------------
-    @staticmethod
-    def _config(values: dict[str, Any]) -> SimulationConfig:
-        return SimulationConfig(
-            method=values["method"], band=band_from(values), integrator=values["integrator"],
-            dt=values["sim.dt"] or None, transition_s=values["filter.transition_s"],
-            max_modes=values["modal.max_modes"], strain_limit=values["sim.strain_limit"])
+    _config = staticmethod(config_from_parameters)
 
     def _describe(self) -> str:
         sim = self.sim
@@ -285,17 +267,7 @@ class ModalSpringNode(Node):
         return self._modal_probe
 
     def _rebuilt(self, config: SimulationConfig) -> Simulation:
-        dt = config.dt or self.model.scene.default_dt
-        if config.method == "modal":
-            sim: Simulation = ModalSimulation(
-                self.model, self.basis, config.band, dt=dt or 1e-3,
-                integrator=config.integrator, transition_s=config.transition_s,
-                max_modes=config.max_modes, strain_limit=config.strain_limit)
-        else:
-            sim = FullSimulation(self.model, dt=dt or 1e-3, integrator=config.integrator,
-                                 basis=self.basis, strain_limit=config.strain_limit)
-        if dt is None:
-            sim = with_dt(sim, AUTO_DT_SAFETY * sim.stability_limit())
+        sim = rebuild(self.model, self.basis, config)
         check_stable(sim, "sim.dt")
         return sim
 
@@ -442,14 +414,14 @@ class ModalSpringNode(Node):
             self._on_divergence(DivergenceError("non-finite positions", self.sim.time,
                                                 self.sim.steps))
             return
-        stamp = (sim_time_msg(self.sim.time) if self._values["stamp"] == "sim"
+        stamp = (to_time_msg(self.sim.time) if self._values["stamp"] == "sim"
                  else self.get_clock().now().to_msg())
         header = Header(stamp=stamp, frame_id=self._values["frame_id"])
         self._points_pub.publish(to_pointcloud2(positions, self.model.scene.rest_positions,
                                                 header))
         self._stats.frames += 1
         if self._values["publish_clock"]:
-            self._clock_pub.publish(Clock(clock=sim_time_msg(self.sim.time)))
+            self._clock_pub.publish(Clock(clock=to_time_msg(self.sim.time)))
         if (mesh and self._triangles.size and self._values["mesh_rate_hz"] > 0
                 and self._mesh_pub.get_subscription_count() > 0):
             self._mesh_pub.publish(self._mesh_marker(positions, header))
@@ -471,7 +443,7 @@ class ModalSpringNode(Node):
         st = self._stats
         sim = self.sim
         now = time.monotonic()
-        if now > st.window_wall:
+        if now > st.window_wall and st.window_valid:
             st.achieved_rtf = (sim.time - st.window_sim) / (now - st.window_wall)
         strain = sim.max_strain()
         level, message = DiagnosticStatus.OK, "streaming"
@@ -489,7 +461,7 @@ class ModalSpringNode(Node):
                        f"small-deformation regime of the modal basis")
         if error or st.diverged_recently:
             level = DiagnosticStatus.ERROR
-            message = error or f"diverged: {st.last_divergence}; recovered: back to rest"
+            message = error or f"{st.last_divergence}; recovered: back to the rest state"
         kept = sim.kept_modes.size if isinstance(sim, ModalSimulation) else self.model.n_free_dof
         values = {
             "method": sim.method,

@@ -49,12 +49,16 @@ class Run:
 
 
 def record(sim: Simulation, duration: float, *, frame_every: int = 1,
-           on_progress: Callable[[float], None] | None = None) -> Run:
+           on_progress: Callable[[float], None] | None = None,
+           on_frame: Callable[[float, np.ndarray], None] | None = None) -> Run:
     """Step ``sim`` for ``duration`` seconds, keeping a frame (t = 0 included) every
-    ``frame_every`` steps. Stops at a divergence and records its message (no bad frame)."""
+    ``frame_every`` steps. Stops at a divergence and records its message (no bad frame).
+    ``on_frame(t, positions)`` sees every frame as it is made (e.g. to stream it to a bag)."""
     steps = int(round(duration / sim.dt))
     frames = [sim.positions()]
     times = [sim.time]
+    if on_frame:
+        on_frame(times[0], frames[0])
     diverged = ""
     report_every = max(1, steps // 20)
     for k in range(1, steps + 1):
@@ -66,6 +70,8 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
         if k % frame_every == 0:
             frames.append(sim.positions())
             times.append(sim.time)
+            if on_frame:
+                on_frame(times[-1], frames[-1])
         if on_progress and k % report_every == 0:
             on_progress(k / steps)
     basis = getattr(sim, "basis", None)

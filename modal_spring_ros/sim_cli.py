@@ -28,6 +28,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frame-every", type=int, default=1,
                    help="keep every N-th step as a frame (default 1: every step)")
     p.add_argument("--output", default=None, help="write the run to this .npz file")
+    p.add_argument("--bag", default=None,
+                   help="also write every frame to this new rosbag2 MCAP bag folder")
     p.add_argument("--allow-unstable", action="store_true",
                    help="step even above the explicit stability limit (to study divergence)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -51,16 +53,28 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"--duration ({duration}) must be positive")
         if args.output:
             _check_writable(args.output)
+        bag = None
+        if args.bag:
+            from modal_spring_ros.run_bag import RunBagWriter
+            bag = RunBagWriter(args.bag, sim.model.scene, config, dt=sim.dt,
+                               frame_every=args.frame_every, duration=duration)
         start = time.perf_counter()
-        run = record(sim, duration, frame_every=args.frame_every,
-                     on_progress=None if args.quiet else
-                     (lambda frac: print(f"[{PROG}] {frac:4.0%}", file=sys.stderr)))
+        try:
+            run = record(sim, duration, frame_every=args.frame_every,
+                         on_progress=None if args.quiet else
+                         (lambda frac: print(f"[{PROG}] {frac:4.0%}", file=sys.stderr)),
+                         on_frame=bag.frame if bag else None)
+        finally:
+            if bag:
+                bag.close()
         wall = time.perf_counter() - start
         steps = max(sim.steps, 1)
         print(summary(sim, run.diverged, wall / steps, wall))
         if args.output:
             run.save_npz(args.output)
             print(f"wrote {args.output} ({run.t.size} frames)")
+        if args.bag:
+            print(f"wrote bag {args.bag} ({run.t.size} frames)")
         return 1 if run.diverged else 0
 
     return run_main(PROG, body)

@@ -49,6 +49,41 @@ class SimulationConfig:
         return cls(band=FilterBand(**band), **data)
 
 
+def band_from_parameters(values: dict[str, Any]) -> FilterBand:
+    """The band described by the node's ``filter.*`` parameters."""
+    if values["filter.by"] == "index":
+        return FilterBand(values["filter.type"], float(values["filter.low_mode"]),
+                          float(values["filter.high_mode"]), "index")
+    return FilterBand(values["filter.type"], float(values["filter.low_hz"]),
+                      float(values["filter.high_hz"]), "hz")
+
+
+def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
+    """The run the node's parameters describe (names as in the node: ``sim.dt``, ...)."""
+    return SimulationConfig(
+        method=values["method"], band=band_from_parameters(values),
+        integrator=values["integrator"], dt=values["sim.dt"] or None,
+        transition_s=values["filter.transition_s"], max_modes=values["modal.max_modes"],
+        strain_limit=values["sim.strain_limit"])
+
+
+def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig) -> Simulation:
+    """A new simulation (at rest) of the same scene and basis with other settings."""
+    dt = config.dt or model.scene.default_dt
+    if config.method == "modal":
+        sim: Simulation = ModalSimulation(
+            model, basis, config.band, dt=dt or 1e-3, integrator=config.integrator,
+            transition_s=config.transition_s, max_modes=config.max_modes,
+            strain_limit=config.strain_limit)
+    else:
+        sim = FullSimulation(model, dt=dt or 1e-3, integrator=config.integrator, basis=basis,
+                             strain_limit=config.strain_limit)
+    if dt is None:
+        limit = sim.stability_limit()
+        sim = with_dt(sim, AUTO_DT_SAFETY * limit if math.isfinite(limit) else 1e-3)
+    return sim
+
+
 def resolve_scene(scene: Scene | str | dict) -> Scene:
     if isinstance(scene, Scene):
         return scene
@@ -74,20 +109,7 @@ def build_simulation(scene: Scene | str | dict, config: SimulationConfig, *,
     scene = resolve_scene(scene)
     model = MassSpringModel(scene)
     basis = ModalBasis(model, progress=progress)
-    dt = config.dt if config.dt is not None else scene.default_dt
-    probe_dt = dt if dt is not None else 1e-3
-    if config.method == "modal":
-        sim: Simulation = ModalSimulation(
-            model, basis, config.band, dt=probe_dt, integrator=config.integrator,
-            transition_s=config.transition_s, max_modes=config.max_modes,
-            strain_limit=config.strain_limit)
-    else:
-        sim = FullSimulation(model, dt=probe_dt, integrator=config.integrator, basis=basis,
-                             strain_limit=config.strain_limit)
-    if dt is None:
-        limit = sim.stability_limit()
-        dt = AUTO_DT_SAFETY * limit if math.isfinite(limit) else 1e-3
-        sim = with_dt(sim, dt)
+    sim = rebuild(model, basis, config)
     if not allow_unstable:
         check_stable(sim)
     return sim

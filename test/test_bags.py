@@ -1,0 +1,278 @@
+"""rosbag2 MCAP bags: the format rosbag2 reads, independent readers, replay by re-simulation,
+crash safety, real rosbag2 files, and bad input."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import PointCloud2
+
+from modal_spring_ros.bag_qos import profiles_from_yaml
+from modal_spring_ros.bag_reader import BagReader
+from modal_spring_ros.bag_writer import BagError, BagWriter
+from modal_spring_ros.message_definitions import DELIMITER, full_definition, share_directory
+from modal_spring_ros.reference_bags import RUNS
+from modal_spring_ros.resimulate import resimulate
+from modal_spring_ros.pointcloud import xyz
+
+REPO = Path(__file__).resolve().parent.parent
+BAGS = REPO / "bags"
+REAL = REPO.parent / "shared" / "real_bags"
+
+
+def _msg(pkg: str, name: str) -> str:
+    return (share_directory(pkg) / "msg" / f"{name}.msg").read_text()
+
+
+def test_pointcloud2_schema_is_rosbag2s_concatenation_of_the_installed_msg_files():
+    # rosbag2: root text, then each dependency (sorted, depth first, once) after a delimiter.
+    expected = (_msg("sensor_msgs", "PointCloud2")
+                + "\n" + DELIMITER + "MSG: sensor_msgs/PointField\n" + _msg("sensor_msgs",
+                                                                             "PointField")
+                + "\n" + DELIMITER + "MSG: std_msgs/Header\n" + _msg("std_msgs", "Header")
+                + "\n" + DELIMITER + "MSG: builtin_interfaces/Time\n"
+                + _msg("builtin_interfaces", "Time"))
+    assert full_definition("sensor_msgs/msg/PointCloud2") == expected
+    bag = BagReader(BAGS / "sheet_10x10_allpass")
+    from mcap.reader import make_reader
+    with open(bag.files[0], "rb") as fh:
+        schemas = make_reader(fh).get_summary().schemas
+    (schema,) = schemas.values()
+    assert schema.name == "sensor_msgs/msg/PointCloud2" and schema.encoding == "ros2msg"
+    assert schema.data.decode() == expected
+
+
+def test_schema_matches_a_real_rosbag2_recording():
+    """Against rosbag2's own ParameterEvent schema (only Time.msg's comments changed since)."""
+    from mcap.reader import make_reader
+    with open(REAL / "only_topics" / "only_topics.mcap", "rb") as fh:
+        summary = make_reader(fh).get_summary()
+    real = next(s for s in summary.schemas.values()
+                if s.name == "rcl_interfaces/msg/ParameterEvent").data.decode()
+    ours = full_definition("rcl_interfaces/msg/ParameterEvent")
+
+    def sections(text):
+        parts = text.split("\n" + DELIMITER)
+        return {p.split("\n", 1)[0]: p for p in parts[1:]} | {"root": parts[0]}
+    real_s, ours_s = sections(real), sections(ours)
+    assert list(real_s) == list(ours_s)                  # same dependencies, same order
+    for key in real_s:
+        if key != "MSG: builtin_interfaces/Time":
+            assert real_s[key] == ours_s[key], key
+
+
+REQUIRED_V9 = {"version", "storage_identifier", "duration", "starting_time", "message_count",
+               "topics_with_message_count", "compression_format", "compression_mode",
+               "relative_file_paths", "files", "custom_data", "ros_distro"}
+
+
+def test_metadata_yaml_has_every_key_rosbag2s_version_9_reader_requires():
+    info = yaml.safe_load((BAGS / "sheet_10x10_allpass" / "metadata.yaml").read_text())[
+        "rosbag2_bagfile_information"]
+    assert REQUIRED_V9 <= set(info)
+    assert info["version"] == 9 and info["storage_identifier"] == "mcap"
+    assert info["ros_distro"] == "jazzy" and isinstance(info["custom_data"], dict)
+    assert isinstance(info["duration"]["nanoseconds"], int)
+    assert isinstance(info["starting_time"]["nanoseconds_since_epoch"], int)
+    (topic,) = info["topics_with_message_count"]
+    meta = topic["topic_metadata"]
+    assert set(meta) == {"name", "type", "serialization_format", "offered_qos_profiles",
+                         "type_description_hash"}
+    assert meta["type"] == "sensor_msgs/msg/PointCloud2" and meta["serialization_format"] == "cdr"
+    assert meta["type_description_hash"].startswith("RIHS01_")
+    assert isinstance(meta["offered_qos_profiles"], str)       # a YAML string, as rosbag2
+    (qos,) = yaml.safe_load(meta["offered_qos_profiles"])
+    assert qos["history"] == "keep_last" and qos["reliability"] == "reliable"  # v9: names
+    assert topic["message_count"] == info["message_count"] == 182
+    (f,) = info["files"]
+    assert set(f) == {"path", "starting_time", "duration", "message_count"}
+    assert info["relative_file_paths"] == [f["path"]] == ["sheet_10x10_allpass_0.mcap"]
+
+
+def test_mcap_records_are_what_rosbag2_writes():
+    from mcap.reader import make_reader
+    path = BAGS / "sheet_10x10_allpass" / "sheet_10x10_allpass_0.mcap"
+    with open(path, "rb") as fh:
+        reader = make_reader(fh)
+        assert reader.get_header().profile == "ros2"
+        summary = reader.get_summary()
+        (channel,) = summary.channels.values()
+        assert channel.message_encoding == "cdr"
+        assert set(channel.metadata) == {"offered_qos_profiles", "topic_type_hash"}
+        assert summary.statistics.message_count == 182 and summary.chunk_indexes
+        assert all(c.message_index_offsets for c in summary.chunk_indexes)
+        rosbag2 = [m for m in reader.iter_metadata() if m.name == "rosbag2"]
+        assert len(rosbag2) == 2                     # at open and at close, as rosbag2
+        final = yaml.safe_load(rosbag2[-1].metadata["serialized_metadata"])
+        assert final["message_count"] == 182 and final["version"] == 9
+
+
+@pytest.mark.parametrize("name", sorted(RUNS))
+def test_resimulating_each_reference_bag_reproduces_its_frames(name, tmp_path):
+    out = tmp_path / "again"
+    assert resimulate(BAGS / name, out) == 182
+    t_ref, x_ref = BagReader(BAGS / name).points()
+    t_new, x_new = BagReader(out).points()
+    np.testing.assert_array_equal(t_new, t_ref)
+    np.testing.assert_allclose(x_new, x_ref, rtol=0, atol=1e-6)   # float32 round-off
+    assert np.abs(x_ref - x_ref[0]).max() > 1e-3                    # the frames do move
+
+
+def test_independent_readers_decode_what_was_published(tmp_path):
+    """rosbags (AnyReader) and mcap_ros2 read the bag; rclpy decodes each payload to exactly
+    the message that was written."""
+    from modal_spring_ros.filter_band import FilterBand
+    from modal_spring_ros.run_bag import RunBagWriter
+    from modal_spring_ros.run_file import record
+    from modal_spring_ros.simulation_factory import SimulationConfig, build_simulation
+    config = SimulationConfig(band=FilterBand("lowpass", high=20.0))
+    sim = build_simulation("sheet_10x10", config)
+    bag = RunBagWriter(tmp_path / "bag", sim.model.scene, config, dt=sim.dt, frame_every=40,
+                       duration=0.5)
+    published = []
+
+    def frame(t, positions):
+        bag.frame(t, positions)
+        from std_msgs.msg import Header
+        from modal_spring_ros.pointcloud import to_pointcloud2
+        from modal_spring_ros.ros_time import to_time_msg
+        published.append(to_pointcloud2(positions, sim.model.scene.rest_positions,
+                                        Header(stamp=to_time_msg(t), frame_id="world")))
+    record(sim, 0.5, frame_every=40, on_frame=frame)
+    bag.close()
+    reader = BagReader(tmp_path / "bag")
+    decoded = [reader.decode(m) for m in reader.messages()]
+    assert decoded == published                                   # rclpy: equal messages
+
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+    with AnyReader([tmp_path / "bag"],
+                   default_typestore=get_typestore(Stores.ROS2_JAZZY)) as r:
+        (conn,) = r.connections
+        assert conn.msgtype == "sensor_msgs/msg/PointCloud2" and conn.msgcount == len(published)
+        for (c, _, raw), want in zip(r.messages(), published):
+            got = r.deserialize(raw, c.msgtype)
+            assert (got.header.stamp.sec, got.header.stamp.nanosec) == (
+                want.header.stamp.sec, want.header.stamp.nanosec)
+            assert got.width == want.width and bytes(got.data) == bytes(want.data)
+            assert [f.name for f in got.fields] == [f.name for f in want.fields]
+
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    with open(reader.files[0], "rb") as fh:
+        items = list(make_reader(fh, decoder_factories=[DecoderFactory()])
+                     .iter_decoded_messages())
+    assert len(items) == len(published)
+    for (_, _, _, got), want in zip(items, published):
+        assert got.header.frame_id == "world" and bytes(got.data) == bytes(want.data)
+
+
+def test_a_killed_writer_leaves_every_complete_chunk_readable(tmp_path):
+    """SIGKILL mid-run: every message before the last (unfinished) chunk is read back."""
+    script = textwrap.dedent(f"""
+        import sys
+        from modal_spring_ros.bag_writer import BagWriter
+        w = BagWriter({str(tmp_path / 'killed')!r}, chunk_size=4096)
+        w.add_topic('/data', 'std_msgs/msg/String', '')
+        from std_msgs.msg import String
+        for i in range(100000):
+            w.write_message('/data', String(data='message %06d ' % i + 'x' * 200), i, i)
+            if i == 300:
+                print('ready', flush=True)
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "ready"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    reader = BagReader(tmp_path / "killed")
+    assert not reader.finalised
+    got = [reader.decode(m).data[:14] for m in reader.messages()]
+    # messages of ~230 bytes in 4 kB chunks: everything but the last chunk, in order
+    assert len(got) >= 300 - 4096 // 200
+    assert got == [f"message {i:06d}" for i in range(len(got))]
+
+
+def test_real_rosbag2_bags_are_read():
+    only = BagReader(REAL / "only_topics" / "only_topics.mcap")
+    assert only.topics["/parameter_events"].type == "rcl_interfaces/msg/ParameterEvent"
+    assert only.topics["/parameter_events"].count == 7 and only.topics["/rosout"].count == 0
+    events = [only.decode(m) for m in only.messages(["/parameter_events"])]
+    assert len(events) == 7 and all(e.node for e in events)
+    cdr = BagReader(REAL / "cdr_test")
+    assert cdr.metadata["version"] == 7
+    assert {t: i.count for t, i in cdr.topics.items()} == {"/test_topic": 3, "/array_topic": 4}
+    assert len(list(cdr.messages())) == 7
+    services = BagReader(REAL / "bag_with_topics_and_service_events")
+    assert sum(i.count for i in services.topics.values()) == 10
+    assert services.topics["/test_service1/_service_event"].type == \
+        "test_msgs/srv/BasicTypes_Event"
+    assert len(list(services.messages())) == 10
+    with pytest.raises(BagError, match="test_msgs/msg/Strings is not installed"):
+        services.decode(next(services.messages(["/test_topic1"])))
+    qos = profiles_from_yaml(only.topics["/parameter_events"].offered_qos_profiles)
+    assert len(qos) == 2                                         # version 8: integers
+
+
+def test_qos_round_trips_through_the_v9_text():
+    from rclpy.qos import QoSPresetProfiles
+    from modal_spring_ros.bag_qos import profiles_to_yaml
+    for preset in (QoSPresetProfiles.SENSOR_DATA.value, QoSPresetProfiles.PARAMETER_EVENTS.value):
+        (back,) = profiles_from_yaml(profiles_to_yaml([preset]))
+        assert (back.reliability, back.durability, back.history, back.depth) == (
+            preset.reliability, preset.durability, preset.history, preset.depth)
+
+
+def _cli(module: str, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", module, *args], capture_output=True, text=True,
+                          timeout=120)
+
+
+def test_bad_bags_and_outputs_fail_clearly_and_overwrite_nothing(tmp_path):
+    missing = _cli("modal_spring_ros.replay_cli", str(tmp_path / "nope"))
+    assert missing.returncode == 2 and "no such bag" in missing.stderr
+    corrupt = tmp_path / "corrupt.mcap"
+    corrupt.write_bytes(os.urandom(4000))
+    bad = _cli("modal_spring_ros.compare_cli", str(corrupt), str(BAGS / "sheet_10x10_full"))
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr and "corrupt.mcap" in bad.stderr
+    existing = tmp_path / "existing"
+    existing.mkdir()
+    (existing / "keep.txt").write_text("precious")
+    again = _cli("modal_spring_ros.replay_cli", str(BAGS / "sheet_10x10_full"),
+                 "--resimulate", str(existing))
+    assert again.returncode == 2 and "already exists" in again.stderr
+    assert [p.name for p in existing.iterdir()] == ["keep.txt"]
+    sim = _cli("modal_spring_ros.sim_cli", "--duration", "0.01", "--bag",
+               str(tmp_path / "no" / "such" / "bag"))
+    assert sim.returncode == 2 and "does not exist" in sim.stderr
+    with pytest.raises(BagError, match="already exists"):
+        BagWriter(existing)
+
+
+def test_compare_reports_zero_for_the_same_run_and_refuses_different_scenes(tmp_path):
+    same = _cli("modal_spring_ros.compare_cli", str(BAGS / "sheet_10x10_full"),
+                str(BAGS / "sheet_10x10_full"), "--json", str(tmp_path / "c.json"),
+                "--plot", str(tmp_path / "c.png"))
+    assert same.returncode == 0, same.stderr
+    import json
+    result = json.loads((tmp_path / "c.json").read_text())
+    assert result["rms_m"] == 0.0 and result["common_frames"] == 182
+    assert (tmp_path / "c.png").stat().st_size > 10_000
+    lowpass = _cli("modal_spring_ros.compare_cli", str(BAGS / "sheet_10x10_lowpass_0_14"),
+                   str(BAGS / "sheet_10x10_full"), "--json", str(tmp_path / "l.json"))
+    low = json.loads((tmp_path / "l.json").read_text())
+    assert 1e-4 < low["rel_l2_mean"] < 0.05      # close to the full run, but not equal
+    npz = tmp_path / "chain.npz"
+    subprocess.run([sys.executable, "-m", "modal_spring_ros.sim_cli", "--scene", "chain_2",
+                    "--duration", "0.1", "--output", str(npz), "--quiet"], check=True,
+                   capture_output=True)
+    different = _cli("modal_spring_ros.compare_cli", str(npz), str(BAGS / "sheet_10x10_full"))
+    assert different.returncode == 2
+    assert "different scenes: chain.npz has 3 particles" in different.stderr
