@@ -75,7 +75,7 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
     bag = BagReader(out)
     assert bag.finalised and (out / "metadata.yaml").exists()
     assert {"/rec/points", "/diagnostics", "/parameter_events"} <= set(bag.topics)
-    assert bag.topics["/rec/points"].count > 60
+    assert bag.topics["/rec/points"].count > 30          # over a second of frames
     assert "reliability: reliable" in bag.topics["/rec/points"].offered_qos_profiles
     record = bag.run_record()
     assert record["parameters"]["scene"] == "sheet_10x10"
