@@ -48,6 +48,11 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
                    help="fade time of modes leaving the band, s")
     g.add_argument("--max-modes", type=int, default=None,
                    help="most modes computed on large scenes (default 256)")
+    g.add_argument("--auto", action="store_true",
+                   help="keep the fewest modes (within the band) that meet --tolerance for the "
+                        "scene's loads, and the step they allow (unless --dt)")
+    g.add_argument("--tolerance", type=float, default=0.01,
+                   help="predicted relative error for --auto (default 0.01)")
 
 
 def band_from_args(args: argparse.Namespace) -> FilterBand:
@@ -83,9 +88,14 @@ def config_from_args(args: argparse.Namespace) -> SimulationConfig:
         raise ValueError(f"--transition-s ({args.transition_s}) must not be negative")
     if args.max_modes is not None and args.max_modes < 1:
         raise ValueError(f"--max-modes ({args.max_modes}) must be at least 1")
+    if not 0.0 < args.tolerance < 1.0:
+        raise ValueError(f"--tolerance ({args.tolerance}) must be between 0 and 1")
+    if args.auto and args.method != "modal":
+        raise ValueError("--auto chooses modes: it needs --method modal")
     return SimulationConfig(method=args.method, band=band_from_args(args),
                             integrator=args.integrator, dt=args.dt,
-                            transition_s=args.transition_s, max_modes=args.max_modes)
+                            transition_s=args.transition_s, max_modes=args.max_modes,
+                            auto=args.auto, tolerance=args.tolerance)
 
 
 def run_main(prog: str, body: Callable[[], int]) -> int:

@@ -47,7 +47,8 @@ from modal_spring_ros.simulation import (METHODS, DivergenceError, FullSimulatio
                                          ModalSimulation, Simulation)
 from modal_spring_ros.simulation_factory import (SimulationConfig, UnstableStepError,
                                                  build_simulation, check_band, check_stable,
-                                                 config_from_parameters, rebuild)
+                                                 config_from_parameters, rebuild,
+                                                 REBUILD_PARAMETERS)
 
 NODE_NAME = "modal_spring"
 #: Largest spring strain still in the small-deformation regime the modal basis assumes.
@@ -124,6 +125,12 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         "node's clock when publishing, for latency measurement or wall-time TF)", _S,
         constraints="sim or wall")),
     "publish_clock": (False, _descriptor("Publish simulation time on /clock", _B)),
+    "modal.auto": (False, _descriptor(
+        "Keep the fewest modes (within the band) that meet modal.tolerance for the scene's "
+        "loads (gravity, anchor motion), and the step they allow unless sim.dt is set", _B)),
+    "modal.tolerance": (0.01, _descriptor(
+        "Predicted relative error the automatic mode choice must meet", _D,
+        float_range=(1e-6, 0.5))),
     "modal.max_modes": (256, _descriptor(
         "Most modes computed on scenes too large for a dense eigensolver", _I, read_only=True,
         int_range=(1, 100_000))),
@@ -131,8 +138,6 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
 
 STAMPS = ("sim", "wall")
 
-#: parameters whose change rebuilds the simulation (state and time carried over)
-REBUILD = {"method", "integrator", "sim.dt"}
 BAND = {"filter.type", "filter.by", "filter.low_hz", "filter.high_hz", "filter.low_mode",
         "filter.high_mode", "filter.transition_s"}
 
@@ -242,7 +247,7 @@ class ModalSpringNode(Node):
         band = config.band.validate()
         changed = {name for name, value in incoming.items() if value != self._values[name]}
         new_sim = None
-        if changed & REBUILD:
+        if changed & REBUILD_PARAMETERS:
             new_sim = self._rebuilt(config)
             if isinstance(new_sim, ModalSimulation):
                 check_band(new_sim, band, "sim.dt")
@@ -468,6 +473,8 @@ class ModalSpringNode(Node):
             "band": sim.band.describe() if isinstance(sim, ModalSimulation) else "full",
             "modes stepped": str(kept),
             "modes computed": str(self.basis.count),
+            "automatic mode choice": sim.auto.describe() if getattr(sim, "auto", None)
+            else "off",
             "integrator": sim.integrator,
             "dt (s)": f"{sim.dt:g}",
             "stability limit (s)": f"{sim.stability_limit():.4g}",

@@ -15,10 +15,10 @@ from modal_spring_ros.bag_writer import BagError
 from modal_spring_ros.run_bag import POINTS_TOPIC, RunBagWriter
 from modal_spring_ros.scene import scene_from_yaml
 from modal_spring_ros.simulation import DivergenceError, ModalSimulation
-from modal_spring_ros.simulation_factory import (SimulationConfig, build_simulation,
-                                                 config_from_parameters, rebuild)
+from modal_spring_ros.simulation_factory import (REBUILD_PARAMETERS, SimulationConfig,
+                                                 build_simulation, config_from_parameters,
+                                                 rebuild)
 
-REBUILD = {"method", "integrator", "sim.dt"}
 
 
 def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, dict]]:
@@ -99,7 +99,7 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
 def _apply(sim, values: dict, change: dict):
     new = dict(values, **{k: v for k, v in change.items() if k in values})
     config = config_from_parameters(new)
-    if any(new[k] != values[k] for k in REBUILD):
+    if any(new[k] != values[k] for k in REBUILD_PARAMETERS):
         fresh = rebuild(sim.model, sim.basis, config)
         fresh.take_over(sim)
         return fresh, new

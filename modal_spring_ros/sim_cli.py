@@ -103,6 +103,9 @@ def summary(sim, diverged: str, seconds_per_step: float, wall: float) -> str:
                      f"({f[kept].min():.4g} .. {f[kept].max():.4g} Hz)"
                      + ("; band truncated at max_modes" if sim.truncated else ""))
         lines.append(f"band       {sim.band.describe()}")
+        if getattr(sim, "auto", None):
+            lines.append(f"auto       {sim.auto.describe()} "
+                         f"({', '.join(f'{k} {v:.2%}' for k, v in sim.auto.load_errors.items())})")
     else:
         lines.append(f"method     full physical ({sim.model.n_free_dof} DOF)")
     lines.append(f"stepping   {sim.integrator} Newmark, dt {sim.dt:g} s "

@@ -177,10 +177,14 @@ class ModalSimulation(Simulation):
     def __init__(self, model: MassSpringModel, basis: ModalBasis, band: FilterBand, *,
                  dt: float, integrator: str = "explicit", damping: Damping | None = None,
                  transition_s: float = 0.5, max_modes: int | None = None,
-                 strain_limit: float = DEFAULT_STRAIN_LIMIT):
+                 strain_limit: float = DEFAULT_STRAIN_LIMIT, highest_hz: float | None = None):
         super().__init__(model, dt=dt, integrator=integrator, damping=damping,
                          strain_limit=strain_limit)
         self.basis = basis
+        #: modes above this frequency are never stepped (set by the automatic mode choice)
+        self.highest_hz = highest_hz
+        #: the automatic mode choice that set ``highest_hz`` (a ModeChoice), if any
+        self.auto = None
         self.max_modes = int(max_modes) if max_modes else (basis.n_dof if basis.dense else 256)
         self.transition_s = float(transition_s)
         self.band = band.validate()
@@ -198,11 +202,14 @@ class ModalSimulation(Simulation):
         """Compute the modes ``band`` needs (the slow part of a band change; no state change)."""
         band.validate()
         limit = min(self.max_modes, self.basis.n_dof)
+        top = self.highest_hz if self.highest_hz is not None else math.inf
         if band.by == "index":
             needed = int(band.high) + 1 if band.bounded_above else limit
             self.basis.ensure_count(min(needed, limit))
-        elif band.bounded_above:
-            self.basis.ensure_frequency(band.high, limit)
+            if math.isfinite(top):
+                self.basis.ensure_frequency(top, limit)
+        elif band.bounded_above or math.isfinite(top):
+            self.basis.ensure_frequency(min(band.high if band.bounded_above else top, top), limit)
         else:
             self.basis.ensure_count(limit)
 
@@ -217,8 +224,11 @@ class ModalSimulation(Simulation):
         keep = np.flatnonzero(band.keeps(f))
         if band.by == "index":
             keep = keep[keep < self.max_modes]
-        self.truncated = (not self.basis.complete and
-                          (not band.bounded_above or (band.by == "hz" and f[-1] <= band.high)))
+        if self.highest_hz is not None:
+            keep = keep[f[keep] <= self.highest_hz * (1.0 + 1e-12)]
+        top = self.highest_hz if self.highest_hz is not None else math.inf
+        edge = min(band.high if band.bounded_above and band.by == "hz" else math.inf, top)
+        self.truncated = not self.basis.complete and f[-1] <= edge
         if keep.size == 0:
             span = f"{f[0]:.4g} .. {f[-1]:.4g} Hz" if band.by == "hz" else f"0 .. {f.size - 1}"
             raise BandError(f"filter band {band.describe()} keeps no mode "

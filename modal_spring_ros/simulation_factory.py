@@ -36,6 +36,8 @@ class SimulationConfig:
     transition_s: float = 0.5
     max_modes: int | None = None
     strain_limit: float = DEFAULT_STRAIN_LIMIT
+    auto: bool = False                 # choose the fewest modes (and dt) for ``tolerance``
+    tolerance: float = 0.01
 
     def to_dict(self) -> dict[str, Any]:
         out = dataclasses.asdict(self)
@@ -47,6 +49,12 @@ class SimulationConfig:
         data = dict(data)
         band = data.pop("band", {}) or {}
         return cls(band=FilterBand(**band), **data)
+
+
+#: node parameters whose change rebuilds the simulation (state and time carried over); the
+#: other ``filter.*`` parameters change the band of the running one
+REBUILD_PARAMETERS = frozenset({"method", "integrator", "sim.dt", "modal.auto",
+                                "modal.tolerance"})
 
 
 def band_from_parameters(values: dict[str, Any]) -> FilterBand:
@@ -64,17 +72,30 @@ def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
         method=values["method"], band=band_from_parameters(values),
         integrator=values["integrator"], dt=values["sim.dt"] or None,
         transition_s=values["filter.transition_s"], max_modes=values["modal.max_modes"],
-        strain_limit=values["sim.strain_limit"])
+        strain_limit=values["sim.strain_limit"], auto=values.get("modal.auto", False),
+        tolerance=values.get("modal.tolerance", 0.01))
 
 
 def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig) -> Simulation:
-    """A new simulation (at rest) of the same scene and basis with other settings."""
+    """A new simulation (at rest) of the same scene and basis with other settings.
+
+    With ``config.auto`` (modal), the fewest modes meeting ``config.tolerance`` are kept and,
+    unless ``config.dt`` is given, the step follows from them; the choice is ``sim.auto``.
+    """
     dt = config.dt or model.scene.default_dt
     if config.method == "modal":
+        choice = None
+        if config.auto:
+            from modal_spring_ros.mode_selection import choose_modes, choose_step
+            choice = choose_modes(model, basis, config.band, config.tolerance,
+                                  max_modes=config.max_modes or 256)
+            dt = config.dt or choose_step(choice, config.integrator, config.tolerance)
         sim: Simulation = ModalSimulation(
             model, basis, config.band, dt=dt or 1e-3, integrator=config.integrator,
             transition_s=config.transition_s, max_modes=config.max_modes,
-            strain_limit=config.strain_limit)
+            strain_limit=config.strain_limit,
+            highest_hz=choice.highest_hz if choice else None)
+        sim.auto = choice
     else:
         sim = FullSimulation(model, dt=dt or 1e-3, integrator=config.integrator, basis=basis,
                              strain_limit=config.strain_limit)
@@ -118,9 +139,11 @@ def build_simulation(scene: Scene | str | dict, config: SimulationConfig, *,
 def with_dt(sim: Simulation, dt: float) -> Simulation:
     """The same simulation (at rest) with another time step."""
     if isinstance(sim, ModalSimulation):
-        return ModalSimulation(sim.model, sim.basis, sim.band, dt=dt, integrator=sim.integrator,
-                               transition_s=sim.transition_s, max_modes=sim.max_modes,
-                               strain_limit=sim.strain_limit)
+        out = ModalSimulation(sim.model, sim.basis, sim.band, dt=dt, integrator=sim.integrator,
+                              transition_s=sim.transition_s, max_modes=sim.max_modes,
+                              strain_limit=sim.strain_limit, highest_hz=sim.highest_hz)
+        out.auto = getattr(sim, "auto", None)
+        return out
     return FullSimulation(sim.model, dt=dt, integrator=sim.integrator, basis=sim.basis,
                           strain_limit=sim.strain_limit)
 

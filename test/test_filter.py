@@ -155,3 +155,38 @@ def test_modes_not_computed_yet_are_computed_when_a_band_needs_them():
     np.testing.assert_allclose(sim.positions(), before, atol=1e-12)  # state carried over
     sim.step(100)
     assert np.isfinite(sim.positions()).all()
+
+
+def test_automatic_mode_choice_meets_its_tolerance_with_few_modes():
+    """modal.auto: the fewest modes whose predicted (static) truncation error is within the
+    tolerance; the prediction is exact for the static response and matches a full run."""
+    from modal_spring_ros.mode_selection import TruncationEstimator, choose_modes
+    from modal_spring_ros.simulation import FullSimulation
+    from modal_spring_ros.simulation_factory import SimulationConfig, build_simulation
+    model = MassSpringModel(load_scene("sheet_10x10"))
+    basis = ModalBasis(model)
+    choice = choose_modes(model, basis, tolerance=0.01)
+    assert choice.predicted_error <= 0.01 and 5 < choice.count < 40
+    fewer = TruncationEstimator(model).errors(basis, choice.modes[:-1])
+    assert max(fewer.values()) > 0.01 or choice.highest_hz < 2 * 8.0  # none fewer would do
+    # exactness of the prediction: static response of the kept modes against K^-1 f
+    import scipy.sparse.linalg as spla
+    f = model.gravity_force
+    u = spla.spsolve(model.stiffness_free.tocsc(), f)
+    phi = basis.vectors[:, choice.modes]
+    u_r = phi @ ((phi.T @ f) / basis.omega[choice.modes] ** 2)
+    m = model.mass_dof
+    actual = np.sqrt((u - u_r) @ (m * (u - u_r)) / (u @ (m * u)))
+    assert actual == pytest.approx(choice.load_errors["gravity"], rel=1e-6)
+    # the automatic run: its dt follows from the kept modes, and it tracks the full run
+    sim = build_simulation("sheet_10x10", SimulationConfig(auto=True, tolerance=0.01))
+    assert sim.kept_modes.size == choice.count and sim.dt < 0.9 * 2 / choice.omega_max + 1e-12
+    sub = int(np.ceil(sim.dt / 4e-4))                   # the reference steps dt / sub
+    full = FullSimulation(model, dt=sim.dt / sub, basis=basis)
+    steps = int(round(1.0 / sim.dt))
+    sim.step(steps)
+    full.step(steps * sub)
+    assert full.time == pytest.approx(sim.time, abs=1e-9)
+    err = np.linalg.norm(sim.displacement() - full.displacement()) / np.linalg.norm(
+        full.displacement())
+    assert err < 0.05

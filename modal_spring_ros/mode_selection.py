@@ -1,0 +1,149 @@
+"""Model no more than a scene needs: the fewest modes (and the step) that meet a tolerance.
+
+The loads of a scene are gravity and the base excitation of its anchor motion (an inertial
+load ``-M 1_axis`` per moving axis). For a load ``f`` the static response is
+``u = K^-1 f``, and in mass-normalised modes ``u = sum_i phi_i (phi_i^T f) / omega_i^2``, so
+the share of ``u`` that the modes ``R`` miss is, exactly,
+
+    e_R(f) = sqrt(1 - sum_{i in R} (phi_i^T f)^2 / omega_i^4 / ||u||_M^2)
+
+with ``||u||_M^2 = u^T M u`` from one sparse solve: no other mode is needed. A step load (the
+sheet released under gravity) excites each mode with exactly its static share, so the same
+number bounds the dynamic truncation error; a harmonic load at ``f_exc`` amplifies the first
+dropped mode by ``1 / (1 - (f_exc / f_i)^2)``, which a frequency margin keeps small.
+
+:func:`choose_modes` adds modes (lowest first, within the filter band) until every load's
+predicted error is within the tolerance and the highest kept mode is at least ``margin`` times
+the highest driving frequency. :func:`choose_step` then picks the largest step that is stable
+(explicit: ``2 / omega_max`` of the kept modes, with a safety factor) and resolves the motion
+well enough for the same tolerance: Newmark's relative period error is about
+``(omega dt)^2 / 12``, applied to the response-weighted frequency of the kept modes
+(``omega_eff^2 = sum s_i omega_i^2`` with ``s_i`` each mode's share of the static response),
+since the highest kept modes carry only a small share of the motion.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from modal_spring_ros.filter_band import FilterBand
+from modal_spring_ros.mass_spring import MassSpringModel
+from modal_spring_ros.modal_basis import ModalBasis
+
+DEFAULT_TOLERANCE = 0.01
+DEFAULT_MARGIN = 2.0
+STABILITY_SAFETY = 0.9
+
+
+@dataclasses.dataclass(frozen=True)
+class ModeChoice:
+    count: int                      # modes kept
+    modes: np.ndarray               # their indices
+    predicted_error: float          # worst load's static truncation error
+    load_errors: dict[str, float]   # per load
+    highest_hz: float
+    excitation_hz: float
+    omega_max: float                # rad/s, highest kept mode
+    omega_eff: float                # rad/s, response-weighted frequency of the kept modes
+
+    def describe(self) -> str:
+        return (f"{self.count} modes up to {self.highest_hz:.4g} Hz, predicted error "
+                f"{self.predicted_error:.2%}")
+
+
+def scene_loads(model: MassSpringModel) -> dict[str, np.ndarray]:
+    """Gravity and, per axis the base moves along, the unit base-excitation load."""
+    loads = {}
+    if np.any(model.gravity_force != 0.0):
+        loads["gravity"] = model.gravity_force
+    motion = model.scene.anchor_motion
+    for axis in sorted({c.axis for c in motion.components if c.amplitude != 0.0}):
+        if axis in model.axes:
+            a = model.axes.index(axis)
+            pattern = np.zeros(model.n_free_dof)
+            pattern[a::model.dimension] = -model.mass_dof[a::model.dimension]
+            loads[f"base {'xyz'[axis]}"] = pattern
+    return loads
+
+
+class TruncationEstimator:
+    """Static truncation error of mode sets, for the scene's loads (one sparse LU of K)."""
+
+    def __init__(self, model: MassSpringModel):
+        self.model = model
+        self.loads = scene_loads(model)
+        lu = spla.splu(model.stiffness_free.tocsc())
+        self._norm2 = {}
+        for name, f in self.loads.items():
+            u = lu.solve(f)
+            self._norm2[name] = float(u @ (model.mass_dof * u))
+
+    def effective_omega(self, basis: ModalBasis, modes: np.ndarray) -> float:
+        """Response-weighted RMS frequency of ``modes`` over all loads (rad/s)."""
+        phi = basis.vectors[:, modes]
+        w = basis.omega[modes]
+        share = np.zeros(modes.size)
+        for f in self.loads.values():
+            share += (phi.T @ f) ** 2 / w ** 4
+        if share.sum() <= 0.0:
+            return float(w.max())
+        return float(np.sqrt(np.sum(share * w ** 2) / share.sum()))
+
+    def errors(self, basis: ModalBasis, modes: np.ndarray) -> dict[str, float]:
+        phi = basis.vectors[:, modes]
+        w4 = basis.omega[modes] ** 4
+        out = {}
+        for name, f in self.loads.items():
+            captured = float(np.sum((phi.T @ f) ** 2 / w4))
+            share = captured / self._norm2[name] if self._norm2[name] > 0 else 1.0
+            out[name] = math.sqrt(max(0.0, 1.0 - min(share, 1.0)))
+        return out
+
+
+def choose_modes(model: MassSpringModel, basis: ModalBasis, band: FilterBand = FilterBand(),
+                 tolerance: float = DEFAULT_TOLERANCE, margin: float = DEFAULT_MARGIN,
+                 max_modes: int = 256) -> ModeChoice:
+    """The fewest lowest modes (within ``band``) meeting ``tolerance`` for every load.
+
+    Computes modes only as far as needed (in growing batches on large scenes).
+    """
+    if not 0.0 < tolerance < 1.0:
+        raise ValueError(f"modal.tolerance ({tolerance}) must be between 0 and 1")
+    band.validate()
+    estimator = TruncationEstimator(model)
+    excitation = model.scene.anchor_motion.frequencies_hz
+    f_exc = float(excitation.max()) if excitation.size else 0.0
+    limit = min(max_modes, basis.n_dof)
+    while True:
+        kept = np.flatnonzero(band.keeps(basis.frequencies_hz))
+        kept = kept[kept < limit]
+        freqs = basis.frequencies_hz
+        for n in range(1, kept.size + 1):
+            modes = kept[:n]
+            errors = estimator.errors(basis, modes)
+            worst = max(errors.values(), default=0.0)
+            if worst <= tolerance and freqs[modes[-1]] >= margin * f_exc:
+                return _choice(estimator, basis, modes, errors, f_exc)
+        if basis.complete or basis.count >= limit:
+            if not kept.size:
+                raise ValueError(f"filter band {band.describe()} keeps no mode")
+            return _choice(estimator, basis, kept, estimator.errors(basis, kept), f_exc)
+        basis.ensure_count(min(max(2 * basis.count, 16), limit))
+
+
+def _choice(estimator, basis, modes, errors, f_exc) -> ModeChoice:
+    return ModeChoice(int(modes.size), modes, max(errors.values(), default=0.0), errors,
+                      float(basis.frequencies_hz[modes[-1]]), f_exc,
+                      float(basis.omega[modes[-1]]), estimator.effective_omega(basis, modes))
+
+
+def choose_step(choice: ModeChoice, integrator: str,
+                tolerance: float = DEFAULT_TOLERANCE) -> float:
+    """Largest step that is stable for the kept modes and accurate within ``tolerance``."""
+    accurate = math.sqrt(12.0 * tolerance) / choice.omega_eff
+    if integrator == "explicit":
+        return min(STABILITY_SAFETY * 2.0 / choice.omega_max, accurate)
+    return accurate
