@@ -3,8 +3,10 @@
     modal_spring_bench [--suite steps,stream] [--quick] [--out DIR]
 
 Suites: ``steps`` (median time per step, basis cost, peak memory), ``stream`` (the node's
-publish rate and end-to-end latency, seen from another process). Results are printed as tables
-and written to ``DIR/<suite>.json``. Progress goes to stderr.
+publish rate and end-to-end latency, seen from another process), ``tradeoff`` (error against
+cost of every method, stability limits, the paper's figs. 7 and 8, the large-deformation
+failure, with CSV and PNG charts). Results are printed as tables and written to
+``DIR/<suite>.json``. Progress goes to stderr.
 """
 from __future__ import annotations
 
@@ -13,11 +15,11 @@ import json
 import sys
 from pathlib import Path
 
-from modal_spring_ros import step_benchmark, stream_benchmark
+from modal_spring_ros import step_benchmark, stream_benchmark, tradeoff_benchmark
 from modal_spring_ros.cli_common import fail
 
 PROG = "modal_spring_bench"
-SUITES = {"steps": step_benchmark, "stream": stream_benchmark}
+SUITES = {"steps": step_benchmark, "stream": stream_benchmark, "tradeoff": tradeoff_benchmark}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -48,7 +50,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"== {name} ==")
         print(module.table(results))
         if out is not None:
-            (out / f"{name}.json").write_text(json.dumps(results, indent=2))
+            (out / f"{name}.json").write_text(json.dumps(results, indent=1, default=float))
+            if hasattr(module, "write_outputs"):  # CSV and charts
+                module.write_outputs(results, out, progress)
     return 0
 
 

@@ -13,13 +13,16 @@ number bounds the dynamic truncation error; a harmonic load at ``f_exc`` amplifi
 dropped mode by ``1 / (1 - (f_exc / f_i)^2)``, which a frequency margin keeps small.
 
 :func:`choose_modes` adds modes (lowest first, within the filter band) until every load's
-predicted error is within the tolerance and the highest kept mode is at least ``margin`` times
-the highest driving frequency. :func:`choose_step` then picks the largest step that is stable
-(explicit: ``2 / omega_max`` of the kept modes, with a safety factor) and resolves the motion
-well enough for the same tolerance: Newmark's relative period error is about
-``(omega dt)^2 / 12``, applied to the response-weighted frequency of the kept modes
-(``omega_eff^2 = sum s_i omega_i^2`` with ``s_i`` each mode's share of the static response),
-since the highest kept modes carry only a small share of the motion.
+predicted error is within its share of the tolerance and the highest kept mode is at least
+``margin`` times the highest driving frequency. :func:`choose_step` then picks the largest step
+that is stable (explicit: ``2 / omega_max`` of the kept modes, with a safety factor) and
+accurate within the other share. Newmark (gamma 1/2) has no amplitude error but a relative
+period error of about ``(omega dt)^2 / 24``; for modes ringing freely it accumulates into a
+phase error ``omega t (omega dt)^2 / 24``, which averaged over their decay time ``tau`` (at
+most ``HORIZON_S``) is ``omega (tau / 2) (omega dt)^2 / 24``, evaluated at the response-weighted frequency of the kept modes
+(``omega_eff^2 = sum s_i omega_i^2 / sum s_i``, ``s_i`` the mode's share of the static
+response); the forced response needs ``(omega_exc dt)^2 / 12`` within it too. The two shares are
+``SHARE * tolerance`` each, so that together (in quadrature) they stay within the tolerance.
 """
 from __future__ import annotations
 
@@ -36,6 +39,10 @@ from modal_spring_ros.modal_basis import ModalBasis
 DEFAULT_TOLERANCE = 0.01
 DEFAULT_MARGIN = 2.0
 STABILITY_SAFETY = 0.9
+#: share of the tolerance given to mode truncation and to time stepping each
+SHARE = 0.7
+#: longest time over which a free mode's phase error is counted, s
+HORIZON_S = 2.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,7 +132,7 @@ def choose_modes(model: MassSpringModel, basis: ModalBasis, band: FilterBand = F
             modes = kept[:n]
             errors = estimator.errors(basis, modes)
             worst = max(errors.values(), default=0.0)
-            if worst <= tolerance and freqs[modes[-1]] >= margin * f_exc:
+            if worst <= SHARE * tolerance and freqs[modes[-1]] >= margin * f_exc:
                 return _choice(estimator, basis, modes, errors, f_exc)
         if basis.complete or basis.count >= limit:
             if not kept.size:
@@ -140,10 +147,17 @@ def _choice(estimator, basis, modes, errors, f_exc) -> ModeChoice:
                       float(basis.omega[modes[-1]]), estimator.effective_omega(basis, modes))
 
 
-def choose_step(choice: ModeChoice, integrator: str,
-                tolerance: float = DEFAULT_TOLERANCE) -> float:
-    """Largest step that is stable for the kept modes and accurate within ``tolerance``."""
-    accurate = math.sqrt(12.0 * tolerance) / choice.omega_eff
+def choose_step(choice: ModeChoice, integrator: str, tolerance: float = DEFAULT_TOLERANCE,
+                damping=None) -> float:
+    """Largest step that is stable for the kept modes and accurate within its share of
+    ``tolerance`` (``damping``: the scene's Damping, for the modes' decay time)."""
+    budget = SHARE * tolerance
+    w = choice.omega_eff
+    decay = damping.modal_coefficients(np.array([w]))[0] / 2.0 if damping is not None else 0.0
+    tau = min(HORIZON_S, 1.0 / decay) if decay > 0 else HORIZON_S
+    dt = math.sqrt(48.0 * budget / (w ** 3 * tau))
+    if choice.excitation_hz > 0:
+        dt = min(dt, math.sqrt(12.0 * budget) / (2 * math.pi * choice.excitation_hz))
     if integrator == "explicit":
-        return min(STABILITY_SAFETY * 2.0 / choice.omega_max, accurate)
-    return accurate
+        dt = min(dt, STABILITY_SAFETY * 2.0 / choice.omega_max)
+    return dt

@@ -89,7 +89,8 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
             from modal_spring_ros.mode_selection import choose_modes, choose_step
             choice = choose_modes(model, basis, config.band, config.tolerance,
                                   max_modes=config.max_modes or 256)
-            dt = config.dt or choose_step(choice, config.integrator, config.tolerance)
+            dt = config.dt or choose_step(choice, config.integrator, config.tolerance,
+                                          model.scene.damping)
         sim: Simulation = ModalSimulation(
             model, basis, config.band, dt=dt or 1e-3, integrator=config.integrator,
             transition_s=config.transition_s, max_modes=config.max_modes,

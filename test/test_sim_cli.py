@@ -78,3 +78,12 @@ def test_console_script_runs_as_a_user_would(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "chain_2" in proc.stdout and out.exists()
+
+
+def test_auto_option_reports_its_choice(capsys):
+    assert main(["--auto", "--tolerance", "0.05", "--duration", "0.05", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "auto       5 modes up to 20.44 Hz, predicted error 3.26%" in out
+    with pytest.raises(SystemExit):
+        main(["--auto", "--method", "full", "--duration", "0.01", "--quiet"])
+    assert "--auto chooses modes" in capsys.readouterr().err
