@@ -13,6 +13,22 @@ COLORS = {"full explicit": "C3", "full average": "C1", "modal explicit": "C0",
           "modal average": "C2", "modal auto": "k"}
 
 
+def _finish(fig, ax, path: Path, xlabel: str, ylabel: str, title: str, log: bool = True,
+            legend: bool = True) -> Path:
+    if log:
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    if legend:
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def _finite(rows):
     return [r for r in rows if r["seconds_per_sim_second"] and math.isfinite(r["rel_l2"])
             and r["rel_l2"] > 0]
@@ -35,16 +51,9 @@ def error_vs_cost(case: dict, path: Path) -> Path:
     ax.step([r["seconds_per_sim_second"] for r in front], [r["rel_l2"] for r in front],
              where="post", color="0.4", lw=1, ls="--", label="Pareto front", zorder=2)
     ax.axhline(0.01, color="0.7", lw=0.8)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("cost: wall seconds per simulated second")
-    ax.set_ylabel("relative L2 displacement error")
-    ax.set_title(f"{case['scene']}: error against cost ({case['free_dof']} DOF)")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _finish(fig, ax, path, "cost: wall seconds per simulated second",
+                   "relative L2 displacement error",
+                   f"{case['scene']}: error against cost ({case['free_dof']} DOF)")
 
 
 def stability_map(case: dict, path: Path) -> Path:
@@ -61,16 +70,8 @@ def stability_map(case: dict, path: Path) -> Path:
     ax.scatter([], [], marker="^", c="C2", label="modal average (tested up to 100x)")
     full = next(s for s in st if s["method"] == "full explicit")
     ax.axhline(full["largest_stable"], color="C3", label="full explicit: largest stable step")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("kept modes")
-    ax.set_ylabel("time step (s)")
-    ax.set_title(f"{case['scene']}: stability map")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _finish(fig, ax, path, "kept modes", "time step (s)",
+                   f"{case['scene']}: stability map")
 
 
 def fig7(costs: dict, path: Path) -> Path:
@@ -79,29 +80,17 @@ def fig7(costs: dict, path: Path) -> Path:
     n = [r["particles"] for r in rows]
     ax.plot(n, [1e6 * r["full"] for r in rows], "o-", c="C3", label="physical (full)")
     ax.plot(n, [1e6 * r["modal_2"] for r in rows], "o-", c="C0", label="modal, 2 lowest modes")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("particles")
-    ax.set_ylabel("time per step (us)")
-    ax.set_title("Paper fig. 7: time per step against particle count")
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _finish(fig, ax, path, "particles", "time per step (us)",
+                   "Paper fig. 7: time per step against particle count")
 
 
 def fig8(costs: dict, path: Path) -> Path:
     rows = costs["fig8"]
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.plot([r["dropped"] for r in rows], [1e6 * r["seconds_per_step"] for r in rows], "o-")
-    ax.set_xlabel("dropped modes (of 180)")
-    ax.set_ylabel("time per step (us)")
-    ax.set_title("Paper fig. 8: sheet_10x10, time per step against dropped modes")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _finish(fig, ax, path, "dropped modes (of 180)", "time per step (us)",
+                   "Paper fig. 8: sheet_10x10, time per step against dropped modes",
+                   log=False, legend=False)
 
 
 def failure_chart(f: dict, path: Path) -> Path:

@@ -1,6 +1,7 @@
 """Run the real node as a subprocess and talk to it over DDS from an rclpy client node."""
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -122,3 +123,19 @@ def wait_for(predicate, timeout: float, interval: float = 0.02) -> bool:
             return True
         time.sleep(interval)
     return predicate()
+
+
+@contextlib.contextmanager
+def node_with_client(*params: str, namespace: str):
+    """A node in ``namespace`` and a client; the node must end cleanly on SIGINT afterwards."""
+    node = NodeProcess(*params, namespace=namespace)
+    client = Client(f"{namespace}_client")
+    try:
+        yield node, client
+    except BaseException:
+        client.close()
+        node.kill()
+        raise
+    client.close()
+    code, _, err = node.interrupt()
+    assert code == 0 and "Traceback" not in err, err[-2000:]

@@ -11,7 +11,7 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from sensor_msgs.msg import PointCloud2
 
-from ros_harness import Client, NodeProcess, wait_for
+from ros_harness import Client, NodeProcess, node_with_client, wait_for
 
 NODE = "modal_spring"
 RATE = 60.0
@@ -98,12 +98,11 @@ def _status(diags, prefix):
 def test_mesh_and_clock_are_published_when_asked_for():
     from rosgraph_msgs.msg import Clock
     from visualization_msgs.msg import Marker
-    node = NodeProcess("publish_clock:=true", "mesh_rate_hz:=5.0", namespace="extras")
-    client = Client("extras_client")
-    points = client.collect(PointCloud2, "/extras/points")
-    meshes = client.collect(Marker, "/extras/mesh")
-    clocks = client.collect(Clock, "/clock")
-    try:
+    with node_with_client("publish_clock:=true", "mesh_rate_hz:=5.0",
+                          namespace="extras") as (node, client):
+        points = client.collect(PointCloud2, "/extras/points")
+        meshes = client.collect(Marker, "/extras/mesh")
+        clocks = client.collect(Clock, "/clock")
         assert wait_for(lambda: len(meshes) >= 3 and len(clocks) > 10, 30)
         marker = meshes[-1][1]
         assert marker.type == Marker.TRIANGLE_LIST and marker.header.frame_id == "world"
@@ -114,18 +113,13 @@ def test_mesh_and_clock_are_published_when_asked_for():
         # /clock carries the simulation time of the frames
         stamps = {(m.header.stamp.sec, m.header.stamp.nanosec) for _, m in points}
         assert sum((c.clock.sec, c.clock.nanosec) in stamps for _, c in clocks) > 5
-    finally:
-        client.close()
-        assert node.interrupt()[0] == 0
 
 
 def test_divergence_is_reported_not_published_and_recovered_from():
     # A strain limit below the sheet's ordinary 0.7 %: every drop from rest "diverges".
-    node = NodeProcess("sim.strain_limit:=0.004", namespace="diverge")
-    client = Client("diverge_client")
-    points = client.collect(PointCloud2, "/diverge/points", qos=500)
-    diags = client.collect(DiagnosticArray, "/diagnostics")
-    try:
+    with node_with_client("sim.strain_limit:=0.004", namespace="diverge") as (node, client):
+        points = client.collect(PointCloud2, "/diverge/points", qos=500)
+        diags = client.collect(DiagnosticArray, "/diagnostics")
         assert wait_for(lambda: any(s.level == DiagnosticStatus.ERROR
                                     for _, s in _status(diags, "/diverge/")), 30)
         errors = [s for _, s in _status(diags, "/diverge/") if s.level == DiagnosticStatus.ERROR]
@@ -140,25 +134,18 @@ def test_divergence_is_reported_not_published_and_recovered_from():
             assert np.isfinite(cloud).all()
         values = {kv.key: kv.value for kv in errors[-1].values}
         assert int(values["divergences"]) >= 1
-    finally:
-        client.close()
-        assert node.interrupt()[0] == 0
 
 
 def test_a_host_that_cannot_keep_real_time_says_so():
-    node = NodeProcess("method:=full", "realtime_factor:=200.0", namespace="slow")
-    client = Client("slow_client")
-    diags = client.collect(DiagnosticArray, "/diagnostics")
-    try:
+    with node_with_client("method:=full", "realtime_factor:=200.0",
+                          namespace="slow") as (node, client):
+        diags = client.collect(DiagnosticArray, "/diagnostics")
         assert wait_for(lambda: any(s.level == DiagnosticStatus.WARN
                                     for _, s in _status(diags, "/slow/")), 30)
         warn = next(s for _, s in _status(diags, "/slow/") if s.level == DiagnosticStatus.WARN)
         assert "cannot keep real time" in warn.message and "of 200" in warn.message
         achieved = float({kv.key: kv.value for kv in warn.values}["achieved real-time factor"])
         assert 0.5 < achieved < 180
-    finally:
-        client.close()
-        assert node.interrupt()[0] == 0
 
 
 @pytest.mark.parametrize("param, message", [

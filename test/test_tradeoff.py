@@ -20,7 +20,7 @@ from modal_spring_ros.mass_spring import MassSpringModel
 from modal_spring_ros.modal_basis import ModalBasis
 from modal_spring_ros.scene import load_scene
 from modal_spring_ros.simulation import DivergenceError, FullSimulation, ModalSimulation
-from ros_harness import Client, NodeProcess, wait_for
+from ros_harness import node_with_client, wait_for
 
 
 @pytest.fixture(scope="module")
@@ -130,13 +130,12 @@ def test_average_acceleration_is_stable_at_ten_times_the_explicit_limit(scene):
 
 
 def test_the_node_flags_the_large_deformation_and_keeps_streaming():
-    node = NodeProcess("scene:=sheet_10x10_resonance", "filter.type:=lowpass",
-                       "filter.by:=index", "filter.high_mode:=14", "realtime_factor:=2.0",
-                       namespace="fold")
-    client = Client("fold_client")
-    points = client.collect(PointCloud2, "/fold/points", qos=500)
-    diags = client.collect(DiagnosticArray, "/diagnostics")
-    try:
+    with node_with_client("scene:=sheet_10x10_resonance", "filter.type:=lowpass",
+                          "filter.by:=index", "filter.high_mode:=14", "realtime_factor:=2.0",
+                          namespace="fold") as (node, client):
+        points = client.collect(PointCloud2, "/fold/points", qos=500)
+        diags = client.collect(DiagnosticArray, "/diagnostics")
+
         def warned():
             return any(d.status[0].name.startswith("/fold/") and
                        d.status[0].level == DiagnosticStatus.WARN and
@@ -148,22 +147,15 @@ def test_the_node_flags_the_large_deformation_and_keeps_streaming():
         assert len(window) > 30                               # not frozen
         for m in window:
             assert np.isfinite(np.frombuffer(bytes(m.data), dtype="<f4")).all()
-    finally:
-        client.close()
-        assert node.interrupt()[0] == 0
 
 
 def test_node_automatic_mode_choice_is_reported():
-    node = NodeProcess("modal.auto:=true", "modal.tolerance:=0.05", namespace="auto")
-    client = Client("auto_client")
-    diags = client.collect(DiagnosticArray, "/diagnostics")
-    try:
+    with node_with_client("modal.auto:=true", "modal.tolerance:=0.05",
+                          namespace="auto") as (node, client):
+        diags = client.collect(DiagnosticArray, "/diagnostics")
         assert wait_for(lambda: any(d.status[0].name.startswith("/auto/") for _, d in diags),
                         30)
         status = next(d.status[0] for _, d in diags if d.status[0].name.startswith("/auto/"))
         values = {kv.key: kv.value for kv in status.values}
         assert values["automatic mode choice"].startswith("5 modes up to 20.44 Hz")
         assert values["modes stepped"] == "5"
-    finally:
-        client.close()
-        assert node.interrupt()[0] == 0
