@@ -160,6 +160,9 @@ def main(argv: list[str] | None = None) -> int:
     writer = None
     try:
         writer = BagWriter(args.output, chunk_size=args.chunk_size)
+        # Subscribe first, then take the parameters: a change in between is then both in the
+        # snapshot and on /parameter_events (harmless), never in neither.
+        Recorder(node, writer, args.topics, target)
         params = snapshot_parameters(node, target, args.wait_for_node)
         record = {"source": PROG, "node": target}
         if params is None:
@@ -171,8 +174,9 @@ def main(argv: list[str] | None = None) -> int:
                 record["scene_yaml"] = load_scene(params.get("scene", "")).to_yaml()
             except SceneError as exc:
                 node.get_logger().warning(f"scene not stored: {exc}")
+            node.get_logger().info(f"stored {len(params)} parameters of node {target}"
+                                   + (" and its scene" if "scene_yaml" in record else ""))
         writer.add_run_record(record)
-        Recorder(node, writer, args.topics, target)
         end = None if args.duration is None else time.monotonic() + args.duration
         while rclpy.ok() and (end is None or time.monotonic() < end):
             rclpy.spin_once(node, timeout_sec=0.05)

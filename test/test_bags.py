@@ -25,7 +25,11 @@ from modal_spring_ros.pointcloud import xyz
 
 REPO = Path(__file__).resolve().parent.parent
 BAGS = REPO / "bags"
-REAL = REPO.parent / "shared" / "real_bags"
+REAL = Path(os.environ.get("MODAL_SPRING_REAL_BAGS", REPO.parent / "shared" / "real_bags"))
+# The real rosbag2 recordings sit beside the repository (CI has them): required under CI.
+needs_real_bags = pytest.mark.skipif(
+    not REAL.is_dir() and os.environ.get("CI") != "true",
+    reason=f"real rosbag2 bags not found at {REAL} (set MODAL_SPRING_REAL_BAGS)")
 
 
 def _msg(pkg: str, name: str) -> str:
@@ -50,6 +54,7 @@ def test_pointcloud2_schema_is_rosbag2s_concatenation_of_the_installed_msg_files
     assert schema.data.decode() == expected
 
 
+@needs_real_bags
 def test_schema_matches_a_real_rosbag2_recording():
     """Against rosbag2's own ParameterEvent schema (only Time.msg's comments changed since)."""
     from mcap.reader import make_reader
@@ -200,6 +205,7 @@ def test_a_killed_writer_leaves_every_complete_chunk_readable(tmp_path):
     assert got == [f"message {i:06d}" for i in range(len(got))]
 
 
+@needs_real_bags
 def test_real_rosbag2_bags_are_read():
     only = BagReader(REAL / "only_topics" / "only_topics.mcap")
     assert only.topics["/parameter_events"].type == "rcl_interfaces/msg/ParameterEvent"

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -58,13 +59,22 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
              "/rec/modal_spring", "--topics", "points", "/diagnostics", "/parameter_events",
              "--ros-args", "-r", "__ns:=/rec"],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        time.sleep(3.0)
+        log: list[str] = []
+        reader = threading.Thread(target=lambda: log.extend(iter(recorder.stderr.readline, "")),
+                                  daemon=True)
+        reader.start()
+        assert wait_for(lambda: any("recording /rec/points" in line for line in log), 30)
+        assert wait_for(lambda: any("parameters of node /rec/modal_spring and its scene" in line
+                                    for line in log), 30)
+        time.sleep(2.0)
         (result,) = client.set_parameters("rec/modal_spring", atomically=True,
                                           filter__type="lowpass", filter__high_hz=12.0)
         assert result.successful
         time.sleep(2.5)
         recorder.send_signal(signal.SIGINT)
-        _, err = recorder.communicate(timeout=30)
+        recorder.wait(timeout=30)
+        reader.join(timeout=5)
+        err = "".join(log)
         assert recorder.returncode == 0, err
         assert "Traceback" not in err
     finally:
