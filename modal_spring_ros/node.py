@@ -38,6 +38,7 @@ from std_msgs.msg import ColorRGBA, Header
 from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import Marker
 
+from modal_spring_ros.bag_writer import BagError
 from modal_spring_ros.filter_band import FILTER_TYPES, UNITS, BandError, FilterBand
 from modal_spring_ros.newmark import INTEGRATORS
 from modal_spring_ros.pointcloud import to_pointcloud2
@@ -56,6 +57,8 @@ DEFAULT_STRAIN_WARNING = 0.1
 DIAGNOSTICS_PERIOD_S = 1.0
 #: Achieved real-time factor below this share of the requested one is reported.
 REALTIME_TOLERANCE = 0.9
+#: A gap between frames longer than this many publish periods is reported as a stall.
+STALL_PERIODS = 3.0
 
 
 def _descriptor(description: str, type_: int, *, read_only: bool = False,
@@ -131,6 +134,10 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     "modal.tolerance": (0.01, _descriptor(
         "Predicted relative error the automatic mode choice must meet", _D,
         float_range=(1e-6, 0.5))),
+    "record.bag": ("", _descriptor(
+        "If set, a new bag folder that every published frame is written to directly (no DDS), "
+        "with the scene, the parameters and every change: re-simulates exactly", _S,
+        read_only=True)),
     "modal.max_modes": (256, _descriptor(
         "Most modes computed on scenes too large for a dense eigensolver", _I, read_only=True,
         int_range=(1, 100_000))),
@@ -164,6 +171,9 @@ class _Stats:
     window_sim: float = 0.0
     achieved_rtf: float = 0.0
     window_valid: bool = True  # no reset, pause or rebuild inside the window
+    last_publish: float = 0.0
+    longest_gap: float = 0.0   # longest time between two frames in the window, s
+    stall_while_computing: bool = False
     divergences: int = 0
     last_divergence: str = ""
     diverged_recently: bool = False
@@ -204,10 +214,20 @@ class ModalSpringNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._paused = False
         self._reanchor = False
+        self._computing_modes = False  # a parameter request is computing modes
         self._stats = _Stats()
         self._stop = threading.Event()
         log.info(f"scene {scene.name}: {scene.n_particles} particles, "
                  f"{self.basis.count} modes computed; {self._describe()}; dt {self.sim.dt:g} s")
+        self._bag = None
+        if self._values["record.bag"]:
+            from modal_spring_ros.run_bag import RunBagWriter
+            self._bag = RunBagWriter(
+                self._values["record.bag"], scene, None, dt=self.sim.dt, frame_every=0,
+                duration=0.0, frame_id=self._values["frame_id"], source="modal_spring_node",
+                parameters={k: v for k, v in self._values.items()},
+                node=self.get_fully_qualified_name())
+            log.info(f"writing every frame to {self._values['record.bag']}")
         self._thread = threading.Thread(target=self._run, name="modal_spring_sim", daemon=True)
         self._thread.start()
 
@@ -253,13 +273,18 @@ class ModalSpringNode(Node):
                 check_band(new_sim, band, "sim.dt")
         elif changed & BAND:
             probe = self._probe(config)
-            check_band(probe, band, "sim.dt")
+            self._computing_modes = True
+            try:
+                check_band(probe, band, "sim.dt")
+            finally:
+                self._computing_modes = False
         self._publish_frequencies()
         self._values = values
+        delta = {name: values[name] for name in changed}
         if new_sim is not None:
-            self._requests.put(("simulation", new_sim, None))
+            self._requests.put(("simulation", (new_sim, delta), None))
         elif changed & BAND:
-            self._requests.put(("band", (band, config.transition_s), None))
+            self._requests.put(("band", (band, config.transition_s, delta), None))
 
     def _probe(self, config: SimulationConfig) -> ModalSimulation:
         """A modal simulation to check bands against (the running one when modal)."""
@@ -316,12 +341,16 @@ class ModalSpringNode(Node):
             except queue.Empty:
                 return reanchor
             try:
-                if kind == "band" and isinstance(self.sim, ModalSimulation):
-                    band, transition = payload
-                    self.sim.set_band(band, transition)
+                if kind == "band":
+                    band, transition, delta = payload
+                    if isinstance(self.sim, ModalSimulation):
+                        self.sim.set_band(band, transition)
+                    self._record_change(delta)
                 elif kind == "simulation":
-                    payload.take_over(self.sim)
-                    self.sim = payload
+                    new_sim, delta = payload
+                    new_sim.take_over(self.sim)
+                    self.sim = new_sim
+                    self._record_change(delta)
                     reanchor = True
                 elif kind == "reset":
                     self.sim.reset()
@@ -334,6 +363,10 @@ class ModalSpringNode(Node):
             finally:
                 if done is not None:
                     done.set()
+
+    def _record_change(self, delta: dict) -> None:
+        if self._bag is not None and delta:
+            self._bag.parameter_event(self.sim.time, delta)
 
     def _run(self) -> None:
         try:
@@ -424,7 +457,14 @@ class ModalSpringNode(Node):
         header = Header(stamp=stamp, frame_id=self._values["frame_id"])
         self._points_pub.publish(to_pointcloud2(positions, self.model.scene.rest_positions,
                                                 header))
-        self._stats.frames += 1
+        st = self._stats
+        now = time.monotonic()
+        if st.last_publish:
+            st.longest_gap = max(st.longest_gap, now - st.last_publish)
+        st.last_publish = now
+        st.frames += 1
+        if self._bag is not None:
+            self._bag.frame(self.sim.time, positions)
         if self._values["publish_clock"]:
             self._clock_pub.publish(Clock(clock=to_time_msg(self.sim.time)))
         if (mesh and self._triangles.size and self._values["mesh_rate_hz"] > 0
@@ -460,6 +500,12 @@ class ModalSpringNode(Node):
             level = DiagnosticStatus.WARN
             message = (f"cannot keep real time: achieved real-time factor "
                        f"{st.achieved_rtf:.2f} of {requested:g}")
+        period = 1.0 / self._values["publish_rate_hz"]
+        if st.longest_gap > STALL_PERIODS * period and not self._paused:
+            level = DiagnosticStatus.WARN
+            message = (f"stream stalled for {st.longest_gap:.2f} s"
+                       + (" while computing modes for a band change"
+                          if self._computing_modes or st.stall_while_computing else ""))
         if strain > self._values["sim.strain_warning"]:
             level = DiagnosticStatus.WARN
             message = (f"large deformation: spring strain {strain:.1%} beyond the "
@@ -487,6 +533,8 @@ class ModalSpringNode(Node):
             "divergence": st.last_divergence or "none",
             "divergences": str(st.divergences),
             "paused": str(self._paused).lower(),
+            "longest gap between frames (s)": f"{st.longest_gap:.3f}",
+            "computing modes": str(self._computing_modes).lower(),
         }
         status = DiagnosticStatus(
             level=level, name=f"{self.get_fully_qualified_name()}: simulation",
@@ -497,14 +545,19 @@ class ModalSpringNode(Node):
         st.step_seconds, st.steps = 0.0, 0
         st.window_wall, st.window_sim = now, sim.time
         st.window_valid = True
+        st.longest_gap = 0.0
+        st.stall_while_computing = self._computing_modes
         if not error:
             st.diverged_recently = False
 
     def stop(self) -> None:
-        """Stop the simulation thread (before destroy_node)."""
+        """Stop the simulation thread (before destroy_node) and finalise the bag, if any."""
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join(timeout=5.0)
+        if self._bag is not None:
+            self._bag.close()
+            self._bag = None
 
 
 def _ignore_after_rclpy(signum, frame) -> None:
@@ -522,7 +575,8 @@ def main(args: list[str] | None = None) -> int:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (SceneError, BandError, UnstableStepError, ValueError, ParameterException) as exc:
+    except (SceneError, BandError, UnstableStepError, ValueError, ParameterException,
+            BagError) as exc:
         print(f"modal_spring_node: error: {exc}", file=sys.stderr)
         return 2
     finally:

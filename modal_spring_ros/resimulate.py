@@ -1,9 +1,11 @@
 """Re-run the simulation a bag recorded and write its frames to a new bag.
 
 A bag written by ``modal_spring_sim --bag`` describes its run completely (scene, settings,
-frame spacing): re-simulating it reproduces every frame to float32 round-off. A bag recorded
-from the node by ``modal_spring_record`` holds the scene, the node's parameters at the start
-and every later change on ``/parameter_events``; changes are applied before the first frame
+frame spacing), and so does the node's own capture (``record.bag``: parameters at the start,
+each change stamped with the simulation time it took effect at): re-simulating either
+reproduces every frame to float32 round-off. A bag recorded over DDS by
+``modal_spring_record`` holds the scene, the node's parameters at the start and every later
+change as received on ``/parameter_events``; those are applied before the first frame
 received after them, so the re-run follows the recording as closely as its stamps allow.
 """
 from __future__ import annotations
@@ -21,8 +23,9 @@ from modal_spring_ros.simulation_factory import (REBUILD_PARAMETERS, SimulationC
 
 
 
-def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, dict]]:
-    """(log time ns, {name: value}) of the parameter events of ``node`` in the bag."""
+def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, int, dict]]:
+    """(log time ns, stamp ns, {name: value}) of the parameter events of ``node`` in the bag.
+    In the node's own capture the stamp is the simulation time the change took effect at."""
     from rclpy.parameter import parameter_value_to_python
     if "/parameter_events" not in bag.topics:
         return []
@@ -34,7 +37,8 @@ def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, dict]]:
         values = {p.name: parameter_value_to_python(p.value)
                   for p in list(event.new_parameters) + list(event.changed_parameters)}
         if values:
-            out.append((m.log_time_ns, values))
+            out.append((m.log_time_ns, event.stamp.sec * 1_000_000_000 + event.stamp.nanosec,
+                        values))
     return out
 
 
@@ -62,7 +66,7 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
     if topic not in bag.topics:
         raise BagError(f"{bag_path}: no topic {topic}")
     scene = scene_from_yaml(rec["scene_yaml"], source=f"{bag_path} (scene)")
-    changes: list[tuple[int, dict]] = []
+    changes: list[tuple[int, int, dict]] = []
     if "config" in rec:
         config = SimulationConfig.from_dict(rec["config"])
         values = None
@@ -77,11 +81,15 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
                           duration=float(rec.get("duration", 0.0)),
                           frame_id=rec.get("frame_id", "world"),
                           source="modal_spring_replay --resimulate")
+    exact = rec.get("event_clock") == "sim"   # events stamped with simulation time
     pending = list(changes)
     try:
         for log_time, stamp in frames:
             while pending and pending[0][0] <= log_time and values is not None:
-                _, change = pending.pop(0)
+                _, event_stamp, change = pending.pop(0)
+                if exact:   # step to the simulation time the node applied it at
+                    while sim.time < event_stamp * 1e-9 - 0.5 * sim.dt:
+                        sim.step()
                 sim, values = _apply(sim, values, change)
             if stamp < sim.time - 0.5 * sim.dt:   # the recording was reset
                 sim.reset()
@@ -90,7 +98,7 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
                     sim.step()
                 except DivergenceError:
                     sim.reset()                    # as the node does
-            writer.frame(sim.time, sim.positions())
+            writer.frame(sim.time, sim.positions(), log_time_ns=log_time)
     finally:
         writer.close()
     return len(frames)

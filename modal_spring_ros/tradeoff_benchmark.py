@@ -40,15 +40,16 @@ class Case:
     average_divisors: tuple[int, ...]
     stability_counts: tuple[int, ...]
     reference_fraction: float = 1.0 / 16   # reference step, as a fraction of the limit
+    repeats: int = 3                        # timed runs per configuration (median)
 
 
 QUICK = [Case("sheet_10x10", 1.0, (2, 4, 8, 16, 32, 64, 180), (4, 16), (1, 2, 4),
-              (2, 8, 32, 180))]
+              (2, 8, 32, 180), repeats=1)]
 FULL = [
     Case("sheet_10x10", 2.0, (2, 4, 8, 16, 32, 64, 180), (4, 16, 64), (1, 2, 4, 8),
          (2, 4, 8, 16, 32, 64, 128, 180)),
     Case("sheet_32x32", 1.0, (2, 4, 8, 16, 32, 64), (4, 16), (1, 2, 4), (2, 8, 32, 64)),
-    Case("sheet_100x100", 0.5, (4, 8, 16, 32), (16,), (1, 2, 4, 8), (4, 16, 32), 1.0 / 8),
+    Case("sheet_100x100", 0.5, (4, 8, 16, 32), (16,), (1, 2, 4, 8), (4, 16, 32), 1.0 / 8, 1),
 ]
 
 
@@ -57,23 +58,27 @@ def _divisor(dt: float) -> int:
     return max(1, math.ceil(SAMPLE_S / dt - 1e-9))
 
 
-def _run(sim: Simulation, duration: float) -> dict:
-    """Step ``sim`` for ``duration``; samples of the relative displacement, timing."""
+def _run(sim: Simulation, duration: float, repeats: int = 1) -> dict:
+    """Step ``sim`` for ``duration`` (after a warm-up), ``repeats`` times from rest; samples
+    of the relative displacement from the last run, and the median wall time."""
     per = int(round(SAMPLE_S / sim.dt))
     samples = int(round(duration / SAMPLE_S))
     out = np.empty((samples, sim.model.n_free_dof))
     energy = np.empty(samples)
-    sim.step(min(per, 20))  # warm-up (caches, first allocations) ...
-    sim.reset()             # ... then from rest again
-    start = time.perf_counter()
-    try:
-        for k in range(samples):
-            sim.step(per)
-            out[k] = sim.displacement()
-            energy[k] = sim.energy()["total"]
-    except DivergenceError as exc:
-        return {"diverged": str(exc), "wall": time.perf_counter() - start}
-    return {"u": out, "energy": energy, "wall": time.perf_counter() - start,
+    sim.step(min(per, 20))  # warm-up (caches, first allocations)
+    walls = []
+    for _ in range(repeats):
+        sim.reset()
+        start = time.perf_counter()
+        try:
+            for k in range(samples):
+                sim.step(per)
+                out[k] = sim.displacement()
+                energy[k] = sim.energy()["total"]
+        except DivergenceError as exc:
+            return {"diverged": str(exc), "wall": time.perf_counter() - start}
+        walls.append(time.perf_counter() - start)
+    return {"u": out, "energy": energy, "wall": float(np.median(walls)),
             "steps": samples * per}
 
 
@@ -135,7 +140,7 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
 
     def add(method, sim, modes, note=""):
         progress(f"{case.scene}: {method}, {modes} modes, dt {sim.dt:.3g} s {note}")
-        r = _run(sim, case.duration)
+        r = _run(sim, case.duration, case.repeats)
         row = {"scene": case.scene, "method": method, "modes": modes, "dt": sim.dt,
                "stability_limit": sim.stability_limit(), **_errors(r, ref),
                "seconds_per_sim_second": r["wall"] / case.duration if "steps" in r else None,
@@ -186,8 +191,10 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
                           "theory": math.inf, "largest_stable": largest_stable_step(
                               lambda dt, c=count: modal(c, dt, "average"), limit,
                               100 * limit, u0, iterations=6)})
+    import resource
     return {"scene": case.scene, "particles": model.scene.n_particles,
-            "free_dof": model.n_free_dof, "duration": case.duration,
+            "free_dof": model.n_free_dof, "duration": case.duration, "repeats": case.repeats,
+            "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
             "omega_max": omega_max, "reference_dt": SAMPLE_S / n_ref,
             "reference_check_rel_l2": ref_check, "configs": configs, "stability": stability}
 
@@ -279,10 +286,29 @@ def failure(progress, duration: float) -> dict:
             "strain_warning": DEFAULT_STRAIN_WARNING, "modal_diverged_at": diverged_at}
 
 
+def _case_in_child(case: Case, queue) -> None:
+    def progress(msg: str) -> None:
+        import sys
+        print(f"[modal_spring_bench] {msg}", file=sys.stderr, flush=True)
+    queue.put(run_case(case, progress))
+
+
+def run_case_isolated(case: Case) -> dict:
+    """:func:`run_case` in its own process, so that its peak memory is the scene's own."""
+    import multiprocessing as mp
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_case_in_child, args=(case, queue))
+    child.start()
+    result = queue.get()
+    child.join()
+    return result
+
+
 def run(quick: bool, progress: Callable[[str], None]) -> dict:
     cases = QUICK if quick else FULL
     result = {"quick": quick, "sample_s": SAMPLE_S,
-              "cases": [run_case(c, progress) for c in cases]}
+              "cases": [run_case_isolated(c) for c in cases]}
     for case in result["cases"]:
         rows = case["configs"]
         case["pareto"] = [(r["method"], r["modes"], r["dt"]) for r in pareto(rows)]
@@ -323,7 +349,9 @@ def write_outputs(result: dict, out: Path, progress) -> None:
 def table(result: dict) -> str:
     lines = []
     for case in result["cases"]:
-        lines.append(f"{case['scene']}: reference check {case['reference_check_rel_l2']:.1e}")
+        lines.append(f"{case['scene']}: reference check {case['reference_check_rel_l2']:.1e}, "
+                     f"peak memory {case['peak_memory_mb']:.0f} MB, median of "
+                     f"{case['repeats']} timed run(s)")
         lines.append(f"  {'method':15s} {'modes':>5s} {'dt ms':>7s} {'rel L2':>9s} "
                      f"{'s/sim s':>9s}")
         for r in case["configs"]:

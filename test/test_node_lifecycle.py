@@ -160,3 +160,31 @@ def test_bad_startup_parameters_exit_2_with_one_clear_line(param, message):
     out, err = node.proc.communicate(timeout=30)
     assert node.proc.returncode == 2
     assert "Traceback" not in err and message in err
+
+
+def test_a_band_needing_new_modes_keeps_the_stream_or_reports_the_stall():
+    """sheet_100x100 starts with 32 modes; a band up to mode 99 makes the node compute more
+    inside the parameter request. The stream must go on, and any stall must be reported."""
+    with node_with_client("scene:=sheet_100x100", "integrator:=average", "filter.type:=lowpass",
+                          "filter.by:=index", "filter.high_mode:=15",
+                          namespace="grow") as (node, client):
+        points = client.collect(PointCloud2, "/grow/points", qos=500)
+        diags = client.collect(DiagnosticArray, "/diagnostics")
+        assert wait_for(lambda: len(points) > 10, 60)
+        start = time.monotonic()
+        (result,) = client.set_parameters("grow/modal_spring", filter__high_mode=99)
+        assert result.successful, result.reason
+        done = time.monotonic()
+        assert any(t > start and t < done for t, _ in points)   # frames during the request
+        assert wait_for(lambda: any(
+            d.status[0].name.startswith("/grow/") and t > done + 1.0 for t, d in diags), 10)
+        mine = [(t, d.status[0]) for t, d in diags
+                if d.status[0].name.startswith("/grow/") and t > start]
+        values = {kv.key: kv.value for kv in mine[-1][1].values}
+        assert values["modes stepped"] == "100" and int(values["modes computed"]) >= 100
+        times = np.array([t for t, _ in points if t > start - 0.5])
+        worst = float(np.diff(times).max())
+        reported = [s for _, s in mine if s.level == DiagnosticStatus.WARN
+                    and "stream stalled for" in s.message]
+        print(f"longest gap {worst:.3f} s; stall reports: {[s.message for s in reported]}")
+        assert worst < 3.0 / RATE + 0.02 or reported, (worst, [s.message for _, s in mine])
