@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 from typing import Callable, NoReturn
 
 from modal_spring_ros.filter_band import FILTER_TYPES, BandError, FilterBand, parse_mode_range
@@ -22,6 +24,20 @@ def split_ros_args(argv: list[str] | None) -> tuple[list[str], list[str]]:
         k = argv.index("--ros-args")
         return argv[:k], argv[k:]
     return argv, []
+
+
+def check_output_file(path: str, option: str) -> None:
+    """Fail before long work, not after it, when an output file cannot be written.
+
+    Raises ValueError naming ``option``; creates nothing."""
+    target = Path(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise ValueError(f"{option} {path}: folder {folder} does not exist")
+    if target.is_dir():
+        raise ValueError(f"{option} {path}: is a folder, not a file")
+    if not os.access(target if target.exists() else folder, os.W_OK):
+        raise ValueError(f"{option} {path}: not writable")
 
 
 def fail(prog: str, message: str, status: int = EXIT_USAGE) -> NoReturn:

@@ -8,7 +8,7 @@ import argparse
 import json
 import sys
 
-from modal_spring_ros.cli_common import fail, run_main
+from modal_spring_ros.cli_common import check_output_file, run_main
 from modal_spring_ros.run_comparison import compare, load_run, plot
 
 PROG = "modal_spring_compare"
@@ -22,11 +22,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", default=None, help="write every figure as JSON")
     p.add_argument("--topic", default="/points", help="cloud topic in bags")
     args = p.parse_args(argv)
-    for option in (args.plot, args.json):
-        if option:
-            _check_output(option)
 
     def body() -> int:
+        for option, path in (("--plot", args.plot), ("--json", args.json)):
+            if path:
+                check_output_file(path, option)
         result = compare(load_run(args.a, args.topic), load_run(args.b, args.topic))
         print(f"{result['common_frames']} common frames of {result['a']['frames']} and "
               f"{result['b']['frames']}")
@@ -49,14 +49,6 @@ def main(argv: list[str] | None = None) -> int:
         return 0
 
     return run_main(PROG, body)
-
-
-def _check_output(path: str) -> None:
-    import os
-    from pathlib import Path
-    folder = Path(path).parent if str(Path(path).parent) else Path(".")
-    if not folder.is_dir() or not os.access(folder, os.W_OK):
-        fail(PROG, f"{path}: folder {folder} does not exist or is not writable")
 
 
 if __name__ == "__main__":

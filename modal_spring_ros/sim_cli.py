@@ -7,12 +7,11 @@ Example::
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
-from pathlib import Path
 
-from modal_spring_ros.cli_common import add_simulation_options, config_from_args, run_main
+from modal_spring_ros.cli_common import (add_simulation_options, check_output_file,
+                                         config_from_args, run_main)
 from modal_spring_ros.run_file import record
 from modal_spring_ros.simulation import ModalSimulation
 from modal_spring_ros.simulation_factory import build_simulation
@@ -52,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         if not duration > 0:
             raise ValueError(f"--duration ({duration}) must be positive")
         if args.output:
-            _check_writable(args.output)
+            check_output_file(args.output, "--output")
         bag = None
         if args.bag:
             from modal_spring_ros.run_bag import RunBagWriter
@@ -78,18 +77,6 @@ def main(argv: list[str] | None = None) -> int:
         return 1 if run.diverged else 0
 
     return run_main(PROG, body)
-
-
-def _check_writable(path: str) -> None:
-    """Fail before a long run, not after it, when the output cannot be written."""
-    target = Path(path)
-    folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
-        raise ValueError(f"--output {path}: folder {folder} does not exist")
-    if target.is_dir():
-        raise ValueError(f"--output {path}: is a folder, not a file")
-    if not os.access(target if target.exists() else folder, os.W_OK):
-        raise ValueError(f"--output {path}: not writable")
 
 
 def summary(sim, diverged: str, seconds_per_step: float, wall: float) -> str:
