@@ -111,7 +111,7 @@ class Client:
                 name=n, value=v)).value for n, v in zip(names, res.values)]
 
     def close(self) -> None:
-        self.executor.shutdown()
+        self.executor.shutdown(timeout_sec=5.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
 
