@@ -44,8 +44,7 @@ from modal_spring_ros.newmark import INTEGRATORS
 from modal_spring_ros.pointcloud import to_pointcloud2
 from modal_spring_ros.ros_time import to_time_msg
 from modal_spring_ros.scene import DEFAULT_SCENE, SceneError
-from modal_spring_ros.simulation import (METHODS, DivergenceError, FullSimulation,
-                                         ModalSimulation, Simulation)
+from modal_spring_ros.simulation import METHODS, DivergenceError, ModalSimulation, Simulation
 from modal_spring_ros.simulation_factory import (SimulationConfig, UnstableStepError,
                                                  build_simulation, check_band, check_stable,
                                                  config_from_parameters, rebuild,

@@ -188,7 +188,6 @@ class ModalSimulation(Simulation):
         self.max_modes = int(max_modes) if max_modes else (basis.n_dof if basis.dense else 256)
         self.transition_s = float(transition_s)
         self.band = band.validate()
-        self.truncated = False
         self._active = np.empty(0, dtype=np.int64)
         self._target = np.empty(0, dtype=bool)
         self._progress = np.empty(0)  # fade progress per active mode: 1 = fully in, 0 = out
@@ -215,6 +214,7 @@ class ModalSimulation(Simulation):
 
     def select_modes(self, band: FilterBand) -> np.ndarray:
         """Indices of the computed modes ``band`` keeps (computing what it needs first).
+        Changes no state of the run, so it can check a band before it is applied.
 
         Raises:
             BandError: the band keeps no mode.
@@ -226,9 +226,6 @@ class ModalSimulation(Simulation):
             keep = keep[keep < self.max_modes]
         if self.highest_hz is not None:
             keep = keep[f[keep] <= self.highest_hz * (1.0 + 1e-12)]
-        top = self.highest_hz if self.highest_hz is not None else math.inf
-        edge = min(band.high if band.bounded_above and band.by == "hz" else math.inf, top)
-        self.truncated = not self.basis.complete and f[-1] <= edge
         if keep.size == 0:
             span = f"{f[0]:.4g} .. {f[-1]:.4g} Hz" if band.by == "hz" else f"0 .. {f.size - 1}"
             raise BandError(f"filter band {band.describe()} keeps no mode "
@@ -242,6 +239,14 @@ class ModalSimulation(Simulation):
             self.transition_s = float(transition_s)
         self.band = band
         self._set_active(keep)
+
+    @property
+    def truncated(self) -> bool:
+        """The band reaches past the computed modes (capped at ``max_modes``)."""
+        top = self.highest_hz if self.highest_hz is not None else math.inf
+        band = self.band
+        edge = min(band.high if band.bounded_above and band.by == "hz" else math.inf, top)
+        return not self.basis.complete and self.basis.frequencies_hz[-1] <= edge
 
     @property
     def kept_modes(self) -> np.ndarray:

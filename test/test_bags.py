@@ -12,8 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import PointCloud2
 
 from modal_spring_ros.bag_qos import profiles_from_yaml
 from modal_spring_ros.bag_reader import BagReader
@@ -21,7 +19,6 @@ from modal_spring_ros.bag_writer import BagError, BagWriter
 from modal_spring_ros.message_definitions import DELIMITER, full_definition, share_directory
 from modal_spring_ros.reference_bags import RUNS
 from modal_spring_ros.resimulate import resimulate
-from modal_spring_ros.pointcloud import xyz
 
 REPO = Path(__file__).resolve().parent.parent
 BAGS = REPO / "bags"
@@ -271,8 +268,8 @@ def test_compare_reports_zero_for_the_same_run_and_refuses_different_scenes(tmp_
     result = json.loads((tmp_path / "c.json").read_text())
     assert result["rms_m"] == 0.0 and result["common_frames"] == 182
     assert (tmp_path / "c.png").stat().st_size > 10_000
-    lowpass = _cli("modal_spring_ros.compare_cli", str(BAGS / "sheet_10x10_lowpass_0_14"),
-                   str(BAGS / "sheet_10x10_full"), "--json", str(tmp_path / "l.json"))
+    _cli("modal_spring_ros.compare_cli", str(BAGS / "sheet_10x10_lowpass_0_14"),
+         str(BAGS / "sheet_10x10_full"), "--json", str(tmp_path / "l.json"))
     low = json.loads((tmp_path / "l.json").read_text())
     assert 1e-4 < low["rel_l2_mean"] < 0.05      # close to the full run, but not equal
     npz = tmp_path / "chain.npz"
