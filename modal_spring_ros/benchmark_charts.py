@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 COLORS = {"full explicit": "C3", "full average": "C1", "modal explicit": "C0",
-          "modal average": "C2", "modal auto": "k"}
+          "modal refreshed": "C4", "modal average": "C2", "modal auto": "k"}
 
 
 def _finish(fig, ax, path: Path, xlabel: str, ylabel: str, title: str, log: bool = True,

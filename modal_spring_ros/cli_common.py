@@ -69,6 +69,10 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
                         "scene's loads, and the step they allow (unless --dt)")
     g.add_argument("--tolerance", type=float, default=0.01,
                    help="predicted relative error for --auto (default 0.01)")
+    g.add_argument("--force-refresh", type=int, default=0, metavar="N",
+                   help="evaluate the nonlinear spring forces every N steps and continue "
+                        "them along the static tangent in between (default: every step, "
+                        "or what --auto chooses)")
 
 
 def band_from_args(args: argparse.Namespace) -> FilterBand:
@@ -106,12 +110,16 @@ def config_from_args(args: argparse.Namespace) -> SimulationConfig:
         raise ValueError(f"--max-modes ({args.max_modes}) must be at least 1")
     if not 0.0 < args.tolerance < 1.0:
         raise ValueError(f"--tolerance ({args.tolerance}) must be between 0 and 1")
+    if args.force_refresh < 0:
+        raise ValueError(f"--force-refresh ({args.force_refresh}) must be at least 1 step "
+                         "(or 0: the default)")
     if args.auto and args.method != "modal":
         raise ValueError("--auto chooses modes: it needs --method modal")
     return SimulationConfig(method=args.method, band=band_from_args(args),
                             integrator=args.integrator, dt=args.dt,
                             transition_s=args.transition_s, max_modes=args.max_modes,
-                            auto=args.auto, tolerance=args.tolerance)
+                            auto=args.auto, tolerance=args.tolerance,
+                            force_refresh=args.force_refresh)
 
 
 def run_main(prog: str, body: Callable[[], int]) -> int:

@@ -22,6 +22,8 @@ import scipy.sparse as sp
 
 #: Largest dense ``G`` (entries) kept; beyond it ``G q`` is computed as ``D (Phi q)``.
 DENSE_G_LIMIT = 400_000
+#: springs per block when the tangent stiffness is summed (bounds its memory)
+TANGENT_CHUNK = 4096
 
 
 def spring_difference_matrix(springs: np.ndarray, free_index: np.ndarray, dimension: int,
@@ -93,6 +95,13 @@ class GeneralizedForces:
         return delta.reshape(self.dimension, -1)
 
     def __call__(self, q: np.ndarray, t: float) -> np.ndarray:
+        """Total generalized force: springs (eq. 20) plus the loads at time ``t``."""
+        f = self.spring_forces(q)
+        f += self.loads(t)
+        return f
+
+    def spring_forces(self, q: np.ndarray) -> np.ndarray:
+        """Generalized nonlinear spring force ``-G^T f_spring`` (sets ``last_max_strain``)."""
         delta = self.spring_deltas(q)
         length = np.einsum("de,de->e", delta, delta)
         np.sqrt(length, out=length)
@@ -106,7 +115,50 @@ class GeneralizedForces:
         f = self._gt @ delta.ravel()
         if self._phi is not None:
             f = self._phit @ f
-        f += self._gravity
-        if self._anchors_move:
-            f += self._base_load @ self._base_acceleration(t)
         return f
+
+    def loads(self, t: float) -> np.ndarray:
+        """Generalized gravity and base-excitation load at time ``t`` (linear, exact)."""
+        if self._anchors_move:
+            return self._gravity + self._base_load @ self._base_acceleration(t)
+        return self._gravity.copy()
+
+    def gravity(self) -> np.ndarray:
+        """Generalized gravity load alone (no base excitation)."""
+        return self._gravity.copy()
+
+    def tangent(self, q: np.ndarray, chunk: int = TANGENT_CHUNK) -> np.ndarray:
+        """Tangent stiffness ``-dQ_spring/dq`` at ``q`` (dense, m x m; at rest ``Phi^T K Phi``).
+
+        Per spring the tangent of ``k (1 - l/L) delta`` is ``a I + b n n^T`` with
+        ``a = k (1 - l/L)``, ``b = k l / L``, ``n = delta / L``; summed over the springs as
+        ``sum_c G_c^T diag(a) G_c + H^T diag(b) H`` with ``H = sum_c n_c G_c``, a chunk of
+        springs at a time so that ``G`` is never held whole on large scenes.
+        """
+        delta = self.spring_deltas(q)
+        length = np.sqrt(np.einsum("de,de->e", delta, delta))
+        a = self._k * (1.0 - self._l / length)
+        b = self._k * self._l / length
+        unit = delta / length
+        n_springs, d = self._l.size, self.dimension
+        m = self._g.shape[1] if self._phi is None else self._phi.shape[1]
+        out = np.zeros((m, m))
+        for start in range(0, n_springs, chunk):
+            stop = min(start + chunk, n_springs)
+            g = self._g_rows(start, stop)                      # (d, chunk, m)
+            h = np.einsum("dc,dcm->cm", unit[:, start:stop], g)
+            for c in range(d):
+                out += g[c].T @ (a[start:stop, None] * g[c])
+            out += h.T @ (b[start:stop, None] * h)
+        return 0.5 * (out + out.T)
+
+    def _g_rows(self, start: int, stop: int) -> np.ndarray:
+        """Rows of ``G`` for springs ``start:stop``, as (d, stop - start, m)."""
+        n_springs, d = self._l.size, self.dimension
+        rows = (np.arange(d)[:, None] * n_springs + np.arange(start, stop)[None, :]).ravel()
+        g = self._g[rows]
+        if self._phi is not None:
+            g = g @ self._phi
+        elif sp.issparse(g):
+            g = g.toarray()
+        return np.asarray(g).reshape(d, stop - start, -1)

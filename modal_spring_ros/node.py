@@ -133,6 +133,10 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     "modal.tolerance": (0.01, _descriptor(
         "Predicted relative error the automatic mode choice must meet", _D,
         float_range=(1e-6, 0.5))),
+    "modal.force_refresh": (0, _descriptor(
+        "Steps between exact evaluations of the nonlinear spring forces (1 = every step, as "
+        "the paper; N > 1 continues them along the static tangent in between); 0 = every "
+        "step, or what modal.auto chooses", _I, int_range=(0, 10_000))),
     "record.bag": ("", _descriptor(
         "If set, a new bag folder that every published frame is written to directly (no DDS), "
         "with the scene, the parameters and every change: re-simulates exactly", _S,
@@ -150,6 +154,12 @@ BAND = {"filter.type", "filter.by", "filter.low_hz", "filter.high_hz", "filter.l
 
 CHOICES = {"method": METHODS, "filter.type": FILTER_TYPES, "filter.by": UNITS,
            "integrator": INTEGRATORS, "stamp": STAMPS}
+
+
+def _format_refresh_error(sim) -> str:
+    """Largest measured error of the refreshed spring forces, or why there is none."""
+    error = getattr(sim, "refresh_error", None)
+    return "exact every step" if error is None else f"{error:.2e}"
 
 
 def check_choices(values: dict[str, Any]) -> None:
@@ -522,6 +532,8 @@ class ModalSpringNode(Node):
             else "off",
             "integrator": sim.integrator,
             "dt (s)": f"{sim.dt:g}",
+            "force refresh (steps)": str(getattr(sim, "force_refresh", 1)),
+            "force refresh error": _format_refresh_error(sim),
             "stability limit (s)": f"{sim.stability_limit():.4g}",
             "step time (us)": f"{1e6 * st.step_seconds / max(st.steps, 1):.1f}",
             "requested real-time factor": f"{requested:g}",

@@ -90,6 +90,9 @@ def summary(sim, diverged: str, seconds_per_step: float, wall: float) -> str:
                      f"({f[kept].min():.4g} .. {f[kept].max():.4g} Hz)"
                      + ("; band truncated at max_modes" if sim.truncated else ""))
         lines.append(f"band       {sim.band.describe()}")
+        if sim.refresh_error is not None:
+            lines.append(f"forces     springs evaluated every {sim.force_refresh} steps; largest "
+                         f"measured error of the continued force {sim.refresh_error:.2e}")
         if getattr(sim, "auto", None):
             lines.append(f"auto       {sim.auto.describe()} "
                          f"({', '.join(f'{k} {v:.2%}' for k, v in sim.auto.load_errors.items())})")

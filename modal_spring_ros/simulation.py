@@ -30,6 +30,7 @@ from modal_spring_ros.mass_spring import MassSpringModel
 from modal_spring_ros.modal_basis import ModalBasis
 from modal_spring_ros.newmark import (INTEGRATORS, DiagonalOperators, NonConvergence,
                                       average_step, explicit_step)
+from modal_spring_ros.refreshed_forces import RefreshedForces
 from modal_spring_ros.scene import Damping
 
 METHODS = ("modal", "full")
@@ -170,6 +171,11 @@ class ModalSimulation(Simulation):
     not jump); a mode that enters starts from rest and takes on its load along the same
     envelope, so it eases into place rather than dropping. Modes not computed yet are computed
     when a band first needs them (at most ``max_modes``).
+
+    ``force_refresh`` (steps): 1 evaluates the nonlinear spring forces on every step, exactly
+    as the paper; ``N > 1`` evaluates them every ``N`` steps and continues them along the
+    static tangent in between (:mod:`modal_spring_ros.refreshed_forces`), so that most steps
+    cost nothing per spring.
     """
 
     method = "modal"
@@ -177,9 +183,14 @@ class ModalSimulation(Simulation):
     def __init__(self, model: MassSpringModel, basis: ModalBasis, band: FilterBand, *,
                  dt: float, integrator: str = "explicit", damping: Damping | None = None,
                  transition_s: float = 0.5, max_modes: int | None = None,
-                 strain_limit: float = DEFAULT_STRAIN_LIMIT, highest_hz: float | None = None):
+                 strain_limit: float = DEFAULT_STRAIN_LIMIT, highest_hz: float | None = None,
+                 force_refresh: int = 1):
         super().__init__(model, dt=dt, integrator=integrator, damping=damping,
                          strain_limit=strain_limit)
+        if not (isinstance(force_refresh, (int, np.integer)) and force_refresh >= 1):
+            raise ValueError(f"force refresh ({force_refresh}) must be a whole number of "
+                             "steps, at least 1")
+        self.force_refresh = int(force_refresh)
         self.basis = basis
         #: modes above this frequency are never stepped (set by the automatic mode choice)
         self.highest_hz = highest_hz
@@ -304,7 +315,9 @@ class ModalSimulation(Simulation):
         self._omega2 = omega**2
         self._damp = self.damping.modal_coefficients(omega)
         self._ops = DiagonalOperators(1.0, self._damp, self._omega2, self.dt)
-        self._forces = GeneralizedForces(self.model, new_phi)
+        exact = GeneralizedForces(self.model, new_phi)
+        self._forces = (exact if self.force_refresh == 1 else
+                        RefreshedForces(exact, self._omega2, self.force_refresh, self.dt))
         self._update_envelope()
 
     def _update_envelope(self) -> None:
@@ -342,9 +355,19 @@ class ModalSimulation(Simulation):
     def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
         """Project a physical state onto the stepped modes (paper eq. 15: ``q = Phi^T M u``)."""
         m = self.model.mass_dof
+        if isinstance(self._forces, RefreshedForces):
+            self._forces.restart()
         self._q = self._phi.T @ (m * displacement)
         self._v = self._phi.T @ (m * velocity)
         self._a = self._forces(self._q, self.time) - self._damp * self._v
+
+    @property
+    def refresh_error(self) -> float | None:
+        """Largest measured force error of the refreshed forces since the last state change
+        (None when the forces are evaluated on every step)."""
+        if isinstance(self._forces, RefreshedForces):
+            return self._forces.max_refresh_error
+        return None
 
     @property
     def modal_coordinates(self) -> np.ndarray:

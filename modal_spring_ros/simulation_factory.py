@@ -38,6 +38,7 @@ class SimulationConfig:
     strain_limit: float = DEFAULT_STRAIN_LIMIT
     auto: bool = False                 # choose the fewest modes (and dt) for ``tolerance``
     tolerance: float = 0.01
+    force_refresh: int = 0             # steps between spring evaluations; 0: 1, or auto's
 
     def to_dict(self) -> dict[str, Any]:
         out = dataclasses.asdict(self)
@@ -54,7 +55,7 @@ class SimulationConfig:
 #: node parameters whose change rebuilds the simulation (state and time carried over); the
 #: other ``filter.*`` parameters change the band of the running one
 REBUILD_PARAMETERS = frozenset({"method", "integrator", "sim.dt", "modal.auto",
-                                "modal.tolerance"})
+                                "modal.tolerance", "modal.force_refresh"})
 
 
 def band_from_parameters(values: dict[str, Any]) -> FilterBand:
@@ -73,29 +74,35 @@ def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
         integrator=values["integrator"], dt=values["sim.dt"] or None,
         transition_s=values["filter.transition_s"], max_modes=values["modal.max_modes"],
         strain_limit=values["sim.strain_limit"], auto=values.get("modal.auto", False),
-        tolerance=values.get("modal.tolerance", 0.01))
+        tolerance=values.get("modal.tolerance", 0.01),
+        force_refresh=values.get("modal.force_refresh", 0))
 
 
 def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig) -> Simulation:
     """A new simulation (at rest) of the same scene and basis with other settings.
 
     With ``config.auto`` (modal), the fewest modes meeting ``config.tolerance`` are kept and,
-    unless ``config.dt`` is given, the step follows from them; the choice is ``sim.auto``.
+    unless ``config.dt`` is given, the step follows from them, and unless
+    ``config.force_refresh`` is given, so does the spring-force refresh; the choice is
+    ``sim.auto``.
     """
     dt = config.dt or model.scene.default_dt
     if config.method == "modal":
         choice = None
+        refresh = config.force_refresh or 1
         if config.auto:
-            from modal_spring_ros.mode_selection import choose_modes, choose_step
+            from modal_spring_ros.mode_selection import (choose_modes, choose_refresh,
+                                                         choose_step)
             choice = choose_modes(model, basis, config.band, config.tolerance,
                                   max_modes=config.max_modes or 256)
             dt = config.dt or choose_step(choice, config.integrator, config.tolerance,
                                           model.scene.damping)
+            refresh = config.force_refresh or choose_refresh(choice.highest_hz, dt)
         sim: Simulation = ModalSimulation(
             model, basis, config.band, dt=dt or 1e-3, integrator=config.integrator,
             transition_s=config.transition_s, max_modes=config.max_modes,
             strain_limit=config.strain_limit,
-            highest_hz=choice.highest_hz if choice else None)
+            highest_hz=choice.highest_hz if choice else None, force_refresh=refresh)
         sim.auto = choice
     else:
         sim = FullSimulation(model, dt=dt or 1e-3, integrator=config.integrator, basis=basis,
@@ -142,7 +149,8 @@ def with_dt(sim: Simulation, dt: float) -> Simulation:
     if isinstance(sim, ModalSimulation):
         out = ModalSimulation(sim.model, sim.basis, sim.band, dt=dt, integrator=sim.integrator,
                               transition_s=sim.transition_s, max_modes=sim.max_modes,
-                              strain_limit=sim.strain_limit, highest_hz=sim.highest_hz)
+                              strain_limit=sim.strain_limit, highest_hz=sim.highest_hz,
+                              force_refresh=sim.force_refresh)
         out.auto = getattr(sim, "auto", None)
         return out
     return FullSimulation(sim.model, dt=dt, integrator=sim.integrator, basis=sim.basis,

@@ -140,11 +140,12 @@ def test_band_change_is_accepted_reported_and_removes_high_frequencies(running, 
     (dict(sim__dt=0.01), "sim.dt (0.01 s) is at or above the explicit stability limit"),
     (dict(publish_rate_hz=0.0), "publish_rate_hz"),
     (dict(scene="chain_2"), "read-only"),
+    (dict(modal__force_refresh=-1), "modal.force_refresh"),
 ])
 def test_bad_values_are_rejected_with_their_reason_and_change_nothing(running, values, reason):
     _, client, _, _ = running
     names = ["filter.type", "filter.low_hz", "filter.high_hz", "method", "sim.dt",
-             "publish_rate_hz", "scene"]
+             "publish_rate_hz", "scene", "modal.force_refresh"]
     before = client.get_parameters(NODE, *names)
     (result,) = client.set_parameters(NODE, atomically=True, **values)
     assert not result.successful
@@ -191,3 +192,23 @@ def test_method_switch_carries_the_state_over(running):
     assert max(steps) < 5e-3                  # no jump at the switch
     (result,) = client.set_parameters(NODE, method="modal")
     assert result.successful
+
+
+def test_force_refresh_is_set_at_runtime_and_reported(running):
+    _, client, points, diagnostics = running
+    time.sleep(0.5)
+    (result,) = client.set_parameters(NODE, modal__force_refresh=4)
+    assert result.successful
+    changed = time.monotonic()
+    assert wait_for(lambda: (s := latest_status(diagnostics, changed)) is not None
+                    and status_values(s)["force refresh (steps)"] == "4", 5.0)
+    assert wait_for(lambda: (s := latest_status(diagnostics, time.monotonic() - 0.5))
+                    is not None and status_values(s)["force refresh error"] != "0.00e+00", 5.0)
+    window = [m for t, m in points if t > changed - 0.4]
+    steps = [np.abs(xyz(b) - xyz(a)).max() for a, b in zip(window, window[1:])]
+    assert max(steps) < 5e-3                  # the state carries over: no jump
+    (result,) = client.set_parameters(NODE, modal__force_refresh=0)
+    assert result.successful
+    assert wait_for(lambda: (s := latest_status(diagnostics, time.monotonic() - 0.2))
+                    is not None and status_values(s)["force refresh error"]
+                    == "exact every step", 5.0)

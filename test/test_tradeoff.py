@@ -20,6 +20,7 @@ from modal_spring_ros.mass_spring import MassSpringModel
 from modal_spring_ros.modal_basis import ModalBasis
 from modal_spring_ros.scene import load_scene
 from modal_spring_ros.simulation import DivergenceError, FullSimulation, ModalSimulation
+from modal_spring_ros.simulation_factory import SimulationConfig, build_simulation
 from ros_harness import node_with_client, wait_for
 
 
@@ -43,7 +44,7 @@ def test_quick_bench_writes_every_output(quick_bench):
     (case,) = result["cases"]
     rows = case["configs"]
     assert {r["method"] for r in rows} == {"full explicit", "full average", "modal explicit",
-                                           "modal average", "modal auto"}
+                                           "modal refreshed", "modal average", "modal auto"}
     assert len((out / "tradeoff.csv").read_text().splitlines()) == len(rows) + 1
     assert all(r["seconds_per_sim_second"] > 0 for r in rows if not r["diverged"])
     assert case["pareto"]
@@ -159,3 +160,14 @@ def test_node_automatic_mode_choice_is_reported():
         values = {kv.key: kv.value for kv in status.values}
         assert values["automatic mode choice"].startswith("5 modes up to 20.44 Hz")
         assert values["modes stepped"] == "5"
+        # the spring-force refresh follows the choice: what the engine chooses headless
+        expected = build_simulation("sheet_10x10", SimulationConfig(auto=True, tolerance=0.05))
+        assert values["force refresh (steps)"] == str(expected.force_refresh)
+        assert expected.force_refresh > 1
+        assert wait_for(lambda: float(_values(diags, "/auto/")["force refresh error"]) > 0, 10)
+        assert float(_values(diags, "/auto/")["force refresh error"]) < 0.01
+
+
+def _values(diags, prefix):
+    status = [d.status[0] for _, d in diags if d.status[0].name.startswith(prefix)][-1]
+    return {kv.key: kv.value for kv in status.values}
