@@ -46,6 +46,12 @@ def spring_difference_matrix(springs: np.ndarray, free_index: np.ndarray, dimens
                          shape=(n_springs * dimension, n_free * dimension))
 
 
+def _norms(delta: np.ndarray) -> np.ndarray:
+    """Euclidean lengths of the columns of a (d, E) array."""
+    length = np.einsum("de,de->e", delta, delta)
+    return np.sqrt(length, out=length)
+
+
 class GeneralizedForces:
     """``Q(q, t)``: total force on the free DOF projected on ``Phi`` (identity when None).
 
@@ -84,7 +90,7 @@ class GeneralizedForces:
             else:
                 self._phi, self._phit = basis, np.ascontiguousarray(basis.T)
                 self._g, self._gt = d_mat, (-d_mat.T).tocsr()
-        self._abs_stretch = np.empty(self._l.size)
+        self._kl = self._k * self._l
         self.last_max_strain = 0.0
 
     def spring_deltas(self, q: np.ndarray) -> np.ndarray:
@@ -101,17 +107,18 @@ class GeneralizedForces:
         return f
 
     def spring_forces(self, q: np.ndarray) -> np.ndarray:
-        """Generalized nonlinear spring force ``-G^T f_spring`` (sets ``last_max_strain``)."""
+        """Generalized nonlinear spring force ``-G^T f_spring`` (sets ``last_max_strain``).
+
+        Each spring pulls with ``k (L - l) / L (x_j - x_i) = (k - k l / L) delta``; the strain
+        ``|L / l - 1|`` is watched through the largest and smallest ``L / l``.
+        """
         delta = self.spring_deltas(q)
-        length = np.einsum("de,de->e", delta, delta)
-        np.sqrt(length, out=length)
-        stretch = length - self._l
-        np.abs(stretch, out=self._abs_stretch)
-        self._abs_stretch *= self._inv_l
-        self.last_max_strain = float(self._abs_stretch.max())
-        stretch *= self._k
-        stretch /= length
-        delta *= stretch
+        length = _norms(delta)
+        ratio = length * self._inv_l
+        self.last_max_strain = max(float(ratio.max()) - 1.0, 1.0 - float(ratio.min()))
+        np.divide(self._kl, length, out=length)
+        np.subtract(self._k, length, out=length)
+        delta *= length
         f = self._gt @ delta.ravel()
         if self._phi is not None:
             f = self._phit @ f
@@ -136,7 +143,7 @@ class GeneralizedForces:
         springs at a time so that ``G`` is never held whole on large scenes.
         """
         delta = self.spring_deltas(q)
-        length = np.sqrt(np.einsum("de,de->e", delta, delta))
+        length = _norms(delta)
         a = self._k * (1.0 - self._l / length)
         b = self._k * self._l / length
         unit = delta / length

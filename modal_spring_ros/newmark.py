@@ -33,6 +33,9 @@ class Operators(Protocol):
     def solve_explicit(self, rhs: np.ndarray) -> np.ndarray:
         """``(M + dt/2 C)^-1 rhs``."""
 
+    def explicit_acceleration(self, force: np.ndarray, v_pred: np.ndarray) -> np.ndarray:
+        """``(M + dt/2 C)^-1 (force - C v_pred)``: the explicit step's new acceleration."""
+
     def solve_average(self, rhs: np.ndarray) -> np.ndarray:
         """``(M + dt/2 C + dt^2/4 K)^-1 rhs``."""
 
@@ -47,7 +50,7 @@ def explicit_step(u: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float,
     """One explicit Newmark step (beta = 0, gamma = 1/2); returns ``u1, v1, a1``."""
     v_pred = v + (0.5 * dt) * a
     u1 = u + dt * v_pred  # = u + dt v + dt^2/2 a
-    a1 = ops.solve_explicit(force(u1) - ops.damp(v_pred))
+    a1 = ops.explicit_acceleration(force(u1), v_pred)
     v1 = v_pred + (0.5 * dt) * a1
     return u1, v1, a1
 
@@ -101,6 +104,11 @@ class DiagonalOperators:
 
     def solve_explicit(self, rhs):
         return self._inv_explicit * rhs
+
+    def explicit_acceleration(self, force, v_pred):
+        if self._has_damping:
+            force = force - self.damping * v_pred
+        return self._inv_explicit * force
 
     def solve_average(self, rhs):
         return self._inv_average * rhs

@@ -426,6 +426,11 @@ class PhysicalOperators:
             phi = basis.vectors
             cm = damping.modal_coefficients(basis.omega)
             self._modal = (phi, cm, basis.omega)
+            # explicit step in one pass: a1 = Phi W [f; v], with
+            # W = [diag(1/(1 + dt/2 c)) Phi^T, -diag(c/(1 + dt/2 c)) Phi^T M]
+            scale = 1.0 / (1.0 + 0.5 * dt * cm)
+            self._explicit_w = np.hstack([scale[:, None] * phi.T,
+                                          -(cm * scale)[:, None] * (phi.T * self.m[None, :])])
         elif damping.rayleigh_alpha or damping.rayleigh_beta:
             self._c = (sp.diags(damping.rayleigh_alpha * self.m)
                        + damping.rayleigh_beta * self.k).tocsc()
@@ -446,6 +451,11 @@ class PhysicalOperators:
 
     def stiff(self, u):
         return self.k @ u
+
+    def explicit_acceleration(self, force, v_pred):
+        if self._modal is not None:
+            return self._modal[0] @ (self._explicit_w @ np.concatenate((force, v_pred)))
+        return self.solve_explicit(force - self.damp(v_pred))
 
     def solve_explicit(self, rhs):
         if self._modal is not None:
