@@ -30,9 +30,6 @@ class Operators(Protocol):
     def stiff(self, u: np.ndarray) -> np.ndarray:
         """``K u`` with the rest stiffness."""
 
-    def solve_explicit(self, rhs: np.ndarray) -> np.ndarray:
-        """``(M + dt/2 C)^-1 rhs``."""
-
     def explicit_acceleration(self, force: np.ndarray, v_pred: np.ndarray) -> np.ndarray:
         """``(M + dt/2 C)^-1 (force - C v_pred)``: the explicit step's new acceleration."""
 
@@ -101,9 +98,6 @@ class DiagonalOperators:
 
     def stiff(self, u):
         return self.stiffness * u
-
-    def solve_explicit(self, rhs):
-        return self._inv_explicit * rhs
 
     def explicit_acceleration(self, force, v_pred):
         if self._has_damping:

@@ -455,11 +455,7 @@ class PhysicalOperators:
     def explicit_acceleration(self, force, v_pred):
         if self._modal is not None:
             return self._modal[0] @ (self._explicit_w @ np.concatenate((force, v_pred)))
-        return self.solve_explicit(force - self.damp(v_pred))
-
-    def solve_explicit(self, rhs):
-        if self._modal is not None:
-            return self._modal_solve(rhs, 1.0 + 0.5 * self.dt * self._modal[1])
+        rhs = force - self.damp(v_pred)
         if self._c is None:
             return rhs / self.m
         if self._explicit is None:
