@@ -95,13 +95,17 @@ class RefreshedForces:
         if t - self._t >= self._due or t < self._t:
             spring = self.exact.spring_forces(q)
             if self._q is not None and t >= self._t:
-                continued = self._spring - self.tangent @ (q - self._q)
+                continued = self._continued(q)
                 scale = max(float(np.linalg.norm(spring)), self._scale)
                 self.refresh_error = float(np.linalg.norm(spring - continued)) / scale
                 self.max_refresh_error = max(self.max_refresh_error, self.refresh_error)
             self._t, self._q, self._spring = t, q.copy(), spring
             force = spring.copy()
         else:
-            force = self._spring - self.tangent @ (q - self._q)
+            force = self._continued(q)
         force += self.exact.loads(t)
         return force
+
+    def _continued(self, q: np.ndarray) -> np.ndarray:
+        """The last exact spring force continued along the static tangent to ``q``."""
+        return self._spring - self.tangent @ (q - self._q)
