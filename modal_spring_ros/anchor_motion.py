@@ -56,8 +56,10 @@ class AnchorMotion:
         return self._derivative(t, 2)
 
     def _derivative(self, t: float, order: int) -> np.ndarray:
-        """``order``-th time derivative of ``ramp(t) * A sin(w t + phase)``, summed."""
-        out = np.zeros(3)
+        """``order``-th time derivative of ``ramp(t) * A sin(w t + phase)``, summed.
+
+        Evaluated in Python floats (a few components; called on every step)."""
+        out = [0.0, 0.0, 0.0]
         for c in self.components:
             w = 2.0 * math.pi * c.frequency_hz
             s = c.amplitude * math.sin(w * t + c.phase)
@@ -77,7 +79,7 @@ class AnchorMotion:
                 out[c.axis] += dr * s + r * ds
             else:
                 out[c.axis] += ddr * s + 2.0 * dr * ds + r * dds
-        return out
+        return np.array(out)
 
     def to_list(self) -> list[dict]:
         return [{"axis": "xyz"[c.axis], "amplitude": c.amplitude,

@@ -70,26 +70,31 @@ class GeneralizedForces:
         rest = model.rest
         self._delta_rest = (rest[s.springs[:, 1]] - rest[s.springs[:, 0]]).T.ravel()
         self._anchors_move = not s.anchor_motion.is_static
-        self._base_acceleration = model.base_acceleration
-        # Inertial load of a unit base acceleration along each moving axis: -M 1_axis.
-        base_load = -(model.mass_dof[:, None]
-                      * (np.arange(model.n_free_dof)[:, None] % d == np.arange(d)[None, :]))
+        self._base_motion = s.anchor_motion
+        # Loads as one product: [gravity, -M 1_x, -M 1_y, -M 1_z] @ [1, base acceleration (3,)]
+        # (-M 1_axis: the inertial load of a unit base acceleration; zero on axes not modelled).
+        base_load = np.zeros((model.n_free_dof, 3))
+        base_load[:, model.axes] = -(
+            model.mass_dof[:, None]
+            * (np.arange(model.n_free_dof)[:, None] % d == np.arange(d)[None, :]))
+        self._load_coefficients = np.array([1.0, 0.0, 0.0, 0.0])
         free_index = np.full(s.n_particles, -1)
         free_index[model.free_particles] = np.arange(model.free_particles.size)
         d_mat = spring_difference_matrix(s.springs, free_index, d, model.free_particles.size)
-        g = model.gravity_force
+        loads = np.column_stack([model.gravity_force, base_load])
         self._phi = None
         if basis is None:
             self._g, self._gt = d_mat, (-d_mat.T).tocsr()
-            self._gravity, self._base_load = g.copy(), base_load
         else:
-            self._gravity, self._base_load = basis.T @ g, basis.T @ base_load
+            loads = basis.T @ loads
             if d_mat.shape[0] * basis.shape[1] <= DENSE_G_LIMIT:
                 dense = np.asarray(d_mat @ basis)
                 self._g, self._gt = dense, -np.ascontiguousarray(dense.T)
             else:
                 self._phi, self._phit = basis, np.ascontiguousarray(basis.T)
                 self._g, self._gt = d_mat, (-d_mat.T).tocsr()
+        self._load_matrix = np.ascontiguousarray(loads)
+        self._gravity = self._load_matrix[:, 0].copy()
         self._kl = self._k * self._l
         self.last_max_strain = 0.0
 
@@ -115,7 +120,8 @@ class GeneralizedForces:
         delta = self.spring_deltas(q)
         length = _norms(delta)
         ratio = length * self._inv_l
-        self.last_max_strain = max(float(ratio.max()) - 1.0, 1.0 - float(ratio.min()))
+        self.last_max_strain = max(float(np.maximum.reduce(ratio)) - 1.0,
+                                   1.0 - float(np.minimum.reduce(ratio)))
         np.divide(self._kl, length, out=length)
         np.subtract(self._k, length, out=length)
         delta *= length
@@ -127,7 +133,8 @@ class GeneralizedForces:
     def loads(self, t: float) -> np.ndarray:
         """Generalized gravity and base-excitation load at time ``t`` (linear, exact)."""
         if self._anchors_move:
-            return self._gravity + self._base_load @ self._base_acceleration(t)
+            self._load_coefficients[1:] = self._base_motion.acceleration(t)
+            return self._load_matrix @ self._load_coefficients
         return self._gravity.copy()
 
     def gravity(self) -> np.ndarray:

@@ -426,11 +426,12 @@ class PhysicalOperators:
             phi = basis.vectors
             cm = damping.modal_coefficients(basis.omega)
             self._modal = (phi, cm, basis.omega)
-            # explicit step in one pass: a1 = Phi W [f; v], with
-            # W = [diag(1/(1 + dt/2 c)) Phi^T, -diag(c/(1 + dt/2 c)) Phi^T M]
+            # explicit step as one dense product: a1 = A [f; v_pred], with
+            # A = Phi [diag(s) Phi^T, -diag(c s) Phi^T M],  s = 1 / (1 + dt/2 c)
+            # (= [(M + dt/2 C)^-1, -(M + dt/2 C)^-1 C], since Phi^T M Phi = I)
             scale = 1.0 / (1.0 + 0.5 * dt * cm)
-            self._explicit_w = np.hstack([scale[:, None] * phi.T,
-                                          -(cm * scale)[:, None] * (phi.T * self.m[None, :])])
+            self._explicit_a = phi @ np.hstack(
+                [scale[:, None] * phi.T, -(cm * scale)[:, None] * (phi.T * self.m[None, :])])
         elif damping.rayleigh_alpha or damping.rayleigh_beta:
             self._c = (sp.diags(damping.rayleigh_alpha * self.m)
                        + damping.rayleigh_beta * self.k).tocsc()
@@ -454,7 +455,7 @@ class PhysicalOperators:
 
     def explicit_acceleration(self, force, v_pred):
         if self._modal is not None:
-            return self._modal[0] @ (self._explicit_w @ np.concatenate((force, v_pred)))
+            return self._explicit_a @ np.concatenate((force, v_pred))
         rhs = force - self.damp(v_pred)
         if self._c is None:
             return rhs / self.m
