@@ -69,8 +69,10 @@ class NodeProcess:
 class Client:
     """A test node in its own context, spun by a background thread.
 
-    The thread spins in short slices and is joined before anything is destroyed: destroying a
-    node or a context while another thread waits on it can deadlock inside the middleware.
+    The thread spins in short slices and is joined before anything is destroyed:
+    ``Executor.shutdown`` does not wait for a ``spin`` running in another thread, and cleaning
+    up under it races with the wait (ros2/rclpy#968); destroying a node or a context that
+    another thread waits on can deadlock inside the middleware.
     """
 
     SLICE_S = 0.05
