@@ -70,7 +70,7 @@ class MassSpringModel:
     def positions(self, u: np.ndarray, t: float) -> np.ndarray:
         """(n, d) positions for free displacement ``u`` (relative to the moving base) at ``t``."""
         x = self.rest + self.anchor_offset(t)
-        x[self.free_particles] += u.reshape(-1, self.dimension)
+        x.reshape(-1)[self.free_dof] += u  # flat index: several times faster than by rows
         return x
 
     def positions3(self, x: np.ndarray) -> np.ndarray:

