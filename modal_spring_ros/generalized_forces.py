@@ -166,6 +166,24 @@ class GeneralizedForces:
             out += h.T @ (b[start:stop, None] * h)
         return 0.5 * (out + out.T)
 
+    def strain_sensitivity(self, chunk: int = TANGENT_CHUNK) -> float:
+        """Most any spring's strain can change per unit change of ``q`` (Euclidean norm).
+
+        Spring ``e``'s vector changes by ``G_e dq`` (``G_e``: its d rows of ``G``), so its
+        length by at most ``|G_e dq| <= |G_e|_2 |dq|`` and its strain by that over ``l_e``;
+        this returns the largest ``|G_e|_2 / l_e`` (spectral norms from the d x d Gram
+        matrices ``G_e G_e^T``).
+        """
+        gain = 0.0
+        for start in range(0, self._l.size, chunk):
+            stop = min(start + chunk, self._l.size)
+            g = self._g_rows(start, stop)                      # (d, chunk, m)
+            gram = np.einsum("acm,bcm->cab", g, g)
+            largest = np.linalg.eigvalsh(gram)[:, -1]
+            gain = max(gain, float((np.sqrt(np.maximum(largest, 0.0))
+                                    * self._inv_l[start:stop]).max()))
+        return gain
+
     def _g_rows(self, start: int, stop: int) -> np.ndarray:
         """Rows of ``G`` for springs ``start:stop``, as (d, stop - start, m)."""
         n_springs, d = self._l.size, self.dimension

@@ -18,6 +18,11 @@ modes. A step between refreshes costs a few operations on the kept modes, not on
 At each refresh the continued force is compared with the exact one; the relative difference,
 ``refresh_error`` (and its largest value since the last restart), is the measured cost in
 accuracy, reported by the node on ``/diagnostics``.
+
+Divergence stays detected on the step it happens: between refreshes the largest spring strain
+is bounded by its exact value at the last refresh plus the most any spring can have stretched
+since (``strain_sensitivity * |q - q_k|``), and a step whose bound passes ``strain_limit`` is
+evaluated exactly.
 """
 from __future__ import annotations
 
@@ -65,14 +70,20 @@ class RefreshedForces:
         static_found: the static equilibrium was found (else ``K_s`` is the rest stiffness).
         refresh_error: relative difference between the continued and the exact spring force
             at the last refresh; ``max_refresh_error`` the largest since :meth:`restart`.
+        last_max_strain: largest spring strain at the last call: exact when the springs were
+            evaluated, else an upper bound (never below the true value).
+        strain_limit: a step whose strain bound passes it evaluates the springs exactly.
     """
 
-    def __init__(self, exact: GeneralizedForces, omega2: np.ndarray, interval: int, dt: float):
+    def __init__(self, exact: GeneralizedForces, omega2: np.ndarray, interval: int, dt: float,
+                 strain_limit: float = math.inf):
         if interval < 1:
             raise ValueError(f"force refresh interval ({interval}) must be at least 1 step")
         self.exact = exact
         self.interval = int(interval)
+        self.strain_limit = strain_limit
         self._due = (self.interval - 0.5) * dt
+        self._strain_gain = exact.strain_sensitivity()
         q_static, self.static_found = static_equilibrium(exact, omega2)
         self.tangent = exact.tangent(q_static) if self.static_found else np.diag(omega2)
         # errors are relative to the spring force, at least that of holding up gravity
@@ -85,27 +96,31 @@ class RefreshedForces:
         self._q = self._spring = None
         self.refresh_error = 0.0
         self.max_refresh_error = 0.0
-
-    @property
-    def last_max_strain(self) -> float:
-        """Largest spring strain at the last exact evaluation."""
-        return self.exact.last_max_strain
+        self.last_max_strain = 0.0
 
     def __call__(self, q: np.ndarray, t: float) -> np.ndarray:
-        if t - self._t >= self._due or t < self._t:
+        """Generalized force at ``q``, ``t``; sets ``last_max_strain``: exact on an evaluation,
+        else an upper bound of the largest spring strain."""
+        force = None
+        if not (t - self._t >= self._due or t < self._t):
+            dq = q - self._q
+            bound = self._strain_at_refresh + self._strain_gain * math.sqrt(float(dq @ dq))
+            if bound <= self.strain_limit:
+                force = self._continued(dq)
+                self.last_max_strain = bound
+        if force is None:
             spring = self.exact.spring_forces(q)
             if self._q is not None and t >= self._t:
-                continued = self._continued(q)
+                continued = self._continued(q - self._q)
                 scale = max(float(np.linalg.norm(spring)), self._scale)
                 self.refresh_error = float(np.linalg.norm(spring - continued)) / scale
                 self.max_refresh_error = max(self.max_refresh_error, self.refresh_error)
             self._t, self._q, self._spring = t, q.copy(), spring
+            self._strain_at_refresh = self.last_max_strain = self.exact.last_max_strain
             force = spring.copy()
-        else:
-            force = self._continued(q)
         force += self.exact.loads(t)
         return force
 
-    def _continued(self, q: np.ndarray) -> np.ndarray:
-        """The last exact spring force continued along the static tangent to ``q``."""
-        return self._spring - self.tangent @ (q - self._q)
+    def _continued(self, dq: np.ndarray) -> np.ndarray:
+        """The last exact spring force continued along the static tangent by ``dq``."""
+        return self._spring - self.tangent @ dq

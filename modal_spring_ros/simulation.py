@@ -317,7 +317,8 @@ class ModalSimulation(Simulation):
         self._ops = DiagonalOperators(1.0, self._damp, self._omega2, self.dt)
         exact = GeneralizedForces(self.model, new_phi)
         self._forces = (exact if self.force_refresh == 1 else
-                        RefreshedForces(exact, self._omega2, self.force_refresh, self.dt))
+                        RefreshedForces(exact, self._omega2, self.force_refresh, self.dt,
+                                        self.strain_limit))
         self._update_envelope()
 
     def _update_envelope(self) -> None:

@@ -11,7 +11,7 @@ from modal_spring_ros.modal_basis import ModalBasis
 from modal_spring_ros.mode_selection import choose_refresh
 from modal_spring_ros.refreshed_forces import RefreshedForces, static_equilibrium
 from modal_spring_ros.scene import load_scene
-from modal_spring_ros.simulation import ModalSimulation
+from modal_spring_ros.simulation import DivergenceError, ModalSimulation
 from modal_spring_ros.simulation_factory import SimulationConfig, build_simulation
 
 LOWPASS_16 = FilterBand("lowpass", 0, 15, "index")
@@ -147,3 +147,60 @@ def test_choose_refresh_holds_half_a_period_of_the_highest_mode():
     assert choose_refresh(50.0, 1e-3) == 10      # 0.5 / 50 Hz = 10 ms
     assert choose_refresh(50.0, 0.02) == 1       # never less than every step
     assert choose_refresh(0.01, 1e-3) == 200     # capped
+
+
+@pytest.mark.parametrize("scene", ["sheet_10x10", "cantilever_3d"])
+def test_strain_sensitivity_bounds_every_springs_strain_change(scene, sheet_10x10, cantilever):
+    model, basis = sheet_10x10 if scene == "sheet_10x10" else cantilever
+    forces = GeneralizedForces(model, basis.vectors[:, :12])
+    gain = forces.strain_sensitivity()
+
+    def strains(q):
+        length = np.linalg.norm(forces.spring_deltas(q), axis=0)
+        return length / np.asarray(model.scene.rest_length) - 1.0
+
+    rng = np.random.default_rng(5)
+    q0 = rng.normal(scale=1e-3, size=12)
+    ratios = []
+    for _ in range(200):
+        dq = rng.normal(size=12) * 10.0 ** rng.uniform(-6, -3)
+        change = np.abs(strains(q0 + dq) - strains(q0)).max()
+        assert change <= gain * np.linalg.norm(dq) * (1 + 1e-9)
+        ratios.append(change / (gain * np.linalg.norm(dq)))
+    # and it is the least such bound: the most sensitive spring, moved along its most
+    # sensitive direction far enough that the move dominates its length, reaches it
+    g = forces._g_rows(0, model.scene.springs.shape[0])          # (d, E, m)
+    top = np.array([np.linalg.svd(g[:, e], compute_uv=False)[0] for e in range(g.shape[1])])
+    worst = int(np.argmax(top / np.asarray(model.scene.rest_length)))
+    _, _, vt = np.linalg.svd(g[:, worst])
+    dq = 100.0 * np.asarray(model.scene.rest_length)[worst] / top[worst] * vt[0]
+    reached = abs(strains(dq)[worst] - strains(np.zeros(12))[worst]) / (
+        gain * np.linalg.norm(dq))
+    assert 0.98 < reached <= 1.0 + 1e-9, (reached, max(ratios))
+
+
+def test_refreshed_forces_detect_divergence_on_the_step_it_happens():
+    """Between refreshes the strain bound stands in for the exact strain: the step where the
+    strain first passes the limit is reported, as with every spring evaluated every step, and
+    no accepted state is above the limit."""
+    band = FilterBand("lowpass", 0, 14, "index")
+    free = build_simulation("sheet_10x10", SimulationConfig(band=band))
+    history = []
+    for _ in range(200):                      # released from rest under gravity: overshoot
+        free.step()
+        history.append(free.max_strain())
+    history = np.array(history)
+    limit = 0.5 * (history.max() + history[-1])
+    first = int(np.argmax(history > limit)) + 1
+    assert 10 < first < 190
+    reported = {}
+    for refresh in (1, 25):
+        sim = build_simulation("sheet_10x10", SimulationConfig(
+            band=band, force_refresh=refresh, strain_limit=limit))
+        assert first % 25 != 0                # the crossing falls between two refreshes
+        with pytest.raises(DivergenceError, match="spring strain .* exceeds the limit"):
+            for _ in range(200):
+                sim.step()
+                assert sim.max_strain() <= limit
+        reported[refresh] = sim.steps + 1
+    assert reported[25] == reported[1] == first
