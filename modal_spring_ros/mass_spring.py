@@ -64,9 +64,6 @@ class MassSpringModel:
     def base_velocity(self, t: float) -> np.ndarray:
         return self.scene.anchor_motion.velocity(t)[self.axes]
 
-    def base_acceleration(self, t: float) -> np.ndarray:
-        return self.scene.anchor_motion.acceleration(t)[self.axes]
-
     def positions(self, u: np.ndarray, t: float) -> np.ndarray:
         """(n, d) positions for free displacement ``u`` (relative to the moving base) at ``t``."""
         x = self.rest + self.anchor_offset(t)

@@ -96,7 +96,7 @@ class RefreshedForces:
         self._q = self._spring = None
         self.refresh_error = 0.0
         self.max_refresh_error = 0.0
-        self.last_max_strain = 0.0
+        self.last_max_strain = self._strain_at_refresh = 0.0
 
     def __call__(self, q: np.ndarray, t: float) -> np.ndarray:
         """Generalized force at ``q``, ``t``; sets ``last_max_strain``: exact on an evaluation,
