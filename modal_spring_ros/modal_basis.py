@@ -14,6 +14,7 @@ A singular stiffness on the free DOF (a mechanism) is detected here and reported
 from __future__ import annotations
 
 import time
+import uuid
 from typing import Callable
 
 import numpy as np
@@ -23,6 +24,7 @@ import scipy.sparse.linalg as spla
 
 from modal_spring_ros.mass_spring import MassSpringModel
 from modal_spring_ros.scene import SceneError
+from modal_spring_ros.worker_process import WorkerProcess
 
 #: Largest number of free DOF for which every mode is computed with a dense solver.
 DENSE_LIMIT = 1000
@@ -40,6 +42,10 @@ def _no_progress(_: str) -> None:
 class ModalBasis:
     """The modes of a :class:`MassSpringModel`, computed up to what has been asked for.
 
+    ``worker``: a :class:`~modal_spring_ros.worker_process.WorkerProcess` to run the sparse
+    eigensolver in (results are identical), so that computing modes does not hold this
+    process's interpreter lock; the node uses one to keep its stream going meanwhile.
+
     Attributes:
         omega: (m,) circular frequencies (rad/s) of the computed modes, ascending.
         vectors: (n_free_dof, m) mass-normalised mode shapes.
@@ -47,14 +53,15 @@ class ModalBasis:
     """
 
     def __init__(self, model: MassSpringModel, *, initial_modes: int = 32,
-                 progress: Progress | None = None, dense_limit: int = DENSE_LIMIT):
+                 progress: Progress | None = None, dense_limit: int = DENSE_LIMIT,
+                 worker: WorkerProcess | None = None):
         self.model = model
         self.n_dof = model.n_free_dof
         self.progress = progress or _no_progress
         self.dense = self.n_dof <= dense_limit
         self.solve_seconds = 0.0
-        self._factor = None
-        self._sigma = 0.0
+        self.worker = worker
+        self._solver: ShiftInvertModes | None = None
         self.omega = np.empty(0)
         self.vectors = np.empty((self.n_dof, 0))
         self.complete = False
@@ -123,27 +130,17 @@ class ModalBasis:
 
     def _compute_sparse(self, count: int) -> None:
         start = time.perf_counter()
-        k = self.model.stiffness_free.tocsc()
-        m = self.model.mass_matrix_free.tocsc()
-        if self._factor is None:
+        if self._solver is None:
             self.progress(f"factorising the {self.n_dof}-DOF stiffness (sparse LU)")
-            lam_scale = float(np.max(k.diagonal() / self.model.mass_dof))
-            # A small negative shift keeps K - sigma M definite even when K is singular.
-            self._sigma = -1e-6 * lam_scale
-            self._lam_scale = lam_scale
-            self._factor = spla.splu((k - self._sigma * m).tocsc())
-        op = spla.LinearOperator((self.n_dof, self.n_dof), matvec=self._factor.solve,
-                                 dtype=float)
+            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof)
         self.progress(f"computing the {count} lowest modes (shift-invert Lanczos, "
-                      f"{self.n_dof} DOF)")
-        lam, phi = spla.eigsh(k, k=count, M=m, sigma=self._sigma, OPinv=op, which="LM",
-                              v0=np.ones(self.n_dof), tol=1e-12)
-        order = np.argsort(lam)
-        lam, phi = lam[order], phi[:, order]
-        self._check_zero_modes(lam, lam_scale=self._lam_scale)
-        # Renormalise against M (ARPACK's scaling is close, not exact).
-        norms = np.sqrt(np.einsum("ij,i,ij->j", phi, self.model.mass_dof, phi))
-        self._store(lam, phi / norms)
+                      f"{self.n_dof} DOF)" + (" in a worker process" if self.worker else ""))
+        if self.worker is None:
+            lam, phi = self._solver.lowest(count)
+        else:
+            lam, phi = self.worker.call(_lowest_modes_in_worker, self._solver, count)
+        self._check_zero_modes(lam, lam_scale=self._solver.lam_scale)
+        self._store(lam, phi)
         self.solve_seconds += time.perf_counter() - start
         self.progress(f"{count} modes ready: {self.frequencies_hz[0]:.4g} .. "
                       f"{self.frequencies_hz[-1]:.4g} Hz "
@@ -165,3 +162,49 @@ class ModalBasis:
         signs[signs == 0] = 1.0
         self.vectors = np.ascontiguousarray(phi * signs)
         self.omega = np.sqrt(np.maximum(lam, 0.0))
+
+
+class ShiftInvertModes:
+    """Lowest modes of ``K phi = lam M phi`` (sparse ``K``, lumped ``M``) by shift-invert
+    Lanczos, mass-normalised and ascending; the sparse LU of ``K - sigma M`` is made on the
+    first call and kept for the next ones."""
+
+    def __init__(self, stiffness: sp.spmatrix, mass_dof: np.ndarray):
+        self.k = stiffness.tocsc()
+        self.mass_dof = np.asarray(mass_dof, dtype=float)
+        self.lam_scale = float(np.max(self.k.diagonal() / self.mass_dof))
+        # A small negative shift keeps K - sigma M definite even when K is singular.
+        self.sigma = -1e-6 * self.lam_scale
+        self.token = uuid.uuid4().hex  # names this solver in a worker process
+        self._factor = None
+
+    def __getstate__(self) -> dict:
+        return dict(self.__dict__, _factor=None)  # the factor stays where it was made
+
+    def lowest(self, count: int) -> tuple[np.ndarray, np.ndarray]:
+        n = self.mass_dof.size
+        m = sp.diags(self.mass_dof).tocsc()
+        if self._factor is None:
+            self._factor = spla.splu((self.k - self.sigma * m).tocsc())
+        op = spla.LinearOperator((n, n), matvec=self._factor.solve, dtype=float)
+        lam, phi = spla.eigsh(self.k, k=count, M=m, sigma=self.sigma, OPinv=op, which="LM",
+                              v0=np.ones(n), tol=1e-12)
+        order = np.argsort(lam)
+        lam, phi = lam[order], phi[:, order]
+        # Renormalise against M (ARPACK's scaling is close, not exact).
+        norms = np.sqrt(np.einsum("ij,i,ij->j", phi, self.mass_dof, phi))
+        return lam, phi / norms
+
+
+#: A worker process's solver (by token), kept with its factor for the next call.
+_WORKER_SOLVERS: dict[str, ShiftInvertModes] = {}
+
+
+def _lowest_modes_in_worker(solver: ShiftInvertModes, count: int
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """Runs in a :class:`WorkerProcess`: ``solver.lowest(count)`` on the copy it already has
+    (factorised), if any."""
+    if solver.token not in _WORKER_SOLVERS:
+        _WORKER_SOLVERS.clear()  # one at a time: no factor outlives its use
+        _WORKER_SOLVERS[solver.token] = solver
+    return _WORKER_SOLVERS[solver.token].lowest(count)

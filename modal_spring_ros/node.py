@@ -3,8 +3,9 @@
 A thin ROS layer over the engine. A dedicated simulation thread steps at a fixed ``sim.dt`` and
 publishes on its own period (``publish_rate_hz``), so the stream stays steady while the
 executor thread serves parameter and service requests. Every change is validated in the
-parameter callback (computing missing modes there, so the stream never stalls) and handed to
-the simulation thread, which applies it between two steps.
+parameter callback (computing missing modes there; on large scenes in a worker process, so
+that the stream goes on meanwhile) and handed to the simulation thread, which applies it
+between two steps.
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
 (Marker TRIANGLE_LIST, for scenes with a surface, when subscribed), ``/diagnostics``, and
@@ -49,6 +50,7 @@ from modal_spring_ros.simulation_factory import (SimulationConfig, UnstableStepE
                                                  build_simulation, check_band, check_stable,
                                                  config_from_parameters, rebuild,
                                                  REBUILD_PARAMETERS)
+from modal_spring_ros.worker_process import WorkerError, WorkerProcess
 
 NODE_NAME = "modal_spring"
 #: Largest spring strain still in the small-deformation regime the modal basis assumes.
@@ -200,8 +202,18 @@ class ModalSpringNode(Node):
         check_choices(self._values)
         config = self._config(self._values)
         config.band.validate()
-        self.sim: Simulation = build_simulation(self._values["scene"], config,
-                                                progress=lambda msg: log.info(msg))
+        # Sparse mode computations (large scenes) run in a worker process, so that they never
+        # hold this process's interpreter lock while the stream runs; shutting down (Ctrl-C)
+        # cancels them.
+        self._worker = WorkerProcess("modal_spring_modes",
+                                     cancelled=lambda: not self.context.ok())
+        try:
+            self.sim: Simulation = build_simulation(self._values["scene"], config,
+                                                    progress=lambda msg: log.info(msg),
+                                                    worker=self._worker)
+        except BaseException:
+            self._worker.close()
+            raise
         self.model = self.sim.model
         self.basis = self.sim.basis
         scene = self.model.scene
@@ -256,7 +268,7 @@ class ModalSpringNode(Node):
         with self._lock:
             try:
                 self._validate_and_queue(incoming)
-            except (BandError, UnstableStepError, ValueError, SceneError) as exc:
+            except (BandError, UnstableStepError, ValueError, SceneError, WorkerError) as exc:
                 self.get_logger().warning(f"parameter change rejected: {exc}")
                 return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
@@ -285,6 +297,8 @@ class ModalSpringNode(Node):
             self._computing_modes = True
             try:
                 check_band(probe, band, "sim.dt")
+                if probe is self.sim:  # build the switch here, not in the stepping thread
+                    probe.prepare_switch(band, config.transition_s)
             finally:
                 self._computing_modes = False
         self._publish_frequencies()
@@ -564,6 +578,7 @@ class ModalSpringNode(Node):
     def stop(self) -> None:
         """Stop the simulation thread (before destroy_node) and finalise the bag, if any."""
         self._stop.set()
+        self._worker.close()
         if self._thread.is_alive():
             self._thread.join(timeout=5.0)
         if self._bag is not None:
@@ -590,6 +605,14 @@ def main(args: list[str] | None = None) -> int:
             BagError) as exc:
         print(f"modal_spring_node: error: {exc}", file=sys.stderr)
         return 2
+    except Exception as exc:
+        if not rclpy.ok():
+            return 0  # interrupted while starting (say, during a long mode computation)
+        if isinstance(exc, WorkerError):
+            print(f"modal_spring_node: error: computing the modes failed: {exc}",
+                  file=sys.stderr)
+            return 1
+        raise
     finally:
         if node is not None:
             node.stop()

@@ -17,7 +17,9 @@ and keep the last good state, so no caller ever sees NaN.
 from __future__ import annotations
 
 import abc
+import dataclasses
 import math
+import threading
 from typing import Callable
 
 import numpy as np
@@ -163,6 +165,22 @@ class Simulation(abc.ABC):
 # Modal
 
 
+#: Stepped-mode sets whose operators a modal run keeps built (the one in use, and those of a
+#: band switch prepared ahead: during and after its transition).
+STEPPED_SETS_KEPT = 3
+
+
+@dataclasses.dataclass(frozen=True)
+class _SteppedSet:
+    """What stepping one set of modes needs: shapes, ``omega^2``, damping, operators, forces."""
+
+    phi: np.ndarray
+    omega2: np.ndarray
+    damping: np.ndarray
+    ops: DiagonalOperators
+    forces: GeneralizedForces | RefreshedForces
+
+
 class ModalSimulation(Simulation):
     """The seed method: step only the modes the filter band keeps.
 
@@ -204,6 +222,8 @@ class ModalSimulation(Simulation):
         self._progress = np.empty(0)  # fade progress per active mode: 1 = fully in, 0 = out
         self._fading = False
         self._q = self._v = self._a = np.empty(0)
+        self._built: dict[tuple[int, bytes], _SteppedSet] = {}
+        self._built_lock = threading.Lock()
         self._set_active(self.select_modes(band))
         self.reset()
 
@@ -277,6 +297,50 @@ class ModalSimulation(Simulation):
     def stability_limit(self) -> float:
         return stable_step_limit(float(self.basis.omega[self._active].max()))
 
+    def prepare_switch(self, band: FilterBand, transition_s: float | None = None) -> None:
+        """Do the slow part of a switch to ``band`` ahead, from any thread, while this run
+        goes on: compute the modes it needs and build the operators of the modes stepped
+        during the transition and after it. :meth:`set_band` then finds them built. Changes
+        no state of the run.
+
+        Raises:
+            BandError: the band keeps no mode.
+        """
+        keep = self.select_modes(band)
+        instant = (self.transition_s if transition_s is None else transition_s) <= 0.0
+        active, progress = self._active, self._progress  # one consistent pair, if unchanged
+        if active.size == progress.size:
+            self._stepped_set(self._next_active(keep, active, progress, instant))
+        self._stepped_set(keep)
+
+    @staticmethod
+    def _next_active(keep: np.ndarray, active: np.ndarray, progress: np.ndarray,
+                     instant: bool) -> np.ndarray:
+        """Modes stepped once ``keep`` is the band: ``keep`` plus the modes still fading out."""
+        leaving = active[~np.isin(active, keep) & (progress > 0.0)]
+        return np.union1d(keep, leaving[:0] if instant else leaving)
+
+    def _stepped_set(self, active: np.ndarray) -> _SteppedSet:
+        """The operators of stepping ``active``: built once per set and basis (a few kept)."""
+        key = (self.basis.count, active.tobytes())
+        with self._built_lock:
+            built = self._built.get(key)
+        if built is None:
+            phi = np.ascontiguousarray(self.basis.vectors[:, active])
+            omega = self.basis.omega[active]
+            damp = self.damping.modal_coefficients(omega)
+            exact = GeneralizedForces(self.model, phi)
+            forces = (exact if self.force_refresh == 1 else
+                      RefreshedForces(exact, omega**2, self.force_refresh, self.dt,
+                                      self.strain_limit))
+            built = _SteppedSet(phi, omega**2, damp,
+                                DiagonalOperators(1.0, damp, omega**2, self.dt), forces)
+            with self._built_lock:  # prepare_switch may run in another thread
+                self._built[key] = built
+                while len(self._built) > STEPPED_SETS_KEPT:
+                    self._built.pop(next(iter(self._built)))
+        return built
+
     def _set_active(self, keep: np.ndarray) -> None:
         """New active set: ``keep`` plus old modes still fading out. Re-projects the state.
 
@@ -286,21 +350,18 @@ class ModalSimulation(Simulation):
         keep = np.asarray(keep, dtype=np.int64)
         old_active, old_progress = self._active, self._progress
         instant = self.transition_s <= 0.0
-        leaving = old_active[~np.isin(old_active, keep) & (old_progress > 0.0)]
-        if instant:
-            leaving = leaving[:0]
-        active = np.union1d(keep, leaving)
+        active = self._next_active(keep, old_active, old_progress, instant)
         target = np.isin(active, keep)
         was = np.isin(active, old_active)
         progress = np.zeros(active.size)  # modes new to the set fade in from 0
         progress[was] = old_progress[np.searchsorted(old_active, active[was])]
         if instant or not old_active.size:
             progress[target] = 1.0
-        new_phi = np.ascontiguousarray(self.basis.vectors[:, active])
+        stepped = self._stepped_set(active)
         if old_active.size:
             # Map the state onto the new active modes: q_new = Phi_new^T M Phi_old q_old
             # (exact for modes in both sets; modes new to the set start from rest).
-            overlap = new_phi.T @ (self.model.mass_dof[:, None] * self._phi)
+            overlap = stepped.phi.T @ (self.model.mass_dof[:, None] * self._phi)
             overlap[np.abs(overlap) < 1e-9] = 0.0
             overlap[~was] = 0.0
             self._q, self._v, self._a = overlap @ self._q, overlap @ self._v, overlap @ self._a
@@ -310,15 +371,10 @@ class ModalSimulation(Simulation):
             self._a = np.zeros(active.size)
         self._active, self._target, self._progress = active, target, progress
         self._fading = bool(np.any(progress < 1.0) or np.any(~target))
-        self._phi = new_phi
-        omega = self.basis.omega[active]
-        self._omega2 = omega**2
-        self._damp = self.damping.modal_coefficients(omega)
-        self._ops = DiagonalOperators(1.0, self._damp, self._omega2, self.dt)
-        exact = GeneralizedForces(self.model, new_phi)
-        self._forces = (exact if self.force_refresh == 1 else
-                        RefreshedForces(exact, self._omega2, self.force_refresh, self.dt,
-                                        self.strain_limit))
+        self._phi, self._omega2, self._damp = stepped.phi, stepped.omega2, stepped.damping
+        self._ops, self._forces = stepped.ops, stepped.forces
+        if isinstance(self._forces, RefreshedForces):
+            self._forces.restart()  # no evaluation carried over from an earlier use
         self._update_envelope()
 
     def _update_envelope(self) -> None:

@@ -13,6 +13,7 @@ from typing import Any
 from modal_spring_ros.filter_band import FilterBand
 from modal_spring_ros.mass_spring import MassSpringModel
 from modal_spring_ros.modal_basis import ModalBasis, Progress
+from modal_spring_ros.worker_process import WorkerProcess
 from modal_spring_ros.scene import DEFAULT_SCENE, Scene, load_scene, scene_from_dict
 from modal_spring_ros.simulation import (DEFAULT_STRAIN_LIMIT, METHODS, FullSimulation,
                                          ModalSimulation, Simulation, stable_step_limit)
@@ -122,9 +123,9 @@ def resolve_scene(scene: Scene | str | dict) -> Scene:
 
 
 def build_simulation(scene: Scene | str | dict, config: SimulationConfig, *,
-                     progress: Progress | None = None, allow_unstable: bool = False
-                     ) -> Simulation:
-    """Scene + options -> a simulation at rest at t = 0.
+                     progress: Progress | None = None, allow_unstable: bool = False,
+                     worker: WorkerProcess | None = None) -> Simulation:
+    """Scene + options -> a simulation at rest at t = 0 (``worker``: see :class:`ModalBasis`).
 
     Raises:
         SceneError: invalid scene (including a mechanism).
@@ -137,7 +138,7 @@ def build_simulation(scene: Scene | str | dict, config: SimulationConfig, *,
     config.band.validate()
     scene = resolve_scene(scene)
     model = MassSpringModel(scene)
-    basis = ModalBasis(model, progress=progress)
+    basis = ModalBasis(model, progress=progress, worker=worker)
     sim = rebuild(model, basis, config)
     if not allow_unstable:
         check_stable(sim)

@@ -190,3 +190,32 @@ def test_automatic_mode_choice_meets_its_tolerance_with_few_modes():
     err = np.linalg.norm(sim.displacement() - full.displacement()) / np.linalg.norm(
         full.displacement())
     assert err < 0.05
+
+
+def test_a_switch_prepared_ahead_builds_nothing_when_applied_and_changes_no_result(
+        sheet_10x10, monkeypatch):
+    """The node prepares a band switch in its parameter thread; applying it in the stepping
+    thread must then only map the state, and the run must be the same as unprepared."""
+    import modal_spring_ros.simulation as simulation
+    model, basis = sheet_10x10
+    band = FilterBand("bandpass", 10, 40, by="index")   # from 0..30: steps 0..40, then 10..40
+    runs = []
+    for prepare in (False, True):
+        sim = ModalSimulation(model, basis, FilterBand("bandpass", 0, 30, by="index"), dt=5e-4,
+                              transition_s=0.05, force_refresh=5)
+        sim.step(300)
+        if prepare:
+            sim.prepare_switch(band)
+            built = []
+            real = simulation.GeneralizedForces
+            monkeypatch.setattr(simulation, "GeneralizedForces",
+                                lambda *a: built.append(a) or real(*a))
+        sim.set_band(band)
+        assert sim.fading and sim.stepped_modes.tolist() == list(range(41))
+        sim.step(200)                                    # through the end of the fade
+        assert not sim.fading and sim.stepped_modes.tolist() == list(range(10, 41))
+        if prepare:
+            assert built == []                             # both sets were built ahead
+            monkeypatch.undo()
+        runs.append(sim.positions())
+    np.testing.assert_array_equal(runs[1], runs[0])

@@ -3,7 +3,9 @@
 Each test starts its own node in its own namespace (so only its own stream is seen)."""
 from __future__ import annotations
 
+import os
 import signal
+import threading
 import time
 
 import numpy as np
@@ -71,7 +73,6 @@ def test_params_file_is_accepted_as_ros2_run_would_pass_it():
     from pathlib import Path
     from diagnostic_msgs.msg import DiagnosticArray as Diag
     params = Path(__file__).resolve().parent.parent / "config" / "modal_spring.yaml"
-    import os
     import subprocess
     from ros_harness import console_script
     proc = subprocess.Popen([console_script("modal_spring_node"), "--ros-args",
@@ -164,9 +165,11 @@ def test_bad_startup_parameters_exit_2_with_one_clear_line(param, message):
     assert "Traceback" not in err and message in err
 
 
-def test_a_band_needing_new_modes_keeps_the_stream_or_reports_the_stall():
+def test_a_band_needing_new_modes_keeps_the_stream_going():
     """sheet_100x100 starts with 32 modes; a band up to mode 99 makes the node compute more
-    inside the parameter request. The stream must go on, and any stall must be reported."""
+    inside the parameter request, in its worker process, and build the switch there. The
+    stream must go on meanwhile: in-process, the eigensolver held the interpreter for
+    0.07-0.2 s at a time."""
     with node_with_client("scene:=sheet_100x100", "integrator:=average", "filter.type:=lowpass",
                           "filter.by:=index", "filter.high_mode:=15",
                           namespace="grow") as (node, client):
@@ -187,7 +190,31 @@ def test_a_band_needing_new_modes_keeps_the_stream_or_reports_the_stall():
         assert values["modes stepped"] == "100" and int(values["modes computed"]) >= 100
         times = np.array([t for t, _ in points if t > start - 0.5])
         worst = float(np.diff(times).max())
-        reported = [s for _, s in mine if s.level == DiagnosticStatus.WARN
-                    and "stream stalled for" in s.message]
-        print(f"longest gap {worst:.3f} s; stall reports: {[s.message for s in reported]}")
-        assert worst < 3.0 / RATE + 0.02 or reported, (worst, [s.message for _, s in mine])
+        print(f"longest gap {worst:.3f} s")
+        assert worst < 0.15, (worst, [s.message for _, s in mine])  # here ~0.05 (3 periods)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_during_a_long_mode_computation_at_startup_cancels_it(sig):
+    """sheet_100x100 with every band starts by computing 256 modes (seconds) in the worker
+    process. Ctrl-C (SIGINT to the whole process group, as a terminal sends it) or SIGTERM
+    (as a process manager sends it) must end the node cleanly without waiting for that
+    computation."""
+    node = NodeProcess("scene:=sheet_100x100", namespace="startint")
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(node.proc.stderr), daemon=True)
+    reader.start()
+    try:
+        assert wait_for(lambda: any("computing the 256 lowest modes" in x for x in lines), 60)
+        if sig == signal.SIGINT:
+            os.killpg(node.proc.pid, sig)
+        else:
+            node.proc.send_signal(sig)
+        node.proc.wait(timeout=15)
+        reader.join(timeout=10)
+    finally:
+        node.kill()
+    err = "".join(lines)
+    assert node.proc.returncode == 0, err[-3000:]
+    assert "Traceback" not in err
+    assert "256 modes ready" not in err                   # cancelled, not waited for

@@ -1,0 +1,85 @@
+"""The worker process that runs sparse mode computations outside the node's interpreter."""
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from modal_spring_ros.mass_spring import MassSpringModel
+from modal_spring_ros.modal_basis import ModalBasis
+from modal_spring_ros.scene import load_scene
+from modal_spring_ros.worker_process import WorkerError, WorkerProcess
+
+
+def _raise_value_error(text: str) -> None:
+    raise ValueError(text)
+
+
+def test_calls_run_in_one_reused_child_and_its_errors_are_raised_here():
+    with WorkerProcess() as worker:
+        child = worker.call(os.getpid)
+        assert child != os.getpid()
+        assert worker.call(os.getpid) == child           # the same child, kept
+        assert worker.call(divmod, 17, 5) == (3, 2)
+        with pytest.raises(ValueError, match="named problem"):
+            worker.call(_raise_value_error, "named problem")
+        assert worker.call(os.getpid) == child           # an error does not end it
+
+
+def test_a_child_that_dies_is_reported_and_replaced():
+    with WorkerProcess() as worker:
+        child = worker.call(os.getpid)
+        with pytest.raises(WorkerError, match="exit code -9"):
+            worker.call(os.kill, child, signal.SIGKILL)
+        assert worker.call(os.getpid) not in (child, os.getpid())
+
+
+def test_close_ends_a_call_in_progress_and_refuses_new_ones():
+    worker = WorkerProcess()
+    worker.call(os.getpid)
+    errors = []
+
+    def long_call():
+        try:
+            worker.call(time.sleep, 60.0)
+        except WorkerError as exc:
+            errors.append(str(exc))
+
+    caller = threading.Thread(target=long_call)
+    caller.start()
+    time.sleep(0.5)
+    worker.close()
+    caller.join(timeout=10.0)
+    assert not caller.is_alive() and errors and "closed" in errors[0]
+    with pytest.raises(WorkerError, match="closed"):
+        worker.call(os.getpid)
+
+
+def test_modes_computed_in_the_worker_are_bit_identical_and_grow_the_same_way():
+    model = MassSpringModel(load_scene("sheet_32x32"))
+    here = ModalBasis(model, initial_modes=12)
+    with WorkerProcess() as worker:
+        there = ModalBasis(model, initial_modes=12, worker=worker)
+        assert not there.dense
+        np.testing.assert_array_equal(there.omega, here.omega)
+        np.testing.assert_array_equal(there.vectors, here.vectors)
+        here.ensure_count(40)
+        there.ensure_count(40)                           # on the factor kept in the child
+        np.testing.assert_array_equal(there.omega, here.omega)
+        np.testing.assert_array_equal(there.vectors, here.vectors)
+
+
+
+def test_a_cancelled_call_ends_its_child_and_the_next_call_gets_a_new_one():
+    cancel = threading.Event()
+    with WorkerProcess(cancelled=cancel.is_set) as worker:
+        child = worker.call(os.getpid)
+        threading.Timer(0.3, cancel.set).start()
+        with pytest.raises(WorkerError, match="cancelled"):
+            worker.call(time.sleep, 60.0)
+        cancel.clear()
+        assert worker.call(os.getpid) not in (child, os.getpid())
