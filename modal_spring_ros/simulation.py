@@ -165,9 +165,9 @@ class Simulation(abc.ABC):
 # Modal
 
 
-#: Stepped-mode sets whose operators a modal run keeps built (the one in use, and those of a
-#: band switch prepared ahead: during and after its transition).
-STEPPED_SETS_KEPT = 3
+#: Stepped-mode sets a modal run keeps prepared ahead (a switch needs two: the modes stepped
+#: during its transition and after it); the oldest goes first.
+PREPARED_SETS_KEPT = 4
 
 
 @dataclasses.dataclass(frozen=True)
@@ -310,8 +310,8 @@ class ModalSimulation(Simulation):
         instant = (self.transition_s if transition_s is None else transition_s) <= 0.0
         active, progress = self._active, self._progress  # one consistent pair, if unchanged
         if active.size == progress.size:
-            self._stepped_set(self._next_active(keep, active, progress, instant))
-        self._stepped_set(keep)
+            self._prepare_set(self._next_active(keep, active, progress, instant))
+        self._prepare_set(keep)
 
     @staticmethod
     def _next_active(keep: np.ndarray, active: np.ndarray, progress: np.ndarray,
@@ -320,26 +320,34 @@ class ModalSimulation(Simulation):
         leaving = active[~np.isin(active, keep) & (progress > 0.0)]
         return np.union1d(keep, leaving[:0] if instant else leaving)
 
-    def _stepped_set(self, active: np.ndarray) -> _SteppedSet:
-        """The operators of stepping ``active``: built once per set and basis (a few kept)."""
+    def _prepare_set(self, active: np.ndarray) -> None:
+        """Build the operators of stepping ``active`` and keep them for :meth:`_take_set`."""
         key = (self.basis.count, active.tobytes())
         with self._built_lock:
-            built = self._built.get(key)
-        if built is None:
-            phi = np.ascontiguousarray(self.basis.vectors[:, active])
-            omega = self.basis.omega[active]
-            damp = self.damping.modal_coefficients(omega)
-            exact = GeneralizedForces(self.model, phi)
-            forces = (exact if self.force_refresh == 1 else
-                      RefreshedForces(exact, omega**2, self.force_refresh, self.dt,
-                                      self.strain_limit))
-            built = _SteppedSet(phi, omega**2, damp,
-                                DiagonalOperators(1.0, damp, omega**2, self.dt), forces)
-            with self._built_lock:  # prepare_switch may run in another thread
-                self._built[key] = built
-                while len(self._built) > STEPPED_SETS_KEPT:
-                    self._built.pop(next(iter(self._built)))
-        return built
+            if key in self._built:
+                return
+        built = self._build_set(active)
+        with self._built_lock:  # the stepping thread may take from it meanwhile
+            self._built[key] = built
+            while len(self._built) > PREPARED_SETS_KEPT:  # a switch superseded before use
+                self._built.pop(next(iter(self._built)))
+
+    def _take_set(self, active: np.ndarray) -> _SteppedSet:
+        """The operators of stepping ``active``: prepared ones (used once), else built now."""
+        with self._built_lock:
+            built = self._built.pop((self.basis.count, active.tobytes()), None)
+        return built if built is not None else self._build_set(active)
+
+    def _build_set(self, active: np.ndarray) -> _SteppedSet:
+        phi = np.ascontiguousarray(self.basis.vectors[:, active])
+        omega = self.basis.omega[active]
+        damp = self.damping.modal_coefficients(omega)
+        exact = GeneralizedForces(self.model, phi)
+        forces = (exact if self.force_refresh == 1 else
+                  RefreshedForces(exact, omega**2, self.force_refresh, self.dt,
+                                  self.strain_limit))
+        return _SteppedSet(phi, omega**2, damp, DiagonalOperators(1.0, damp, omega**2, self.dt),
+                           forces)
 
     def _set_active(self, keep: np.ndarray) -> None:
         """New active set: ``keep`` plus old modes still fading out. Re-projects the state.
@@ -357,7 +365,7 @@ class ModalSimulation(Simulation):
         progress[was] = old_progress[np.searchsorted(old_active, active[was])]
         if instant or not old_active.size:
             progress[target] = 1.0
-        stepped = self._stepped_set(active)
+        stepped = self._take_set(active)
         if old_active.size:
             # Map the state onto the new active modes: q_new = Phi_new^T M Phi_old q_old
             # (exact for modes in both sets; modes new to the set start from rest).
@@ -373,8 +381,6 @@ class ModalSimulation(Simulation):
         self._fading = bool(np.any(progress < 1.0) or np.any(~target))
         self._phi, self._omega2, self._damp = stepped.phi, stepped.omega2, stepped.damping
         self._ops, self._forces = stepped.ops, stepped.forces
-        if isinstance(self._forces, RefreshedForces):
-            self._forces.restart()  # no evaluation carried over from an earlier use
         self._update_envelope()
 
     def _update_envelope(self) -> None:
