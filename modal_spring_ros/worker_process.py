@@ -24,7 +24,8 @@ POLL_S = 0.1
 
 
 class WorkerError(RuntimeError):
-    """The child process ended while it had a call to answer (killed, out of memory, ...)."""
+    """A call got no answer: the worker was closed or the call cancelled, or the child died
+    (killed, out of memory, ...)."""
 
 
 def _serve(conn: Connection) -> None:
