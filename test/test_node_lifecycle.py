@@ -176,6 +176,7 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
         points = client.collect(PointCloud2, "/grow/points", qos=500)
         diags = client.collect(DiagnosticArray, "/diagnostics")
         assert wait_for(lambda: len(points) > 10, 60)
+        time.sleep(2.0)                                  # a steady window to compare with
         start = time.monotonic()
         (result,) = client.set_parameters("grow/modal_spring", timeout=60.0,
                                           filter__high_mode=99)
@@ -188,10 +189,12 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
                 if d.status[0].name.startswith("/grow/") and t > start]
         values = {kv.key: kv.value for kv in mine[-1][1].values}
         assert values["modes stepped"] == "100" and int(values["modes computed"]) >= 100
-        times = np.array([t for t, _ in points if t > start - 0.5])
-        worst = float(np.diff(times).max())
-        print(f"longest gap {worst:.3f} s")
-        assert worst < 0.15, (worst, [s.message for _, s in mine])  # here ~0.05 (3 periods)
+        times = np.array([t for t, _ in points])
+        steady = float(np.diff(times[(times > start - 2.0) & (times < start)]).max())
+        worst = float(np.diff(times[times > start - 0.5]).max())
+        print(f"longest gap {worst:.3f} s (steady: {steady:.3f} s)")
+        # here about 0.05 s (3 periods); on a loaded host no worse than its steady gaps allow
+        assert worst < max(0.15, 3.0 * steady), (worst, steady, [s.message for _, s in mine])
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
