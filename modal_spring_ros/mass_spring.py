@@ -52,10 +52,6 @@ class MassSpringModel:
                                   s.dimension)
         return reduce_to_free(full, self.free_dof)
 
-    @functools.cached_property
-    def mass_matrix_free(self) -> sp.dia_matrix:
-        return sp.diags(self.mass_dof)
-
     # -- positions -----------------------------------------------------------------------------
     def anchor_offset(self, t: float) -> np.ndarray:
         """(d,) rigid offset of the base (every fixed particle) at time ``t``."""
