@@ -21,7 +21,9 @@ setup(
     extras_require={
         # ROS 2 Jazzy from PyPI wheels, for machines without a ROS install.
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
-        "test": ["pytest>=9.0", "pytest-timeout", "rosbags"],
+        "test": ["pytest>=9.0", "pytest-timeout", "rosbags",
+                 # the ROS build tooling, to check the package as ROS sees it
+                 "catkin_pkg", "colcon-core", "colcon-ros", "rosdep"],
     },
     zip_safe=True,
     maintainer="modal_spring_ros maintainers",

@@ -1,0 +1,238 @@
+"""The package as ROS tooling sees it: package.xml, its rosdep keys, and a colcon build.
+
+Runs the real tools (catkin_pkg, rosdep, colcon from PyPI) offline: rosdep reads only the
+rosdep file this package ships, and colcon builds a copy of the package in a temporary
+workspace, as ``colcon build`` does on a ROS 2 install.
+"""
+from __future__ import annotations
+
+import ast
+import importlib.metadata
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from catkin_pkg.package import parse_package
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGE = "modal_spring_ros"
+#: what ``colcon build`` needs of the source tree (the README copies the whole folder)
+SOURCE_ITEMS = ["package.xml", "setup.py", "setup.cfg", "resource", PACKAGE, "config"]
+
+#: top-level import -> the package.xml key that provides it
+IMPORT_KEYS = {
+    "numpy": "python3-numpy",
+    "scipy": "python3-scipy",
+    "yaml": "python3-yaml",
+    "matplotlib": "python3-matplotlib",
+    "mcap": "python3-mcap-pip",
+    "mcap_ros2": "python3-mcap-ros2-support-pip",
+    "rclpy": "rclpy",
+    "builtin_interfaces": "builtin_interfaces",
+    "rcl_interfaces": "rcl_interfaces",
+    "std_msgs": "std_msgs",
+    "std_srvs": "std_srvs",
+    "geometry_msgs": "geometry_msgs",
+    "sensor_msgs": "sensor_msgs",
+    "visualization_msgs": "visualization_msgs",
+    "diagnostic_msgs": "diagnostic_msgs",
+    "rosgraph_msgs": "rosgraph_msgs",
+    "ament_index_python": "ament_index_python",
+}
+TEST_IMPORT_KEYS = {"pytest": "python3-pytest", "rosbags": "python3-rosbags-pip",
+                    "catkin_pkg": "python3-catkin-pkg"}
+#: tools this file runs as ``python -m MODULE``
+TEST_TOOL_KEYS = {"colcon": "python3-colcon-common-extensions", "rosdep2": "python3-rosdep"}
+
+
+def _package():
+    return parse_package(str(REPO / "package.xml"))
+
+
+def _imported_modules(folder: Path) -> set[str]:
+    """Top-level modules imported anywhere under ``folder`` (absolute imports)."""
+    names = set()
+    for path in folder.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                names.update(alias.name.split(".")[0] for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names.add(node.module.split(".")[0])
+    return names - set(sys.stdlib_module_names) - {PACKAGE}
+
+
+def test_package_xml_is_valid_format_3_ament_python():
+    package = _package()
+    package.validate()
+    assert package.package_format == 3
+    assert package.name == PACKAGE
+    assert package.get_build_type() == "ament_python"
+    assert [lic for lic in package.licenses] == ["Apache-2.0"]
+
+
+def test_every_module_the_package_imports_is_a_declared_run_dependency():
+    declared = {d.name for d in _package().exec_depends}
+    imported = _imported_modules(REPO / PACKAGE)
+    unknown = imported - IMPORT_KEYS.keys()
+    assert not unknown, f"imports with no package.xml key known to this test: {unknown}"
+    missing = {IMPORT_KEYS[m] for m in imported} - declared
+    assert not missing, f"imported but not <exec_depend> in package.xml: {missing}"
+
+
+def test_every_module_the_tests_import_is_declared():
+    package = _package()
+    declared = {d.name for d in package.exec_depends + package.test_depends}
+    imported = _imported_modules(REPO / "test") - {"conftest", "ros_harness"}
+    unknown = imported - IMPORT_KEYS.keys() - TEST_IMPORT_KEYS.keys()
+    assert not unknown, f"test imports with no package.xml key known to this test: {unknown}"
+    needed = {({**IMPORT_KEYS, **TEST_IMPORT_KEYS})[m] for m in imported}
+    needed |= set(TEST_TOOL_KEYS.values())
+    missing = needed - declared
+    assert not missing, f"needed by the tests but not declared in package.xml: {missing}"
+
+
+# -- rosdep ------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def rosdep_env(tmp_path_factory):
+    """An offline rosdep whose only source is the rosdep file this package ships."""
+    root = tmp_path_factory.mktemp("rosdep")
+    (root / "sources").mkdir()
+    (root / "sources" / "50-modal-spring-ros.list").write_text(
+        f"yaml {(REPO / 'resource' / 'rosdep.yaml').as_uri()}\n")
+    (root / "index" / "jazzy").mkdir(parents=True)
+    (root / "index" / "index-v4.yaml").write_text(yaml.safe_dump({
+        "type": "index", "version": 4,
+        "distributions": {"jazzy": {"distribution": ["jazzy/distribution.yaml"],
+                                    "distribution_status": "active",
+                                    "distribution_type": "ros2", "python_version": 3}}}))
+    (root / "index" / "jazzy" / "distribution.yaml").write_text(yaml.safe_dump({
+        "type": "distribution", "version": 2, "repositories": {},
+        "release_platforms": {"ubuntu": ["noble"]}}))
+    env = {**os.environ, "ROSDEP_SOURCE_PATH": str(root / "sources"), "ROS_HOME": str(root),
+           "ROSDISTRO_INDEX_URL": (root / "index" / "index-v4.yaml").as_uri()}
+    rosdep = [sys.executable, "-m", "rosdep2"]  # see TEST_TOOL_KEYS
+    update = subprocess.run(rosdep + ["update", "--rosdistro", "jazzy"], env=env,
+                            capture_output=True, text=True, timeout=120)
+    assert update.returncode == 0, update.stdout + update.stderr
+    return rosdep, env
+
+
+def _pip_requirements() -> set[str]:
+    """Lower-case names of the installed package's requirements (install and test extras)."""
+    out = set()
+    for req in importlib.metadata.requires(PACKAGE) or []:
+        if "extra ==" in req and "extra == \"test\"" not in req:
+            continue
+        out.add(re.split(r"[\s\[<>=!;~]", req, maxsplit=1)[0].lower())
+    return out
+
+
+def test_the_shipped_rosdep_file_resolves_every_pip_key_to_a_package_setup_py_requires(
+        rosdep_env):
+    rosdep, env = rosdep_env
+    package = _package()
+    pip_keys = sorted({d.name for d in package.exec_depends + package.test_depends
+                       if d.name.endswith("-pip")})
+    assert pip_keys == ["python3-mcap-pip", "python3-mcap-ros2-support-pip",
+                        "python3-rosbags-pip"]
+    requirements = _pip_requirements()
+    for key in pip_keys:
+        done = subprocess.run(rosdep + ["resolve", key, "--os=ubuntu:noble",
+                                        "--rosdistro=jazzy"],
+                              env=env, capture_output=True, text=True, timeout=60)
+        assert done.returncode == 0, done.stdout + done.stderr
+        installer, name = done.stdout.split()
+        assert installer == "#pip"
+        assert name.lower() in requirements, (key, name, requirements)
+
+
+def test_rosdep_names_a_key_it_cannot_resolve(rosdep_env):
+    rosdep, env = rosdep_env
+    done = subprocess.run(rosdep + ["resolve", "python3-not-a-key-pip", "--os=ubuntu:noble",
+                                    "--rosdistro=jazzy"],
+                          env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode != 0
+    assert "python3-not-a-key-pip" in done.stdout + done.stderr
+
+
+# -- colcon ------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def colcon_install(tmp_path_factory) -> Path:
+    """``colcon build`` of a copy of the package; returns the install folder."""
+    ws = tmp_path_factory.mktemp("colcon_ws")
+    src = ws / "src" / PACKAGE
+    src.mkdir(parents=True)
+    for item in SOURCE_ITEMS:
+        if (REPO / item).is_dir():
+            shutil.copytree(REPO / item, src / item,
+                            ignore=shutil.ignore_patterns("__pycache__"))
+        else:
+            shutil.copy2(REPO / item, src / item)
+    done = subprocess.run(
+        [sys.executable, "-m", "colcon", "--log-base", str(ws / "log"), "build",
+         "--base-paths", str(ws / "src"), "--build-base", str(ws / "build"),
+         "--install-base", str(ws / "install")],
+        cwd=ws, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    return ws / "install"
+
+
+def _console_scripts() -> list[str]:
+    eps = importlib.metadata.distribution(PACKAGE).entry_points
+    return sorted(ep.name for ep in eps if ep.group == "console_scripts")
+
+
+def test_colcon_build_installs_the_ament_layout(colcon_install):
+    prefix = colcon_install / PACKAGE
+    scripts = _console_scripts()
+    assert "modal_spring_node" in scripts and len(scripts) == 6
+    for name in scripts:  # where `ros2 run modal_spring_ros NAME` looks
+        exe = prefix / "lib" / PACKAGE / name
+        assert exe.is_file() and os.access(exe, os.X_OK), exe
+    assert (prefix / "share" / "ament_index" / "resource_index" / "packages" / PACKAGE).is_file()
+    share = prefix / "share" / PACKAGE
+    assert (share / "package.xml").read_text() == (REPO / "package.xml").read_text()
+    for pattern in ("config/*.yaml", "config/scenes/*.yaml"):
+        shipped = sorted(p.name for p in REPO.glob(pattern))
+        assert shipped and sorted(p.name for p in share.glob(pattern)) == shipped
+
+
+def _sourced(install: Path, command: str) -> subprocess.CompletedProcess:
+    """``command`` in bash after sourcing the workspace, with none of the test's own paths."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "AMENT_PREFIX_PATH", "COLCON_PREFIX_PATH")}
+    return subprocess.run(["bash", "-c", f". '{install}/setup.sh' && {command}"], env=env,
+                          cwd=install.parent, capture_output=True, text=True, timeout=120)
+
+
+def test_the_installed_package_finds_its_scenes_through_the_ament_index(colcon_install):
+    probe = _sourced(colcon_install, f"'{sys.executable}' -c \"import modal_spring_ros.scene as s;"
+                     " from ament_index_python.packages import get_package_prefix as p;"
+                     " print(s.__file__); print(s.builtin_scene_dir());"
+                     f" print(p('{PACKAGE}'))\"")
+    assert probe.returncode == 0, probe.stderr
+    module, scenes, prefix = probe.stdout.split()
+    install = str(colcon_install / PACKAGE)
+    assert module.startswith(install + "/lib/")     # not the source tree's copy
+    assert scenes == f"{install}/share/{PACKAGE}/config/scenes"
+    assert prefix == install
+
+
+def test_an_installed_console_script_runs_a_built_in_scene(colcon_install, tmp_path):
+    exe = colcon_install / PACKAGE / "lib" / PACKAGE / "modal_spring_sim"
+    out = tmp_path / "run.npz"
+    run = _sourced(colcon_install, f"'{exe}' --scene chain_2 --duration 0.05 --quiet "
+                   f"--output '{out}'")
+    assert run.returncode == 0, run.stderr
+    assert "chain_2" in run.stdout
+    with np.load(out) as data:
+        assert data["positions"].shape == (51, 3, 3)
+        assert np.all(np.isfinite(data["positions"]))
