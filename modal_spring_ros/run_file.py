@@ -11,6 +11,7 @@ Fields (``F`` frames, ``n`` particles, ``E`` springs):
 from __future__ import annotations
 
 import dataclasses
+import time
 from pathlib import Path
 from typing import Callable
 
@@ -18,6 +19,9 @@ import numpy as np
 
 from modal_spring_ros.scene import Scene
 from modal_spring_ros.simulation import DivergenceError, ModalSimulation, Simulation
+
+#: least wall time between two progress reports of :func:`record`, s (a short run reports none)
+PROGRESS_INTERVAL_S = 1.0
 
 
 @dataclasses.dataclass
@@ -50,17 +54,21 @@ class Run:
 
 def record(sim: Simulation, duration: float, *, frame_every: int = 1,
            on_progress: Callable[[float], None] | None = None,
-           on_frame: Callable[[float, np.ndarray], None] | None = None) -> Run:
+           on_frame: Callable[[float, np.ndarray], None] | None = None,
+           progress_interval_s: float = PROGRESS_INTERVAL_S) -> Run:
     """Step ``sim`` for ``duration`` seconds, keeping a frame (t = 0 included) every
     ``frame_every`` steps. Stops at a divergence and records its message (no bad frame).
-    ``on_frame(t, positions)`` sees every frame as it is made (e.g. to stream it to a bag)."""
+    ``on_frame(t, positions)`` sees every frame as it is made (e.g. to stream it to a bag).
+    ``on_progress(fraction done)`` is called at whole percents, at most once per
+    ``progress_interval_s`` of wall time."""
     steps = int(round(duration / sim.dt))
     frames = [sim.positions()]
     times = [sim.time]
     if on_frame:
         on_frame(times[0], frames[0])
     diverged = ""
-    report_every = max(1, steps // 20)
+    check_every = max(1, steps // 100)
+    last_report = time.monotonic()
     for k in range(1, steps + 1):
         try:
             sim.step()
@@ -72,8 +80,11 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
             times.append(sim.time)
             if on_frame:
                 on_frame(times[-1], frames[-1])
-        if on_progress and k % report_every == 0:
-            on_progress(k / steps)
+        if on_progress and k % check_every == 0:
+            now = time.monotonic()
+            if now - last_report >= progress_interval_s:
+                on_progress(k / steps)
+                last_report = now
     basis = getattr(sim, "basis", None)
     freqs = basis.frequencies_hz if basis is not None else np.empty(0)
     if isinstance(sim, ModalSimulation):

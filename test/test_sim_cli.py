@@ -7,8 +7,12 @@ import sys
 import numpy as np
 import pytest
 
+from modal_spring_ros.mass_spring import MassSpringModel
+from modal_spring_ros.modal_basis import ModalBasis
+from modal_spring_ros.run_file import record
 from modal_spring_ros.scene import load_scene
 from modal_spring_ros.sim_cli import main
+from modal_spring_ros.simulation import FullSimulation
 
 
 def test_run_writes_every_documented_field(tmp_path, capsys):
@@ -87,3 +91,25 @@ def test_auto_option_reports_its_choice(capsys):
     with pytest.raises(SystemExit):
         main(["--auto", "--method", "full", "--duration", "0.01", "--quiet"])
     assert "--auto chooses modes" in capsys.readouterr().err
+
+
+def test_progress_comes_at_whole_percents_and_no_more_often_than_asked():
+    model = MassSpringModel(load_scene("chain_2"))
+    basis = ModalBasis(model)
+
+    def run(**kw):
+        seen = []
+        record(FullSimulation(model, dt=1e-3, basis=basis), 0.5, on_progress=seen.append, **kw)
+        return seen
+
+    every = run(progress_interval_s=0.0)  # 500 steps: a report at each 1 %
+    assert every == pytest.approx([k / 100 for k in range(1, 101)])
+    assert run() == []  # a run far shorter than the default interval reports nothing
+
+
+def test_a_short_run_prints_no_progress_lines(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.sim_cli", "--scene",
+                           "chain_2", "--duration", "0.05", "--output", str(tmp_path / "o.npz")],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "%" not in proc.stderr
