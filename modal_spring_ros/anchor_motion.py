@@ -10,6 +10,7 @@ exact, and the modes computed with the anchors held still stay valid while they 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -19,8 +20,11 @@ import numpy as np
 class SineComponent:
     """``amplitude * sin(2 pi f t + phase)`` along ``axis`` (0 = x, 1 = y, 2 = z).
 
-    ``ramp_s`` > 0 multiplies the component by a smooth ramp (raised cosine) from 0 to 1 over the
-    first ``ramp_s`` seconds, so that the motion starts without a jerk.
+    ``ramp_s`` > 0 multiplies the component by a ramp from 0 to 1 over the first ``ramp_s``
+    seconds: the quintic smoothstep ``r = 10 x^3 - 15 x^4 + 6 x^5`` (``x = t / ramp_s``), whose
+    first and second derivatives vanish at both ends. The base's velocity and acceleration, and
+    so the load ``-m * offset''``, are then continuous at the start and the end of the ramp,
+    whatever the phase: no step load, which would excite every mode at once.
     """
 
     axis: int
@@ -55,30 +59,37 @@ class AnchorMotion:
         """(3,) acceleration of the fixed particles at time ``t`` (the base excitation)."""
         return self._derivative(t, 2)
 
+    @functools.cached_property
+    def _terms(self) -> tuple[tuple[int, float, float, float, float], ...]:
+        """Per component: axis, amplitude, angular frequency, phase, ramp time."""
+        return tuple((c.axis, c.amplitude, 2.0 * math.pi * c.frequency_hz, c.phase, c.ramp_s)
+                     for c in self.components)
+
     def _derivative(self, t: float, order: int) -> np.ndarray:
         """``order``-th time derivative of ``ramp(t) * A sin(w t + phase)``, summed.
 
         Evaluated in Python floats (a few components; called on every step)."""
         out = [0.0, 0.0, 0.0]
-        for c in self.components:
-            w = 2.0 * math.pi * c.frequency_hz
-            s = c.amplitude * math.sin(w * t + c.phase)
-            ds = c.amplitude * w * math.cos(w * t + c.phase)
+        for axis, amplitude, w, phase, ramp_s in self._terms:
+            s = amplitude * math.sin(w * t + phase)
+            if order == 0 and t >= ramp_s:
+                out[axis] += s
+                continue
+            ds = amplitude * w * math.cos(w * t + phase)
             dds = -w * w * s
-            if c.ramp_s > 0.0 and t < c.ramp_s:
-                p = math.pi / c.ramp_s
-                tt = max(t, 0.0)
-                r = 0.5 - 0.5 * math.cos(p * tt)
-                dr = 0.5 * p * math.sin(p * tt)
-                ddr = 0.5 * p * p * math.cos(p * tt)
-            else:
-                r, dr, ddr = 1.0, 0.0, 0.0
+            if t >= ramp_s:  # also when there is no ramp (ramp_s = 0)
+                out[axis] += ds if order == 1 else dds
+                continue
+            x = max(t, 0.0) / ramp_s  # quintic smoothstep and its derivatives in t
+            r = x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
+            dr = 30.0 * x * x * (1.0 - x) ** 2 / ramp_s
+            ddr = 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x) / (ramp_s * ramp_s)
             if order == 0:
-                out[c.axis] += r * s
+                out[axis] += r * s
             elif order == 1:
-                out[c.axis] += dr * s + r * ds
+                out[axis] += dr * s + r * ds
             else:
-                out[c.axis] += ddr * s + 2.0 * dr * ds + r * dds
+                out[axis] += ddr * s + 2.0 * dr * ds + r * dds
         return np.array(out)
 
     def to_list(self) -> list[dict]:

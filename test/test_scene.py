@@ -157,3 +157,33 @@ def test_unknown_scene_and_unreadable_file(tmp_path):
     bad.write_text("particles: [1, 2\n")
     with pytest.raises(SceneError, match="invalid YAML"):
         load_scene(bad)
+
+
+@pytest.mark.parametrize("t", [0.0, 0.3, 0.9999, 1.0, 1.7, 4.2])
+def test_anchor_velocity_and_acceleration_are_the_derivatives_of_its_offset(t):
+    """Within the raised-cosine ramp (1 s on sheet_10x10), at its end and after it."""
+    motion = load_scene("sheet_10x10").anchor_motion
+    assert len(motion.components) == 2 and all(c.ramp_s == 1.0 for c in motion.components)
+    h = 1e-5
+    before, after = (t - h, t + h) if t >= h else (t, t + 2 * h)  # no motion before t = 0
+    velocity = (motion.offset(after) - motion.offset(before)) / (after - before)
+    accel = (motion.velocity(after) - motion.velocity(before)) / (after - before)
+    mid = 0.5 * (before + after)
+    scale = np.abs(motion.acceleration(mid)).max() + 1e-3
+    np.testing.assert_allclose(velocity, motion.velocity(mid), atol=1e-6 * scale, rtol=1e-5)
+    np.testing.assert_allclose(accel, motion.acceleration(mid), atol=1e-4 * scale, rtol=1e-4)
+    assert motion.offset(0.0).tolist() == [0.0, 0.0, 0.0]
+
+
+def test_a_ramped_motion_starts_and_ends_its_ramp_without_a_step_in_the_load():
+    """Base velocity and acceleration (the load) are continuous at both ends of the ramp,
+    even for a phase that starts the sine away from zero."""
+    from modal_spring_ros.anchor_motion import AnchorMotion, SineComponent
+    motion = AnchorMotion((SineComponent(axis=0, amplitude=0.02, frequency_hz=0.7, phase=1.0,
+                                         ramp_s=0.5),))
+    for order in ("offset", "velocity", "acceleration"):
+        assert getattr(motion, order)(0.0).tolist() == [0.0, 0.0, 0.0]
+        at_end = getattr(motion, order)
+        steady = np.abs(at_end(0.5 + 1e-9)).max()
+        assert steady > 1e-3
+        np.testing.assert_allclose(at_end(0.5 - 1e-9), at_end(0.5 + 1e-9), rtol=1e-6)
