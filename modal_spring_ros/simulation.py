@@ -489,12 +489,10 @@ class PhysicalOperators:
             phi = basis.vectors
             cm = damping.modal_coefficients(basis.omega)
             self._modal = (phi, cm, basis.omega)
-            # explicit step as one dense product: a1 = A [f; v_pred], with
-            # A = Phi [diag(s) Phi^T, -diag(c s) Phi^T M],  s = 1 / (1 + dt/2 c)
-            # (= [(M + dt/2 C)^-1, -(M + dt/2 C)^-1 C], since Phi^T M Phi = I)
-            scale = 1.0 / (1.0 + 0.5 * dt * cm)
-            self._explicit_a = phi @ np.hstack(
-                [scale[:, None] * phi.T, -(cm * scale)[:, None] * (phi.T * self.m[None, :])])
+            # explicit step: (M + dt/2 C)^-1 (f - C v_pred) = M^-1 f - B (dt/2 f + M v_pred)
+            # with B = Phi diag(c s) Phi^T, s = 1 / (1 + dt/2 c)  (Phi Phi^T = M^-1 since
+            # Phi^T M Phi = I, and s = 1 - dt/2 c s): one n x n product per step
+            self._explicit_b = (phi * (cm / (1.0 + 0.5 * dt * cm))[None, :]) @ phi.T
         elif damping.rayleigh_alpha or damping.rayleigh_beta:
             self._c = (sp.diags(damping.rayleigh_alpha * self.m)
                        + damping.rayleigh_beta * self.k).tocsc()
@@ -518,7 +516,11 @@ class PhysicalOperators:
 
     def explicit_acceleration(self, force, v_pred):
         if self._modal is not None:
-            return self._explicit_a @ np.concatenate((force, v_pred))
+            y = force * (0.5 * self.dt)
+            y += self.m * v_pred
+            a = force / self.m
+            a -= self._explicit_b @ y
+            return a
         rhs = force - self.damp(v_pred)
         if self._c is None:
             return rhs / self.m
