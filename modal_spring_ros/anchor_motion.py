@@ -72,13 +72,10 @@ class AnchorMotion:
         out = [0.0, 0.0, 0.0]
         for axis, amplitude, w, phase, ramp_s in self._terms:
             s = amplitude * math.sin(w * t + phase)
-            if order == 0 and t >= ramp_s:
-                out[axis] += s
-                continue
-            ds = amplitude * w * math.cos(w * t + phase)
+            ds = amplitude * w * math.cos(w * t + phase) if order else 0.0
             dds = -w * w * s
-            if t >= ramp_s:  # also when there is no ramp (ramp_s = 0)
-                out[axis] += ds if order == 1 else dds
+            if t >= ramp_s:  # past the ramp, or no ramp (ramp_s = 0)
+                out[axis] += (s, ds, dds)[order]
                 continue
             x = max(t, 0.0) / ramp_s  # quintic smoothstep and its derivatives in t
             r = x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
