@@ -75,8 +75,9 @@ def test_bench_stability_limits_match_theory(quick_bench):
     for s in case["stability"]:
         if s["method"] in ("full explicit", "modal explicit"):
             assert 0.95 <= s["largest_stable"] / s["theory"] <= 1.05, s
-        else:   # average acceleration: far beyond the explicit limit of all modes
-            assert s["largest_stable"] > 5 * 2.0 / case["omega_max"], s
+        else:   # average acceleration: stable over the whole range searched (to 100x the
+            #     explicit limit of all modes)
+            assert s["largest_stable"] == pytest.approx(100 * 2.0 / case["omega_max"]), s
 
 
 def test_bench_reproduces_the_papers_cost_trends(quick_bench):
