@@ -161,7 +161,7 @@ def test_unknown_scene_and_unreadable_file(tmp_path):
 
 @pytest.mark.parametrize("t", [0.0, 0.3, 0.9999, 1.0, 1.7, 4.2])
 def test_anchor_velocity_and_acceleration_are_the_derivatives_of_its_offset(t):
-    """Within the raised-cosine ramp (1 s on sheet_10x10), at its end and after it."""
+    """Within the ramp (1 s on sheet_10x10), at its end and after it."""
     motion = load_scene("sheet_10x10").anchor_motion
     assert len(motion.components) == 2 and all(c.ramp_s == 1.0 for c in motion.components)
     h = 1e-5
