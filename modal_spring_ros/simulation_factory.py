@@ -13,10 +13,10 @@ from typing import Any
 from modal_spring_ros.filter_band import FilterBand
 from modal_spring_ros.mass_spring import MassSpringModel
 from modal_spring_ros.modal_basis import ModalBasis, Progress
-from modal_spring_ros.worker_process import WorkerProcess
 from modal_spring_ros.scene import DEFAULT_SCENE, Scene, load_scene, scene_from_dict
 from modal_spring_ros.simulation import (DEFAULT_STRAIN_LIMIT, METHODS, FullSimulation,
                                          ModalSimulation, Simulation, stable_step_limit)
+from modal_spring_ros.worker_process import WorkerProcess
 
 #: Fraction of the explicit stability limit used when no time step is given.
 AUTO_DT_SAFETY = 0.5
