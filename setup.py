@@ -12,7 +12,8 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
-        ("share/" + package_name + "/config", glob("config/*.yaml")),
+        # parameter file, launch file (config/*.launch.yaml) and RViz view
+        ("share/" + package_name + "/config", glob("config/*.yaml") + glob("config/*.rviz")),
         ("share/" + package_name + "/config/scenes", glob("config/scenes/*.yaml")),
     ],
     python_requires=">=3.10",

@@ -53,6 +53,9 @@ from modal_spring_ros.simulation_factory import (SimulationConfig, UnstableStepE
 from modal_spring_ros.worker_process import WorkerError, WorkerProcess
 
 NODE_NAME = "modal_spring"
+#: Topics (relative, so that namespaces and remapping apply); diagnostics and clock are global.
+POINTS_TOPIC = "points"
+MESH_TOPIC = "mesh"
 #: Largest spring strain still in the small-deformation regime the modal basis assumes.
 DEFAULT_STRAIN_WARNING = 0.1
 DIAGNOSTICS_PERIOD_S = 1.0
@@ -224,8 +227,8 @@ class ModalSpringNode(Node):
                                _descriptor("Frequencies of the computed modes, Hz (ascending)",
                                            ParameterType.PARAMETER_DOUBLE_ARRAY,
                                            read_only=True))
-        self._points_pub = self.create_publisher(PointCloud2, "points", 10)
-        self._mesh_pub = self.create_publisher(Marker, "mesh", 10)
+        self._points_pub = self.create_publisher(PointCloud2, POINTS_TOPIC, 10)
+        self._mesh_pub = self.create_publisher(Marker, MESH_TOPIC, 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.create_service(Trigger, "~/reset", self._on_reset)

@@ -33,13 +33,16 @@ class NodeProcess:
     """``modal_spring_node`` with ``--ros-args -p`` overrides, in its own process group."""
 
     def __init__(self, *params: str, namespace: str = "",
-                 executable: str = "modal_spring_node"):
-        args = [console_script(executable)]
-        ros_args = [x for p in params for x in ("-p", p)]
-        if namespace:
-            ros_args += ["-r", f"__ns:=/{namespace}"]
-        if ros_args:
-            args += ["--ros-args"] + ros_args
+                 executable: str = "modal_spring_node", argv: list[str] | None = None):
+        """``argv``, when given, is the whole command line (``params`` and ``namespace`` unused)."""
+        args = argv
+        if args is None:
+            args = [console_script(executable)]
+            ros_args = [x for p in params for x in ("-p", p)]
+            if namespace:
+                ros_args += ["-r", f"__ns:=/{namespace}"]
+            if ros_args:
+                args += ["--ros-args"] + ros_args
         self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, env=dict(os.environ), start_new_session=True)
 

@@ -1,8 +1,11 @@
-"""The package as ROS tooling sees it: package.xml, its rosdep keys, and a colcon build.
+"""The package as ROS tooling sees it: package.xml, its rosdep keys, a colcon build, and the
+launch file and RViz view it installs.
 
 Runs the real tools (catkin_pkg, rosdep, colcon from PyPI) offline: rosdep reads only the
 rosdep file this package ships, and colcon builds a copy of the package in a temporary
-workspace, as ``colcon build`` does on a ROS 2 install.
+workspace, as ``colcon build`` does on a ROS 2 install. ``launch`` is not on PyPI, so the
+launch file is resolved here as ``ros2 launch`` resolves it, and the node is started with the
+command line ``launch_ros`` gives it.
 """
 from __future__ import annotations
 
@@ -19,6 +22,7 @@ import numpy as np
 import pytest
 import yaml
 from catkin_pkg.package import parse_package
+from ros_harness import Client, NodeProcess, console_script, wait_for
 
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE = "modal_spring_ros"
@@ -200,7 +204,7 @@ def test_colcon_build_installs_the_ament_layout(colcon_install):
     assert (prefix / "share" / "ament_index" / "resource_index" / "packages" / PACKAGE).is_file()
     share = prefix / "share" / PACKAGE
     assert (share / "package.xml").read_text() == (REPO / "package.xml").read_text()
-    for pattern in ("config/*.yaml", "config/scenes/*.yaml"):
+    for pattern in ("config/*.yaml", "config/*.rviz", "config/scenes/*.yaml"):
         shipped = sorted(p.name for p in REPO.glob(pattern))
         assert shipped and sorted(p.name for p in share.glob(pattern)) == shipped
 
@@ -236,3 +240,137 @@ def test_an_installed_console_script_runs_a_built_in_scene(colcon_install, tmp_p
     with np.load(out) as data:
         assert data["positions"].shape == (51, 3, 3)
         assert np.all(np.isfinite(data["positions"]))
+
+
+# -- launch file and RViz view -----------------------------------------------------------------
+
+LAUNCH_FILE = "config/modal_spring.launch.yaml"
+RVIZ_FILE = "config/modal_spring.rviz"
+_SUBSTITUTION = re.compile(r"\$\(([a-z-]+) ([^)]*)\)")
+
+
+def _launch_actions(share: Path, **arguments: str) -> list[tuple[str, dict]]:
+    """The launch file's actions as ``ros2 launch PACKAGE modal_spring.launch.yaml NAME:=VALUE``
+    leaves them: ``$(var NAME)`` is the argument's value (its default unless given),
+    ``$(find-pkg-share PACKAGE)`` the installed ``share`` folder, and an action whose ``if``
+    is false is dropped. Any other substitution fails the test rather than being guessed at."""
+    entries = yaml.safe_load((share / LAUNCH_FILE).read_text())["launch"]
+    declared = [entry["arg"]["name"] for entry in entries if "arg" in entry]
+    assert set(arguments) <= set(declared), f"undeclared launch arguments {arguments}"
+    values: dict[str, str] = {}
+
+    def resolve(value):
+        if isinstance(value, dict):
+            return {k: resolve(v) for k, v in value.items()}
+        if isinstance(value, list):
+            return [resolve(v) for v in value]
+        if not isinstance(value, str):
+            return value
+
+        def one(match):
+            kind, name = match.groups()
+            if kind == "var":
+                return values[name]
+            assert kind == "find-pkg-share" and name == PACKAGE, match.group(0)
+            return str(share)
+        return _SUBSTITUTION.sub(one, value)
+
+    actions = []
+    for entry in entries:
+        (kind, body), = entry.items()
+        if kind == "arg":  # defaults may use earlier arguments and substitutions
+            values[body["name"]] = arguments.get(body["name"], resolve(str(body["default"])))
+            continue
+        body = resolve(body)
+        condition = str(body.pop("if", "true")).lower()
+        assert condition in ("true", "false", "1", "0")  # what launch's IfCondition accepts
+        if condition in ("true", "1"):
+            actions.append((kind, body))
+    return actions
+
+
+def _node_command(node: dict, tmp_path: Path) -> list[str]:
+    """The command line launch_ros runs for a ``node`` action: the executable and its ``args``,
+    then ``--ros-args``, the node name, and one ``--params-file`` per parameter source in
+    order, the ``from`` files first and the name/value pairs (written to a file of their own
+    under ``/**``) last, so that those win."""
+    command = [console_script(node["exec"]), *node.get("args", "").split(), "--ros-args",
+               "-r", f"__node:={node['name']}"]
+    files = [p["from"] for p in node.get("param", []) if "from" in p]
+    pairs = {p["name"]: p["value"] for p in node.get("param", []) if "from" not in p}
+    if pairs:
+        overrides = tmp_path / "launch_params.yaml"
+        overrides.write_text(yaml.safe_dump({"/**": {"ros__parameters": pairs}}))
+        files.append(str(overrides))
+    for path in files:
+        command += ["--params-file", path]
+    return command
+
+
+def test_the_launch_file_starts_the_node_with_its_arguments(colcon_install, tmp_path):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from sensor_msgs.msg import PointCloud2
+
+    from modal_spring_ros.node import NODE_NAME, POINTS_TOPIC
+    from modal_spring_ros.scene import load_scene
+    share = colcon_install / PACKAGE / "share" / PACKAGE
+    actions = _launch_actions(share, scene="cantilever_3d")
+    assert [(kind, body["pkg"]) for kind, body in actions] == [("node", PACKAGE)]  # no RViz
+    node = actions[0][1]
+    assert node["name"] == NODE_NAME and "namespace" not in node and "remap" not in node
+    # the installed parameter file, then the scene argument over the file's sheet_10x10
+    assert node["param"][0]["from"] == str(share / "config" / "modal_spring.yaml")
+    process = NodeProcess(argv=_node_command(node, tmp_path))
+    try:
+        client = Client("launch_client")
+        try:
+            diagnostics = client.collect(DiagnosticArray, "/diagnostics")
+            clouds = client.collect(PointCloud2, "/" + POINTS_TOPIC)
+
+            def ours():
+                return [d.status[0] for _, d in list(diagnostics)
+                        if d.status[0].name == f"/{NODE_NAME}: simulation"]
+            assert wait_for(lambda: ours() and clouds, 60)
+            status = ours()[-1]
+            values = {kv.key: kv.value for kv in status.values}
+            assert status.hardware_id == "cantilever_3d"             # the launch argument
+            assert values["band"] == "lowpass <= 45 Hz"              # the parameter file
+            assert clouds[-1][1].width == load_scene("cantilever_3d").n_particles
+        finally:
+            client.close()
+    except BaseException:
+        process.kill()
+        raise
+    code, _, err = process.interrupt()
+    assert code == 0 and "Traceback" not in err, err[-2000:]
+
+
+def test_rviz_starts_only_when_asked_with_the_installed_view(colcon_install):
+    from modal_spring_ros.scene import DEFAULT_SCENE
+    share = colcon_install / PACKAGE / "share" / PACKAGE
+    # `ros2 launch PACKAGE FILE` looks for FILE anywhere in the package's share folder
+    assert list(share.rglob(Path(LAUNCH_FILE).name)) == [share / LAUNCH_FILE]
+    default = _launch_actions(share)
+    assert [body["pkg"] for _, body in default] == [PACKAGE]
+    assert default[0][1]["param"][1] == {"name": "scene", "value": DEFAULT_SCENE}
+    assert all(body["pkg"] == PACKAGE for _, body in _launch_actions(share, rviz="false"))
+    rviz = [body for _, body in _launch_actions(share, rviz="true") if body["pkg"] == "rviz2"]
+    assert len(rviz) == 1 and rviz[0]["exec"] == "rviz2"
+    flag, view = rviz[0]["args"].split()
+    assert flag == "-d" and Path(view) == share / RVIZ_FILE and Path(view).is_file()
+    assert {"ros2launch", "rviz2"} <= {d.name for d in _package().exec_depends}
+
+
+def test_the_rviz_view_shows_what_the_node_publishes():
+    from modal_spring_ros.node import MESH_TOPIC, NODE_NAME, PARAMETERS, POINTS_TOPIC
+    from modal_spring_ros.pointcloud import FIELD_NAMES
+    view = yaml.safe_load((REPO / RVIZ_FILE).read_text())["Visualization Manager"]
+    displays = {d["Class"]: d for d in view["Displays"]}
+    cloud = displays["rviz_default_plugins/PointCloud2"]
+    assert cloud["Topic"]["Value"] == "/" + POINTS_TOPIC   # the launch file's root namespace
+    assert cloud["Color Transformer"] == "Intensity"
+    assert cloud["Channel Name"] == "displacement" and "displacement" in FIELD_NAMES
+    assert displays["rviz_default_plugins/Marker"]["Topic"]["Value"] == "/" + MESH_TOPIC
+    assert view["Global Options"]["Fixed Frame"] == PARAMETERS["frame_id"][0]
+    params = yaml.safe_load((REPO / "config" / "modal_spring.yaml").read_text())
+    assert list(params) == [f"/**/{NODE_NAME}"]              # the launch file's node name
