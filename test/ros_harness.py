@@ -160,10 +160,10 @@ def wait_for(predicate, timeout: float, interval: float = 0.02) -> bool:
 
 
 @contextlib.contextmanager
-def node_with_client(*params: str, namespace: str):
-    """A node in ``namespace`` and a client; the node must end cleanly on SIGINT afterwards.
-    Whatever fails, neither outlives the test."""
-    node = NodeProcess(*params, namespace=namespace)
+def node_with_client(*params: str, namespace: str, argv: list[str] | None = None):
+    """A node in ``namespace`` (or started by the command line ``argv``) and a client; the
+    node must end cleanly on SIGINT afterwards. Whatever fails, neither outlives the test."""
+    node = NodeProcess(*params, namespace=namespace, argv=argv)
     try:
         client = Client(f"{namespace}_client")
         try:

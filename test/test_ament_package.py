@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import yaml
 from catkin_pkg.package import parse_package
-from ros_harness import Client, NodeProcess, console_script, wait_for
+from ros_harness import console_script, node_with_client, wait_for
 
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE = "modal_spring_ros"
@@ -320,29 +320,19 @@ def test_the_launch_file_starts_the_node_with_its_arguments(colcon_install, tmp_
     assert node["name"] == NODE_NAME and "namespace" not in node and "remap" not in node
     # the installed parameter file, then the scene argument over the file's sheet_10x10
     assert node["param"][0]["from"] == str(share / "config" / "modal_spring.yaml")
-    process = NodeProcess(argv=_node_command(node, tmp_path))
-    try:
-        client = Client("launch_client")
-        try:
-            diagnostics = client.collect(DiagnosticArray, "/diagnostics")
-            clouds = client.collect(PointCloud2, "/" + POINTS_TOPIC)
+    with node_with_client(namespace="launch", argv=_node_command(node, tmp_path)) as (_, client):
+        diagnostics = client.collect(DiagnosticArray, "/diagnostics")
+        clouds = client.collect(PointCloud2, "/" + POINTS_TOPIC)
 
-            def ours():
-                return [d.status[0] for _, d in list(diagnostics)
-                        if d.status[0].name == f"/{NODE_NAME}: simulation"]
-            assert wait_for(lambda: ours() and clouds, 60)
-            status = ours()[-1]
-            values = {kv.key: kv.value for kv in status.values}
-            assert status.hardware_id == "cantilever_3d"             # the launch argument
-            assert values["band"] == "lowpass <= 45 Hz"              # the parameter file
-            assert clouds[-1][1].width == load_scene("cantilever_3d").n_particles
-        finally:
-            client.close()
-    except BaseException:
-        process.kill()
-        raise
-    code, _, err = process.interrupt()
-    assert code == 0 and "Traceback" not in err, err[-2000:]
+        def ours():
+            return [d.status[0] for _, d in list(diagnostics)
+                    if d.status[0].name == f"/{NODE_NAME}: simulation"]
+        assert wait_for(lambda: ours() and clouds, 60)
+        status = ours()[-1]
+        values = {kv.key: kv.value for kv in status.values}
+        assert status.hardware_id == "cantilever_3d"             # the launch argument
+        assert values["band"] == "lowpass <= 45 Hz"              # the parameter file
+        assert clouds[-1][1].width == load_scene("cantilever_3d").n_particles
 
 
 def test_rviz_starts_only_when_asked_with_the_installed_view(colcon_install):
