@@ -33,12 +33,12 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "modal_spring_sim = modal_spring_ros.sim_cli:main",
-            "modal_spring_node = modal_spring_ros.node:main",
-            "modal_spring_bench = modal_spring_ros.bench_cli:main",
-            "modal_spring_replay = modal_spring_ros.replay_cli:main",
-            "modal_spring_compare = modal_spring_ros.compare_cli:main",
-            "modal_spring_record = modal_spring_ros.recorder_node:main",
+            "modal_spring_sim = modal_spring_ros.cli.modal_spring_sim:main",
+            "modal_spring_node = modal_spring_ros.cli.modal_spring_node:main",
+            "modal_spring_bench = modal_spring_ros.cli.modal_spring_bench:main",
+            "modal_spring_replay = modal_spring_ros.cli.modal_spring_replay:main",
+            "modal_spring_compare = modal_spring_ros.cli.modal_spring_compare:main",
+            "modal_spring_record = modal_spring_ros.cli.modal_spring_record:main",
         ],
     },
 )

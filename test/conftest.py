@@ -5,9 +5,10 @@ import copy
 
 import pytest
 
-from modal_spring_ros.mass_spring import MassSpringModel
-from modal_spring_ros.modal_basis import ModalBasis
-from modal_spring_ros.scene import load_scene, scene_from_dict
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.scenes.resources import load_scene
+from modal_spring_ros.scenes.schema import scene_from_dict
 
 
 def variant(name: str, **changes):

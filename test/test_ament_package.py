@@ -218,7 +218,7 @@ def _sourced(install: Path, command: str) -> subprocess.CompletedProcess:
 
 
 def test_the_installed_package_finds_its_scenes_through_the_ament_index(colcon_install):
-    probe = _sourced(colcon_install, f"'{sys.executable}' -c \"import modal_spring_ros.scene as s;"
+    probe = _sourced(colcon_install, f"'{sys.executable}' -c \"import modal_spring_ros.scenes.resources as s;"
                      " from ament_index_python.packages import get_package_prefix as p;"
                      " print(s.__file__); print(s.builtin_scene_dir());"
                      f" print(p('{PACKAGE}'))\"")
@@ -311,8 +311,9 @@ def test_the_launch_file_starts_the_node_with_its_arguments(colcon_install, tmp_
     from diagnostic_msgs.msg import DiagnosticArray
     from sensor_msgs.msg import PointCloud2
 
-    from modal_spring_ros.node import NODE_NAME, POINTS_TOPIC
-    from modal_spring_ros.scene import load_scene
+    from modal_spring_ros.ros.node import NODE_NAME
+    from modal_spring_ros.ros.outputs import POINTS_TOPIC
+    from modal_spring_ros.scenes.resources import load_scene
     share = colcon_install / PACKAGE / "share" / PACKAGE
     actions = _launch_actions(share, scene="cantilever_3d")
     assert [(kind, body["pkg"]) for kind, body in actions] == [("node", PACKAGE)]  # no RViz
@@ -336,7 +337,7 @@ def test_the_launch_file_starts_the_node_with_its_arguments(colcon_install, tmp_
 
 
 def test_rviz_starts_only_when_asked_with_the_installed_view(colcon_install):
-    from modal_spring_ros.scene import DEFAULT_SCENE
+    from modal_spring_ros.scenes.resources import DEFAULT_SCENE
     share = colcon_install / PACKAGE / "share" / PACKAGE
     # `ros2 launch PACKAGE FILE` looks for FILE anywhere in the package's share folder
     assert list(share.rglob(Path(LAUNCH_FILE).name)) == [share / LAUNCH_FILE]
@@ -352,8 +353,10 @@ def test_rviz_starts_only_when_asked_with_the_installed_view(colcon_install):
 
 
 def test_the_rviz_view_shows_what_the_node_publishes():
-    from modal_spring_ros.node import MESH_TOPIC, NODE_NAME, PARAMETERS, POINTS_TOPIC
-    from modal_spring_ros.pointcloud import FIELD_NAMES
+    from modal_spring_ros.bags.pointcloud import FIELD_NAMES
+    from modal_spring_ros.ros.node import NODE_NAME
+    from modal_spring_ros.ros.outputs import MESH_TOPIC, POINTS_TOPIC
+    from modal_spring_ros.ros.parameters import PARAMETERS
     view = yaml.safe_load((REPO / RVIZ_FILE).read_text())["Visualization Manager"]
     displays = {d["Class"]: d for d in view["Displays"]}
     cloud = displays["rviz_default_plugins/PointCloud2"]

@@ -13,12 +13,13 @@ import numpy as np
 import pytest
 import yaml
 
-from modal_spring_ros.bag_qos import profiles_from_yaml
-from modal_spring_ros.bag_reader import BagReader
-from modal_spring_ros.bag_writer import BagError, BagWriter
-from modal_spring_ros.message_definitions import DELIMITER, full_definition, share_directory
-from modal_spring_ros.reference_bags import RUNS
-from modal_spring_ros.resimulate import resimulate
+from modal_spring_ros.bags.message_definitions import DELIMITER, full_definition, share_directory
+from modal_spring_ros.bags.qos import profiles_from_yaml
+from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.bags.reference_bags import RUNS
+from modal_spring_ros.bags.writer import BagError, BagWriter
+from modal_spring_ros.ros.resimulate import resimulate
+from modal_spring_ros.scenes.resources import load_scene
 
 REPO = Path(__file__).resolve().parent.parent
 BAGS = REPO / "bags"
@@ -131,12 +132,13 @@ def test_resimulating_each_reference_bag_reproduces_its_frames(name, tmp_path):
 def test_independent_readers_decode_what_was_published(tmp_path):
     """rosbags (AnyReader) and mcap_ros2 read the bag; rclpy decodes each payload to exactly
     the message that was written."""
-    from modal_spring_ros.filter_band import FilterBand
-    from modal_spring_ros.run_bag import RunBagWriter
-    from modal_spring_ros.run_file import record
-    from modal_spring_ros.simulation_factory import SimulationConfig, build_simulation
+    from modal_spring_ros.bags.capture import RunBagWriter
+    from modal_spring_ros.core.config import SimulationConfig
+    from modal_spring_ros.core.factory import build_simulation
+    from modal_spring_ros.core.filter_band import FilterBand
+    from modal_spring_ros.runs.run import record
     config = SimulationConfig(band=FilterBand("lowpass", high=20.0))
-    sim = build_simulation("sheet_10x10", config)
+    sim = build_simulation(load_scene("sheet_10x10"), config)
     bag = RunBagWriter(tmp_path / "bag", sim.model.scene, config, dt=sim.dt, frame_every=40,
                        duration=0.5)
     published = []
@@ -144,8 +146,9 @@ def test_independent_readers_decode_what_was_published(tmp_path):
     def frame(t, positions):
         bag.frame(t, positions)
         from std_msgs.msg import Header
-        from modal_spring_ros.pointcloud import to_pointcloud2
-        from modal_spring_ros.ros_time import to_time_msg
+
+        from modal_spring_ros.bags.pointcloud import to_pointcloud2
+        from modal_spring_ros.bags.stamps import to_time_msg
         published.append(to_pointcloud2(positions, sim.model.scene.rest_positions,
                                         Header(stamp=to_time_msg(t), frame_id="world")))
     record(sim, 0.5, frame_every=40, on_frame=frame)
@@ -181,7 +184,7 @@ def test_a_killed_writer_leaves_every_complete_chunk_readable(tmp_path):
     """SIGKILL mid-run: every message before the last (unfinished) chunk is read back."""
     script = textwrap.dedent(f"""
         import sys
-        from modal_spring_ros.bag_writer import BagWriter
+        from modal_spring_ros.bags.writer import BagWriter
         w = BagWriter({str(tmp_path / 'killed')!r}, chunk_size=4096)
         w.add_topic('/data', 'std_msgs/msg/String', '')
         from std_msgs.msg import String
@@ -226,7 +229,8 @@ def test_real_rosbag2_bags_are_read():
 
 def test_qos_round_trips_through_the_v9_text():
     from rclpy.qos import QoSPresetProfiles
-    from modal_spring_ros.bag_qos import profiles_to_yaml
+
+    from modal_spring_ros.bags.qos import profiles_to_yaml
     for preset in (QoSPresetProfiles.SENSOR_DATA.value, QoSPresetProfiles.PARAMETER_EVENTS.value):
         (back,) = profiles_from_yaml(profiles_to_yaml([preset]))
         assert (back.reliability, back.durability, back.history, back.depth) == (
@@ -239,20 +243,20 @@ def _cli(module: str, *args: str) -> subprocess.CompletedProcess:
 
 
 def test_bad_bags_and_outputs_fail_clearly_and_overwrite_nothing(tmp_path):
-    missing = _cli("modal_spring_ros.replay_cli", str(tmp_path / "nope"))
+    missing = _cli("modal_spring_ros.cli.modal_spring_replay", str(tmp_path / "nope"))
     assert missing.returncode == 2 and "no such bag" in missing.stderr
     corrupt = tmp_path / "corrupt.mcap"
     corrupt.write_bytes(os.urandom(4000))
-    bad = _cli("modal_spring_ros.compare_cli", str(corrupt), str(BAGS / "sheet_10x10_full"))
+    bad = _cli("modal_spring_ros.cli.modal_spring_compare", str(corrupt), str(BAGS / "sheet_10x10_full"))
     assert bad.returncode == 2 and "Traceback" not in bad.stderr and "corrupt.mcap" in bad.stderr
     existing = tmp_path / "existing"
     existing.mkdir()
     (existing / "keep.txt").write_text("precious")
-    again = _cli("modal_spring_ros.replay_cli", str(BAGS / "sheet_10x10_full"),
+    again = _cli("modal_spring_ros.cli.modal_spring_replay", str(BAGS / "sheet_10x10_full"),
                  "--resimulate", str(existing))
     assert again.returncode == 2 and "already exists" in again.stderr
     assert [p.name for p in existing.iterdir()] == ["keep.txt"]
-    sim = _cli("modal_spring_ros.sim_cli", "--duration", "0.01", "--bag",
+    sim = _cli("modal_spring_ros.cli.modal_spring_sim", "--duration", "0.01", "--bag",
                str(tmp_path / "no" / "such" / "bag"))
     assert sim.returncode == 2 and "does not exist" in sim.stderr
     with pytest.raises(BagError, match="already exists"):
@@ -260,7 +264,7 @@ def test_bad_bags_and_outputs_fail_clearly_and_overwrite_nothing(tmp_path):
 
 
 def test_compare_reports_zero_for_the_same_run_and_refuses_different_scenes(tmp_path):
-    same = _cli("modal_spring_ros.compare_cli", str(BAGS / "sheet_10x10_full"),
+    same = _cli("modal_spring_ros.cli.modal_spring_compare", str(BAGS / "sheet_10x10_full"),
                 str(BAGS / "sheet_10x10_full"), "--json", str(tmp_path / "c.json"),
                 "--plot", str(tmp_path / "c.png"))
     assert same.returncode == 0, same.stderr
@@ -268,14 +272,14 @@ def test_compare_reports_zero_for_the_same_run_and_refuses_different_scenes(tmp_
     result = json.loads((tmp_path / "c.json").read_text())
     assert result["rms_m"] == 0.0 and result["common_frames"] == 182
     assert (tmp_path / "c.png").stat().st_size > 10_000
-    _cli("modal_spring_ros.compare_cli", str(BAGS / "sheet_10x10_lowpass_0_14"),
+    _cli("modal_spring_ros.cli.modal_spring_compare", str(BAGS / "sheet_10x10_lowpass_0_14"),
          str(BAGS / "sheet_10x10_full"), "--json", str(tmp_path / "l.json"))
     low = json.loads((tmp_path / "l.json").read_text())
     assert 1e-4 < low["rel_l2_mean"] < 0.05      # close to the full run, but not equal
     npz = tmp_path / "chain.npz"
-    subprocess.run([sys.executable, "-m", "modal_spring_ros.sim_cli", "--scene", "chain_2",
+    subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_sim", "--scene", "chain_2",
                     "--duration", "0.1", "--output", str(npz), "--quiet"], check=True,
                    capture_output=True)
-    different = _cli("modal_spring_ros.compare_cli", str(npz), str(BAGS / "sheet_10x10_full"))
+    different = _cli("modal_spring_ros.cli.modal_spring_compare", str(npz), str(BAGS / "sheet_10x10_full"))
     assert different.returncode == 2
     assert "different scenes: chain.npz has 3 particles" in different.stderr

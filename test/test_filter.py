@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from modal_spring_ros.filter_band import BandError, FilterBand, parse_mode_range
-from modal_spring_ros.mass_spring import MassSpringModel
-from modal_spring_ros.modal_basis import ModalBasis
-from modal_spring_ros.scene import load_scene
-from modal_spring_ros.simulation import ModalSimulation
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.filter_band import BandError, FilterBand, parse_mode_range
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.simulations import ModalSimulation
+from modal_spring_ros.scenes.resources import load_scene
 
 FREQS = np.array([1.0, 2.0, 5.0, 9.0, 20.0])
 
@@ -160,9 +160,10 @@ def test_modes_not_computed_yet_are_computed_when_a_band_needs_them():
 def test_automatic_mode_choice_meets_its_tolerance_with_few_modes():
     """modal.auto: the fewest modes whose predicted (static) truncation error is within the
     tolerance; the prediction is exact for the static response and matches a full run."""
-    from modal_spring_ros.mode_selection import TruncationEstimator, choose_modes
-    from modal_spring_ros.simulation import FullSimulation
-    from modal_spring_ros.simulation_factory import SimulationConfig, build_simulation
+    from modal_spring_ros.core.config import SimulationConfig
+    from modal_spring_ros.core.factory import build_simulation
+    from modal_spring_ros.core.mode_selection import TruncationEstimator, choose_modes
+    from modal_spring_ros.core.simulations import FullSimulation
     model = MassSpringModel(load_scene("sheet_10x10"))
     basis = ModalBasis(model)
     choice = choose_modes(model, basis, tolerance=0.01)
@@ -179,7 +180,7 @@ def test_automatic_mode_choice_meets_its_tolerance_with_few_modes():
     actual = np.sqrt((u - u_r) @ (m * (u - u_r)) / (u @ (m * u)))
     assert actual == pytest.approx(choice.load_errors["gravity"], rel=1e-6)
     # the automatic run: its dt follows from the kept modes, and it tracks the full run
-    sim = build_simulation("sheet_10x10", SimulationConfig(auto=True, tolerance=0.01))
+    sim = build_simulation(load_scene("sheet_10x10"), SimulationConfig(auto=True, tolerance=0.01))
     assert sim.kept_modes.size == choice.count and sim.dt < 0.9 * 2 / choice.omega_max + 1e-12
     sub = int(np.ceil(sim.dt / 4e-4))                   # the reference steps dt / sub
     full = FullSimulation(model, dt=sim.dt / sub, basis=basis)
@@ -196,7 +197,7 @@ def test_a_switch_prepared_ahead_builds_nothing_when_applied_and_changes_no_resu
         sheet_10x10, monkeypatch):
     """The node prepares a band switch in its parameter thread; applying it in the stepping
     thread must then only map the state, and the run must be the same as unprepared."""
-    import modal_spring_ros.simulation as simulation
+    import modal_spring_ros.core.simulations.modal as simulation
     model, basis = sheet_10x10
     band = FilterBand("bandpass", 10, 40, by="index")   # from 0..30: steps 0..40, then 10..40
     runs = []

@@ -5,12 +5,12 @@ import math
 
 import numpy as np
 import pytest
-
-from modal_spring_ros.filter_band import FilterBand
-from modal_spring_ros.mass_spring import MassSpringModel
-from modal_spring_ros.modal_basis import ModalBasis
-from modal_spring_ros.simulation import DivergenceError, FullSimulation, ModalSimulation
 from conftest import oscillator
+
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.simulations import DivergenceError, FullSimulation, ModalSimulation
 
 
 def _oscillator_run(dt: float, duration: float, integrator: str, amplitude: float = 0.01):

@@ -7,13 +7,15 @@ import time
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from ros_harness import Client, NodeProcess, wait_for
 from sensor_msgs.msg import PointCloud2, PointField
 from std_srvs.srv import SetBool, Trigger
 
-from modal_spring_ros.filter_band import FilterBand
-from modal_spring_ros.pointcloud import xyz
-from modal_spring_ros.simulation_factory import SimulationConfig, build_simulation
-from ros_harness import Client, NodeProcess, wait_for
+from modal_spring_ros.bags.pointcloud import xyz
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.scenes.resources import load_scene
 
 NODE = "modal_spring"
 RATE = 60.0
@@ -87,7 +89,7 @@ def test_points_match_the_headless_engine(running):
     _, _, points, _ = running
     msg = points[-1][1]
     t = stamp(msg)
-    sim = build_simulation("sheet_10x10", SimulationConfig())
+    sim = build_simulation(load_scene("sheet_10x10"), SimulationConfig())
     sim.step(int(round(t / sim.dt)))
     assert sim.time == pytest.approx(t, abs=1e-9)
     np.testing.assert_allclose(xyz(msg), sim.positions(), atol=2e-6)
@@ -175,7 +177,7 @@ def test_reset_returns_to_the_rest_state(running):
     assert wait_for(lambda: any(t > called for t, _ in points), 2.0)
     first = next(m for t, m in points if t > called)
     assert stamp(first) < 0.2
-    scene_rest = build_simulation("sheet_10x10", SimulationConfig()).model.scene.rest_positions
+    scene_rest = build_simulation(load_scene("sheet_10x10"), SimulationConfig()).model.scene.rest_positions
     assert np.abs(xyz(first) - scene_rest).max() < 5e-3
 
 

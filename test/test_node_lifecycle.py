@@ -11,9 +11,8 @@ import time
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from sensor_msgs.msg import PointCloud2
-
 from ros_harness import Client, NodeProcess, node_with_client, wait_for
+from sensor_msgs.msg import PointCloud2
 
 NODE = "modal_spring"
 RATE = 60.0
@@ -68,9 +67,11 @@ def test_stress_band_changes_every_50ms_keep_the_stream_whole():
 
 def test_params_file_is_accepted_as_ros2_run_would_pass_it():
     from pathlib import Path
+
     from diagnostic_msgs.msg import DiagnosticArray as Diag
     params = Path(__file__).resolve().parent.parent / "config" / "modal_spring.yaml"
     import subprocess
+
     from ros_harness import console_script
     proc = subprocess.Popen([console_script("modal_spring_node"), "--ros-args",
                              "--params-file", str(params), "-r", "__ns:=/params"],

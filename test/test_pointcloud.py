@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 from std_msgs.msg import Header
 
-from modal_spring_ros.mass_spring import MassSpringModel
-from modal_spring_ros.pointcloud import distance_from_rest, from_pointcloud2, to_pointcloud2, xyz
-from modal_spring_ros.scene import load_scene
+from modal_spring_ros.bags.pointcloud import (distance_from_rest, from_pointcloud2, to_pointcloud2,
+                                              xyz)
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.scenes.resources import load_scene
 
 
 def test_cloud_layout_and_values_round_trip():

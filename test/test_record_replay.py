@@ -8,11 +8,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+from ros_harness import Client, NodeProcess, console_script, wait_for
 from sensor_msgs.msg import PointCloud2
 
-from modal_spring_ros.bag_reader import BagReader
-from modal_spring_ros.resimulate import resimulate
-from ros_harness import Client, NodeProcess, console_script, wait_for
+from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.ros.resimulate import resimulate
 
 BAGS = Path(__file__).resolve().parent.parent / "bags"
 
@@ -112,9 +112,8 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
 def test_the_nodes_own_capture_resimulates_frame_for_frame(tmp_path):
     """record.bag: every published frame straight to a bag, with the parameters and each
     change at the simulation time it took effect: the re-run reproduces all of it."""
-    from std_srvs.srv import Trigger
-
     from ros_harness import node_with_client
+    from std_srvs.srv import Trigger
     out = tmp_path / "direct"
     with node_with_client(f"record.bag:={out}", "publish_rate_hz:=30.0",
                           namespace="direct") as (node, client):

@@ -4,15 +4,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from modal_spring_ros.filter_band import FilterBand
-from modal_spring_ros.generalized_forces import GeneralizedForces
-from modal_spring_ros.mass_spring import MassSpringModel
-from modal_spring_ros.modal_basis import ModalBasis
-from modal_spring_ros.mode_selection import choose_refresh
-from modal_spring_ros.refreshed_forces import RefreshedForces, static_equilibrium
-from modal_spring_ros.scene import load_scene
-from modal_spring_ros.simulation import DivergenceError, ModalSimulation
-from modal_spring_ros.simulation_factory import SimulationConfig, build_simulation
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.forces import GeneralizedForces
+from modal_spring_ros.core.mode_selection import choose_refresh
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.refreshed_forces import RefreshedForces, static_equilibrium
+from modal_spring_ros.core.simulations import DivergenceError, ModalSimulation
+from modal_spring_ros.scenes.resources import load_scene
 
 LOWPASS_16 = FilterBand("lowpass", 0, 15, "index")
 
@@ -134,13 +135,13 @@ def test_band_change_with_refreshed_forces_is_smooth(sheet_10x10):
 
 
 def test_auto_chooses_the_refresh_and_an_explicit_value_wins():
-    auto = build_simulation("sheet_10x10", SimulationConfig(auto=True))
-    assert auto.force_refresh == choose_refresh(auto.auto.highest_hz, auto.dt) > 1
-    fixed = build_simulation("sheet_10x10", SimulationConfig(auto=True, force_refresh=3))
+    auto = build_simulation(load_scene("sheet_10x10"), SimulationConfig(auto=True))
+    assert auto.force_refresh == choose_refresh(auto.mode_choice.highest_hz, auto.dt) > 1
+    fixed = build_simulation(load_scene("sheet_10x10"), SimulationConfig(auto=True, force_refresh=3))
     assert fixed.force_refresh == 3
-    assert build_simulation("sheet_10x10", SimulationConfig()).force_refresh == 1
-    with pytest.raises(ValueError, match="force refresh"):
-        build_simulation("sheet_10x10", SimulationConfig(force_refresh=-2))
+    assert build_simulation(load_scene("sheet_10x10"), SimulationConfig()).force_refresh == 1
+    with pytest.raises(ValueError, match="force_refresh"):
+        build_simulation(load_scene("sheet_10x10"), SimulationConfig(force_refresh=-2))
 
 
 def test_choose_refresh_holds_half_a_period_of_the_highest_mode():
@@ -184,7 +185,7 @@ def test_refreshed_forces_detect_divergence_on_the_step_it_happens():
     strain first passes the limit is reported, as with every spring evaluated every step, and
     no accepted state is above the limit."""
     band = FilterBand("lowpass", 0, 14, "index")
-    free = build_simulation("sheet_10x10", SimulationConfig(band=band))
+    free = build_simulation(load_scene("sheet_10x10"), SimulationConfig(band=band))
     history = []
     for _ in range(200):                      # released from rest under gravity: overshoot
         free.step()
@@ -195,7 +196,7 @@ def test_refreshed_forces_detect_divergence_on_the_step_it_happens():
     assert 10 < first < 190
     reported = {}
     for refresh in (1, 25):
-        sim = build_simulation("sheet_10x10", SimulationConfig(
+        sim = build_simulation(load_scene("sheet_10x10"), SimulationConfig(
             band=band, force_refresh=refresh, strain_limit=limit))
         assert first % 25 != 0                # the crossing falls between two refreshes
         with pytest.raises(DivergenceError, match="spring strain .* exceeds the limit"):

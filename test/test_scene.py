@@ -5,13 +5,14 @@ import copy
 
 import numpy as np
 import pytest
-
-from modal_spring_ros.mass_spring import MassSpringModel
-from modal_spring_ros.modal_basis import ModalBasis
-from modal_spring_ros.scene import (SceneError, builtin_scene_names, load_scene,
-                                    scene_from_dict, scene_from_yaml)
-from modal_spring_ros.simulation import FullSimulation
 from conftest import variant
+
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.simulations import FullSimulation
+from modal_spring_ros.scenes.resources import builtin_scene_names, load_scene
+from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
 
 
 def test_builtin_scenes_are_listed():
@@ -178,7 +179,7 @@ def test_anchor_velocity_and_acceleration_are_the_derivatives_of_its_offset(t):
 def test_a_ramped_motion_starts_and_ends_its_ramp_without_a_step_in_the_load():
     """Base velocity and acceleration (the load) are continuous at both ends of the ramp,
     even for a phase that starts the sine away from zero."""
-    from modal_spring_ros.anchor_motion import AnchorMotion, SineComponent
+    from modal_spring_ros.core.anchor_motion import AnchorMotion, SineComponent
     motion = AnchorMotion((SineComponent(axis=0, amplitude=0.02, frequency_hz=0.7, phase=1.0,
                                          ramp_s=0.5),))
     for order in ("offset", "velocity", "acceleration"):

@@ -7,12 +7,12 @@ import sys
 import numpy as np
 import pytest
 
-from modal_spring_ros.mass_spring import MassSpringModel
-from modal_spring_ros.modal_basis import ModalBasis
-from modal_spring_ros.run_file import record
-from modal_spring_ros.scene import load_scene
-from modal_spring_ros.sim_cli import main
-from modal_spring_ros.simulation import FullSimulation
+from modal_spring_ros.cli.modal_spring_sim import main
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.simulations import FullSimulation
+from modal_spring_ros.runs.run import record
+from modal_spring_ros.scenes.resources import load_scene
 
 
 def test_run_writes_every_documented_field(tmp_path, capsys):
@@ -53,7 +53,7 @@ def test_same_options_give_bit_identical_runs(tmp_path):
     (["--modes", "9:3"], "--modes '9:3': need 0 <= FIRST <= LAST"),
     (["--scene", "no_such_scene"], "unknown scene 'no_such_scene'"),
     (["--dt", "0.01", "--method", "full"], "explicit stability limit"),
-    (["--dt", "-1"], "--dt (-1.0) must be positive"),
+    (["--dt", "-1"], "--dt (-1.0) must be a finite number of seconds, at least 1e-08 s"),
     (["--output", "/nonexistent/dir/run.npz"], "folder /nonexistent/dir does not exist"),
 ])
 def test_bad_options_exit_2_with_a_clear_message(argv, message, capsys):
@@ -77,7 +77,7 @@ def test_divergence_is_reported_with_exit_1(tmp_path, capsys):
 
 def test_console_script_runs_as_a_user_would(tmp_path):
     out = tmp_path / "cli.npz"
-    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.sim_cli", "--scene",
+    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_sim", "--scene",
                            "chain_2", "--duration", "0.5", "--output", str(out)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
@@ -108,7 +108,7 @@ def test_progress_comes_at_whole_percents_and_no_more_often_than_asked():
 
 
 def test_a_short_run_prints_no_progress_lines(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.sim_cli", "--scene",
+    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_sim", "--scene",
                            "chain_2", "--duration", "0.05", "--output", str(tmp_path / "o.npz")],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr

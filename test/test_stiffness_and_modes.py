@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from modal_spring_ros.mass_spring import MassSpringModel
-from modal_spring_ros.modal_basis import ModalBasis
-from modal_spring_ros.scene import load_scene
-from modal_spring_ros.stiffness import (assemble_stiffness, element_stiffness,
-                                        local_stiffness_2d, rotation_matrix_2d)
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.stiffness import (assemble_stiffness, element_stiffness,
+                                             local_stiffness_2d, rotation_matrix_2d)
+from modal_spring_ros.scenes.resources import load_scene
 
 
 def test_chain_2_reduced_stiffness_is_the_papers_matrix():

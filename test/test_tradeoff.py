@@ -13,21 +13,22 @@ import time
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from ros_harness import node_with_client, wait_for
 from sensor_msgs.msg import PointCloud2
 
-from modal_spring_ros.filter_band import FilterBand
-from modal_spring_ros.mass_spring import MassSpringModel
-from modal_spring_ros.modal_basis import ModalBasis
-from modal_spring_ros.scene import load_scene
-from modal_spring_ros.simulation import DivergenceError, FullSimulation, ModalSimulation
-from modal_spring_ros.simulation_factory import SimulationConfig, build_simulation
-from ros_harness import node_with_client, wait_for
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.simulations import DivergenceError, FullSimulation, ModalSimulation
+from modal_spring_ros.scenes.resources import load_scene
 
 
 @pytest.fixture(scope="module")
 def quick_bench(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
-    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.bench_cli", "--suite",
+    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_bench", "--suite",
                            "tradeoff", "--quick", "--out", str(out)],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
@@ -162,7 +163,7 @@ def test_node_automatic_mode_choice_is_reported():
         assert values["automatic mode choice"].startswith("5 modes up to 20.44 Hz")
         assert values["modes stepped"] == "5"
         # the spring-force refresh follows the choice: what the engine chooses headless
-        expected = build_simulation("sheet_10x10", SimulationConfig(auto=True, tolerance=0.05))
+        expected = build_simulation(load_scene("sheet_10x10"), SimulationConfig(auto=True, tolerance=0.05))
         assert values["force refresh (steps)"] == str(expected.force_refresh)
         assert expected.force_refresh > 1
         assert wait_for(lambda: float(_values(diags, "/auto/")["force refresh error"]) > 0, 10)

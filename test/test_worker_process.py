@@ -9,10 +9,10 @@ import time
 import numpy as np
 import pytest
 
-from modal_spring_ros.mass_spring import MassSpringModel
-from modal_spring_ros.modal_basis import ModalBasis
-from modal_spring_ros.scene import load_scene
-from modal_spring_ros.worker_process import WorkerError, WorkerProcess
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.worker import WorkerError, WorkerProcess
+from modal_spring_ros.scenes.resources import load_scene
 
 
 def _raise_value_error(text: str) -> None:

@@ -1,0 +1,92 @@
+"""Lossless capture: a simulation run written straight to a rosbag2 MCAP bag, every frame,
+without going through DDS; and the description needed to re-run it.
+
+Frames go to ``/points`` as PointCloud2 (stamped with simulation time, which is also the log
+and publish time). A ``modal_spring_ros`` metadata record holds the scene (full definition)
+and either the fixed settings (``modal_spring_sim --bag``) or the node's parameters at the
+start, with every later change on ``/parameter_events`` stamped with the simulation time it
+took effect at (``modal_spring_node`` with ``record.bag``).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from rcl_interfaces.msg import ParameterEvent
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSPresetProfiles, QoSProfile
+from std_msgs.msg import Header
+
+from modal_spring_ros.bags.pointcloud import to_pointcloud2
+from modal_spring_ros.bags.qos import profiles_to_yaml
+from modal_spring_ros.bags.stamps import to_nanoseconds, to_time_msg
+from modal_spring_ros.bags.writer import BagWriter
+from modal_spring_ros.core.config import SimulationConfig
+
+POINTS_TOPIC = "/points"
+
+
+def parameter_events_qos_yaml() -> str:
+    return profiles_to_yaml([QoSPresetProfiles.PARAMETER_EVENTS.value])
+
+
+def points_qos_yaml() -> str:
+    """The QoS the node offers on ``points`` (reliable, volatile, keep last 10)."""
+    return profiles_to_yaml([QoSProfile(depth=10)])
+
+
+class RunBagWriter:
+    """Frames of one run into a new bag; call :meth:`frame` per frame, then :meth:`close`."""
+
+    def __init__(self, directory, scene, config: SimulationConfig | None, *, dt: float,
+                 frame_every: int, duration: float, frame_id: str = "world",
+                 source: str = "modal_spring_sim", parameters: dict | None = None,
+                 node: str = ""):
+        """``config`` describes a run made of fixed settings; a node's run gives its
+        ``parameters`` (and ``node`` name) instead, and its changes go through
+        :meth:`parameter_event`, stamped with the simulation time they took effect at."""
+        self.scene = scene
+        self.frame_id = frame_id
+        self.node = node
+        self.writer = BagWriter(directory)
+        self.writer.add_topic(POINTS_TOPIC, "sensor_msgs/msg/PointCloud2", points_qos_yaml())
+        record = {"source": source, "scene_yaml": scene.to_yaml(), "dt": dt,
+                  "frame_every": frame_every, "duration": duration, "frame_id": frame_id}
+        if config is not None:
+            record["config"] = config.to_dict()
+        #: log messages at wall time (a node's capture) rather than at their stamp
+        self.wall_log_time = parameters is not None
+        if parameters is not None:
+            record.update(parameters=parameters, node=node, event_clock="sim")
+            self.writer.add_topic("/parameter_events", "rcl_interfaces/msg/ParameterEvent",
+                                  parameter_events_qos_yaml())
+        self.writer.add_run_record(record)
+
+    def parameter_event(self, t: float, changed: dict) -> None:
+        """Record parameter changes that took effect at simulation time ``t`` (the event's
+        stamp; logged at wall time, like the frames of a node's capture)."""
+
+        stamp = to_time_msg(t)
+        event = ParameterEvent(stamp=stamp, node=self.node, changed_parameters=[
+            Parameter(name, value=value).to_parameter_msg() for name, value in changed.items()])
+        self.writer.write_message("/parameter_events", event, self._log_time(),
+                                  to_nanoseconds(stamp))
+
+    def _log_time(self) -> int | None:
+        """Wall time for a node's capture (simulation time can go back on a reset, and MCAP
+        readers order by log time); None (= the stamp) for a fixed run."""
+        return time.time_ns() if self.wall_log_time else None
+
+    def frame(self, t: float, positions: np.ndarray, log_time_ns: int | None = None) -> None:
+        """One frame at simulation time ``t`` (``log_time_ns``: when re-creating a recorded
+        frame, its original log time, so that both bags read in the same order)."""
+
+        stamp = to_time_msg(t)
+        msg = to_pointcloud2(positions, self.scene.rest_positions,
+                             Header(stamp=stamp, frame_id=self.frame_id))
+        ns = to_nanoseconds(stamp)
+        log = log_time_ns if log_time_ns is not None else self._log_time()
+        self.writer.write_message(POINTS_TOPIC, msg, ns if log is None else log, ns)
+
+    def close(self) -> None:
+        self.writer.close()

@@ -1,0 +1,98 @@
+"""Message definitions as rosbag2 stores them in MCAP schemas, and ROS 2 type hashes.
+
+rosbag2 (``LocalMessageDefinitionSource``) stores a type's full definition as its ``.msg``
+text followed, for each dependency (sorted by name, depth first, each once), by a newline, a
+line of 80 ``=``, a line ``MSG: pkg/Type`` and that type's ``.msg`` text. Dependencies are the
+field types found at the start of lines; a type without a package takes the package of the
+file it appears in. The ``.msg`` files come from the installed packages' ``share`` folders.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import os
+import re
+import sys
+from pathlib import Path
+
+from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+
+DELIMITER = "=" * 80 + "\n"
+_FIELD_TYPE = re.compile(r"(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+")
+_PRIMITIVES = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16",
+               "int32", "uint32", "int64", "uint64", "string"}
+
+
+class DefinitionNotFound(LookupError):
+    """No installed ``.msg`` file for a type."""
+
+
+def share_directory(package: str) -> Path:
+    """``share/<package>``: from the ament index when there is one, else the Python prefix."""
+    if os.environ.get("AMENT_PREFIX_PATH"):
+        try:
+            return Path(get_package_share_directory(package))
+        except PackageNotFoundError:
+            pass
+    return Path(sys.prefix) / "share" / package
+
+
+def _split(type_name: str) -> tuple[str, str, str]:
+    parts = type_name.split("/")
+    if len(parts) == 2:
+        return parts[0], "msg", parts[1]
+    if len(parts) == 3:
+        return parts[0], parts[1], parts[2]
+    raise ValueError(f"invalid message type name '{type_name}'")
+
+
+@functools.lru_cache(maxsize=None)
+def msg_text(type_name: str) -> str:
+    package, kind, name = _split(type_name)
+    path = share_directory(package) / kind / f"{name}.msg"
+    try:
+        return path.read_text(encoding="utf-8")
+    except OSError:
+        raise DefinitionNotFound(f"no message definition for {type_name} ({path})") from None
+
+
+def dependencies(text: str, package: str) -> list[str]:
+    deps = set()
+    for match in _FIELD_TYPE.finditer(text):
+        t = match.group(1)
+        if t in _PRIMITIVES:
+            continue
+        deps.add(t if "/" in t else f"{package}/{t}")
+    return sorted(deps)
+
+
+def full_definition(type_name: str) -> str:
+    """The ``ros2msg`` schema text rosbag2 writes for ``type_name`` (e.g. sensor_msgs/msg/X)."""
+    seen: set[str] = set()
+
+    def expand(name: str) -> str:
+        text = msg_text(name)
+        out = text
+        for dep in dependencies(text, _split(name)[0]):
+            if dep not in seen:
+                seen.add(dep)
+                out += "\n" + DELIMITER + f"MSG: {dep}\n" + expand(dep)
+        return out
+
+    return expand(type_name)
+
+
+@functools.lru_cache(maxsize=None)
+def type_hash(type_name: str) -> str:
+    """The RIHS01 type description hash of ``type_name`` (empty when unknown)."""
+    package, kind, name = _split(type_name)
+    path = share_directory(package) / kind / f"{name}.json"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return ""
+    full = f"{package}/{kind}/{name}"
+    for entry in data.get("type_hashes", []):
+        if entry.get("type_name") == full:
+            return entry.get("hash_string", "")
+    return ""

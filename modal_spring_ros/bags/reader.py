@@ -1,0 +1,207 @@
+"""Read rosbag2 MCAP bags (folders or single ``.mcap`` files) as raw messages or numpy arrays.
+
+Reads what rosbag2 writes (metadata versions up to 9, with or without ``metadata.yaml``) and
+what :mod:`modal_spring_ros.bags.writer` writes, including a file whose writer was killed before
+it was finalised (every complete chunk is read back).
+"""
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import json
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+import yaml
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+from mcap.records import Channel, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from rclpy.serialization import deserialize_message
+
+from modal_spring_ros.bags.pointcloud import xyz
+from modal_spring_ros.bags.writer import RUN_RECORD, BagError
+
+
+@dataclasses.dataclass
+class TopicInfo:
+    name: str
+    type: str
+    count: int
+    offered_qos_profiles: str
+    type_hash: str
+
+
+@dataclasses.dataclass
+class BagMessage:
+    topic: str
+    type: str
+    log_time_ns: int
+    publish_time_ns: int
+    data: bytes
+
+
+def message_class(type_name: str):
+    """The rclpy message class of ``pkg/msg/Type`` (the package must be installed)."""
+    package, kind, name = type_name.split("/") if type_name.count("/") == 2 else \
+        (type_name.split("/")[0], "msg", type_name.split("/")[-1])
+    try:
+        return getattr(importlib.import_module(f"{package}.{kind}"), name)
+    except (ImportError, AttributeError):
+        raise BagError(f"message type {type_name} is not installed") from None
+
+
+class BagReader:
+    """A bag opened for reading.
+
+    Attributes:
+        path: the bag folder or file given.
+        files: the MCAP files, in order.
+        metadata: the ``rosbag2_bagfile_information`` mapping, or None without metadata.yaml.
+        finalised: every file has its summary (False after a killed writer).
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        if not self.path.exists():
+            raise BagError(f"{self.path}: no such bag (folder or .mcap file)")
+        self.metadata = None
+        if self.path.is_dir():
+            meta = self.path / "metadata.yaml"
+            if meta.exists():
+                try:
+                    info = yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"]
+                except (yaml.YAMLError, KeyError, TypeError) as exc:
+                    raise BagError(f"{meta}: not rosbag2 metadata: {exc}") from None
+                self.metadata = info
+                self.files = [self.path / f for f in info.get("relative_file_paths", [])]
+                if info.get("storage_identifier") != "mcap":
+                    raise BagError(f"{self.path}: storage "
+                                   f"'{info.get('storage_identifier')}' is not mcap")
+            else:
+                self.files = sorted(self.path.glob("*.mcap"))
+            if not self.files:
+                raise BagError(f"{self.path}: no .mcap file in the bag")
+        else:
+            self.files = [self.path]
+        self._scan()
+
+    # -- reading -------------------------------------------------------------------------------
+    def _scan(self) -> None:
+        self.topics: dict[str, TopicInfo] = {}
+        self.records: dict[str, list[dict[str, str]]] = {}
+        self._channel_topic: dict[int, str] = {}
+        self.finalised = True
+        for f in self.files:
+            try:
+                with open(f, "rb") as fh:
+                    reader = make_reader(fh)
+                    header = reader.get_header()
+                    if header.profile != "ros2":
+                        raise BagError(f"{f}: MCAP profile '{header.profile}' is not ros2")
+                    summary = reader.get_summary()
+                    if summary is None:
+                        raise McapError("no summary")
+                    counts = summary.statistics.channel_message_counts \
+                        if summary.statistics else {}
+                    for cid, ch in summary.channels.items():
+                        self._add_topic(ch, summary.schemas.get(ch.schema_id),
+                                        counts.get(cid, 0))
+                    for rec in reader.iter_metadata():
+                        self.records.setdefault(rec.name, []).append(dict(rec.metadata))
+            except BagError:
+                raise
+            except Exception:  # not finalised (or damaged): stream what is there
+                self.finalised = False
+                self._scan_stream(f)
+
+    def _scan_stream(self, f: Path) -> None:
+        schemas: dict[int, Schema] = {}
+        try:
+            with open(f, "rb") as fh:
+                for rec in StreamReader(fh, skip_magic=False).records:
+                    if isinstance(rec, Schema):
+                        schemas[rec.id] = rec
+                    elif isinstance(rec, Channel):
+                        self._add_topic(rec, schemas.get(rec.schema_id), 0)
+                    elif isinstance(rec, Message):
+                        topic = self._channel_topic.get(rec.channel_id)
+                        if topic in self.topics:
+                            self.topics[topic].count += 1
+                    elif isinstance(rec, Metadata):
+                        self.records.setdefault(rec.name, []).append(dict(rec.metadata))
+        except Exception as exc:
+            if not self.topics:
+                raise BagError(f"{f}: not a readable MCAP file: {exc}") from None
+
+    def _add_topic(self, ch, schema, count: int) -> None:
+        self._channel_topic[ch.id] = ch.topic
+        if ch.topic in self.topics:
+            self.topics[ch.topic].count += count
+            return
+        self.topics[ch.topic] = TopicInfo(
+            name=ch.topic, type=schema.name if schema else "", count=count,
+            offered_qos_profiles=ch.metadata.get("offered_qos_profiles", ""),
+            type_hash=ch.metadata.get("topic_type_hash", ""))
+
+    def messages(self, topics: list[str] | None = None) -> Iterator[BagMessage]:
+        """Raw messages in log-time order (file order for an unfinalised file)."""
+        wanted = set(topics) if topics else None
+        for f in self.files:
+            with open(f, "rb") as fh:
+                if self.finalised:
+                    it = make_reader(fh).iter_messages(topics=list(wanted) if wanted else None)
+                    for schema, channel, msg in it:
+                        yield BagMessage(channel.topic, schema.name if schema else "",
+                                         msg.log_time, msg.publish_time, msg.data)
+                else:
+                    yield from self._stream_messages(fh, wanted)
+
+    def _stream_messages(self, fh, wanted) -> Iterator[BagMessage]:
+        schemas, channels = {}, {}
+        try:
+            for rec in StreamReader(fh, skip_magic=False).records:
+                if isinstance(rec, Schema):
+                    schemas[rec.id] = rec
+                elif isinstance(rec, Channel):
+                    channels[rec.id] = rec
+                elif isinstance(rec, Message):
+                    ch = channels.get(rec.channel_id)
+                    if ch is None or (wanted and ch.topic not in wanted):
+                        continue
+                    schema = schemas.get(ch.schema_id)
+                    yield BagMessage(ch.topic, schema.name if schema else "", rec.log_time,
+                                     rec.publish_time, rec.data)
+        except Exception:
+            return  # the truncated tail of a killed writer's last chunk
+
+    def decode(self, message: BagMessage):
+        """The message as an rclpy object (rclpy's own CDR deserializer)."""
+        return deserialize_message(message.data, message_class(message.type))
+
+    # -- the run's own description -------------------------------------------------------------
+    def run_record(self) -> dict:
+        """The ``modal_spring_ros`` record (JSON values decoded), or {} when absent."""
+        merged: dict = {}
+        for rec in self.records.get(RUN_RECORD, []):
+            for k, v in rec.items():
+                try:
+                    merged[k] = json.loads(v)
+                except ValueError:
+                    merged[k] = v
+        return merged
+
+    def points(self, topic: str = "/points") -> tuple[np.ndarray, np.ndarray]:
+        """(F,) header stamps in seconds and (F, n, 3) float64 positions of a cloud topic."""
+        if topic not in self.topics:
+            raise BagError(f"{self.path}: no topic {topic} (topics: "
+                           f"{', '.join(sorted(self.topics)) or 'none'})")
+        stamps, frames = [], []
+        for m in self.messages([topic]):
+            msg = self.decode(m)
+            stamps.append(msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec)
+            frames.append(xyz(msg))
+        if not frames:
+            raise BagError(f"{self.path}: topic {topic} has no messages")
+        return np.array(stamps), np.array(frames)

@@ -1,0 +1,2 @@
+"""Benchmarks: step cost, the live stream, and speed against accuracy (with charts).
+"""

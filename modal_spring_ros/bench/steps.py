@@ -1,0 +1,89 @@
+"""Step benchmark: time per step and basis cost, as medians, with peak memory.
+
+Each case runs in its own child process (so its peak memory is its own): it builds the
+simulation, warms up, then times repeated batches of steps and reports the median time per
+step. Ratios against the full physical run are measured in the same invocation.
+"""
+from __future__ import annotations
+
+import multiprocessing as mp
+import resource
+import statistics
+import time
+from typing import Callable
+
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
+from modal_spring_ros.scenes.resources import load_scene
+
+#: (label, scene, method, kept modes or None, dt, steps between spring evaluations)
+CASES = [
+    ("sheet_10x10 modal 15 modes", "sheet_10x10", "modal", 15, 5e-4, 1),
+    ("sheet_10x10 modal 15 modes, springs /10", "sheet_10x10", "modal", 15, 5e-4, 10),
+    ("sheet_10x10 full", "sheet_10x10", "full", None, 5e-4, 1),
+    ("sheet_100x100 modal 32 modes", "sheet_100x100", "modal", 32, 1e-4, 1),
+    ("sheet_100x100 modal 32 modes, springs /10", "sheet_100x100", "modal", 32, 1e-4, 10),
+    ("sheet_100x100 full", "sheet_100x100", "full", None, 1e-4, 1),
+]
+
+
+def _measure(scene_name: str, method: str, modes: int | None, dt: float, refresh: int,
+             batches: int, batch_steps: int, out: mp.Queue) -> None:
+    model = MassSpringModel(load_scene(scene_name))
+    start = time.perf_counter()
+    if method == "modal":
+        basis = ModalBasis(model, initial_modes=modes)
+        basis_seconds = time.perf_counter() - start
+        sim = ModalSimulation(model, basis, FilterBand("lowpass", 0, modes - 1, "index"), dt=dt,
+                              force_refresh=refresh)
+    else:
+        basis = ModalBasis(model, initial_modes=8)  # for the damping and stability limit
+        basis_seconds = time.perf_counter() - start
+        sim = FullSimulation(model, dt=dt, basis=basis)
+    sim.step(batch_steps)  # warm-up
+    times = []
+    for _ in range(batches):
+        t0 = time.perf_counter()
+        sim.step(batch_steps)
+        times.append((time.perf_counter() - t0) / batch_steps)
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    out.put({"step_us": 1e6 * statistics.median(times), "basis_s": basis_seconds,
+             "peak_mb": peak_mb, "dt": dt})
+
+
+def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:
+    ctx = mp.get_context("spawn")
+    results = []
+    for k, (label, scene, method, modes, dt, refresh) in enumerate(CASES):
+        progress(f"steps {k + 1}/{len(CASES)}: {label}")
+        small = scene == "sheet_10x10"
+        batches = 5 if quick else 15
+        batch_steps = (400 if small else 20) if quick else (2000 if small else 100)
+        q: mp.Queue = ctx.Queue()
+        p = ctx.Process(target=_measure, args=(scene, method, modes, dt, refresh, batches,
+                                               batch_steps, q))
+        p.start()
+        res = q.get()
+        p.join()
+        res.update(label=label, scene=scene, method=method, modes=modes)
+        results.append(res)
+    by = {r["label"]: r for r in results}
+    for r in results:
+        full = by.get(f"{r['scene']} full")
+        r["speedup_vs_full"] = full["step_us"] / r["step_us"] if full else None
+    return results
+
+
+def table(results: list[dict]) -> str:
+    lines = [f"{'case':42s} {'us/step':>10s} {'basis s':>8s} {'peak MB':>8s} {'x full':>7s}"]
+    for r in results:
+        ratio = f"{r['speedup_vs_full']:.1f}" if r["speedup_vs_full"] else "-"
+        lines.append(f"{r['label']:42s} {r['step_us']:10.1f} {r['basis_s']:8.2f} "
+                     f"{r['peak_mb']:8.0f} {ratio:>7s}")
+    return "\n".join(lines)
+
+
+def write_outputs(results: dict, out, progress) -> None:
+    """This suite writes nothing beside its JSON results."""

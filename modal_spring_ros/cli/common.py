@@ -1,0 +1,128 @@
+"""What the console scripts share: simulation options on argparse, and clean error exits."""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+from typing import Callable, NoReturn
+
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.filter_band import FILTER_TYPES, BandError, FilterBand, parse_mode_range
+from modal_spring_ros.core.integrators import INTEGRATORS
+from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.simulations import METHODS
+from modal_spring_ros.scenes.resources import DEFAULT_SCENE
+
+#: Exit status for bad input (as argparse uses).
+EXIT_USAGE = 2
+
+
+def split_ros_args(argv: list[str] | None) -> tuple[list[str], list[str]]:
+    """(the tool's own arguments, ``--ros-args ...`` for rclpy), as ROS executables take them."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if "--ros-args" in argv:
+        k = argv.index("--ros-args")
+        return argv[:k], argv[k:]
+    return argv, []
+
+
+def check_output_file(path: str, option: str) -> None:
+    """Fail before long work, not after it, when an output file cannot be written.
+
+    Raises ValueError naming ``option``; creates nothing."""
+    target = Path(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise ValueError(f"{option} {path}: folder {folder} does not exist")
+    if target.is_dir():
+        raise ValueError(f"{option} {path}: is a folder, not a file")
+    if not os.access(target if target.exists() else folder, os.W_OK):
+        raise ValueError(f"{option} {path}: not writable")
+
+
+def fail(prog: str, message: str, status: int = EXIT_USAGE) -> NoReturn:
+    print(f"{prog}: error: {message}", file=sys.stderr)
+    raise SystemExit(status)
+
+
+def add_simulation_options(parser: argparse.ArgumentParser) -> None:
+    g = parser.add_argument_group("simulation")
+    g.add_argument("--scene", default=DEFAULT_SCENE,
+                   help=f"built-in scene name or YAML path (default {DEFAULT_SCENE})")
+    g.add_argument("--method", choices=METHODS, default="modal")
+    g.add_argument("--filter", dest="filter_type", choices=FILTER_TYPES, default=None,
+                   help="filter band type (default allpass)")
+    g.add_argument("--low-hz", type=float, default=None, help="lower band edge, Hz")
+    g.add_argument("--high-hz", type=float, default=None, help="upper band edge, Hz")
+    g.add_argument("--modes", default=None, metavar="FIRST:LAST",
+                   help="keep modes FIRST..LAST (zero-based, inclusive) instead of a Hz band;"
+                        " with --filter bandstop, drop them")
+    g.add_argument("--integrator", choices=INTEGRATORS, default="explicit")
+    g.add_argument("--dt", type=float, default=None,
+                   help="time step, s (default: the scene's, else half the stability limit)")
+    g.add_argument("--transition-s", type=float, default=0.5,
+                   help="fade time of modes leaving the band, s")
+    g.add_argument("--max-modes", type=int, default=None,
+                   help="most modes computed on large scenes (default 256)")
+    g.add_argument("--auto", action="store_true",
+                   help="keep the fewest modes (within the band) that meet --tolerance for the "
+                        "scene's loads, and the step they allow (unless --dt)")
+    g.add_argument("--tolerance", type=float, default=0.01,
+                   help="predicted relative error for --auto (default 0.01)")
+    g.add_argument("--force-refresh", type=int, default=0, metavar="N",
+                   help="evaluate the nonlinear spring forces every N steps and continue "
+                        "them along the static tangent in between (default: every step, "
+                        "or what --auto chooses)")
+
+
+def band_from_args(args: argparse.Namespace) -> FilterBand:
+    """The filter band the options describe. Raises BandError naming the option."""
+    kind = args.filter_type or ("bandpass" if args.modes else "allpass")
+    if args.modes is not None:
+        if args.low_hz is not None or args.high_hz is not None:
+            raise BandError("--modes and --low-hz/--high-hz exclude each other")
+        band = parse_mode_range(args.modes)
+        if kind == "bandstop":
+            return FilterBand("bandstop", band.low, band.high, "index").validate(
+                ("FIRST", "LAST"))
+        if kind not in ("bandpass", "lowpass"):
+            raise BandError(f"--modes keeps a range of modes: use it with --filter bandpass "
+                            f"or bandstop, not {kind}")
+        return band
+    if kind != "allpass":
+        needs_low = kind in ("highpass", "bandpass", "bandstop")
+        needs_high = kind in ("lowpass", "bandpass", "bandstop")
+        if needs_low and args.low_hz is None:
+            raise BandError(f"--filter {kind} needs --low-hz")
+        if needs_high and args.high_hz is None:
+            raise BandError(f"--filter {kind} needs --high-hz")
+    low = args.low_hz if args.low_hz is not None else 0.0
+    high = args.high_hz if args.high_hz is not None else float("inf")
+    return FilterBand(kind, low, high, "hz").validate(("--low-hz", "--high-hz"))
+
+
+#: configuration field -> option, so that configuration errors name the option
+OPTION_NAMES = {"method": "--method", "auto": "--auto", "integrator": "--integrator", "dt": "--dt",
+                "transition_s": "--transition-s", "max_modes": "--max-modes",
+                "strain_limit": "--strain-limit", "tolerance": "--tolerance",
+                "force_refresh": "--force-refresh"}
+
+
+def config_from_args(args: argparse.Namespace) -> SimulationConfig:
+    """The run the options describe, validated (errors name the option)."""
+    return SimulationConfig(method=args.method, band=band_from_args(args),
+                            integrator=args.integrator, dt=args.dt,
+                            transition_s=args.transition_s, max_modes=args.max_modes,
+                            auto=args.auto, tolerance=args.tolerance,
+                            force_refresh=args.force_refresh).validate(OPTION_NAMES)
+
+
+def run_main(prog: str, body: Callable[[], int]) -> int:
+    """Run a command body, turning known errors into one clear line and exit status 2."""
+    try:
+        return body()
+    except (SceneError, BandError, ValueError) as exc:
+        fail(prog, str(exc))
+    except KeyboardInterrupt:
+        return 130

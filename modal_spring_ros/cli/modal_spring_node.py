@@ -1,0 +1,81 @@
+"""``modal_spring_node``: stream a scene's filtered deformation into the ROS graph.
+
+    modal_spring_node [--help] [--ros-args -p NAME:=VALUE ... --params-file FILE ...]
+
+Every setting is a ROS parameter (listed by ``--help``); change them at runtime with
+``ros2 param set`` or any ``SetParameters`` client.
+"""
+from __future__ import annotations
+
+import signal
+import sys
+
+import rclpy
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+
+from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.cli.common import EXIT_USAGE, split_ros_args
+from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.worker import WorkerError
+from modal_spring_ros.ros.node import ModalSpringNode
+from modal_spring_ros.ros.parameters import PARAMETERS
+
+PROG = "modal_spring_node"
+#: executor threads: the parameter services, and the node's own services beside them
+EXECUTOR_THREADS = 2
+
+
+def usage() -> str:
+    """The command line and every parameter with its default and description."""
+    lines = [__doc__.strip(), "", "parameters:"]
+    for name, (default, descriptor) in PARAMETERS.items():
+        flags = " (read-only: set at start)" if descriptor.read_only else ""
+        lines.append(f"  {name} (default {default!r}){flags}")
+        lines.append(f"      {descriptor.description}")
+    return "\n".join(lines)
+
+
+def _ignore_after_rclpy(signum, frame) -> None:
+    """rclpy's SIGTERM handler shuts the context down and then chains to the previous
+    handler; with this one (instead of the default, which kills the process) spin returns and
+    the node ends as cleanly as on SIGINT."""
+
+
+def main(args: list[str] | None = None) -> int:
+    own, _ = split_ros_args(args)
+    if own and own[0] in ("-h", "--help"):
+        print(usage())
+        return 0
+    signal.signal(signal.SIGTERM, _ignore_after_rclpy)
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = ModalSpringNode()
+        executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (SceneError, ValueError, ParameterException, BagError) as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except WorkerError as exc:
+        if not rclpy.ok():
+            return 0  # interrupted while starting (say, during a long mode computation)
+        print(f"{PROG}: error: computing the modes failed: {exc}", file=sys.stderr)
+        return 1
+    except Exception:
+        if not rclpy.ok():
+            return 0
+        raise
+    finally:
+        if node is not None:
+            node.stop()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

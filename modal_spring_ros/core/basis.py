@@ -1,0 +1,210 @@
+"""Vibration modes at the rest shape: ``K phi = omega^2 M phi`` on the free DOF (paper eq. 2).
+
+Modes are mass-normalised (``Phi^T M Phi = I``, so the paper's eq. 15 becomes
+``q = Phi^T M u``), sorted by frequency, with a deterministic sign.
+
+Small scenes (up to :data:`DENSE_LIMIT` free DOF) get every mode from one dense ``eigh``
+(milliseconds for the seed scene). Larger scenes never build a dense ``n x n`` matrix: the
+lowest modes are found with shift-invert Lanczos (``eigsh``) on a sparse factorisation that is
+kept, and more are computed only when a filter band asks for them.
+
+A singular stiffness on the free DOF (a mechanism) is detected here and reported as a
+:class:`~modal_spring_ros.scenes.schema.SceneError` that says how many zero modes there are.
+"""
+from __future__ import annotations
+
+import time
+import uuid
+from typing import Callable
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.worker import WorkerProcess
+
+#: Largest number of free DOF for which every mode is computed with a dense solver.
+DENSE_LIMIT = 1000
+
+#: Relative size (against the largest eigenvalue scale) below which an eigenvalue is zero.
+ZERO_MODE_RTOL = 1e-9
+
+Progress = Callable[[str], None]
+
+
+def _no_progress(_: str) -> None:
+    pass
+
+
+class ModalBasis:
+    """The modes of a :class:`MassSpringModel`, computed up to what has been asked for.
+
+    ``worker``: a :class:`~modal_spring_ros.core.worker.WorkerProcess` to run the sparse
+    eigensolver in (results are identical), so that computing modes does not hold this
+    process's interpreter lock; the node uses one to keep its stream going meanwhile.
+
+    Attributes:
+        omega: (m,) circular frequencies (rad/s) of the computed modes, ascending.
+        vectors: (n_free_dof, m) mass-normalised mode shapes.
+        complete: every mode of the scene has been computed.
+    """
+
+    def __init__(self, model: MassSpringModel, *, initial_modes: int = 32,
+                 progress: Progress | None = None, dense_limit: int = DENSE_LIMIT,
+                 worker: WorkerProcess | None = None):
+        self.model = model
+        self.n_dof = model.n_free_dof
+        self.progress = progress or _no_progress
+        self.dense = self.n_dof <= dense_limit
+        self.solve_seconds = 0.0
+        self.worker = worker
+        self._solver: ShiftInvertModes | None = None
+        self.omega = np.empty(0)
+        self.vectors = np.empty((self.n_dof, 0))
+        self.complete = False
+        if self.dense:
+            self._compute_dense()
+        else:
+            self._compute_sparse(min(initial_modes, self.n_dof - 1))
+
+    # -- public --------------------------------------------------------------------------------
+    @property
+    def count(self) -> int:
+        return int(self.omega.size)
+
+    @property
+    def frequencies_hz(self) -> np.ndarray:
+        return self.omega / (2.0 * np.pi)
+
+    def ensure_count(self, count: int) -> bool:
+        """Make at least ``count`` lowest modes available; True when the basis changed."""
+        count = min(int(count), self.n_dof)
+        if count <= self.count or self.complete:
+            return False
+        if count >= self.n_dof - 1:
+            # ARPACK cannot return every mode; a scene this size asking for all is a dense job.
+            raise ValueError(f"{count} modes requested of a {self.n_dof}-DOF scene: computing "
+                             "(nearly) all modes of a large scene is not supported; narrow the "
+                             "band or raise modal.max_modes only as far as needed")
+        self._compute_sparse(max(count, min(2 * self.count, self.n_dof - 2)))
+        return True
+
+    def ensure_frequency(self, max_hz: float, max_modes: int) -> bool:
+        """Make every mode up to ``max_hz`` available (at most ``max_modes``)."""
+        changed = False
+        while (not self.complete and self.frequencies_hz[-1] <= max_hz
+               and self.count < min(max_modes, self.n_dof - 2)):
+            changed |= self.ensure_count(min(max(2 * self.count, self.count + 16), max_modes,
+                                             self.n_dof - 2))
+        return changed
+
+    def omega_max_estimate(self) -> float:
+        """Largest circular frequency of the scene (exact when complete, else a Lanczos value)."""
+        if self.complete:
+            return float(self.omega[-1])
+        if not hasattr(self, "_omega_max"):
+            m = self.model.mass_dof
+            scale = 1.0 / np.sqrt(m)
+            a = sp.diags(scale) @ self.model.stiffness_free @ sp.diags(scale)
+            lam = spla.eigsh(a, k=1, which="LA", v0=np.ones(self.n_dof),
+                             return_eigenvectors=False, tol=1e-6)
+            self._omega_max = float(np.sqrt(max(lam[0], 0.0)))
+        return self._omega_max
+
+    # -- solvers -------------------------------------------------------------------------------
+    def _compute_dense(self) -> None:
+        start = time.perf_counter()
+        self.progress(f"computing all {self.n_dof} modes (dense eigh)")
+        m = self.model.mass_dof
+        inv_sqrt_m = 1.0 / np.sqrt(m)
+        k = self.model.stiffness_free.toarray()
+        a = inv_sqrt_m[:, None] * k * inv_sqrt_m[None, :]
+        lam, psi = scipy.linalg.eigh(a)
+        self._check_zero_modes(lam, lam_scale=float(np.max(np.abs(lam))))
+        self._store(lam, inv_sqrt_m[:, None] * psi)
+        self.complete = True
+        self.solve_seconds += time.perf_counter() - start
+
+    def _compute_sparse(self, count: int) -> None:
+        start = time.perf_counter()
+        if self._solver is None:
+            self.progress(f"factorising the {self.n_dof}-DOF stiffness (sparse LU)")
+            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof)
+        self.progress(f"computing the {count} lowest modes (shift-invert Lanczos, "
+                      f"{self.n_dof} DOF)" + (" in a worker process" if self.worker else ""))
+        if self.worker is None:
+            lam, phi = self._solver.lowest(count)
+        else:
+            lam, phi = self.worker.call(_lowest_modes_in_worker, self._solver, count)
+        self._check_zero_modes(lam, lam_scale=self._solver.lam_scale)
+        self._store(lam, phi)
+        self.solve_seconds += time.perf_counter() - start
+        self.progress(f"{count} modes ready: {self.frequencies_hz[0]:.4g} .. "
+                      f"{self.frequencies_hz[-1]:.4g} Hz "
+                      f"({time.perf_counter() - start:.2f} s)")
+
+    def _check_zero_modes(self, lam: np.ndarray, lam_scale: float) -> None:
+        zero = int(np.sum(lam <= ZERO_MODE_RTOL * lam_scale))
+        if zero:
+            more = "at least " if (not self.dense and zero == lam.size) else ""
+            raise SceneError(
+                f"scene '{self.model.scene.name}': the stiffness is singular on the free DOF: "
+                f"{more}{zero} zero-stiffness mode(s) (a mechanism). Add shear (diagonal) "
+                f"springs, bending springs for out-of-plane motion, or fix more particles.")
+
+    def _store(self, lam: np.ndarray, phi: np.ndarray) -> None:
+        # Deterministic sign: the largest-magnitude component of each mode is positive.
+        pivot = np.argmax(np.abs(phi), axis=0)
+        signs = np.sign(phi[pivot, np.arange(phi.shape[1])])
+        signs[signs == 0] = 1.0
+        self.vectors = np.ascontiguousarray(phi * signs)
+        self.omega = np.sqrt(np.maximum(lam, 0.0))
+
+
+class ShiftInvertModes:
+    """Lowest modes of ``K phi = lam M phi`` (sparse ``K``, lumped ``M``) by shift-invert
+    Lanczos, mass-normalised and ascending; the sparse LU of ``K - sigma M`` is made on the
+    first call and kept for the next ones."""
+
+    def __init__(self, stiffness: sp.spmatrix, mass_dof: np.ndarray):
+        self.k = stiffness.tocsc()
+        self.mass_dof = np.asarray(mass_dof, dtype=float)
+        self.lam_scale = float(np.max(self.k.diagonal() / self.mass_dof))
+        # A small negative shift keeps K - sigma M definite even when K is singular.
+        self.sigma = -1e-6 * self.lam_scale
+        self.token = uuid.uuid4().hex  # names this solver in a worker process
+        self._factor = None
+
+    def __getstate__(self) -> dict:
+        return dict(self.__dict__, _factor=None)  # the factor stays where it was made
+
+    def lowest(self, count: int) -> tuple[np.ndarray, np.ndarray]:
+        n = self.mass_dof.size
+        m = sp.diags(self.mass_dof).tocsc()
+        if self._factor is None:
+            self._factor = spla.splu((self.k - self.sigma * m).tocsc())
+        op = spla.LinearOperator((n, n), matvec=self._factor.solve, dtype=float)
+        lam, phi = spla.eigsh(self.k, k=count, M=m, sigma=self.sigma, OPinv=op, which="LM",
+                              v0=np.ones(n), tol=1e-12)
+        order = np.argsort(lam)
+        lam, phi = lam[order], phi[:, order]
+        # Renormalise against M (ARPACK's scaling is close, not exact).
+        norms = np.sqrt(np.einsum("ij,i,ij->j", phi, self.mass_dof, phi))
+        return lam, phi / norms
+
+
+#: A worker process's solver (by token), kept with its factor for the next call.
+_WORKER_SOLVERS: dict[str, ShiftInvertModes] = {}
+
+
+def _lowest_modes_in_worker(solver: ShiftInvertModes, count: int
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """Runs in a :class:`WorkerProcess`: ``solver.lowest(count)`` on the copy it already has
+    (factorised), if any."""
+    if solver.token not in _WORKER_SOLVERS:
+        _WORKER_SOLVERS.clear()  # one at a time: no factor outlives its use
+        _WORKER_SOLVERS[solver.token] = solver
+    return _WORKER_SOLVERS[solver.token].lowest(count)

@@ -1,0 +1,90 @@
+"""What defines a run (the scene aside), and the rules its values must meet.
+
+:class:`SimulationConfig` is the one place those rules live. Front ends only map their own
+names onto its fields (``--dt`` on the command line, ``sim.dt`` in the node), so that an error
+names what the user typed: :meth:`SimulationConfig.validate` takes that mapping.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Mapping
+
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.integrators import INTEGRATORS
+from modal_spring_ros.core.simulations import DEFAULT_STRAIN_LIMIT, METHODS, MIN_DT_S
+
+#: Fraction of the explicit stability limit used when no time step is given.
+AUTO_DT_SAFETY = 0.5
+#: Largest spring strain still in the small-deformation regime the modal basis assumes.
+DEFAULT_STRAIN_WARNING = 0.1
+#: Default predicted relative error of the automatic mode choice.
+DEFAULT_TOLERANCE = 0.01
+#: Default fade time of modes leaving or entering the band, s.
+DEFAULT_TRANSITION_S = 0.5
+
+
+class ConfigError(ValueError):
+    """A setting out of range; the message names it as the user wrote it."""
+
+
+@dataclasses.dataclass(frozen=True)
+class SimulationConfig:
+    """Everything that defines a run (the scene itself aside)."""
+
+    method: str = "modal"
+    band: FilterBand = FilterBand()
+    integrator: str = "explicit"
+    dt: float | None = None            # None: the scene's, else from the stability limit
+    transition_s: float = DEFAULT_TRANSITION_S
+    max_modes: int | None = None       # None: every mode (dense scenes) or 256
+    strain_limit: float = DEFAULT_STRAIN_LIMIT
+    auto: bool = False                 # choose the fewest modes (and dt) for ``tolerance``
+    tolerance: float = DEFAULT_TOLERANCE
+    force_refresh: int = 0             # steps between spring evaluations; 0: 1, or auto's
+
+    def validate(self, names: Mapping[str, str] | None = None) -> "SimulationConfig":
+        """Check every rule; raise :class:`ConfigError` (or a ``BandError`` for the band)
+        naming the setting as ``names`` calls it (the field name by default). Returns self."""
+        names = names or {}
+
+        def name(field: str) -> str:
+            return names.get(field, field)
+
+        if self.method not in METHODS:
+            raise ConfigError(f"{name('method')} '{self.method}' must be one of "
+                              f"{', '.join(METHODS)}")
+        if self.integrator not in INTEGRATORS:
+            raise ConfigError(f"{name('integrator')} '{self.integrator}' must be one of "
+                              f"{', '.join(INTEGRATORS)}")
+        if self.dt is not None and not (math.isfinite(self.dt) and self.dt >= MIN_DT_S):
+            raise ConfigError(f"{name('dt')} ({self.dt}) must be a finite number of seconds, "
+                              f"at least {MIN_DT_S:g} s (a smaller step does not advance "
+                              "time)")
+        if not (math.isfinite(self.transition_s) and self.transition_s >= 0.0):
+            raise ConfigError(f"{name('transition_s')} ({self.transition_s}) must be a finite "
+                              "number of seconds, not negative")
+        if self.max_modes is not None and self.max_modes < 1:
+            raise ConfigError(f"{name('max_modes')} ({self.max_modes}) must be at least 1")
+        if not (math.isfinite(self.strain_limit) and self.strain_limit > 0.0):
+            raise ConfigError(f"{name('strain_limit')} ({self.strain_limit}) must be positive")
+        if not 0.0 < self.tolerance < 1.0:
+            raise ConfigError(f"{name('tolerance')} ({self.tolerance}) must be between 0 and 1")
+        if self.auto and self.method != "modal":
+            raise ConfigError(f"{name('auto')} chooses modes: it needs {name('method')} modal")
+        if self.force_refresh < 0:
+            raise ConfigError(f"{name('force_refresh')} ({self.force_refresh}) must be at "
+                              "least 1 step (or 0: the default)")
+        self.band.validate()
+        return self
+
+    def to_dict(self) -> dict[str, Any]:
+        out = dataclasses.asdict(self)
+        out["band"] = dataclasses.asdict(self.band)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "SimulationConfig":
+        data = dict(data)
+        band = data.pop("band", {}) or {}
+        return cls(band=FilterBand(**band), **data)

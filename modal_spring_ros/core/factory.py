@@ -1,0 +1,72 @@
+"""Build a ready-to-step simulation from a scene and a :class:`SimulationConfig`.
+
+The command-line tools, the ROS node, the re-simulation of bags and the benchmark all go
+through :func:`build_simulation`, so a run described by the same configuration is the same run
+everywhere (bit for bit: the engine is deterministic).
+"""
+from __future__ import annotations
+
+import math
+
+from modal_spring_ros.core.basis import ModalBasis, Progress
+from modal_spring_ros.core.config import AUTO_DT_SAFETY, SimulationConfig
+from modal_spring_ros.core.mode_selection import choose_modes, choose_refresh, choose_step
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.scene import Scene
+from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSimulation,
+                                               Simulation)
+from modal_spring_ros.core.worker import WorkerProcess
+
+
+def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig) -> Simulation:
+    """A new simulation (at rest) of the same scene and basis with other settings.
+
+    With ``config.auto`` (modal), the fewest modes meeting ``config.tolerance`` are kept and,
+    unless ``config.dt`` is given, the step follows from them, and unless
+    ``config.force_refresh`` is given, so does the spring-force refresh; the choice is the
+    simulation's ``mode_choice``.
+    """
+    config.validate()
+    dt = config.dt or model.scene.default_dt
+    if config.method == "modal":
+        choice = None
+        refresh = config.force_refresh or 1
+        if config.auto:
+            choice = choose_modes(model, basis, config.band, config.tolerance,
+                                  max_modes=config.max_modes or DEFAULT_MAX_MODES)
+            dt = config.dt or choose_step(choice, config.integrator, config.tolerance,
+                                          model.scene.damping)
+            refresh = config.force_refresh or choose_refresh(choice.highest_hz, dt)
+        sim: Simulation = ModalSimulation(
+            model, basis, config.band, dt=dt or 1e-3, integrator=config.integrator,
+            transition_s=config.transition_s, max_modes=config.max_modes,
+            strain_limit=config.strain_limit,
+            highest_hz=choice.highest_hz if choice else None, force_refresh=refresh,
+            mode_choice=choice)
+    else:
+        sim = FullSimulation(model, basis, config.band, dt=dt or 1e-3,
+                             integrator=config.integrator, strain_limit=config.strain_limit)
+    if dt is None:
+        limit = sim.stability_limit()
+        sim = sim.with_dt(AUTO_DT_SAFETY * limit if math.isfinite(limit) else 1e-3)
+    return sim
+
+
+def build_simulation(scene: Scene, config: SimulationConfig, *,
+                     progress: Progress | None = None, allow_unstable: bool = False,
+                     worker: WorkerProcess | None = None) -> Simulation:
+    """Scene + options -> a simulation at rest at t = 0 (``worker``: see :class:`ModalBasis`).
+
+    Raises:
+        SceneError: a mechanism (the stiffness is singular on the free DOF).
+        BandError: impossible filter band.
+        UnstableStepError: explicit stepping above ``2 / omega_max`` (unless allowed).
+        ConfigError: other bad options (method, integrator, dt, ...).
+    """
+    config.validate()
+    model = MassSpringModel(scene)
+    basis = ModalBasis(model, progress=progress, worker=worker)
+    sim = rebuild(model, basis, config)
+    if not allow_unstable:
+        sim.check_stable()
+    return sim

@@ -1,0 +1,196 @@
+"""Nonlinear spring forces (paper eq. 20) and gravity in generalized coordinates.
+
+For free-DOF displacement ``u = Phi q`` (``Phi`` = the retained modes, or the identity for the
+full physical run), measured from the rigidly moving base (see
+:mod:`modal_spring_ros.core.anchor_motion`), each spring's vector ``x_j - x_i`` is an affine
+function of ``q``:
+
+    delta = delta_rest + G q,     G = D Phi
+
+with ``D`` the sparse spring-difference matrix. The force on the free DOF is ``-D^T`` of the
+per-spring force vectors, so its projection on the modes (paper fig. 5, step 4) is
+``Q = -G^T f_spring + Phi^T (f_gravity - M 1 a_base(t))``.
+
+Per step this is one product with ``G``, a few vectorised operations over the springs and one
+product with ``G^T``: no Python loop over particles or springs. ``G`` is stored dense when that
+is cheap (small scenes, few modes) and applied as ``D`` after ``Phi`` otherwise.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+#: Largest dense ``G`` (entries) kept; beyond it ``G q`` is computed as ``D (Phi q)``.
+DENSE_G_LIMIT = 400_000
+#: springs per block when the tangent stiffness is summed (bounds its memory)
+TANGENT_CHUNK = 4096
+
+
+def spring_difference_matrix(springs: np.ndarray, free_index: np.ndarray, dimension: int,
+                             n_free: int) -> sp.csr_matrix:
+    """Sparse ``D`` with ``(D u)[a*E + e] = u_j[a] - u_i[a]`` over the free DOF (fixed: 0).
+
+    Rows are component-major (all x components, then all y, ...), so that the per-spring
+    arithmetic runs over contiguous rows of a ``(d, E)`` array.
+    """
+    n_springs = springs.shape[0]
+    rows, cols, vals = [], [], []
+    for end, sign in ((1, 1.0), (0, -1.0)):
+        p = free_index[springs[:, end]]
+        ok = p >= 0
+        for a in range(dimension):
+            rows.append(a * n_springs + np.flatnonzero(ok))
+            cols.append(p[ok] * dimension + a)
+            vals.append(np.full(int(ok.sum()), sign))
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(n_springs * dimension, n_free * dimension))
+
+
+def _norms(delta: np.ndarray) -> np.ndarray:
+    """Euclidean lengths of the columns of a (d, E) array."""
+    length = np.einsum("de,de->e", delta, delta)
+    return np.sqrt(length, out=length)
+
+
+class GeneralizedForces:
+    """``Q(q, t)``: total force on the free DOF projected on ``Phi`` (identity when None).
+
+    Attributes:
+        last_max_strain: largest ``|L - l| / l`` over all springs at the last evaluation.
+    """
+
+    def __init__(self, model, basis: np.ndarray | None):
+        s = model.scene
+        d = model.dimension
+        self.dimension = d
+        # Spring force magnitudes k (L - l) / L are applied by -G^T (eq. 20 pulls i towards j).
+        self._k = np.asarray(s.stiffness, dtype=float)
+        self._l = np.asarray(s.rest_length, dtype=float)
+        self._inv_l = 1.0 / self._l
+        rest = model.rest
+        self._delta_rest = (rest[s.springs[:, 1]] - rest[s.springs[:, 0]]).T.ravel()
+        self._anchors_move = not s.anchor_motion.is_static
+        self._base_motion = s.anchor_motion
+        # Loads as one product: [gravity, -M 1_x, -M 1_y, -M 1_z] @ [1, base acceleration (3,)]
+        # (-M 1_axis: the inertial load of a unit base acceleration; zero on axes not modelled).
+        base_load = np.zeros((model.n_free_dof, 3))
+        base_load[:, model.axes] = -(
+            model.mass_dof[:, None]
+            * (np.arange(model.n_free_dof)[:, None] % d == np.arange(d)[None, :]))
+        self._load_coefficients = np.array([1.0, 0.0, 0.0, 0.0])
+        free_index = np.full(s.n_particles, -1)
+        free_index[model.free_particles] = np.arange(model.free_particles.size)
+        d_mat = spring_difference_matrix(s.springs, free_index, d, model.free_particles.size)
+        loads = np.column_stack([model.gravity_force, base_load])
+        self._phi = None
+        if basis is None:
+            self._g, self._gt = d_mat, (-d_mat.T).tocsr()
+        else:
+            loads = basis.T @ loads
+            if d_mat.shape[0] * basis.shape[1] <= DENSE_G_LIMIT:
+                dense = np.asarray(d_mat @ basis)
+                self._g, self._gt = dense, -np.ascontiguousarray(dense.T)
+            else:
+                self._phi, self._phit = basis, np.ascontiguousarray(basis.T)
+                self._g, self._gt = d_mat, (-d_mat.T).tocsr()
+        self._load_matrix = np.ascontiguousarray(loads)
+        self._gravity = self._load_matrix[:, 0].copy()
+        self._kl = self._k * self._l
+        self.last_max_strain = 0.0
+
+    def spring_deltas(self, q: np.ndarray) -> np.ndarray:
+        """(d, E) spring vectors ``x_j - x_i`` for generalized coordinates ``q``."""
+        u = q if self._phi is None else self._phi @ q
+        delta = self._g @ u
+        delta += self._delta_rest
+        return delta.reshape(self.dimension, -1)
+
+    def __call__(self, q: np.ndarray, t: float) -> np.ndarray:
+        """Total generalized force: springs (eq. 20) plus the loads at time ``t``."""
+        f = self.spring_forces(q)
+        f += self.loads(t)
+        return f
+
+    def spring_forces(self, q: np.ndarray) -> np.ndarray:
+        """Generalized nonlinear spring force ``-G^T f_spring`` (sets ``last_max_strain``).
+
+        Each spring pulls with ``k (L - l) / L (x_j - x_i) = (k - k l / L) delta``; the strain
+        ``|L / l - 1|`` is watched through the largest and smallest ``L / l``.
+        """
+        delta = self.spring_deltas(q)
+        length = _norms(delta)
+        ratio = length * self._inv_l
+        self.last_max_strain = max(float(np.maximum.reduce(ratio)) - 1.0,
+                                   1.0 - float(np.minimum.reduce(ratio)))
+        np.divide(self._kl, length, out=length)
+        np.subtract(self._k, length, out=length)
+        delta *= length
+        f = self._gt @ delta.ravel()
+        if self._phi is not None:
+            f = self._phit @ f
+        return f
+
+    def loads(self, t: float) -> np.ndarray:
+        """Generalized gravity and base-excitation load at time ``t`` (linear, exact)."""
+        if self._anchors_move:
+            self._load_coefficients[1:] = self._base_motion.acceleration(t)
+            return self._load_matrix @ self._load_coefficients
+        return self._gravity.copy()
+
+    def gravity(self) -> np.ndarray:
+        """Generalized gravity load alone (no base excitation)."""
+        return self._gravity.copy()
+
+    def tangent(self, q: np.ndarray, chunk: int = TANGENT_CHUNK) -> np.ndarray:
+        """Tangent stiffness ``-dQ_spring/dq`` at ``q`` (dense, m x m; at rest ``Phi^T K Phi``).
+
+        Per spring the tangent of ``k (1 - l/L) delta`` is ``a I + b n n^T`` with
+        ``a = k (1 - l/L)``, ``b = k l / L``, ``n = delta / L``; summed over the springs as
+        ``sum_c G_c^T diag(a) G_c + H^T diag(b) H`` with ``H = sum_c n_c G_c``, a chunk of
+        springs at a time so that ``G`` is never held whole on large scenes.
+        """
+        delta = self.spring_deltas(q)
+        length = _norms(delta)
+        a = self._k * (1.0 - self._l / length)
+        b = self._k * self._l / length
+        unit = delta / length
+        n_springs, d = self._l.size, self.dimension
+        m = self._g.shape[1] if self._phi is None else self._phi.shape[1]
+        out = np.zeros((m, m))
+        for start in range(0, n_springs, chunk):
+            stop = min(start + chunk, n_springs)
+            g = self._g_rows(start, stop)                      # (d, chunk, m)
+            h = np.einsum("dc,dcm->cm", unit[:, start:stop], g)
+            for c in range(d):
+                out += g[c].T @ (a[start:stop, None] * g[c])
+            out += h.T @ (b[start:stop, None] * h)
+        return 0.5 * (out + out.T)
+
+    def strain_sensitivity(self, chunk: int = TANGENT_CHUNK) -> float:
+        """Most any spring's strain can change per unit change of ``q`` (Euclidean norm).
+
+        Spring ``e``'s vector changes by ``G_e dq`` (``G_e``: its d rows of ``G``), so its
+        length by at most ``|G_e dq| <= |G_e|_2 |dq|`` and its strain by that over ``l_e``;
+        this returns the largest ``|G_e|_2 / l_e`` (spectral norms from the d x d Gram
+        matrices ``G_e G_e^T``).
+        """
+        gain = 0.0
+        for start in range(0, self._l.size, chunk):
+            stop = min(start + chunk, self._l.size)
+            g = self._g_rows(start, stop)                      # (d, chunk, m)
+            gram = np.einsum("acm,bcm->cab", g, g)
+            largest = np.linalg.eigvalsh(gram)[:, -1]
+            gain = max(gain, float((np.sqrt(np.maximum(largest, 0.0))
+                                    * self._inv_l[start:stop]).max()))
+        return gain
+
+    def _g_rows(self, start: int, stop: int) -> np.ndarray:
+        """Rows of ``G`` for springs ``start:stop``, as (d, stop - start, m)."""
+        n_springs, d = self._l.size, self.dimension
+        rows = (np.arange(d)[:, None] * n_springs + np.arange(start, stop)[None, :]).ravel()
+        g = self._g[rows]
+        if self._phi is not None:
+            g = g @ self._phi
+        elif sp.issparse(g):
+            g = g.toarray()
+        return np.asarray(g).reshape(d, stop - start, -1)

@@ -1,0 +1,29 @@
+"""Time integrators for ``M a + C v = F(u, t)``: a contract, a name-to-class registry, one
+integrator a module.
+
+* ``explicit`` (:class:`ExplicitNewmark`, beta = 0): the paper's scheme.
+* ``average`` (:class:`AverageAcceleration`, beta = 1/4): implicit, unconditionally stable.
+"""
+from __future__ import annotations
+
+from modal_spring_ros.core.integrators.average import AverageAcceleration
+from modal_spring_ros.core.integrators.base import (Integrator, NonConvergence, Operators,
+                                                    StepResult)
+from modal_spring_ros.core.integrators.diagonal import DiagonalOperators
+from modal_spring_ros.core.integrators.explicit import ExplicitNewmark
+
+#: integrator name -> class
+INTEGRATORS: dict[str, type[Integrator]] = {
+    cls.name: cls for cls in (ExplicitNewmark, AverageAcceleration)}
+
+
+def integrator(name: str) -> Integrator:
+    """The integrator registered as ``name``. Raises ValueError naming the choices."""
+    try:
+        return INTEGRATORS[name]()
+    except KeyError:
+        raise ValueError(f"integrator '{name}' must be one of {', '.join(INTEGRATORS)}") from None
+
+
+__all__ = ["INTEGRATORS", "AverageAcceleration", "DiagonalOperators", "ExplicitNewmark",
+           "Integrator", "NonConvergence", "Operators", "StepResult", "integrator"]

@@ -1,0 +1,57 @@
+"""The integrator contract: one Newmark step of ``M a + C v = F(u, t)`` in any coordinates.
+
+An integrator advances ``(u, v, a)`` by ``dt`` given the nonlinear force ``F`` and the linear
+algebra of the equations (an :class:`Operators`), so that the same integrator steps the
+diagonal modal equations and the sparse physical ones.
+"""
+from __future__ import annotations
+
+import abc
+from typing import Callable, ClassVar, NamedTuple, Protocol
+
+import numpy as np
+
+Force = Callable[[np.ndarray], np.ndarray]
+
+
+class Operators(Protocol):
+    """Linear parts of the equations of motion, for one time step ``dt``."""
+
+    def damp(self, v: np.ndarray) -> np.ndarray | float:
+        """``C v`` (may return 0.0 without damping)."""
+
+    def stiff(self, u: np.ndarray) -> np.ndarray:
+        """``K u`` with the rest stiffness."""
+
+    def explicit_acceleration(self, force: np.ndarray, v_pred: np.ndarray) -> np.ndarray:
+        """``(M + dt/2 C)^-1 (force - C v_pred)``: the explicit step's new acceleration."""
+
+    def solve_average(self, rhs: np.ndarray) -> np.ndarray:
+        """``(M + dt/2 C + dt^2/4 K)^-1 rhs``."""
+
+
+class NonConvergence(RuntimeError):
+    """The implicit step's iteration did not converge (strong nonlinearity for this step)."""
+
+
+class StepResult(NamedTuple):
+    """The state after one step, and how many force evaluations the step took."""
+
+    u: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    iterations: int
+
+
+class Integrator(abc.ABC):
+    """One member of the Newmark family (gamma = 1/2). Stateless: one instance serves all."""
+
+    #: registry name
+    name: ClassVar[str]
+    #: stable only below ``2 / omega_max`` of the coordinates stepped
+    conditionally_stable: ClassVar[bool]
+
+    @abc.abstractmethod
+    def step(self, u: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float, force: Force,
+             ops: Operators) -> StepResult:
+        """Advance one step; raises :class:`NonConvergence` when an iteration fails."""

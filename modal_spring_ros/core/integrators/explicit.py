@@ -1,0 +1,22 @@
+"""The explicit Newmark step (beta = 0, gamma = 1/2): the paper's eqs. 17-19.
+
+Stable for ``dt < 2 / omega_max`` of the coordinates stepped; one force evaluation a step.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from modal_spring_ros.core.integrators.base import Force, Integrator, Operators, StepResult
+
+
+class ExplicitNewmark(Integrator):
+    name = "explicit"
+    conditionally_stable = True
+
+    def step(self, u: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float, force: Force,
+             ops: Operators) -> StepResult:
+        v_pred = v + (0.5 * dt) * a
+        u1 = u + dt * v_pred  # = u + dt v + dt^2/2 a
+        a1 = ops.explicit_acceleration(force(u1), v_pred)
+        v1 = v_pred + (0.5 * dt) * a1
+        return StepResult(u1, v1, a1, 1)

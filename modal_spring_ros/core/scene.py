@@ -1,0 +1,160 @@
+"""Scene data: particles, springs, fixed particles, loads and damping of a validated scene.
+
+A :class:`Scene` is what every other part of the engine works from. It is built and checked by
+:mod:`modal_spring_ros.scenes` (YAML schema, lattices, built-in scenes); this module only holds
+the data and what follows from it alone (degrees of freedom, surface triangles, the full
+definition as a mapping or YAML).
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+import yaml
+
+from modal_spring_ros.core.anchor_motion import AnchorMotion
+
+
+class SceneError(ValueError):
+    """An invalid scene: the message names the source, the field and the problem."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Damping:
+    """Damping of a scene: the paper's modal ratio ``h`` and/or Rayleigh ``alpha M + beta K``.
+
+    Modal damping of mode ``i`` is ``C_i = 2 h omega_i + alpha + beta omega_i**2`` (with
+    mass-normalised modes).
+    """
+
+    ratio: float = 0.0
+    rayleigh_alpha: float = 0.0
+    rayleigh_beta: float = 0.0
+
+    def modal_coefficients(self, omega: np.ndarray) -> np.ndarray:
+        """``C_i`` for circular frequencies ``omega`` (rad/s)."""
+        omega = np.asarray(omega, dtype=float)
+        return 2.0 * self.ratio * omega + self.rayleigh_alpha + self.rayleigh_beta * omega**2
+
+    @property
+    def is_zero(self) -> bool:
+        return self.ratio == 0.0 and self.rayleigh_alpha == 0.0 and self.rayleigh_beta == 0.0
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Scene:
+    """A validated mass-spring scene. Arrays are read-only.
+
+    Attributes:
+        name: scene name (file stem for scene files).
+        dimension: 1 (motion along ``axis`` only, the paper's chain), 2 (motion in the x-y
+            plane, z stays at rest) or 3.
+        axes: the world axes that move (0 = x, 1 = y, 2 = z), ``dimension`` of them.
+        rest_positions: (n, 3) particle positions at rest (springs at their rest length).
+        mass: (n,) particle masses, kg.
+        springs: (E, 2) particle index pairs, i < j.
+        stiffness: (E,) spring stiffness, N/m.
+        rest_length: (E,) spring rest length, m (distance at rest).
+        fixed: (n,) bool, particles that follow the prescribed anchor motion.
+        gravity: (3,) gravitational acceleration, m/s^2.
+        damping: the scene's damping.
+        anchor_motion: prescribed motion of the fixed particles.
+        default_dt: suggested time step, s (None: chosen from the modes).
+        default_duration: suggested run length, s.
+        description: free text.
+    """
+
+    name: str
+    dimension: int
+    axes: tuple[int, ...]
+    rest_positions: np.ndarray
+    mass: np.ndarray
+    springs: np.ndarray
+    stiffness: np.ndarray
+    rest_length: np.ndarray
+    fixed: np.ndarray
+    gravity: np.ndarray
+    damping: Damping = Damping()
+    anchor_motion: AnchorMotion = AnchorMotion(())
+    default_dt: float | None = None
+    default_duration: float = 5.0
+    description: str = ""
+
+    @property
+    def n_particles(self) -> int:
+        return int(self.rest_positions.shape[0])
+
+    @property
+    def n_springs(self) -> int:
+        return int(self.springs.shape[0])
+
+    @property
+    def n_free_dof(self) -> int:
+        return int((~self.fixed).sum()) * self.dimension
+
+    def surface_triangles(self) -> np.ndarray:
+        """(T, 3) particle triangles of the scene's surface, empty when it has none.
+
+        A 2D lattice sheet is a surface (two triangles per cell, taken from its diagonal
+        springs' cells); scenes without that structure return an empty array.
+        """
+        return _lattice_triangles(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The full, explicit definition (loadable by :func:`modal_spring_ros.scenes.schema.scene_from_dict`)."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "dimension": self.dimension,
+            **({"axis": "xyz"[self.axes[0]]} if self.dimension == 1 else {}),
+            "particles": {
+                "positions": self.rest_positions.tolist(),
+                "mass": self.mass.tolist(),
+            },
+            "springs": {
+                "pairs": self.springs.tolist(),
+                "stiffness": self.stiffness.tolist(),
+            },
+            "fixed": {"indices": np.flatnonzero(self.fixed).tolist()},
+            "gravity": self.gravity.tolist(),
+            "damping": {
+                "ratio": self.damping.ratio,
+                "rayleigh": {
+                    "alpha": self.damping.rayleigh_alpha,
+                    "beta": self.damping.rayleigh_beta,
+                },
+            },
+            "anchor_motion": self.anchor_motion.to_list(),
+            "simulation": {"dt": self.default_dt, "duration": self.default_duration},
+        }
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+
+def _lattice_triangles(scene: Scene) -> np.ndarray:
+    """Two triangles per square cell of a planar lattice whose four edges are springs."""
+    if scene.dimension != 2:
+        return np.empty((0, 3), dtype=np.int64)
+    pos = scene.rest_positions
+    xs = np.unique(np.round(pos[:, 0], 12))
+    ys = np.unique(np.round(pos[:, 1], 12))
+    if xs.size * ys.size != scene.n_particles or xs.size < 2 or ys.size < 2:
+        return np.empty((0, 3), dtype=np.int64)
+    ix = np.searchsorted(xs, np.round(pos[:, 0], 12))
+    iy = np.searchsorted(ys, np.round(pos[:, 1], 12))
+    grid = np.full((ys.size, xs.size), -1, dtype=np.int64)
+    grid[iy, ix] = np.arange(scene.n_particles)
+    a = grid[:-1, :-1].ravel()
+    b = grid[:-1, 1:].ravel()
+    c = grid[1:, 1:].ravel()
+    d = grid[1:, :-1].ravel()
+    edges = {tuple(p) for p in scene.springs.tolist()}
+
+    def has(u, v):
+        return np.array([(min(p, q), max(p, q)) in edges for p, q in zip(u, v)], dtype=bool)
+
+    cell = has(a, b) & has(b, c) & has(c, d) & has(d, a)
+    tris = np.concatenate([np.stack([a, b, c], 1)[cell], np.stack([a, c, d], 1)[cell]])
+    return tris

@@ -1,0 +1,22 @@
+"""Simulations of a scene: a contract (:class:`Simulation`), a name-to-class registry
+(:data:`METHODS`), one method a module.
+
+* ``modal`` (:class:`ModalSimulation`): the paper's method, only the modes of the band.
+* ``full`` (:class:`FullSimulation`): every free DOF, the reference.
+"""
+from __future__ import annotations
+
+from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, MIN_DT_S,
+                                                    DivergenceError, Simulation, SimulationStatus,
+                                                    UnstableStepError, check_step,
+                                                    stable_step_limit)
+from modal_spring_ros.core.simulations.full import FullSimulation
+from modal_spring_ros.core.simulations.modal import DEFAULT_MAX_MODES, ModalSimulation
+
+#: method name -> class
+METHODS: dict[str, type[Simulation]] = {
+    cls.method: cls for cls in (ModalSimulation, FullSimulation)}
+
+__all__ = ["DEFAULT_MAX_MODES", "DEFAULT_STRAIN_LIMIT", "METHODS", "MIN_DT_S",
+           "DivergenceError", "FullSimulation", "ModalSimulation", "Simulation",
+           "SimulationStatus", "UnstableStepError", "check_step", "stable_step_limit"]

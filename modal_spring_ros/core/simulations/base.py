@@ -1,0 +1,274 @@
+"""The simulation contract: what every method offers its callers.
+
+A :class:`Simulation` steps one scene at a fixed ``dt`` with one integrator and reports its
+state in physical terms. Every method has a filter band (a full run keeps it for a later switch
+to a modal run: every mode takes part in it), kept modes, force options, a refresh error and a
+:class:`SimulationStatus` for diagnostics, so callers never ask which method they hold.
+
+Every step detects divergence on the step it happens (a non-finite state, a spring strained
+beyond ``strain_limit``, or an implicit step that does not converge), raises
+:class:`DivergenceError` and keeps the last good state, so no caller ever sees NaN.
+"""
+from __future__ import annotations
+
+import abc
+import dataclasses
+import math
+from typing import Callable, ClassVar
+
+import numpy as np
+
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.integrators import Integrator, NonConvergence, Operators
+from modal_spring_ros.core.integrators import integrator as make_integrator
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.scene import Damping
+
+#: Default spring strain treated as divergence (the simulation has left any meaningful regime).
+DEFAULT_STRAIN_LIMIT = 1.0
+
+#: Smallest time step, s: below it ``t + dt`` stops advancing within a long run's time range.
+MIN_DT_S = 1e-8
+
+
+class DivergenceError(RuntimeError):
+    """The step diverged. The simulation keeps its last good state."""
+
+    def __init__(self, reason: str, time: float, step: int):
+        super().__init__(f"diverged at t = {time:.6g} s (step {step}): {reason}")
+        self.reason = reason
+        self.time = time
+        self.step = step
+
+
+class UnstableStepError(ValueError):
+    """The explicit integrator would be unstable for the modes stepped at this ``dt``."""
+
+
+def check_step(integrator: str, dt: float, limit: float, method: str, dt_name: str = "dt"
+               ) -> None:
+    """Refuse explicit stepping at or above the stability limit ``limit`` (s)."""
+    if integrator == "explicit" and dt >= limit:
+        raise UnstableStepError(
+            f"{dt_name} ({dt:g} s) is at or above the explicit stability limit "
+            f"2/omega_max = {limit:.4g} s of the {method} run's highest mode "
+            f"({1.0 / (math.pi * limit):.4g} Hz): lower {dt_name}, keep fewer high modes "
+            f"(a lower filter.high_hz), or use the 'average' integrator")
+
+
+def stable_step_limit(omega_max: float) -> float:
+    """Largest stable explicit Newmark step for an undamped mode: ``2 / omega_max``."""
+    return math.inf if omega_max <= 0.0 else 2.0 / omega_max
+
+
+@dataclasses.dataclass(frozen=True)
+class SimulationStatus:
+    """What a simulation reports about itself (plain values, for diagnostics and summaries)."""
+
+    method: str
+    band: str                  # the band stepped, as text ("full" for a full run)
+    coordinates: int           # modes (modal) or free DOF (full) stepped
+    modes_computed: int
+    mode_choice: str           # the automatic mode choice, or "off"
+    integrator: str
+    dt: float
+    force_refresh: int         # steps between exact spring-force evaluations
+    refresh_error: float | None  # largest measured error of refreshed forces, or None
+    stability_limit: float     # explicit limit of the coordinates stepped, s
+    time: float
+    steps: int
+    max_strain: float
+    fading: bool               # a band change is still fading modes in or out
+
+
+class Simulation(abc.ABC):
+    """What every method shares: time, state in physical terms, band, divergence checks."""
+
+    #: registry name
+    method: ClassVar[str]
+
+    def __init__(self, model: MassSpringModel, basis: ModalBasis | None, *, dt: float,
+                 integrator: str, damping: Damping | None, strain_limit: float):
+        if not (math.isfinite(dt) and dt >= MIN_DT_S):
+            raise ValueError(f"dt ({dt}) must be a finite number of seconds, at least "
+                             f"{MIN_DT_S:g} s (a smaller step does not advance time)")
+        self._integrator: Integrator = make_integrator(integrator)
+        self.model = model
+        self.basis = basis
+        self.dt = float(dt)
+        self.integrator = integrator
+        self.damping = model.scene.damping if damping is None else damping
+        self.strain_limit = float(strain_limit)
+        self.time = 0.0
+        self.steps = 0
+        self._t0 = 0.0
+        self.last_iterations = 1
+        self.diverged: DivergenceError | None = None
+
+    # -- what every method offers --------------------------------------------------------------
+    @property
+    @abc.abstractmethod
+    def band(self) -> FilterBand:
+        """The filter band (a full run keeps it for a switch to a modal run)."""
+
+    @property
+    @abc.abstractmethod
+    def kept_modes(self) -> np.ndarray:
+        """Indices of the (computed) modes that take part: those of the band in a modal run,
+        every one in a full run."""
+
+    @property
+    def force_refresh(self) -> int:
+        """Steps between exact evaluations of the nonlinear spring forces."""
+        return 1
+
+    @property
+    def refresh_error(self) -> float | None:
+        """Largest measured error of refreshed forces since the last state change, or None
+        when the forces are exact on every step."""
+        return None
+
+    @property
+    def mode_choice(self):
+        """The automatic mode choice (a :class:`~modal_spring_ros.core.mode_selection.ModeChoice`)
+        that set this run's modes, or None."""
+        return None
+
+    @property
+    def fading(self) -> bool:
+        """A band change is still fading modes in or out."""
+        return False
+
+    @property
+    def truncated(self) -> bool:
+        """The band reaches past the modes computed (capped at ``max_modes``)."""
+        return False
+
+    @property
+    @abc.abstractmethod
+    def coordinates(self) -> int:
+        """Number of coordinates stepped (modes, or free DOF)."""
+
+    @abc.abstractmethod
+    def describe_band(self) -> str:
+        """The band stepped, as text."""
+
+    @abc.abstractmethod
+    def set_band(self, band: FilterBand, transition_s: float | None = None) -> None:
+        """Change the filter band (see each method)."""
+
+    @abc.abstractmethod
+    def prepare_switch(self, band: FilterBand, transition_s: float | None = None,
+                       dt_name: str = "dt") -> None:
+        """Check ``band`` and do the slow part of switching to it ahead (computing the modes
+        it needs, building operators), from any thread, while the run goes on. Changes no
+        state of the run; :meth:`set_band` then finds the work done.
+
+        Raises:
+            BandError: the band keeps no mode.
+            UnstableStepError: its highest mode is unstable at this ``dt`` (explicit), named
+                ``dt_name`` in the message.
+        """
+
+    def check_stable(self, dt_name: str = "dt") -> None:
+        """Refuse explicit stepping at or above ``2 / omega_max`` of the coordinates stepped."""
+        check_step(self.integrator, self.dt, self.stability_limit(), self.method, dt_name)
+
+    @abc.abstractmethod
+    def with_dt(self, dt: float) -> "Simulation":
+        """The same settings with another step, at rest at t = 0."""
+
+    def status(self) -> SimulationStatus:
+        choice = self.mode_choice
+        return SimulationStatus(
+            method=self.method, band=self.describe_band(), coordinates=self.coordinates,
+            modes_computed=self.basis.count if self.basis is not None else 0,
+            mode_choice=choice.describe() if choice is not None else "off",
+            integrator=self.integrator, dt=self.dt, force_refresh=self.force_refresh,
+            refresh_error=self.refresh_error, stability_limit=self.stability_limit(),
+            time=self.time, steps=self.steps, max_strain=self.max_strain(),
+            fading=self.fading)
+
+    # -- state in physical terms ---------------------------------------------------------------
+    @abc.abstractmethod
+    def displacement(self) -> np.ndarray:
+        """Free-DOF displacement ``u`` from rest, relative to the moving base (flat)."""
+
+    @abc.abstractmethod
+    def velocity(self) -> np.ndarray:
+        """Free-DOF velocity relative to the base (flat)."""
+
+    @abc.abstractmethod
+    def stability_limit(self) -> float:
+        """``2 / omega_max`` over the coordinates this run steps (explicit integrator), s."""
+
+    @abc.abstractmethod
+    def reset(self) -> None:
+        """Back to the rest shape, at rest, at t = 0 (the band settled: nothing fading)."""
+
+    @abc.abstractmethod
+    def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
+        """Start from a free-DOF displacement and velocity (relative to the base)."""
+
+    def positions(self) -> np.ndarray:
+        """(n, 3) particle positions (scene order)."""
+        x = self.model.positions(self.displacement(), self.time)
+        return self.model.positions3(x)
+
+    def energy(self) -> dict[str, float]:
+        x = self.model.positions(self.displacement(), self.time)
+        v = self.velocity().reshape(-1, self.model.dimension) + self.model.base_velocity(self.time)
+        return self.model.energy(x, v.ravel())
+
+    def max_strain(self) -> float:
+        return self.model.max_strain(self.model.positions(self.displacement(), self.time))
+
+    def take_over(self, other: "Simulation") -> None:
+        """Continue from another simulation's physical state and time (a settings change)."""
+        self._t0, self.steps, self.time = other.time, 0, other.time
+        self.set_state(other.displacement(), other.velocity())
+
+    # -- stepping ------------------------------------------------------------------------------
+    def step(self, count: int = 1) -> None:
+        """Advance ``count`` steps. Raises :class:`DivergenceError` (state kept at last good)."""
+        for _ in range(count):
+            self._step_once()
+
+    @abc.abstractmethod
+    def _step_once(self) -> None:
+        ...
+
+    @property
+    @abc.abstractmethod
+    def _last_max_strain(self) -> float:
+        """Largest spring strain of the last force evaluation."""
+
+    def _advance(self, u, v, a, force: Callable[[np.ndarray], np.ndarray], ops: Operators):
+        """One integrator step in whatever coordinates ``u`` is; checks, does not commit."""
+        try:
+            u1, v1, a1, self.last_iterations = self._integrator.step(u, v, a, self.dt, force,
+                                                                     ops)
+        except NonConvergence as exc:
+            self.diverged = DivergenceError(str(exc), self.time + self.dt, self.steps + 1)
+            raise self.diverged from None
+        self._checked(a1)
+        return u1, v1, a1
+
+    def _checked(self, a1: np.ndarray) -> None:
+        """Divergence checks of a step. ``u1`` and ``v1`` derive from the (finite) last state
+        and ``a1``, so a finite ``a1`` (squared norm, which also catches overflow) is enough."""
+        reason = None
+        if not math.isfinite(float(a1 @ a1)):
+            reason = "non-finite state"
+        elif self._last_max_strain > self.strain_limit:
+            reason = (f"spring strain {self._last_max_strain:.3g} exceeds the limit "
+                      f"{self.strain_limit:g}")
+        if reason is not None:
+            self.diverged = DivergenceError(reason, self.time + self.dt, self.steps + 1)
+            raise self.diverged
+
+    def _commit(self) -> None:
+        self.steps += 1
+        self.time = self._t0 + self.steps * self.dt
+        self.diverged = None

@@ -1,0 +1,382 @@
+"""The paper's method (fig. 5): step only the modes the filter band keeps.
+
+Each step advances the modal coordinates ``q`` (Newmark), maps them to positions
+``x = x_rest + Phi_R q`` (fixed particles follow their prescribed motion), evaluates the
+nonlinear spring forces and gravity in physical space (eq. 20), projects them back,
+``Q = Phi_R^T f``, and solves the uncoupled modal equations ``q'' + C q' = Q``. ``K`` only
+gives the basis; the dynamics stay nonlinear. With every mode kept it agrees with the full run
+to round-off.
+
+Changing the band while running is smooth: a mode that leaves the band fades out over
+``transition_s`` (its amplitude follows a raised-cosine envelope to zero, so positions do not
+jump); a mode that enters starts from rest and takes on its load along the same envelope, so it
+eases into place rather than dropping. Modes not computed yet are computed when a band first
+needs them (at most ``max_modes``).
+
+The modes stepped and their fade progress are one immutable :class:`ActiveSet`, replaced
+whole: a thread that prepares a band switch reads a consistent set, and a reset during a fade
+starts from the settled band instead of a half-changed one.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+
+import numpy as np
+
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.filter_band import BandError, FilterBand
+from modal_spring_ros.core.forces import GeneralizedForces
+from modal_spring_ros.core.integrators import DiagonalOperators
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.refreshed_forces import RefreshedForces
+from modal_spring_ros.core.scene import Damping
+from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simulation, check_step,
+                                                    stable_step_limit)
+
+#: Most modes computed on scenes too large for the dense eigensolver, unless asked otherwise.
+DEFAULT_MAX_MODES = 256
+
+#: Stepped-mode sets a modal run keeps prepared ahead (a switch needs two: the modes stepped
+#: during its transition and after it); the oldest goes first.
+PREPARED_SETS_KEPT = 4
+
+_NO_MODES = np.empty(0, dtype=np.int64)
+
+
+@dataclasses.dataclass(frozen=True)
+class ActiveSet:
+    """The modes stepped, which of them are in the band, and each one's fade progress
+    (1 = fully in, 0 = out)."""
+
+    modes: np.ndarray
+    target: np.ndarray
+    progress: np.ndarray
+
+    @classmethod
+    def settled(cls, keep: np.ndarray) -> "ActiveSet":
+        keep = np.asarray(keep, dtype=np.int64)
+        return cls(keep, np.ones(keep.size, dtype=bool), np.ones(keep.size))
+
+    @property
+    def fading(self) -> bool:
+        return bool(np.any(self.progress < 1.0) or not np.all(self.target))
+
+    @property
+    def kept(self) -> np.ndarray:
+        return self.modes[self.target]
+
+    def next_modes(self, keep: np.ndarray, instant: bool) -> np.ndarray:
+        """Modes stepped once ``keep`` is the band: ``keep`` plus the modes still fading out."""
+        leaving = self.modes[~np.isin(self.modes, keep) & (self.progress > 0.0)]
+        return np.union1d(keep, leaving[:0] if instant else leaving).astype(np.int64)
+
+
+EMPTY_SET = ActiveSet(_NO_MODES, np.empty(0, dtype=bool), np.empty(0))
+
+
+@dataclasses.dataclass(frozen=True)
+class _SteppedSet:
+    """What stepping one set of modes needs: shapes, ``omega^2``, damping, operators, forces."""
+
+    phi: np.ndarray
+    omega2: np.ndarray
+    damping: np.ndarray
+    ops: DiagonalOperators
+    forces: GeneralizedForces | RefreshedForces
+
+
+class ModalSimulation(Simulation):
+    """Steps the modes the filter band keeps.
+
+    ``force_refresh`` (steps): 1 evaluates the nonlinear spring forces on every step, exactly
+    as the paper; ``N > 1`` evaluates them every ``N`` steps and continues them along the
+    static tangent in between (:mod:`modal_spring_ros.core.refreshed_forces`), so that most
+    steps cost nothing per spring. ``highest_hz``: modes above it are never stepped (set by the
+    automatic mode choice ``mode_choice``).
+    """
+
+    method = "modal"
+
+    def __init__(self, model: MassSpringModel, basis: ModalBasis, band: FilterBand, *,
+                 dt: float, integrator: str = "explicit", damping: Damping | None = None,
+                 transition_s: float = 0.5, max_modes: int | None = None,
+                 strain_limit: float = DEFAULT_STRAIN_LIMIT, highest_hz: float | None = None,
+                 force_refresh: int = 1, mode_choice=None):
+        super().__init__(model, basis, dt=dt, integrator=integrator, damping=damping,
+                         strain_limit=strain_limit)
+        if not (isinstance(force_refresh, (int, np.integer)) and force_refresh >= 1):
+            raise ValueError(f"force refresh ({force_refresh}) must be a whole number of "
+                             "steps, at least 1")
+        self._force_refresh = int(force_refresh)
+        self.highest_hz = highest_hz
+        self._mode_choice = mode_choice
+        self.max_modes = int(max_modes) if max_modes else (
+            basis.n_dof if basis.dense else DEFAULT_MAX_MODES)
+        self.transition_s = float(transition_s)
+        self._band = band.validate()
+        self._set = EMPTY_SET
+        self._q = self._v = self._a = np.empty(0)
+        self._built: dict[tuple[int, bytes], _SteppedSet] = {}
+        self._built_lock = threading.Lock()
+        self._install(ActiveSet.settled(self.select_modes(band)), None)
+        self.reset()
+
+    # -- the contract --------------------------------------------------------------------------
+    @property
+    def band(self) -> FilterBand:
+        return self._band
+
+    @property
+    def kept_modes(self) -> np.ndarray:
+        """Indices of the modes in the band (fading-out modes excluded)."""
+        return self._set.kept
+
+    @property
+    def stepped_modes(self) -> np.ndarray:
+        """Indices of the modes being stepped (band plus modes still fading out)."""
+        return self._set.modes.copy()
+
+    @property
+    def coordinates(self) -> int:
+        return int(self._set.kept.size)
+
+    @property
+    def fading(self) -> bool:
+        return self._set.fading
+
+    @property
+    def force_refresh(self) -> int:
+        return self._force_refresh
+
+    @property
+    def refresh_error(self) -> float | None:
+        if isinstance(self._forces, RefreshedForces):
+            return self._forces.max_refresh_error
+        return None
+
+    @property
+    def mode_choice(self):
+        return self._mode_choice
+
+    def describe_band(self) -> str:
+        return self._band.describe()
+
+    def with_dt(self, dt: float) -> "ModalSimulation":
+        return ModalSimulation(self.model, self.basis, self._band, dt=dt,
+                               integrator=self.integrator, damping=self.damping,
+                               transition_s=self.transition_s, max_modes=self.max_modes,
+                               strain_limit=self.strain_limit, highest_hz=self.highest_hz,
+                               force_refresh=self._force_refresh,
+                               mode_choice=self._mode_choice)
+
+    def stability_limit(self) -> float:
+        return stable_step_limit(float(self.basis.omega[self._set.modes].max()))
+
+    # -- band ----------------------------------------------------------------------------------
+    def prepare_band(self, band: FilterBand) -> None:
+        """Compute the modes ``band`` needs (the slow part of a band change; no state change)."""
+        band.validate()
+        limit = min(self.max_modes, self.basis.n_dof)
+        top = self.highest_hz if self.highest_hz is not None else math.inf
+        if band.by == "index":
+            needed = int(band.high) + 1 if band.bounded_above else limit
+            self.basis.ensure_count(min(needed, limit))
+            if math.isfinite(top):
+                self.basis.ensure_frequency(top, limit)
+        elif band.bounded_above or math.isfinite(top):
+            self.basis.ensure_frequency(min(band.high if band.bounded_above else top, top), limit)
+        else:
+            self.basis.ensure_count(limit)
+
+    def select_modes(self, band: FilterBand) -> np.ndarray:
+        """Indices of the computed modes ``band`` keeps (computing what it needs first).
+        Changes no state of the run, so it can check a band before it is applied.
+
+        Raises:
+            BandError: the band keeps no mode.
+        """
+        self.prepare_band(band)
+        f = self.basis.frequencies_hz
+        keep = np.flatnonzero(band.keeps(f))
+        if band.by == "index":
+            keep = keep[keep < self.max_modes]
+        if self.highest_hz is not None:
+            keep = keep[f[keep] <= self.highest_hz * (1.0 + 1e-12)]
+        if keep.size == 0:
+            span = f"{f[0]:.4g} .. {f[-1]:.4g} Hz" if band.by == "hz" else f"0 .. {f.size - 1}"
+            raise BandError(f"filter band {band.describe()} keeps no mode "
+                            f"(the computed modes span {span})")
+        return keep.astype(np.int64)
+
+    def set_band(self, band: FilterBand, transition_s: float | None = None) -> None:
+        """Change the band; leaving modes fade out, entering modes start from rest."""
+        keep = self.select_modes(band)
+        transition = self.transition_s if transition_s is None else float(transition_s)
+        self._install(self._switched(self._set, keep, transition <= 0.0), self._set)
+        self.transition_s = transition
+        self._band = band
+
+    @property
+    def truncated(self) -> bool:
+        """The band reaches past the computed modes (capped at ``max_modes``)."""
+        top = self.highest_hz if self.highest_hz is not None else math.inf
+        band = self._band
+        edge = min(band.high if band.bounded_above and band.by == "hz" else math.inf, top)
+        return not self.basis.complete and self.basis.frequencies_hz[-1] <= edge
+
+    def check_band(self, band: FilterBand, dt_name: str = "dt") -> np.ndarray:
+        """The modes ``band`` keeps, if this run can step them (computing them first).
+
+        Raises:
+            BandError: it keeps no mode.
+            UnstableStepError: its highest mode is unstable at ``dt`` (explicit).
+        """
+        keep = self.select_modes(band)
+        check_step(self.integrator, self.dt,
+                   stable_step_limit(float(self.basis.omega[keep].max())), self.method, dt_name)
+        return keep
+
+    def prepare_switch(self, band: FilterBand, transition_s: float | None = None,
+                       dt_name: str = "dt") -> None:
+        """Builds the operators of the modes stepped during the transition and after it."""
+        keep = self.check_band(band, dt_name)
+        instant = (self.transition_s if transition_s is None else transition_s) <= 0.0
+        current = self._set  # one consistent snapshot
+        self._prepare_set(current.next_modes(keep, instant))
+        self._prepare_set(keep)
+
+    @staticmethod
+    def _switched(current: ActiveSet, keep: np.ndarray, instant: bool) -> ActiveSet:
+        """The active set once ``keep`` is the band: modes new to the set fade in from 0,
+        modes in both keep their progress, leaving ones fade out."""
+        modes = current.next_modes(keep, instant)
+        target = np.isin(modes, keep)
+        was = np.isin(modes, current.modes)
+        progress = np.zeros(modes.size)
+        progress[was] = current.progress[np.searchsorted(current.modes, modes[was])]
+        if instant or not current.modes.size:
+            progress[target] = 1.0
+        return ActiveSet(modes, target, progress)
+
+    def _prepare_set(self, modes: np.ndarray) -> None:
+        """Build the operators of stepping ``modes`` and keep them for :meth:`_take_set`."""
+        key = (self.basis.count, modes.tobytes())
+        with self._built_lock:
+            if key in self._built:
+                return
+        built = self._build_set(modes)
+        with self._built_lock:  # the stepping thread may take from it meanwhile
+            self._built[key] = built
+            while len(self._built) > PREPARED_SETS_KEPT:  # a switch superseded before use
+                self._built.pop(next(iter(self._built)))
+
+    def _take_set(self, modes: np.ndarray) -> _SteppedSet:
+        """The operators of stepping ``modes``: prepared ones (used once), else built now."""
+        with self._built_lock:
+            built = self._built.pop((self.basis.count, modes.tobytes()), None)
+        return built if built is not None else self._build_set(modes)
+
+    def _build_set(self, modes: np.ndarray) -> _SteppedSet:
+        phi = np.ascontiguousarray(self.basis.vectors[:, modes])
+        omega = self.basis.omega[modes]
+        damp = self.damping.modal_coefficients(omega)
+        exact = GeneralizedForces(self.model, phi)
+        forces = (exact if self._force_refresh == 1 else
+                  RefreshedForces(exact, omega**2, self._force_refresh, self.dt,
+                                  self.strain_limit))
+        return _SteppedSet(phi, omega**2, damp, DiagonalOperators(1.0, damp, omega**2, self.dt),
+                           forces)
+
+    def _install(self, new: ActiveSet, old: ActiveSet | None) -> None:
+        """Step ``new`` from now on. With ``old``, the state is projected onto the new modes
+        (``q_new = Phi_new^T M Phi_old q_old``: exact for modes in both sets; modes new to the
+        set start from rest); without, it starts at zero. Everything is built first and
+        assigned last, so a failure leaves the run as it was."""
+        stepped = self._take_set(new.modes)
+        if old is not None and old.modes.size:
+            overlap = stepped.phi.T @ (self.model.mass_dof[:, None] * self._phi)
+            overlap[np.abs(overlap) < 1e-9] = 0.0
+            overlap[~np.isin(new.modes, old.modes)] = 0.0
+            q, v, a = overlap @ self._q, overlap @ self._v, overlap @ self._a
+        else:
+            q = v = a = np.zeros(new.modes.size)
+        self._phi, self._omega2, self._damp = stepped.phi, stepped.omega2, stepped.damping
+        self._ops, self._forces = stepped.ops, stepped.forces
+        self._q, self._v, self._a = q, v, a
+        self._set = new
+        self._update_envelope()
+
+    def _update_envelope(self) -> None:
+        s = self._set
+        self._envelope = 0.5 - 0.5 * np.cos(np.pi * s.progress)
+        self._fading_in = s.target & (s.progress < 1.0)
+        self._is_fading = s.fading
+
+    def _advance_fade(self) -> None:
+        """Move every fading mode's progress one step; leaving modes' state follows the
+        envelope down to zero (no jump), and modes that reach zero are dropped."""
+        s = self._set
+        step = self.dt / self.transition_s
+        old = self._envelope
+        progress = np.clip(s.progress + np.where(s.target, step, -step), 0.0, 1.0)
+        self._set = ActiveSet(s.modes, s.target, progress)
+        self._update_envelope()
+        out = ~s.target
+        ratio = np.divide(self._envelope[out], old[out], out=np.zeros(int(out.sum())),
+                          where=old[out] > 0.0)
+        self._q[out] *= ratio
+        self._v[out] *= ratio
+        self._a[out] *= ratio
+        if np.any(out & (progress <= 0.0)):
+            self._install(self._switched(self._set, self._set.kept, False), self._set)
+
+    # -- state ---------------------------------------------------------------------------------
+    def reset(self) -> None:
+        if self._set.fading:  # settle the band: every kept mode fully in, none fading out
+            self._install(ActiveSet.settled(self._set.kept), None)
+        self.time = self._t0 = 0.0
+        self.steps = 0
+        self.diverged = None
+        self.set_state(np.zeros(self.model.n_free_dof), np.zeros(self.model.n_free_dof))
+
+    def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
+        """Project a physical state onto the stepped modes (paper eq. 15: ``q = Phi^T M u``)."""
+        m = self.model.mass_dof
+        if isinstance(self._forces, RefreshedForces):
+            self._forces.restart()
+        self._q = self._phi.T @ (m * displacement)
+        self._v = self._phi.T @ (m * velocity)
+        self._a = self._forces(self._q, self.time) - self._damp * self._v
+
+    @property
+    def modal_coordinates(self) -> np.ndarray:
+        return self._q.copy()
+
+    def displacement(self) -> np.ndarray:
+        return self._phi @ self._q
+
+    def velocity(self) -> np.ndarray:
+        return self._phi @ self._v
+
+    @property
+    def _last_max_strain(self) -> float:
+        return self._forces.last_max_strain
+
+    def _force(self, q: np.ndarray) -> np.ndarray:
+        force = self._forces(q, self.time + self.dt)
+        if self._is_fading:
+            # An entering mode takes on its load (all but its own linear restoring force)
+            # along its envelope, so it eases into place instead of dropping from rest.
+            w = self._envelope
+            restoring = -self._omega2 * q
+            force = np.where(self._fading_in, restoring + w * (force - restoring), force)
+        return force
+
+    def _step_once(self) -> None:
+        q1, v1, a1 = self._advance(self._q, self._v, self._a, self._force, self._ops)
+        self._q, self._v, self._a = q1, v1, a1
+        self._commit()
+        if self._is_fading:
+            self._advance_fade()

@@ -1,0 +1,127 @@
+"""A child process that runs long numerical calls, so that the caller's interpreter stays free.
+
+scipy's Lanczos eigensolver holds the interpreter lock for tens to hundreds of milliseconds at
+a time (its restarts and the final Ritz vectors run without releasing it). In a process that
+also streams frames, every such hold is a late frame. :class:`WorkerProcess` runs those calls
+in one long-lived child process instead; the calling thread only waits on a pipe, so the other
+threads of the caller keep running.
+
+The child is started (``spawn``) on the first call and reused, so state a call leaves in the
+child (a sparse factorisation, say) is there for the next one. It ignores SIGINT: Ctrl-C reaches
+the whole process group from a terminal, and the parent decides when the child ends.
+"""
+from __future__ import annotations
+
+import multiprocessing as mp
+import signal
+import threading
+from multiprocessing.connection import Connection
+from typing import Any, Callable
+
+#: How often a waiting call asks whether it was cancelled, s.
+POLL_S = 0.1
+
+
+class WorkerError(RuntimeError):
+    """A call got no answer: the worker was closed or the call cancelled, or the child died
+    (killed, out of memory, ...)."""
+
+
+def _serve(conn: Connection) -> None:
+    """Child's main loop: answer ``(function, args)`` with ``(True, result)`` or
+    ``(False, exception)`` until the pipe closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    while True:
+        try:
+            function, args = conn.recv()
+        except (EOFError, OSError):
+            return
+        try:
+            answer = (True, function(*args))
+        except Exception as exc:  # handed back to the caller, raised there
+            answer = (False, exc)
+        conn.send(answer)
+
+
+def _end(process: mp.process.BaseProcess) -> None:
+    process.terminate()
+    process.join(timeout=5.0)
+    if process.is_alive():
+        process.kill()
+        process.join(timeout=5.0)
+
+
+class WorkerProcess:
+    """Calls module-level functions in a child process, one call at a time.
+
+    Thread-safe: concurrent callers are served one after the other. ``cancelled``, when
+    given, is asked every :data:`POLL_S` while a call runs; once it answers True the child is
+    ended and the call raises :class:`WorkerError` (a node passes "its context is shut down",
+    so that Ctrl-C does not wait for a long computation). :meth:`close` ends the child, and a
+    call in progress raises :class:`WorkerError` in its caller.
+    """
+
+    def __init__(self, name: str = "modal_spring_worker",
+                 cancelled: Callable[[], bool] | None = None):
+        self.name = name
+        self.cancelled = cancelled
+        self._process: mp.process.BaseProcess | None = None
+        self._conn: Connection | None = None
+        self._lock = threading.Lock()
+        self._closed = False
+
+    def call(self, function: Callable[..., Any], *args: Any) -> Any:
+        """``function(*args)`` evaluated in the child; its exception is raised here."""
+        with self._lock:
+            if self._closed:
+                raise WorkerError(f"{self.name} is closed")
+            if self._process is None or not self._process.is_alive():
+                self._start()
+            process, conn = self._process, self._conn
+            try:
+                conn.send((function, args))
+                while not conn.poll(POLL_S):
+                    if self.cancelled is not None and self.cancelled():
+                        raise WorkerError(f"{self.name}: call cancelled")
+                ok, value = conn.recv()
+            except (EOFError, OSError):
+                process.join(timeout=1.0)
+                self._forget(process)
+                code = process.exitcode
+                cause = "closed" if self._closed else f"exit code {code}" + (
+                    ", killed: out of memory?" if code is not None and code < 0 else "")
+                raise WorkerError(f"{self.name} ended during the call ({cause})") from None
+            except BaseException:  # cancelled or interrupted: its answer would come unasked
+                _end(process)
+                self._forget(process)
+                raise
+        if ok:
+            return value
+        raise value
+
+    def close(self) -> None:
+        """End the child now; a call in progress raises :class:`WorkerError` in its caller."""
+        self._closed = True
+        process, conn = self._process, self._conn
+        if process is not None:
+            _end(process)
+        if conn is not None and not self._lock.locked():
+            conn.close()
+
+    def _forget(self, process: mp.process.BaseProcess) -> None:
+        if self._process is process:
+            self._process = self._conn = None
+
+    def __enter__(self) -> "WorkerProcess":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _start(self) -> None:
+        ctx = mp.get_context("spawn")
+        parent, child = ctx.Pipe()
+        process = ctx.Process(target=_serve, args=(child,), name=self.name, daemon=True)
+        process.start()
+        child.close()
+        self._process, self._conn = process, parent

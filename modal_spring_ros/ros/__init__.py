@@ -1,0 +1,3 @@
+"""The ROS layer: the node (wiring), its parameters, diagnostics, simulation thread, outputs,
+the recorder and the re-simulation of recorded node runs. Imports every lower layer.
+"""

@@ -1,0 +1,161 @@
+"""``modal_spring_node``: steps the modal simulation and streams it as ``sensor_msgs/PointCloud2``.
+
+Wiring only. The simulation thread (:mod:`~modal_spring_ros.ros.simulation_thread`) steps at a
+fixed ``sim.dt`` and publishes on its own period through the node's outputs
+(:mod:`~modal_spring_ros.ros.outputs`). The executor serves parameter requests (planned by
+:mod:`~modal_spring_ros.ros.parameter_changes`, which computes missing modes, on large scenes
+in a worker process) and the ``~/reset`` and ``~/pause`` services, in a callback group of their
+own so that a long mode computation never delays them. Every change reaches the simulation
+thread as one typed request (:mod:`~modal_spring_ros.ros.requests`).
+
+Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
+(Marker TRIANGLE_LIST, for scenes with a surface, when subscribed), ``/diagnostics``, and
+``/clock`` when ``publish_clock`` is true. Services: ``~/reset`` (Trigger), ``~/pause``
+(SetBool). See the README for every parameter.
+"""
+from __future__ import annotations
+
+import threading
+
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from std_srvs.srv import SetBool, Trigger
+
+from modal_spring_ros.bags.capture import RunBagWriter
+from modal_spring_ros.core.factory import build_simulation, rebuild
+from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.worker import WorkerError, WorkerProcess
+from modal_spring_ros.ros.outputs import NodeOutputs
+from modal_spring_ros.ros.parameter_changes import ChangePlanner
+from modal_spring_ros.ros.parameters import (FREQUENCIES, FREQUENCIES_DESCRIPTOR, PARAMETERS,
+                                             config_from_parameters)
+from modal_spring_ros.ros.requests import Pause, Request, Reset
+from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
+from modal_spring_ros.scenes.resources import load_scene
+
+NODE_NAME = "modal_spring"
+#: longest a service waits for the simulation thread to apply its request, s
+SERVICE_TIMEOUT_S = 2.0
+
+
+class ModalSpringNode(Node):
+    """Streams a scene's filtered deformation. Construct, spin, then :meth:`stop`."""
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        for name, (default, descriptor) in PARAMETERS.items():
+            self.declare_parameter(name, default, descriptor)
+        self._values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        config = config_from_parameters(self._values)
+        log = self.get_logger()
+        # Sparse mode computations (large scenes) run in a worker process, so that they never
+        # hold this process's interpreter lock while the stream runs; shutting down (Ctrl-C)
+        # cancels them.
+        self._worker = WorkerProcess("modal_spring_modes",
+                                     cancelled=lambda: not self.context.ok())
+        try:
+            sim = build_simulation(load_scene(self._values["scene"]), config,
+                                   progress=log.info, worker=self._worker)
+            sim.check_stable("sim.dt")
+        except BaseException:
+            self._worker.close()
+            raise
+        self._planner = ChangePlanner(sim.model, sim.basis)
+        self._lock = threading.Lock()  # one parameter change at a time
+        self._own_update = threading.local()  # the node setting modal.frequencies_hz itself
+        self._computing = False
+        self.declare_parameter(FREQUENCIES, sim.basis.frequencies_hz.tolist(),
+                               FREQUENCIES_DESCRIPTOR)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        scene = sim.model.scene
+        self._outputs = NodeOutputs(self, scene, lambda: self._values, self._open_capture(sim))
+        self._thread = SimulationThread(
+            sim, self._outputs, self._stream_settings,
+            rebuild=lambda: rebuild(sim.model, sim.basis, config_from_parameters(self._values)),
+            computing_modes=lambda: self._computing)
+        services = MutuallyExclusiveCallbackGroup()
+        self.create_service(Trigger, "~/reset", self._on_reset, callback_group=services)
+        self.create_service(SetBool, "~/pause", self._on_pause, callback_group=services)
+        status = sim.status()
+        log.info(f"scene {scene.name}: {scene.n_particles} particles, {status.modes_computed} "
+                 f"modes computed; {status.method}, {status.band}, {status.coordinates} "
+                 f"{'modes' if status.method == 'modal' else 'DOF'} stepped; dt {sim.dt:g} s")
+        self._thread.start()
+
+    @property
+    def sim(self):
+        """The running simulation (owned by the simulation thread: read, never change)."""
+        return self._thread.sim
+
+    def _open_capture(self, sim) -> RunBagWriter | None:
+        path = self._values["record.bag"]
+        if not path:
+            return None
+        bag = RunBagWriter(path, sim.model.scene, None, dt=sim.dt, frame_every=0, duration=0.0,
+                           frame_id=self._values["frame_id"], source="modal_spring_node",
+                           parameters=dict(self._values), node=self.get_fully_qualified_name())
+        self.get_logger().info(f"writing every frame to {path}")
+        return bag
+
+    def _stream_settings(self) -> StreamSettings:
+        v = self._values
+        return StreamSettings(v["publish_rate_hz"], v["mesh_rate_hz"], v["realtime_factor"],
+                              v["sim.strain_warning"])
+
+    # -- parameters ----------------------------------------------------------------------------
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        if any(p.name == FREQUENCIES for p in params):
+            if getattr(self._own_update, "active", False):
+                return SetParametersResult(successful=True)
+            return SetParametersResult(
+                successful=False, reason=f"{FREQUENCIES} is read-only: the node reports the "
+                "frequencies of the modes it has computed")
+        incoming = {p.name: p.value for p in params if p.name in PARAMETERS}
+        if not incoming:
+            return SetParametersResult(successful=True)
+        with self._lock:
+            self._computing = True
+            try:
+                change = self._planner.plan(self._values, incoming, self._thread.sim)
+            except (ValueError, SceneError, WorkerError) as exc:
+                self.get_logger().warning(f"parameter change rejected: {exc}")
+                return SetParametersResult(successful=False, reason=str(exc))
+            finally:
+                self._computing = False
+            self._publish_frequencies()
+            self._values = change.values
+            if change.request is not None:
+                self._thread.submit(change.request)
+        return SetParametersResult(successful=True)
+
+    def _publish_frequencies(self) -> None:
+        """Update modal.frequencies_hz when a band made the node compute more modes."""
+        freqs = self._planner.basis.frequencies_hz.tolist()
+        if len(freqs) == len(self.get_parameter(FREQUENCIES).value):
+            return
+        self._own_update.active = True
+        try:
+            self.set_parameters([Parameter(FREQUENCIES, value=freqs)])
+        finally:
+            self._own_update.active = False
+
+    # -- services ------------------------------------------------------------------------------
+    def _answer(self, request: Request, response):
+        self._thread.submit(request)
+        response.success = request.wait(SERVICE_TIMEOUT_S)
+        response.message = request.message or "not applied in time: the simulation is busy"
+        return response
+
+    def _on_reset(self, _request, response):
+        return self._answer(Reset(), response)
+
+    def _on_pause(self, request, response):
+        return self._answer(Pause(paused=bool(request.data)), response)
+
+    def stop(self) -> None:
+        """Stop the simulation thread (before destroy_node) and finalise the capture."""
+        self._worker.close()
+        self._thread.stop()
+        self._outputs.close()

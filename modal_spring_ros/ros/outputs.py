@@ -1,0 +1,100 @@
+"""What the node publishes: clouds, mesh markers, the clock, diagnostics, and its own capture.
+
+:class:`NodeOutputs` is the simulation thread's
+:class:`~modal_spring_ros.ros.simulation_thread.Outputs` for a live node: it turns a frame into
+``sensor_msgs/PointCloud2`` (and a ``visualization_msgs/Marker`` while someone subscribes to
+the mesh), writes it to the ``record.bag`` capture when there is one, and builds
+``/diagnostics`` with :func:`~modal_spring_ros.ros.diagnostics.diagnostic_array`.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Point
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import ColorRGBA, Header
+from visualization_msgs.msg import Marker
+
+from modal_spring_ros.bags.capture import RunBagWriter
+from modal_spring_ros.bags.pointcloud import distance_from_rest, to_pointcloud2
+from modal_spring_ros.bags.stamps import to_time_msg
+from modal_spring_ros.core.scene import Scene
+from modal_spring_ros.core.simulations import Simulation, SimulationStatus
+from modal_spring_ros.ros.diagnostics import StreamReport, diagnostic_array
+
+#: Topics (relative, so that namespaces and remapping apply); diagnostics and clock are global.
+POINTS_TOPIC = "points"
+MESH_TOPIC = "mesh"
+DIAGNOSTICS_TOPIC = "/diagnostics"
+CLOCK_TOPIC = "/clock"
+#: depth of the publishers' history (keep last)
+QUEUE_DEPTH = 10
+
+
+def mesh_marker(positions: np.ndarray, rest: np.ndarray, triangles: np.ndarray,
+                header: Header) -> Marker:
+    """A TRIANGLE_LIST of the surface, coloured blue (at rest) to red (most displaced)."""
+    corners = positions[triangles.ravel()]
+    disp = distance_from_rest(corners, rest[triangles.ravel()])
+    level = np.clip(disp / max(float(disp.max()), 1e-12), 0.0, 1.0)
+    m = Marker(header=header, ns="modal_spring", id=0, type=Marker.TRIANGLE_LIST,
+               action=Marker.ADD)
+    m.pose.orientation.w = 1.0
+    m.scale.x = m.scale.y = m.scale.z = 1.0
+    m.points = [Point(x=x, y=y, z=z) for x, y, z in corners.tolist()]
+    m.colors = [ColorRGBA(r=c, g=0.2, b=1.0 - c, a=1.0) for c in level.tolist()]
+    return m
+
+
+class NodeOutputs:
+    """The node's publishers and capture; ``values`` gives the current parameter values."""
+
+    def __init__(self, node: Node, scene: Scene, values: Callable[[], dict[str, Any]],
+                 bag: RunBagWriter | None):
+        self._node = node
+        self._scene = scene
+        self._triangles = scene.surface_triangles()
+        self._values = values
+        self._bag = bag
+        self._points = node.create_publisher(PointCloud2, POINTS_TOPIC, QUEUE_DEPTH)
+        self._mesh = node.create_publisher(Marker, MESH_TOPIC, QUEUE_DEPTH)
+        self._diagnostics = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC,
+                                                  QUEUE_DEPTH)
+        self._clock = node.create_publisher(Clock, CLOCK_TOPIC, QUEUE_DEPTH)
+
+    def frame(self, sim: Simulation, positions: np.ndarray, mesh: bool) -> None:
+        values = self._values()
+        rest = self._scene.rest_positions
+        stamp = (to_time_msg(sim.time) if values["stamp"] == "sim"
+                 else self._node.get_clock().now().to_msg())
+        header = Header(stamp=stamp, frame_id=values["frame_id"])
+        self._points.publish(to_pointcloud2(positions, rest, header))
+        if self._bag is not None:
+            self._bag.frame(sim.time, positions)
+        if values["publish_clock"]:
+            self._clock.publish(Clock(clock=to_time_msg(sim.time)))
+        if mesh and self._triangles.size and self._mesh.get_subscription_count() > 0:
+            self._mesh.publish(mesh_marker(positions, rest, self._triangles, header))
+
+    def diagnostics(self, status: SimulationStatus, report: StreamReport) -> None:
+        self._diagnostics.publish(diagnostic_array(
+            status, report, name=f"{self._node.get_fully_qualified_name()}: simulation",
+            hardware_id=self._scene.name, stamp=self._node.get_clock().now().to_msg()))
+
+    def changed(self, sim: Simulation, changed: dict) -> None:
+        if self._bag is not None and changed:
+            self._bag.parameter_event(sim.time, changed)
+
+    def log(self, level: str, message: str) -> None:
+        logger = self._node.get_logger()
+        {"error": logger.error, "warning": logger.warning, "info": logger.info}[level](message)
+
+    def close(self) -> None:
+        """Finalise the capture, if any."""
+        if self._bag is not None:
+            self._bag.close()
+            self._bag = None

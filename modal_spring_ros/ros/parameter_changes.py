@@ -1,0 +1,61 @@
+"""Turn a parameter request into a state change: validate it, do its slow part, and say which
+request the simulation thread must apply.
+
+This runs in the executor (the parameter services' thread). Everything that can fail or take
+long happens here, before the request is queued: checking the band and the step, computing the
+modes a band needs (on large scenes in the worker process), building the new simulation or the
+operators of the switch. The simulation thread then only swaps prepared objects in.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.factory import rebuild
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.simulations import Simulation
+from modal_spring_ros.ros.parameters import (BAND_PARAMETERS, REBUILD_PARAMETERS,
+                                             config_from_parameters)
+from modal_spring_ros.ros.requests import ChangeBand, ReplaceSimulation, Request
+
+
+@dataclasses.dataclass(frozen=True)
+class PlannedChange:
+    """The parameter values once the request is accepted, and the request to apply (if the
+    running simulation changes at all)."""
+
+    values: dict[str, Any]
+    request: Request | None
+
+
+class ChangePlanner:
+    """Plans parameter changes for one scene (its model and basis are shared by every run)."""
+
+    def __init__(self, model: MassSpringModel, basis: ModalBasis):
+        self.model = model
+        self.basis = basis
+
+    def plan(self, values: dict[str, Any], incoming: dict[str, Any],
+             running: Simulation) -> PlannedChange:
+        """Validate ``incoming`` on top of ``values`` against the ``running`` simulation and
+        prepare the change (the new simulation, or the operators of a band switch).
+
+        Raises:
+            ValueError (ConfigError, BandError, UnstableStepError), SceneError, WorkerError:
+            the change is refused; nothing has changed.
+        """
+        new_values = dict(values, **incoming)
+        config = config_from_parameters(new_values)
+        changed = {name for name, value in incoming.items() if value != values[name]}
+        delta = {name: new_values[name] for name in changed}
+        if changed & REBUILD_PARAMETERS:
+            sim = rebuild(self.model, self.basis, config)
+            sim.check_stable("sim.dt")
+            return PlannedChange(new_values, ReplaceSimulation(simulation=sim, changed=delta))
+        if changed & BAND_PARAMETERS:
+            running.prepare_switch(config.band, config.transition_s, "sim.dt")
+            return PlannedChange(new_values, ChangeBand(band=config.band,
+                                                        transition_s=config.transition_s,
+                                                        changed=delta))
+        return PlannedChange(new_values, None)

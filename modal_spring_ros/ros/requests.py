@@ -1,0 +1,68 @@
+"""Typed state changes handed from the executor's threads to the simulation thread.
+
+Every change of the running simulation (a band, a new simulation for other settings, a reset,
+a pause) is one request. The executor's callbacks do the slow, failing part (validation,
+computing modes, building operators) before they submit it; the simulation thread applies
+requests one at a time between two steps, in the order they came, so no request sees or leaves
+a half-built state. Each request is answered: :meth:`Request.wait` returns whether it was
+applied, and :attr:`Request.message` says what happened.
+"""
+from __future__ import annotations
+
+import dataclasses
+import threading
+from typing import Any
+
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.simulations import Simulation
+
+
+@dataclasses.dataclass(eq=False)
+class Request:
+    """A state change, answered once the simulation thread has applied (or refused) it."""
+
+    applied: bool = dataclasses.field(default=False, init=False)
+    message: str = dataclasses.field(default="", init=False)
+    _done: threading.Event = dataclasses.field(default_factory=threading.Event, init=False,
+                                               repr=False)
+
+    def finish(self, applied: bool, message: str) -> None:
+        self.applied, self.message = applied, message
+        self._done.set()
+
+    def wait(self, timeout: float) -> bool:
+        """True when the request was applied within ``timeout`` seconds."""
+        return self._done.wait(timeout) and self.applied
+
+    @property
+    def answered(self) -> bool:
+        return self._done.is_set()
+
+
+@dataclasses.dataclass(eq=False)
+class ChangeBand(Request):
+    """Switch the running simulation to ``band`` (its operators prepared ahead)."""
+
+    band: FilterBand = FilterBand()
+    transition_s: float | None = None
+    changed: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass(eq=False)
+class ReplaceSimulation(Request):
+    """Continue with ``simulation`` (other settings), from the running one's state and time."""
+
+    simulation: Simulation | None = None
+    changed: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass(eq=False)
+class Reset(Request):
+    """Back to the rest state at t = 0, the band settled."""
+
+
+@dataclasses.dataclass(eq=False)
+class Pause(Request):
+    """Stop (or restart) stepping and publishing."""
+
+    paused: bool = True

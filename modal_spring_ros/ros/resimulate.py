@@ -1,0 +1,116 @@
+"""Re-run the simulation a bag recorded and write its frames to a new bag.
+
+A bag written by ``modal_spring_sim --bag`` describes its run completely (scene, settings,
+frame spacing), and so does the node's own capture (``record.bag``: parameters at the start,
+each change stamped with the simulation time it took effect at): re-simulating either
+reproduces every frame to float32 round-off. A bag recorded over DDS by
+``modal_spring_record`` holds the scene, the node's parameters at the start and every later
+change as received on ``/parameter_events``; those are applied before the first frame
+received after them, so the re-run follows the recording as closely as its stamps allow.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from rclpy.parameter import parameter_value_to_python
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import PointCloud2
+
+from modal_spring_ros.bags.capture import POINTS_TOPIC, RunBagWriter
+from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.bags.stamps import to_seconds
+from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation, rebuild
+from modal_spring_ros.core.simulations import DivergenceError
+from modal_spring_ros.ros.parameters import REBUILD_PARAMETERS, config_from_parameters
+from modal_spring_ros.scenes.schema import scene_from_yaml
+
+
+def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, int, dict]]:
+    """(log time ns, stamp ns, {name: value}) of the parameter events of ``node`` in the bag.
+    In the node's own capture the stamp is the simulation time the change took effect at."""
+    if "/parameter_events" not in bag.topics:
+        return []
+    out = []
+    for m in bag.messages(["/parameter_events"]):
+        event = bag.decode(m)
+        if event.node != node:
+            continue
+        values = {p.name: parameter_value_to_python(p.value)
+                  for p in list(event.new_parameters) + list(event.changed_parameters)}
+        if values:
+            out.append((m.log_time_ns, event.stamp.sec * 1_000_000_000 + event.stamp.nanosec,
+                        values))
+    return out
+
+
+def frame_times(bag: BagReader, topic: str) -> list[tuple[int, float]]:
+    """(log time ns, header stamp s) of every frame, in log order."""
+
+    return [(m.log_time_ns, to_seconds(deserialize_message(m.data, PointCloud2).header.stamp))
+            for m in bag.messages([topic])]
+
+
+def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOPIC) -> int:
+    """Re-run ``bag_path``'s simulation into the new bag ``output``; returns the frame count.
+
+    Raises:
+        BagError: the bag does not describe a run, or the output cannot be written.
+    """
+    bag = BagReader(bag_path)
+    rec = bag.run_record()
+    if "scene_yaml" not in rec or not ("config" in rec or "parameters" in rec):
+        raise BagError(f"{bag_path}: no run description (scene and settings); it was not "
+                       "recorded by modal_spring_ros")
+    if topic not in bag.topics:
+        raise BagError(f"{bag_path}: no topic {topic}")
+    scene = scene_from_yaml(rec["scene_yaml"], source=f"{bag_path} (scene)")
+    changes: list[tuple[int, int, dict]] = []
+    if "config" in rec:
+        config = SimulationConfig.from_dict(rec["config"])
+        values = None
+    else:
+        values = dict(rec["parameters"])
+        config = config_from_parameters(values)
+        changes = parameter_changes(bag, rec.get("node", "/modal_spring"))
+    sim = build_simulation(scene, config, allow_unstable=True)
+    frames = frame_times(bag, topic)
+    writer = RunBagWriter(output, scene, config, dt=sim.dt,
+                          frame_every=int(rec.get("frame_every", 0)),
+                          duration=float(rec.get("duration", 0.0)),
+                          frame_id=rec.get("frame_id", "world"),
+                          source="modal_spring_replay --resimulate")
+    exact = rec.get("event_clock") == "sim"   # events stamped with simulation time
+    pending = list(changes)
+    try:
+        for log_time, stamp in frames:
+            while pending and pending[0][0] <= log_time and values is not None:
+                _, event_stamp, change = pending.pop(0)
+                if exact:   # step to the simulation time the node applied it at
+                    while sim.time < event_stamp * 1e-9 - 0.5 * sim.dt:
+                        sim.step()
+                sim, values = _apply(sim, values, change)
+            if stamp < sim.time - 0.5 * sim.dt:   # the recording was reset
+                sim.reset()
+            while sim.time < stamp - 0.5 * sim.dt:
+                try:
+                    sim.step()
+                except DivergenceError:
+                    sim.reset()                    # as the node does
+            writer.frame(sim.time, sim.positions(), log_time_ns=log_time)
+    finally:
+        writer.close()
+    return len(frames)
+
+
+def _apply(sim, values: dict, change: dict):
+    new = dict(values, **{k: v for k, v in change.items() if k in values})
+    config = config_from_parameters(new)
+    if any(new[k] != values[k] for k in REBUILD_PARAMETERS):
+        fresh = rebuild(sim.model, sim.basis, config)
+        fresh.take_over(sim)
+        return fresh, new
+    if config.band != sim.band:
+        sim.set_band(config.band, config.transition_s)
+    return sim, new

@@ -1,0 +1,325 @@
+"""The node's simulation thread: steps at a fixed ``dt``, publishes on its own period, applies
+state changes between steps, and survives anything a step or a change can raise.
+
+It is the only thread that changes the running simulation. Requests
+(:mod:`modal_spring_ros.ros.requests`) are applied one at a time between two steps, in the order
+they came. The thread is supervised: a divergence sends the run back to rest; any other
+exception is reported as ERROR on ``/diagnostics`` with its message, the run goes back to rest
+(or, if the simulation cannot even reset, to a simulation rebuilt from the settings), and the
+stream goes on.
+"""
+from __future__ import annotations
+
+import dataclasses
+import queue
+import threading
+import time
+from typing import Callable, Protocol
+
+import numpy as np
+
+from modal_spring_ros.core.simulations import DivergenceError, Simulation, SimulationStatus
+from modal_spring_ros.ros.diagnostics import StreamReport
+from modal_spring_ros.ros.requests import ChangeBand, Pause, ReplaceSimulation, Request, Reset
+
+#: wall time between two diagnostics messages, s
+DIAGNOSTICS_PERIOD_S = 1.0
+#: wait before trying again when even recovering failed, s
+RECOVERY_RETRY_S = 0.5
+
+
+class Outputs(Protocol):
+    """What the thread publishes through (the node's publishers, or a test's recorder)."""
+
+    def frame(self, sim: Simulation, positions: np.ndarray, mesh: bool) -> None: ...
+
+    def diagnostics(self, status: SimulationStatus, report: StreamReport) -> None: ...
+
+    def changed(self, sim: Simulation, changed: dict) -> None: ...
+
+    def log(self, level: str, message: str) -> None: ...
+
+
+@dataclasses.dataclass(frozen=True)
+class StreamSettings:
+    """The node's stream settings, read by the thread on every frame."""
+
+    publish_rate_hz: float = 60.0
+    mesh_rate_hz: float = 10.0
+    realtime_factor: float = 1.0
+    strain_warning: float = 0.1
+
+
+@dataclasses.dataclass
+class _Window:
+    """Bookkeeping of one diagnostics window (written by the simulation thread only)."""
+
+    wall: float = 0.0
+    sim_time: float = 0.0
+    valid: bool = True
+    step_seconds: float = 0.0
+    steps: int = 0
+    frames: int = 0
+    longest_gap: float = 0.0
+    computing_modes: bool = False
+
+
+class SimulationThread:
+    """Steps ``sim`` and publishes through ``outputs``; :meth:`submit` changes it."""
+
+    def __init__(self, sim: Simulation, outputs: Outputs,
+                 settings: Callable[[], StreamSettings],
+                 rebuild: Callable[[], Simulation],
+                 computing_modes: Callable[[], bool] = lambda: False):
+        """``rebuild``: a fresh simulation of the current settings at rest (the last resort of
+        recovery); ``computing_modes``: whether a request is computing modes right now."""
+        self.sim = sim
+        self.paused = False
+        self._outputs = outputs
+        self._settings = settings
+        self._rebuild = rebuild
+        self._computing_modes = computing_modes
+        self._requests: queue.Queue[Request] = queue.Queue()
+        self._stop = threading.Event()
+        self._window = _Window()
+        self._frames = 0
+        self._last_frame = 0.0
+        self._divergences = 0
+        self._last_divergence = ""
+        self._diverged_recently = False
+        self._last_status = sim.status()
+        self._anchor = (time.monotonic(), sim.time)
+        self._thread = threading.Thread(target=self._run, name="modal_spring_sim", daemon=True)
+
+    # -- from other threads --------------------------------------------------------------------
+    def start(self) -> None:
+        self._thread.start()
+
+    def submit(self, request: Request) -> Request:
+        """Queue a state change; the thread applies it between two steps."""
+        self._requests.put(request)
+        return request
+
+    def stop(self, timeout: float = 5.0) -> None:
+        self._stop.set()
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
+            self._thread.join(timeout)
+        self._fail_pending("the node is shutting down")
+
+    @property
+    def alive(self) -> bool:
+        return self._thread.is_alive()
+
+    # -- the thread ----------------------------------------------------------------------------
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self._loop()
+            except Exception as exc:  # supervised: report, recover, go on
+                if self._stop.is_set():
+                    return
+                self._recover(f"simulation thread failed: {exc!r}")
+
+    def _loop(self) -> None:
+        next_publish = next_mesh = time.monotonic()
+        next_diagnostics = next_publish + DIAGNOSTICS_PERIOD_S
+        self._start_window(valid=True)
+        published_time = None
+        while not self._stop.is_set():
+            settings = self._settings()
+            period = 1.0 / settings.publish_rate_hz
+            rtf = settings.realtime_factor
+            if self._apply_requests():
+                published_time = None
+            if not self.paused:
+                if rtf > 0.0:
+                    wall0, sim0 = self._anchor
+                    target = sim0 + (time.monotonic() - wall0) * rtf
+                    self._step_until(target, next_publish + period)
+                    if self.sim.time + self.sim.dt < target:  # could not keep up: drop debt
+                        self._reanchor(window_valid=True)
+                else:  # as fast as possible: as many steps as fit until the frame is due
+                    self._step_until(float("inf"), next_publish)
+            now = time.monotonic()
+            if self.sim.time != published_time and not self.paused:
+                mesh = now >= next_mesh and settings.mesh_rate_hz > 0
+                self._publish_frame(mesh)
+                published_time = self.sim.time
+                if mesh:
+                    next_mesh = now + 1.0 / settings.mesh_rate_hz
+            if now >= next_diagnostics:
+                self._publish_diagnostics(settings)
+                next_diagnostics = now + DIAGNOSTICS_PERIOD_S
+            next_publish += period
+            if next_publish < now:
+                next_publish = now + period
+            if rtf > 0.0 or self.paused:
+                self._stop.wait(max(0.0, next_publish - time.monotonic()))
+
+    def _step_until(self, target: float, deadline: float) -> None:
+        """Step until the simulation reaches ``target`` (to half a step) or the wall clock
+        passes ``deadline``; at least one step when the target is ahead."""
+        w = self._window
+        sim = self.sim
+        while sim.time + 0.5 * sim.dt < target:
+            start = time.perf_counter()
+            try:
+                sim.step()
+            except DivergenceError as exc:
+                self._on_divergence(exc)
+                return
+            w.step_seconds += time.perf_counter() - start
+            w.steps += 1
+            if time.monotonic() > deadline:
+                return
+
+    def _apply_requests(self) -> bool:
+        """Apply every queued request; True when one was applied."""
+        applied = False
+        while True:
+            try:
+                request = self._requests.get_nowait()
+            except queue.Empty:
+                return applied
+            try:
+                message = self._apply(request)
+            except Exception as exc:  # refused: the run is as it was before the request
+                request.finish(False, f"could not apply: {exc}")
+                self._report_error(f"could not apply {type(request).__name__}: {exc!r}")
+                continue
+            request.finish(True, message)
+            applied = True
+
+    def _apply(self, request: Request) -> str:
+        """Apply one request; returns what happened. Raises with the run unchanged."""
+        handlers: dict[type, Callable[[Request], str]] = {
+            ChangeBand: self._change_band, ReplaceSimulation: self._replace,
+            Reset: self._reset, Pause: self._pause}
+        return handlers[type(request)](request)
+
+    def _change_band(self, request: ChangeBand) -> str:
+        self.sim.set_band(request.band, request.transition_s)
+        self._outputs.changed(self.sim, request.changed)
+        return f"band {request.band.describe()}"
+
+    def _replace(self, request: ReplaceSimulation) -> str:
+        request.simulation.take_over(self.sim)
+        self.sim = request.simulation
+        self._outputs.changed(self.sim, request.changed)
+        self._reanchor(window_valid=False)
+        return f"{self.sim.method} run continues"
+
+    def _reset(self, request: Reset) -> str:
+        self.sim.reset()
+        self._reanchor(window_valid=False)
+        return "back to the rest state at t = 0"
+
+    def _pause(self, request: Pause) -> str:
+        self.paused = request.paused
+        self._reanchor(window_valid=False)
+        return "paused" if request.paused else "running"
+
+    def _fail_pending(self, why: str) -> None:
+        while True:
+            try:
+                self._requests.get_nowait().finish(False, why)
+            except queue.Empty:
+                return
+
+    # -- frames and reports --------------------------------------------------------------------
+    def _publish_frame(self, mesh: bool) -> None:
+        positions = self.sim.positions()
+        if not np.isfinite(positions).all():  # defensive: the engine never returns these
+            self._on_divergence(DivergenceError("non-finite positions", self.sim.time,
+                                                self.sim.steps))
+            return
+        self._outputs.frame(self.sim, positions, mesh)
+        now = time.monotonic()
+        w = self._window
+        if self._last_frame:
+            w.longest_gap = max(w.longest_gap, now - self._last_frame)
+        self._last_frame = now
+        self._frames += 1
+        w.frames += 1
+        w.computing_modes |= self._computing_modes()
+
+    def _report(self, settings: StreamSettings, error: str = "") -> StreamReport:
+        w = self._window
+        now = time.monotonic()
+        span = now - w.wall
+        achieved = (self.sim.time - w.sim_time) / span if span > 0 and w.valid else 0.0
+        return StreamReport(
+            window_s=span, window_valid=w.valid, achieved_rtf=achieved,
+            requested_rtf=settings.realtime_factor,
+            publish_period_s=1.0 / settings.publish_rate_hz,
+            step_us=1e6 * w.step_seconds / max(w.steps, 1), frames=self._frames,
+            frames_in_window=w.frames, longest_gap_s=w.longest_gap,
+            computing_modes=w.computing_modes or self._computing_modes(), paused=self.paused,
+            strain_warning=settings.strain_warning, divergences=self._divergences,
+            last_divergence=self._last_divergence,
+            diverged_recently=self._diverged_recently, error=error)
+
+    def _status(self) -> SimulationStatus:
+        """The simulation's status, or the last one read when it cannot give one."""
+        try:
+            self._last_status = self.sim.status()
+        except Exception:  # reported by whoever called; the last good status stands in
+            pass
+        return self._last_status
+
+    def _publish_diagnostics(self, settings: StreamSettings, error: str = "") -> None:
+        self._outputs.diagnostics(self._status(), self._report(settings, error))
+        self._start_window(valid=True)
+        if not error:
+            self._diverged_recently = False
+
+    def _start_window(self, valid: bool) -> None:
+        self._window = _Window(wall=time.monotonic(), sim_time=self.sim.time, valid=valid,
+                               computing_modes=self._computing_modes())
+        self._last_frame = 0.0
+
+    def _reanchor(self, window_valid: bool) -> None:
+        self._anchor = (time.monotonic(), self.sim.time)
+        if not window_valid:
+            self._window.valid = False
+            self._last_frame = 0.0
+
+    # -- failures ------------------------------------------------------------------------------
+    def _on_divergence(self, exc: DivergenceError) -> None:
+        self._divergences += 1
+        self._last_divergence = str(exc)
+        self._diverged_recently = True
+        self._outputs.log("error", f"{exc}; back to the rest state")
+        self._publish_diagnostics(self._settings(),
+                                  error=f"{exc}; recovered: back to the rest state")
+        self._to_rest()
+
+    def _report_error(self, message: str) -> None:
+        """Log and publish ERROR; never raises (it is what failures end in)."""
+        try:
+            self._outputs.log("error", message)
+            self._outputs.diagnostics(self._last_status, self._report(self._settings(), message))
+        except Exception as exc:  # publishing itself failed (shutting down): log only
+            try:
+                self._outputs.log("error", f"{message} (not reported: {exc!r})")
+            except Exception:
+                pass
+
+    def _recover(self, message: str) -> None:
+        self._report_error(f"{message}; recovered: back to the rest state")
+        if not self._to_rest():
+            self._stop.wait(RECOVERY_RETRY_S)
+
+    def _to_rest(self) -> bool:
+        """Reset; if the simulation cannot, continue with a rebuilt one. False if both fail."""
+        try:
+            self.sim.reset()
+        except Exception as exc:
+            self._report_error(f"reset failed: {exc!r}; rebuilding the simulation")
+            try:
+                self.sim = self._rebuild()
+            except Exception as again:
+                self._report_error(f"rebuilding the simulation failed: {again!r}")
+                return False
+        self._reanchor(window_valid=False)
+        return True

@@ -1,0 +1,4 @@
+"""Scenes: the YAML schema, lattice generators, and the built-in scenes shipped in ``config/``.
+
+Builds :class:`~modal_spring_ros.core.scene.Scene` objects; imports only from ``core``.
+"""

@@ -1,0 +1,79 @@
+"""Where the package's data lives, and the built-in scenes: names, lookup, loading.
+
+The package's data folder is the repository itself in a source checkout or editable install,
+``<prefix>/share/modal_spring_ros`` when installed (found through the ament index on a ROS
+install, else under the Python prefix of a pip install).
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+
+from modal_spring_ros.core.scene import Scene, SceneError
+from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
+
+PACKAGE_NAME = "modal_spring_ros"
+
+
+def share_directory() -> Path:
+    """The package's data folder (``config/`` lives there).
+
+    A source checkout or editable install uses the repository itself; an installed package uses
+    ``<prefix>/share/modal_spring_ros`` (found with ament_index on a ROS install, or under the
+    Python prefix for a pip install into a venv).
+    """
+    source = Path(__file__).resolve().parents[2]  # the repository, in a source checkout
+    if (source / "config" / "scenes").is_dir():
+        return source
+    try:
+        return Path(get_package_share_directory(PACKAGE_NAME))
+    except (PackageNotFoundError, LookupError, OSError):  # no ament index: the Python prefix
+        return Path(sys.prefix) / "share" / PACKAGE_NAME
+
+
+def builtin_scene_dir() -> Path:
+    """Folder holding the built-in scene files."""
+    return share_directory() / "config" / "scenes"
+
+#: The scene used when none is named.
+DEFAULT_SCENE = "sheet_10x10"
+
+
+def builtin_scene_names() -> list[str]:
+    """Names of the scenes shipped with the package."""
+    return sorted(p.stem for p in builtin_scene_dir().glob("*.yaml"))
+
+
+def load_scene(name_or_path: str | Path) -> Scene:
+    """Load a built-in scene by name, or a scene file by path.
+
+    Raises:
+        SceneError: unknown name, unreadable file, invalid YAML or an invalid scene.
+    """
+    text = str(name_or_path)
+    path = Path(text)
+    if not (text.endswith((".yaml", ".yml")) or path.exists()):
+        candidate = builtin_scene_dir() / f"{text}.yaml"
+        if not candidate.exists():
+            raise SceneError(
+                f"unknown scene '{text}': not a file, and not a built-in scene "
+                f"(built-in: {', '.join(builtin_scene_names())})"
+            )
+        path = candidate
+    try:
+        raw = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read scene file: {exc.strerror or exc}") from None
+    return scene_from_yaml(raw, source=str(path), default_name=path.stem)
+
+
+def resolve_scene(scene: Scene | str | dict | None) -> Scene:
+    """A scene given as a :class:`Scene`, a mapping (the parsed YAML), or a built-in name or
+    file path (the default scene when empty)."""
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, dict):
+        return scene_from_dict(scene, source="<embedded scene>")
+    return load_scene(scene or DEFAULT_SCENE)

@@ -1,0 +1,336 @@
+"""The scene file schema: a scene's YAML (or the mapping it parses to) checked into a Scene.
+
+A scene file is YAML in SI units. Particles and springs are given either explicitly or by a
+lattice generator; see ``README.md`` ("Scene files") for the full format. Every problem found on
+load raises :class:`SceneError` with a message that names the field and the problem, so that
+command-line tools can print it instead of a traceback.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping
+
+import numpy as np
+import yaml
+
+from modal_spring_ros.core.anchor_motion import AnchorMotion, SineComponent
+from modal_spring_ros.core.scene import Damping, Scene, SceneError
+from modal_spring_ros.scenes.lattice import lattice_springs
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def scene_from_yaml(text: str, source: str = "<scene>", default_name: str = "scene") -> Scene:
+    """Parse and validate a scene from YAML text."""
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise SceneError(f"{source}: invalid YAML: {exc}") from None
+    return scene_from_dict(data, source=source, default_name=default_name)
+
+
+def scene_from_dict(data: Any, source: str = "<scene>", default_name: str = "scene") -> Scene:
+    """Validate a scene given as a mapping (the parsed YAML)."""
+    return _SceneParser(source).parse(data, default_name)
+
+
+class _SceneParser:
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, field: str, problem: str) -> SceneError:
+        return SceneError(f"{self.source}: {field}: {problem}")
+
+    # -- small typed getters ------------------------------------------------------------------
+    def mapping(self, value: Any, field: str) -> Mapping[str, Any]:
+        if not isinstance(value, Mapping):
+            raise self.fail(field, f"must be a mapping, got {type(value).__name__}")
+        return value
+
+    def number(self, value: Any, field: str, *, positive: bool = False,
+               non_negative: bool = False) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(field, f"must be a number, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise self.fail(field, f"must be finite, got {value}")
+        if positive and value <= 0.0:
+            raise self.fail(field, f"must be positive, got {value:g}")
+        if non_negative and value < 0.0:
+            raise self.fail(field, f"must not be negative, got {value:g}")
+        return value
+
+    def per_item(self, value: Any, count: int, field: str, what: str) -> np.ndarray:
+        """A positive scalar broadcast to ``count`` items, or a list of ``count`` of them."""
+        if isinstance(value, (list, tuple)):
+            if len(value) != count:
+                raise self.fail(field, f"has {len(value)} values for {count} {what}")
+            arr = np.array([self.number(v, f"{field}[{i}]") for i, v in enumerate(value)])
+        else:
+            arr = np.full(count, self.number(value, field))
+        bad = np.flatnonzero(arr <= 0.0)
+        if bad.size:
+            i = int(bad[0])
+            name = f"{field}[{i}]" if isinstance(value, (list, tuple)) else field
+            raise self.fail(name, f"must be positive, got {arr[i]:g}"
+                            + (f" ({bad.size} {what} affected)" if bad.size > 1 else ""))
+        return arr
+
+    def vector3(self, value: Any, field: str) -> np.ndarray:
+        if not isinstance(value, (list, tuple)) or len(value) not in (2, 3):
+            raise self.fail(field, f"must be a list of 2 or 3 numbers, got {value!r}")
+        out = np.zeros(3)
+        for i, v in enumerate(value):
+            out[i] = self.number(v, f"{field}[{i}]")
+        return out
+
+    # -- the scene ----------------------------------------------------------------------------
+    def parse(self, data: Any, default_name: str) -> Scene:
+        data = self.mapping(data, "scene")
+        known = {"name", "description", "dimension", "axis", "particles", "springs", "fixed", "gravity",
+                 "damping", "anchor_motion", "simulation"}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise self.fail(unknown[0], f"unknown key (known keys: {', '.join(sorted(known))})")
+        name = str(data.get("name", default_name))
+        dimension = data.get("dimension", 2)
+        if dimension not in (1, 2, 3) or isinstance(dimension, bool):
+            raise self.fail("dimension", f"must be 1, 2 or 3, got {dimension!r}")
+        if dimension == 1:
+            axis = data.get("axis", "x")
+            if axis not in _AXES:
+                raise self.fail("axis", f"must be x, y or z, got {axis!r}")
+            axes = (_AXES[axis],)
+        elif "axis" in data:
+            raise self.fail("axis", "only a 1D scene (dimension: 1) has an axis")
+        else:
+            axes = tuple(range(dimension))
+
+        particles = self.mapping(self.required(data, "particles", "scene"), "particles")
+        positions, lattice = self.positions(particles, dimension)
+        if lattice is not None and dimension == 1 and axes[0] != 0:
+            positions[:, [0, axes[0]]] = positions[:, [axes[0], 0]]
+        n = positions.shape[0]
+        mass = self.per_item(self.required(particles, "mass", "particles"), n,
+                             "particles.mass", "particles")
+
+        springs_spec = self.mapping(self.required(data, "springs", "scene"), "springs")
+        pairs = self.pairs(springs_spec, n, lattice)
+        stiffness = self.per_item(self.required(springs_spec, "stiffness", "springs"),
+                                  len(pairs), "springs.stiffness", "springs")
+        rest_length = self.check_springs(pairs, positions)
+        fixed = self.fixed(data.get("fixed"), positions)
+        self.check_connected(pairs, n)
+
+        gravity = self.vector3(data.get("gravity", [0.0, 0.0, 0.0]), "gravity")
+        still = [a for a in range(3) if a not in axes]
+        if np.any(gravity[still] != 0.0):
+            raise self.fail("gravity", f"a {dimension}D scene moves along "
+                            f"{', '.join('xyz'[a] for a in axes)} only: gravity must be 0 along "
+                            f"{', '.join('xyz'[a] for a in still)}")
+        if np.any(positions[:, still] != positions[0, still]):
+            raise self.fail("particles", f"a {dimension}D scene must have equal "
+                            f"{', '.join('xyz'[a] for a in still)} for every particle")
+
+        damping = self.damping(data.get("damping", {}))
+        anchor_motion = self.anchor_motion(data.get("anchor_motion", []), axes)
+        sim = self.mapping(data.get("simulation", {}) or {}, "simulation")
+        dt = sim.get("dt")
+        default_dt = None if dt is None else self.number(dt, "simulation.dt", positive=True)
+        duration = self.number(sim.get("duration", 5.0), "simulation.duration", positive=True)
+
+        def frozen(a: np.ndarray) -> np.ndarray:
+            a.setflags(write=False)
+            return a
+
+        return Scene(
+            name=name,
+            dimension=int(dimension),
+            axes=axes,
+            rest_positions=frozen(positions),
+            mass=frozen(mass),
+            springs=frozen(pairs),
+            stiffness=frozen(stiffness),
+            rest_length=frozen(rest_length),
+            fixed=frozen(fixed),
+            gravity=frozen(gravity),
+            damping=damping,
+            anchor_motion=anchor_motion,
+            default_dt=default_dt,
+            default_duration=duration,
+            description=str(data.get("description", "")),
+        )
+
+    def required(self, spec: Mapping[str, Any], key: str, parent: str) -> Any:
+        if key not in spec:
+            raise self.fail(f"{parent}.{key}", "missing")
+        return spec[key]
+
+    def positions(self, particles: Mapping[str, Any], dimension: int
+                  ) -> tuple[np.ndarray, tuple[int, ...] | None]:
+        """Particle positions, and the lattice counts when a lattice generated them."""
+        has_lattice = "lattice" in particles
+        has_positions = "positions" in particles
+        if has_lattice == has_positions:
+            raise self.fail("particles", "give exactly one of 'positions' or 'lattice'")
+        if has_positions:
+            raw = particles["positions"]
+            if not isinstance(raw, (list, tuple)) or not raw:
+                raise self.fail("particles.positions", "must be a non-empty list of points")
+            pos = np.array([self.vector3(p, f"particles.positions[{i}]")
+                            for i, p in enumerate(raw)])
+            return pos, None
+        lat = self.mapping(particles["lattice"], "particles.lattice")
+        counts = lat.get("counts")
+        if (not isinstance(counts, (list, tuple)) or len(counts) != dimension
+                or not all(isinstance(c, int) and not isinstance(c, bool) and c >= 1
+                           for c in counts)):
+            raise self.fail("particles.lattice.counts",
+                            f"must be {dimension} positive integers, got {counts!r}")
+        spacing = lat.get("spacing", 1.0)
+        if isinstance(spacing, (list, tuple)):
+            sp = [self.number(s, f"particles.lattice.spacing[{i}]", positive=True)
+                  for i, s in enumerate(spacing)]
+            if len(sp) != dimension:
+                raise self.fail("particles.lattice.spacing",
+                                f"must have {dimension} values, got {len(sp)}")
+        else:
+            sp = [self.number(spacing, "particles.lattice.spacing", positive=True)] * dimension
+        origin = self.vector3(lat.get("origin", [0.0, 0.0, 0.0]), "particles.lattice.origin")
+        grids = np.meshgrid(*[np.arange(c) * s for c, s in zip(counts, sp)], indexing="ij")
+        # Scene order: x fastest, then y, then z (row by row).
+        coords = [g.transpose().ravel() for g in grids]
+        pos = np.zeros((coords[0].size, 3))
+        for axis, c in enumerate(coords):
+            pos[:, axis] = c
+        return pos + origin, tuple(int(c) for c in counts)
+
+    def pairs(self, springs: Mapping[str, Any], n: int,
+              lattice: tuple[int, ...] | None) -> np.ndarray:
+        has_pairs = "pairs" in springs
+        has_connect = "connect" in springs
+        if has_pairs == has_connect:
+            raise self.fail("springs", "give exactly one of 'pairs' or 'connect'")
+        if has_connect:
+            if lattice is None:
+                raise self.fail("springs.connect", "needs particles.lattice")
+            kinds = springs["connect"]
+            if isinstance(kinds, str):
+                kinds = [kinds]
+            allowed = ("edges", "diagonals", "body_diagonals")
+            for i, kind in enumerate(kinds):
+                if kind not in allowed:
+                    raise self.fail(f"springs.connect[{i}]",
+                                    f"unknown '{kind}' (one of {', '.join(allowed)})")
+            return lattice_springs(lattice, kinds)
+        raw = springs["pairs"]
+        if not isinstance(raw, (list, tuple)) or not raw:
+            raise self.fail("springs.pairs", "must be a non-empty list of [i, j] pairs")
+        out = np.empty((len(raw), 2), dtype=np.int64)
+        for e, pair in enumerate(raw):
+            if (not isinstance(pair, (list, tuple)) or len(pair) != 2
+                    or not all(isinstance(v, int) and not isinstance(v, bool) for v in pair)):
+                raise self.fail(f"springs.pairs[{e}]", f"must be two integers, got {pair!r}")
+            for v in pair:
+                if not 0 <= v < n:
+                    raise self.fail(f"springs.pairs[{e}]",
+                                    f"particle index {v} out of range (0..{n - 1})")
+            if pair[0] == pair[1]:
+                raise self.fail(f"springs.pairs[{e}]",
+                                f"connects particle {pair[0]} to itself")
+            out[e] = sorted(pair)
+        seen: dict[tuple[int, int], int] = {}
+        for e, (i, j) in enumerate(out.tolist()):
+            if (i, j) in seen:
+                raise self.fail(f"springs.pairs[{e}]",
+                                f"duplicate spring {i}-{j} (same as springs.pairs[{seen[i, j]}])")
+            seen[i, j] = e
+        return out
+
+    def check_springs(self, pairs: np.ndarray, positions: np.ndarray) -> np.ndarray:
+        lengths = np.linalg.norm(positions[pairs[:, 1]] - positions[pairs[:, 0]], axis=1)
+        scale = float(np.max(lengths)) if lengths.size else 1.0
+        short = np.flatnonzero(lengths <= 1e-12 * max(scale, 1e-300))
+        if short.size:
+            e = int(short[0])
+            i, j = pairs[e]
+            raise self.fail(f"springs.pairs[{e}]",
+                            f"zero-length spring: particles {i} and {j} are at the same position")
+        return lengths
+
+    def fixed(self, spec: Any, positions: np.ndarray) -> np.ndarray:
+        n = positions.shape[0]
+        if spec is None:
+            raise self.fail("fixed", "missing: at least one particle must be fixed, otherwise "
+                            "the stiffness has rigid-body zero modes")
+        spec = self.mapping(spec, "fixed")
+        fixed = np.zeros(n, dtype=bool)
+        if "indices" in spec:
+            idx = spec["indices"]
+            if not isinstance(idx, (list, tuple)):
+                raise self.fail("fixed.indices", "must be a list of particle indices")
+            for k, v in enumerate(idx):
+                if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < n:
+                    raise self.fail(f"fixed.indices[{k}]",
+                                    f"particle index {v!r} out of range (0..{n - 1})")
+                fixed[v] = True
+        if "face" in spec:
+            face = spec["face"]
+            if not isinstance(face, str) or len(face) != 2 or face[0] not in "+-" \
+                    or face[1] not in _AXES:
+                raise self.fail("fixed.face", f"must be one of +x -x +y -y +z -z, got {face!r}")
+            coord = positions[:, _AXES[face[1]]]
+            edge = coord.max() if face[0] == "+" else coord.min()
+            tol = 1e-9 * max(1.0, float(np.ptp(positions)))
+            fixed |= np.abs(coord - edge) <= tol
+        unknown = sorted(set(spec) - {"indices", "face"})
+        if unknown:
+            raise self.fail(f"fixed.{unknown[0]}", "unknown key (use 'indices' or 'face')")
+        if not fixed.any():
+            raise self.fail("fixed", "no particle is fixed: at least one must be, otherwise the "
+                            "stiffness has rigid-body zero modes")
+        if fixed.all():
+            raise self.fail("fixed", "every particle is fixed: nothing can move")
+        return fixed
+
+    def check_connected(self, pairs: np.ndarray, n: int) -> None:
+        degree = np.bincount(pairs.ravel(), minlength=n)
+        lonely = np.flatnonzero(degree == 0)
+        if lonely.size:
+            listed = ", ".join(str(i) for i in lonely[:10]) + (" ..." if lonely.size > 10 else "")
+            raise self.fail("springs", f"{lonely.size} particle(s) no spring reaches: {listed}")
+
+    def damping(self, spec: Any) -> Damping:
+        spec = self.mapping(spec or {}, "damping")
+        unknown = sorted(set(spec) - {"ratio", "rayleigh"})
+        if unknown:
+            raise self.fail(f"damping.{unknown[0]}", "unknown key (use 'ratio' or 'rayleigh')")
+        ratio = self.number(spec.get("ratio", 0.0), "damping.ratio", non_negative=True)
+        ray = self.mapping(spec.get("rayleigh", {}) or {}, "damping.rayleigh")
+        alpha = self.number(ray.get("alpha", 0.0), "damping.rayleigh.alpha", non_negative=True)
+        beta = self.number(ray.get("beta", 0.0), "damping.rayleigh.beta", non_negative=True)
+        return Damping(ratio, alpha, beta)
+
+    def anchor_motion(self, spec: Any, axes: tuple[int, ...]) -> AnchorMotion:
+        if spec is None:
+            return AnchorMotion(())
+        if not isinstance(spec, (list, tuple)):
+            raise self.fail("anchor_motion", "must be a list of sine components")
+        comps = []
+        for k, item in enumerate(spec):
+            field = f"anchor_motion[{k}]"
+            item = self.mapping(item, field)
+            axis = item.get("axis")
+            if axis not in _AXES or _AXES[axis] not in axes:
+                raise self.fail(f"{field}.axis", f"must be one of "
+                                f"{', '.join('xyz'[a] for a in axes)}, got {axis!r}")
+            comps.append(SineComponent(
+                axis=_AXES[axis],
+                amplitude=self.number(item.get("amplitude"), f"{field}.amplitude"),
+                frequency_hz=self.number(item.get("frequency_hz"), f"{field}.frequency_hz",
+                                         non_negative=True),
+                phase=self.number(item.get("phase", 0.0), f"{field}.phase"),
+                ramp_s=self.number(item.get("ramp_s", 0.0), f"{field}.ramp_s",
+                                   non_negative=True),
+            ))
+        return AnchorMotion(tuple(comps))
