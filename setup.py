@@ -22,7 +22,7 @@ setup(
     extras_require={
         # ROS 2 Jazzy from PyPI wheels, for machines without a ROS install.
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
-        "test": ["pytest>=9.0", "pytest-timeout", "rosbags",
+        "test": ["pytest>=9.0", "pytest-timeout", "rosbags", "flake8",
                  # the ROS build tooling, to check the package as ROS sees it
                  "catkin_pkg", "colcon-core", "colcon-ros", "rosdep"],
     },

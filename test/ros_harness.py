@@ -34,7 +34,8 @@ class NodeProcess:
 
     def __init__(self, *params: str, namespace: str = "",
                  executable: str = "modal_spring_node", argv: list[str] | None = None):
-        """``argv``, when given, is the whole command line (``params`` and ``namespace`` unused)."""
+        """``argv``, when given, is the whole command line (``params`` and ``namespace``
+        unused)."""
         args = argv
         if args is None:
             args = [console_script(executable)]

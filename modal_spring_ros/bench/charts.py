@@ -4,15 +4,20 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.figure import Figure
 
 from modal_spring_ros.bench.analysis import pareto
 
 COLORS = {"full explicit": "C3", "full average": "C1", "modal explicit": "C0",
           "modal refreshed": "C4", "modal average": "C2", "modal auto": "k"}
+
+
+def _subplots(*grid, **kw):
+    """A figure and its axes, without pyplot (no display, no global state): Figure.savefig
+    renders with Agg."""
+    figsize = kw.pop("figsize", None)
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(*grid, **kw)
 
 
 def _finish(fig, ax, path: Path, xlabel: str, ylabel: str, title: str, log: bool = True,
@@ -27,7 +32,6 @@ def _finish(fig, ax, path: Path, xlabel: str, ylabel: str, title: str, log: bool
         ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
@@ -37,7 +41,7 @@ def _finite(rows):
 
 
 def error_vs_cost(case: dict, path: Path) -> Path:
-    fig, ax = plt.subplots(figsize=(8, 5.5))
+    fig, ax = _subplots(figsize=(8, 5.5))
     rows = _finite(case["configs"])
     for method, color in COLORS.items():
         pts = sorted((r for r in rows if r["method"] == method),
@@ -50,7 +54,7 @@ def error_vs_cost(case: dict, path: Path) -> Path:
                    zorder=3)
     front = pareto(case["configs"])
     ax.step([r["seconds_per_sim_second"] for r in front], [r["rel_l2"] for r in front],
-             where="post", color="0.4", lw=1, ls="--", label="Pareto front", zorder=2)
+            where="post", color="0.4", lw=1, ls="--", label="Pareto front", zorder=2)
     ax.axhline(0.01, color="0.7", lw=0.8)
     return _finish(fig, ax, path, "cost: wall seconds per simulated second",
                    "relative L2 displacement error",
@@ -58,7 +62,7 @@ def error_vs_cost(case: dict, path: Path) -> Path:
 
 
 def stability_map(case: dict, path: Path) -> Path:
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = _subplots(figsize=(7, 4.5))
     st = case["stability"]
     modal = sorted((s for s in st if s["method"] == "modal explicit"), key=lambda s: s["modes"])
     ax.plot([s["modes"] for s in modal], [s["largest_stable"] for s in modal], "o-",
@@ -77,7 +81,7 @@ def stability_map(case: dict, path: Path) -> Path:
 
 def fig7(costs: dict, path: Path) -> Path:
     rows = costs["fig7"]
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _subplots(figsize=(6, 4))
     n = [r["particles"] for r in rows]
     ax.plot(n, [1e6 * r["full"] for r in rows], "o-", c="C3", label="physical (full)")
     ax.plot(n, [1e6 * r["modal_2"] for r in rows], "o-", c="C0", label="modal, 2 lowest modes")
@@ -87,7 +91,7 @@ def fig7(costs: dict, path: Path) -> Path:
 
 def fig8(costs: dict, path: Path) -> Path:
     rows = costs["fig8"]
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _subplots(figsize=(6, 4))
     ax.plot([r["dropped"] for r in rows], [1e6 * r["seconds_per_step"] for r in rows], "o-")
     return _finish(fig, ax, path, "dropped modes (of 180)", "time per step (us)",
                    "Paper fig. 8: sheet_10x10, time per step against dropped modes",
@@ -95,7 +99,7 @@ def fig8(costs: dict, path: Path) -> Path:
 
 
 def failure_chart(f: dict, path: Path) -> Path:
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    fig, (top, bottom) = _subplots(2, 1, figsize=(8, 6.5), sharex=True)
     top.semilogy(f["t"], f["rel_l2_window"], label="15 modes against full (0.25 s windows)")
     top.axhline(0.1, color="0.6", ls="--", lw=0.8)
     if f["error_passes_10pct_at"] is not None:
@@ -110,13 +114,13 @@ def failure_chart(f: dict, path: Path) -> Path:
                    label="node's strain warning (sim.strain_warning)")
     if f["strain_warning_at"] is not None:
         bottom.axvline(f["strain_warning_at"], color="C1",
-                       label=f"node reports WARN on /diagnostics at {f['strain_warning_at']:.2f} s")
+                       label=("node reports WARN on /diagnostics at "
+                              f"{f['strain_warning_at']:.2f} s"))
     bottom.set_xlabel("time (s)")
     bottom.set_ylabel("strain")
     bottom.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 

@@ -3,10 +3,10 @@
 For each scene, every configuration (method x kept modes x time step) runs the same simulated
 time, sampled every ``SAMPLE_S``; its error is measured against a converged reference (the
 full nonlinear physics with explicit Newmark at a small fraction of its stability limit; the
-run at twice that step is compared with it to show it converged), and its cost is the wall time per simulated second. The
-largest stable step of each method is found by bisection from a broadband-perturbed state.
-Results go to ``tradeoff.json``/``tradeoff.csv``; :mod:`modal_spring_ros.bench.charts`
-draws them.
+run at twice that step is compared with it to show it converged), and its cost is the wall
+time per simulated second. The largest stable step of each method is found by bisection
+from a broadband-perturbed state. Results go to ``tradeoff.json``/``tradeoff.csv``;
+:mod:`modal_spring_ros.bench.charts` draws them.
 """
 from __future__ import annotations
 

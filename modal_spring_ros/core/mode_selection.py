@@ -19,7 +19,8 @@ that is stable (explicit: ``2 / omega_max`` of the kept modes, with a safety fac
 accurate within the other share. Newmark (gamma 1/2) has no amplitude error but a relative
 period error of about ``(omega dt)^2 / 24``; for modes ringing freely it accumulates into a
 phase error ``omega t (omega dt)^2 / 24``, which averaged over their decay time ``tau`` (at
-most ``HORIZON_S``) is ``omega (tau / 2) (omega dt)^2 / 24``, evaluated at the response-weighted frequency of the kept modes
+most ``HORIZON_S``) is ``omega (tau / 2) (omega dt)^2 / 24``, evaluated at the
+response-weighted frequency of the kept modes
 (``omega_eff^2 = sum s_i omega_i^2 / sum s_i``, ``s_i`` the mode's share of the static
 response); the forced response needs ``(omega_exc dt)^2 / 12`` within it too. The two shares are
 ``SHARE * tolerance`` each, so that together (in quadrature) they stay within the tolerance.

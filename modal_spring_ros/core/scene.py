@@ -102,7 +102,8 @@ class Scene:
         return _lattice_triangles(self)
 
     def to_dict(self) -> dict[str, Any]:
-        """The full, explicit definition (loadable by :func:`modal_spring_ros.scenes.schema.scene_from_dict`)."""
+        """The full, explicit definition (what
+        :func:`modal_spring_ros.scenes.schema.scene_from_dict` loads)."""
         return {
             "name": self.name,
             "description": self.description,

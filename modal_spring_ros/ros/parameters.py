@@ -131,15 +131,10 @@ BAND_PARAMETERS = frozenset({"filter.type", "filter.by", "filter.low_hz", "filte
 CHOICES = {"method": tuple(METHODS), "filter.type": FILTER_TYPES, "filter.by": UNITS,
            "integrator": tuple(INTEGRATORS), "stamp": STAMPS}
 #: configuration field -> parameter name, so that configuration errors name the parameter
-CONFIG_NAMES = {"method": "method", "auto": "modal.auto", "integrator": "integrator", "dt": "sim.dt",
-                "transition_s": "filter.transition_s", "max_modes": "modal.max_modes",
-                "strain_limit": "sim.strain_limit", "tolerance": "modal.tolerance",
-                "force_refresh": "modal.force_refresh"}
-
-
-def defaults() -> dict[str, Any]:
-    """Every parameter's default value."""
-    return {name: default for name, (default, _) in PARAMETERS.items()}
+CONFIG_NAMES = {"method": "method", "auto": "modal.auto", "integrator": "integrator",
+                "dt": "sim.dt", "transition_s": "filter.transition_s",
+                "max_modes": "modal.max_modes", "strain_limit": "sim.strain_limit",
+                "tolerance": "modal.tolerance", "force_refresh": "modal.force_refresh"}
 
 
 def band_from_parameters(values: dict[str, Any]) -> FilterBand:

@@ -37,6 +37,7 @@ def builtin_scene_dir() -> Path:
     """Folder holding the built-in scene files."""
     return share_directory() / "config" / "scenes"
 
+
 #: The scene used when none is named.
 DEFAULT_SCENE = "sheet_10x10"
 

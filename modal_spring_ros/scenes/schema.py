@@ -87,7 +87,8 @@ class _SceneParser:
     # -- the scene ----------------------------------------------------------------------------
     def parse(self, data: Any, default_name: str) -> Scene:
         data = self.mapping(data, "scene")
-        known = {"name", "description", "dimension", "axis", "particles", "springs", "fixed", "gravity",
+        known = {"name", "description", "dimension", "axis", "particles", "springs", "fixed",
+                 "gravity",
                  "damping", "anchor_motion", "simulation"}
         unknown = sorted(set(data) - known)
         if unknown:

@@ -5,7 +5,7 @@ import copy
 
 import numpy as np
 import pytest
-from conftest import variant
+from helpers import variant
 
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.model import MassSpringModel

@@ -77,7 +77,8 @@ def test_divergence_is_reported_with_exit_1(tmp_path, capsys):
 
 def test_console_script_runs_as_a_user_would(tmp_path):
     out = tmp_path / "cli.npz"
-    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_sim", "--scene",
+    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_sim",
+                           "--scene",
                            "chain_2", "--duration", "0.5", "--output", str(out)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
@@ -108,7 +109,8 @@ def test_progress_comes_at_whole_percents_and_no_more_often_than_asked():
 
 
 def test_a_short_run_prints_no_progress_lines(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_sim", "--scene",
+    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_sim",
+                           "--scene",
                            "chain_2", "--duration", "0.05", "--output", str(tmp_path / "o.npz")],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr

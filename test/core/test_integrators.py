@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import oscillator
+from helpers import oscillator
 
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand

@@ -7,11 +7,11 @@ import signal
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from helpers import BAGS, REAL_BAGS
 
 from modal_spring_ros.bags.message_definitions import DELIMITER, full_definition, share_directory
 from modal_spring_ros.bags.qos import profiles_from_yaml
@@ -21,9 +21,7 @@ from modal_spring_ros.bags.writer import BagError, BagWriter
 from modal_spring_ros.ros.resimulate import resimulate
 from modal_spring_ros.scenes.resources import load_scene
 
-REPO = Path(__file__).resolve().parent.parent
-BAGS = REPO / "bags"
-REAL = Path(os.environ.get("MODAL_SPRING_REAL_BAGS", REPO.parent / "shared" / "real_bags"))
+REAL = REAL_BAGS
 # The real rosbag2 recordings sit beside the repository (CI has them): required under CI.
 needs_real_bags = pytest.mark.skipif(
     not REAL.is_dir() and os.environ.get("CI") != "true",
@@ -37,8 +35,8 @@ def _msg(pkg: str, name: str) -> str:
 def test_pointcloud2_schema_is_rosbag2s_concatenation_of_the_installed_msg_files():
     # rosbag2: root text, then each dependency (sorted, depth first, once) after a delimiter.
     expected = (_msg("sensor_msgs", "PointCloud2")
-                + "\n" + DELIMITER + "MSG: sensor_msgs/PointField\n" + _msg("sensor_msgs",
-                                                                             "PointField")
+                + "\n" + DELIMITER + "MSG: sensor_msgs/PointField\n"
+                + _msg("sensor_msgs", "PointField")
                 + "\n" + DELIMITER + "MSG: std_msgs/Header\n" + _msg("std_msgs", "Header")
                 + "\n" + DELIMITER + "MSG: builtin_interfaces/Time\n"
                 + _msg("builtin_interfaces", "Time"))
@@ -247,7 +245,8 @@ def test_bad_bags_and_outputs_fail_clearly_and_overwrite_nothing(tmp_path):
     assert missing.returncode == 2 and "no such bag" in missing.stderr
     corrupt = tmp_path / "corrupt.mcap"
     corrupt.write_bytes(os.urandom(4000))
-    bad = _cli("modal_spring_ros.cli.modal_spring_compare", str(corrupt), str(BAGS / "sheet_10x10_full"))
+    bad = _cli("modal_spring_ros.cli.modal_spring_compare", str(corrupt),
+               str(BAGS / "sheet_10x10_full"))
     assert bad.returncode == 2 and "Traceback" not in bad.stderr and "corrupt.mcap" in bad.stderr
     existing = tmp_path / "existing"
     existing.mkdir()
@@ -277,9 +276,11 @@ def test_compare_reports_zero_for_the_same_run_and_refuses_different_scenes(tmp_
     low = json.loads((tmp_path / "l.json").read_text())
     assert 1e-4 < low["rel_l2_mean"] < 0.05      # close to the full run, but not equal
     npz = tmp_path / "chain.npz"
-    subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_sim", "--scene", "chain_2",
+    subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_sim",
+                    "--scene", "chain_2",
                     "--duration", "0.1", "--output", str(npz), "--quiet"], check=True,
                    capture_output=True)
-    different = _cli("modal_spring_ros.cli.modal_spring_compare", str(npz), str(BAGS / "sheet_10x10_full"))
+    different = _cli("modal_spring_ros.cli.modal_spring_compare", str(npz),
+                     str(BAGS / "sheet_10x10_full"))
     assert different.returncode == 2
     assert "different scenes: chain.npz has 3 particles" in different.stderr

@@ -17,6 +17,8 @@ from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.scenes.resources import load_scene
 
+pytestmark = pytest.mark.ros
+
 NODE = "modal_spring"
 RATE = 60.0
 
@@ -109,7 +111,7 @@ def test_frequencies_are_published_as_a_read_only_parameter(running):
 @pytest.mark.parametrize("kind, low, high", [("lowpass", 0.0, 7.0),
                                              ("bandstop", 8.0, 60.0)])
 def test_band_change_is_accepted_reported_and_removes_high_frequencies(running, kind, low,
-                                                                        high):
+                                                                       high):
     _, client, points, diagnostics = running
     before = time.monotonic()
     time.sleep(3.0)
@@ -177,7 +179,7 @@ def test_reset_returns_to_the_rest_state(running):
     assert wait_for(lambda: any(t > called for t, _ in points), 2.0)
     first = next(m for t, m in points if t > called)
     assert stamp(first) < 0.2
-    scene_rest = build_simulation(load_scene("sheet_10x10"), SimulationConfig()).model.scene.rest_positions
+    scene_rest = load_scene("sheet_10x10").rest_positions
     assert np.abs(xyz(first) - scene_rest).max() < 5e-3
 
 

@@ -11,8 +11,11 @@ import time
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from helpers import REPO
 from ros_harness import Client, NodeProcess, node_with_client, wait_for
 from sensor_msgs.msg import PointCloud2
+
+pytestmark = pytest.mark.ros
 
 NODE = "modal_spring"
 RATE = 60.0
@@ -31,6 +34,7 @@ def test_sigint_and_sigterm_end_the_node_cleanly():
         assert "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_stress_band_changes_every_50ms_keep_the_stream_whole():
     node = NodeProcess(namespace="stress")
     client = Client("stress_client")
@@ -66,10 +70,9 @@ def test_stress_band_changes_every_50ms_keep_the_stream_whole():
 
 
 def test_params_file_is_accepted_as_ros2_run_would_pass_it():
-    from pathlib import Path
 
     from diagnostic_msgs.msg import DiagnosticArray as Diag
-    params = Path(__file__).resolve().parent.parent / "config" / "modal_spring.yaml"
+    params = REPO / "config" / "modal_spring.yaml"
     import subprocess
 
     from ros_harness import console_script

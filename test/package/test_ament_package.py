@@ -22,9 +22,9 @@ import numpy as np
 import pytest
 import yaml
 from catkin_pkg.package import parse_package
+from helpers import REPO
 from ros_harness import console_script, node_with_client, wait_for
 
-REPO = Path(__file__).resolve().parents[1]
 PACKAGE = "modal_spring_ros"
 #: what ``colcon build`` needs of the source tree (the README copies the whole folder)
 SOURCE_ITEMS = ["package.xml", "setup.py", "setup.cfg", "resource", PACKAGE, "config"]
@@ -52,7 +52,8 @@ IMPORT_KEYS = {
 TEST_IMPORT_KEYS = {"pytest": "python3-pytest", "rosbags": "python3-rosbags-pip",
                     "catkin_pkg": "python3-catkin-pkg"}
 #: tools this file runs as ``python -m MODULE``
-TEST_TOOL_KEYS = {"colcon": "python3-colcon-common-extensions", "rosdep2": "python3-rosdep"}
+TEST_TOOL_KEYS = {"colcon": "python3-colcon-common-extensions", "rosdep2": "python3-rosdep",
+                  "flake8": "python3-flake8"}
 
 
 def _package():
@@ -92,7 +93,7 @@ def test_every_module_the_package_imports_is_a_declared_run_dependency():
 def test_every_module_the_tests_import_is_declared():
     package = _package()
     declared = {d.name for d in package.exec_depends + package.test_depends}
-    imported = _imported_modules(REPO / "test") - {"conftest", "ros_harness"}
+    imported = _imported_modules(REPO / "test") - {"conftest", "ros_harness", "helpers"}
     unknown = imported - IMPORT_KEYS.keys() - TEST_IMPORT_KEYS.keys()
     assert not unknown, f"test imports with no package.xml key known to this test: {unknown}"
     needed = {({**IMPORT_KEYS, **TEST_IMPORT_KEYS})[m] for m in imported}
@@ -138,6 +139,8 @@ def _pip_requirements() -> set[str]:
     return out
 
 
+@pytest.mark.ros
+@pytest.mark.slow
 def test_the_shipped_rosdep_file_resolves_every_pip_key_to_a_package_setup_py_requires(
         rosdep_env):
     rosdep, env = rosdep_env
@@ -157,6 +160,8 @@ def test_the_shipped_rosdep_file_resolves_every_pip_key_to_a_package_setup_py_re
         assert name.lower() in requirements, (key, name, requirements)
 
 
+@pytest.mark.ros
+@pytest.mark.slow
 def test_rosdep_names_a_key_it_cannot_resolve(rosdep_env):
     rosdep, env = rosdep_env
     done = subprocess.run(rosdep + ["resolve", "python3-not-a-key-pip", "--os=ubuntu:noble",
@@ -194,6 +199,8 @@ def _console_scripts() -> list[str]:
     return sorted(ep.name for ep in eps if ep.group == "console_scripts")
 
 
+@pytest.mark.ros
+@pytest.mark.slow
 def test_colcon_build_installs_the_ament_layout(colcon_install):
     prefix = colcon_install / PACKAGE
     scripts = _console_scripts()
@@ -217,8 +224,11 @@ def _sourced(install: Path, command: str) -> subprocess.CompletedProcess:
                           cwd=install.parent, capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.ros
+@pytest.mark.slow
 def test_the_installed_package_finds_its_scenes_through_the_ament_index(colcon_install):
-    probe = _sourced(colcon_install, f"'{sys.executable}' -c \"import modal_spring_ros.scenes.resources as s;"
+    probe = _sourced(colcon_install, f"'{sys.executable}' -c \""
+                     "import modal_spring_ros.scenes.resources as s;"
                      " from ament_index_python.packages import get_package_prefix as p;"
                      " print(s.__file__); print(s.builtin_scene_dir());"
                      f" print(p('{PACKAGE}'))\"")
@@ -230,6 +240,8 @@ def test_the_installed_package_finds_its_scenes_through_the_ament_index(colcon_i
     assert prefix == install
 
 
+@pytest.mark.ros
+@pytest.mark.slow
 def test_an_installed_console_script_runs_a_built_in_scene(colcon_install, tmp_path):
     exe = colcon_install / PACKAGE / "lib" / PACKAGE / "modal_spring_sim"
     out = tmp_path / "run.npz"
@@ -307,6 +319,8 @@ def _node_command(node: dict, tmp_path: Path) -> list[str]:
     return command
 
 
+@pytest.mark.ros
+@pytest.mark.slow
 def test_the_launch_file_starts_the_node_with_its_arguments(colcon_install, tmp_path):
     from diagnostic_msgs.msg import DiagnosticArray
     from sensor_msgs.msg import PointCloud2
@@ -336,6 +350,8 @@ def test_the_launch_file_starts_the_node_with_its_arguments(colcon_install, tmp_
         assert clouds[-1][1].width == load_scene("cantilever_3d").n_particles
 
 
+@pytest.mark.ros
+@pytest.mark.slow
 def test_rviz_starts_only_when_asked_with_the_installed_view(colcon_install):
     from modal_spring_ros.scenes.resources import DEFAULT_SCENE
     share = colcon_install / PACKAGE / "share" / PACKAGE

@@ -5,16 +5,17 @@ import signal
 import subprocess
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
+import pytest
+from helpers import BAGS
 from ros_harness import Client, NodeProcess, console_script, wait_for
 from sensor_msgs.msg import PointCloud2
 
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.ros.resimulate import resimulate
 
-BAGS = Path(__file__).resolve().parent.parent / "bags"
+pytestmark = pytest.mark.ros
 
 
 def test_replay_delivers_exactly_the_recorded_messages_with_their_timing():

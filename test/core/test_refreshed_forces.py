@@ -137,7 +137,8 @@ def test_band_change_with_refreshed_forces_is_smooth(sheet_10x10):
 def test_auto_chooses_the_refresh_and_an_explicit_value_wins():
     auto = build_simulation(load_scene("sheet_10x10"), SimulationConfig(auto=True))
     assert auto.force_refresh == choose_refresh(auto.mode_choice.highest_hz, auto.dt) > 1
-    fixed = build_simulation(load_scene("sheet_10x10"), SimulationConfig(auto=True, force_refresh=3))
+    fixed = build_simulation(load_scene("sheet_10x10"),
+                             SimulationConfig(auto=True, force_refresh=3))
     assert fixed.force_refresh == 3
     assert build_simulation(load_scene("sheet_10x10"), SimulationConfig()).force_refresh == 1
     with pytest.raises(ValueError, match="force_refresh"):

@@ -73,7 +73,6 @@ def test_modes_computed_in_the_worker_are_bit_identical_and_grow_the_same_way():
         np.testing.assert_array_equal(there.vectors, here.vectors)
 
 
-
 def test_a_cancelled_call_ends_its_child_and_the_next_call_gets_a_new_one():
     cancel = threading.Event()
     with WorkerProcess(cancelled=cancel.is_set) as worker:
