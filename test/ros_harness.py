@@ -88,6 +88,8 @@ class Client:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.error: BaseException | None = None
+        self._clients: dict = {}
+        self._clients_lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._spin, name=f"{name}_spin", daemon=True)
         self._thread.start()
@@ -107,9 +109,16 @@ class Client:
         return received
 
     def call(self, srv_type, name: str, request, timeout: float = 20.0):
-        client = self.node.create_client(srv_type, name)
-        if not client.wait_for_service(timeout_sec=timeout):
-            raise TimeoutError(f"service {name} not available")
+        """Call a service and wait for its answer. One client per service, kept: a client
+        created per call can send its request before the server has matched its response
+        reader, and DDS then drops the answer."""
+        with self._clients_lock:
+            client = self._clients.get((srv_type, name))
+            if client is None:
+                client = self.node.create_client(srv_type, name)
+                if not client.wait_for_service(timeout_sec=timeout):
+                    raise TimeoutError(f"service {name} not available")
+                self._clients[(srv_type, name)] = client
         future = client.call_async(request)
         end = time.monotonic() + timeout
         while not future.done() and time.monotonic() < end:

@@ -1,0 +1,75 @@
+"""/diagnostics as a pure function of a simulation status and a stream report (no DDS)."""
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus
+
+from modal_spring_ros.core.simulations import SimulationStatus
+from modal_spring_ros.ros.diagnostics import StreamReport, diagnostic_array
+
+OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
+
+STATUS = SimulationStatus(
+    method="modal", band="lowpass <= 20 Hz", coordinates=4, modes_computed=180,
+    mode_choice="off", integrator="explicit", dt=5e-4, force_refresh=1, refresh_error=None,
+    stability_limit=0.0123, time=2.5, steps=5000, max_strain=0.01, fading=False)
+STREAM = StreamReport(window_s=1.0, achieved_rtf=1.0, requested_rtf=1.0, step_us=31.4,
+                      frames=600, frames_in_window=60, longest_gap_s=0.02, strain_warning=0.1)
+
+
+def _entry(status=STATUS, stream=STREAM):
+    array = diagnostic_array(status, stream, name="modal_spring: simulation",
+                             hardware_id="sheet_10x10", stamp=Time(sec=3, nanosec=5))
+    assert len(array.status) == 1 and array.header.stamp == Time(sec=3, nanosec=5)
+    entry = array.status[0]
+    return entry, {kv.key: kv.value for kv in entry.values}
+
+
+def test_a_steady_stream_is_ok_with_every_figure():
+    entry, values = _entry()
+    assert (entry.level, entry.message) == (OK, "streaming")
+    assert entry.name == "modal_spring: simulation" and entry.hardware_id == "sheet_10x10"
+    assert values["band"] == "lowpass <= 20 Hz" and values["modes stepped"] == "4"
+    assert values["modes computed"] == "180" and values["dt (s)"] == "0.0005"
+    assert values["force refresh error"] == "exact every step"
+    assert values["stability limit (s)"] == "0.0123" and values["step time (us)"] == "31.4"
+    assert values["simulation time (s)"] == "2.500" and values["frames published"] == "600"
+    assert values["paused"] == "false" and values["divergence"] == "none"
+
+
+def test_refreshed_forces_report_their_error():
+    _, values = _entry(dataclasses.replace(STATUS, force_refresh=10, refresh_error=3.2e-4))
+    assert values["force refresh (steps)"] == "10"
+    assert values["force refresh error"] == "3.20e-04"
+
+
+@pytest.mark.parametrize("changes, level, message", [
+    (dict(paused=True, frames_in_window=0, achieved_rtf=0.0), OK, "paused"),
+    (dict(achieved_rtf=0.5), WARN, "cannot keep real time: achieved real-time factor 0.50 of 1"),
+    (dict(achieved_rtf=0.5, window_valid=False), OK, "streaming"),  # a reset in the window
+    (dict(requested_rtf=0.0, achieved_rtf=12.0), OK, "streaming"),  # as fast as possible
+    (dict(longest_gap_s=0.5), WARN, "stream stalled for 0.50 s"),
+    (dict(longest_gap_s=0.5, computing_modes=True), WARN,
+     "stream stalled for 0.50 s while computing modes for a band change"),
+    (dict(frames_in_window=0), WARN, "no frame published in the last 1.0 s"),
+    (dict(error="simulation thread failed: IndexError('x')"), ERROR,
+     "simulation thread failed: IndexError('x')"),
+    (dict(diverged_recently=True, divergences=1, last_divergence="diverged at t = 1 s"), ERROR,
+     "diverged at t = 1 s; recovered: back to the rest state"),
+])
+def test_each_condition_has_its_level_and_message(changes, level, message):
+    entry, _ = _entry(stream=dataclasses.replace(STREAM, **changes))
+    assert (entry.level, entry.message) == (level, message)
+
+
+def test_large_deformation_warns_and_an_error_outranks_it():
+    strained = dataclasses.replace(STATUS, max_strain=0.25)
+    entry, values = _entry(status=strained)
+    assert entry.level == WARN and entry.message.startswith("large deformation: spring strain "
+                                                            "25.0%")
+    assert values["largest spring strain"] == "0.25000"
+    entry, _ = _entry(strained, dataclasses.replace(STREAM, error="reset failed"))
+    assert (entry.level, entry.message) == (ERROR, "reset failed")

@@ -1,0 +1,102 @@
+"""The stream cannot die silently: band changes every 20 ms, reset and pause every 30 ms and
+method switches, all at once for 20 s, over real DDS against the real node process."""
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from ros_harness import node_with_client, wait_for
+from sensor_msgs.msg import PointCloud2
+from std_srvs.srv import SetBool, Trigger
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+NODE = "stress20/modal_spring"
+DURATION_S = 20.0
+BANDS = [("lowpass", 0.0, 12.0), ("highpass", 10.0, 11.0), ("bandpass", 5.0, 40.0),
+         ("bandstop", 8.0, 30.0), ("allpass", 0.0, 1.0)]
+
+
+def test_concurrent_band_reset_pause_and_method_changes_keep_the_stream_whole():
+    with node_with_client(namespace="stress20") as (node, client):
+        points = client.collect(PointCloud2, "/stress20/points", qos=1000)
+        diagnostics = client.collect(DiagnosticArray, "/diagnostics")
+        assert wait_for(lambda: len(points) > 3, 30)
+        answered = {"band": 0, "reset": 0, "pause": 0, "method": 0}
+        sent = dict.fromkeys(answered, 0)
+        failures: list[str] = []
+        end = time.monotonic() + DURATION_S
+
+        def repeat(kind, period_s, call):
+            k = 0
+            while time.monotonic() < end:
+                sent[kind] += 1
+                try:
+                    ok, why = call(k)
+                except TimeoutError as exc:  # unanswered: counted, reported below
+                    failures.append(f"{kind}: {exc}")
+                else:
+                    answered[kind] += 1
+                    if not ok:
+                        failures.append(f"{kind} refused: {why}")
+                k += 1
+                time.sleep(period_s)
+
+        def band(k):
+            kind, low, high = BANDS[k % len(BANDS)]
+            (r,) = client.set_parameters(NODE, atomically=True, timeout=10.0, filter__type=kind,
+                                         filter__low_hz=low, filter__high_hz=high)
+            return r.successful, r.reason
+
+        def reset(k):
+            r = client.call(Trigger, f"/{NODE}/reset", Trigger.Request(), timeout=10.0)
+            return r.success, r.message
+
+        pauses = []  # (sent, answered, paused?)
+
+        def pause(k):
+            t0 = time.monotonic()
+            r = client.call(SetBool, f"/{NODE}/pause", SetBool.Request(data=k % 2 == 0),
+                            timeout=10.0)
+            pauses.append((t0, time.monotonic(), k % 2 == 0))
+            return r.success, r.message
+
+        def method(k):
+            (r,) = client.set_parameters(NODE, timeout=10.0, method=("full", "modal")[k % 2])
+            return r.successful, r.reason
+
+        # one client per service, matched before the storm starts
+        client.call(Trigger, f"/{NODE}/reset", Trigger.Request())
+        client.call(SetBool, f"/{NODE}/pause", SetBool.Request(data=False))
+        client.set_parameters(NODE, atomically=True, filter__type="allpass")
+        client.set_parameters(NODE, method="modal")
+        start = time.monotonic()
+        workers = [threading.Thread(target=repeat, args=args) for args in (
+            ("band", 0.02, band), ("reset", 0.03, reset), ("pause", 0.03, pause),
+            ("method", 0.5, method))]
+        for w in workers:
+            w.start()
+        for w in workers:
+            w.join()
+        client.call(SetBool, f"/{NODE}/pause", SetBool.Request(data=False))
+        after = time.monotonic()
+        assert wait_for(lambda: len([t for t, _ in points if t > after]) > 30, 10)
+        assert node.proc.poll() is None
+        assert failures == []
+        assert answered == sent and min(sent.values()) > 10, (sent, answered)
+        # gaps while the stream runs (a pause, from its request to the answer of the next
+        # resume, is the user's stop, not a stall)
+        paused = [(sent_at, pauses[i + 1][1] if i + 1 < len(pauses) else after)
+                  for i, (sent_at, _, data) in enumerate(pauses) if data]
+        stamps = [t for t, _ in points if t >= start]
+        running_gaps = [b - a for a, b in zip(stamps, stamps[1:])
+                        if not any(p0 < b and a < p1 for p0, p1 in paused)]
+        assert len(running_gaps) > 100 and max(running_gaps) < 0.5
+        for _, m in points:
+            assert np.isfinite(np.frombuffer(bytes(m.data), dtype="<f4")).all()
+        levels = [d.status[0].level for t, d in diagnostics
+                  if t >= start and d.status[0].name.startswith("/stress20/")]
+        assert levels and DiagnosticStatus.ERROR not in levels

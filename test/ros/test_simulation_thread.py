@@ -1,0 +1,189 @@
+"""The node's simulation thread on its own (no DDS): requests applied between steps and always
+answered, supervision that reports a failure and keeps the stream going, and "as fast as
+possible" filling each frame with steps."""
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+from helpers import variant
+
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation, rebuild
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.ros.requests import ChangeBand, Pause, ReplaceSimulation, Reset
+from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
+from modal_spring_ros.scenes.resources import load_scene
+
+
+class Recorder:
+    """Outputs that keep what the thread publishes."""
+
+    def __init__(self):
+        self.frames: list[tuple[float, float, np.ndarray]] = []  # wall, sim time, positions
+        self.reports = []
+        self.logs = []
+
+    def frame(self, sim, positions, mesh):
+        self.frames.append((time.monotonic(), sim.time, positions.copy()))
+
+    def diagnostics(self, status, report):
+        self.reports.append((status, report))
+
+    def changed(self, sim, changed):
+        pass
+
+    def log(self, level, message):
+        self.logs.append((level, message))
+
+    def errors(self):
+        return [r.error for _, r in self.reports if r.error]
+
+    def frames_after(self, wall):
+        return [f for f in self.frames if f[0] >= wall]
+
+
+def wait_for(predicate, timeout):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and not predicate():
+        time.sleep(0.01)
+    return predicate()
+
+
+@pytest.fixture
+def running():
+    """A running thread on sheet_10x10 (modal, all-pass) and its recorder; stopped after."""
+    started = []
+
+    def start(sim=None, settings=StreamSettings()):
+        sim = sim or build_simulation(load_scene("sheet_10x10"), SimulationConfig())
+        out = Recorder()
+        thread = SimulationThread(sim, out, lambda: settings,
+                                  rebuild=lambda: rebuild(sim.model, sim.basis,
+                                                          SimulationConfig()))
+        thread.start()
+        started.append(thread)
+        assert wait_for(lambda: len(out.frames) > 3, 5.0)
+        return thread, out
+
+    yield start
+    for thread in started:
+        thread.stop()
+        assert not thread.alive
+
+
+def test_a_reset_while_a_band_fades_is_applied_and_the_stream_goes_on(running):
+    thread, out = running()
+    band = ChangeBand(band=FilterBand("lowpass", 0, 20, "hz"), transition_s=0.5)
+    reset = Reset()
+    thread.submit(band)
+    thread.submit(reset)
+    assert band.wait(2.0) and reset.wait(2.0), (band.message, reset.message)
+    assert reset.message == "back to the rest state at t = 0"
+    after = time.monotonic()
+    assert wait_for(lambda: len(out.frames_after(after)) > 10, 5.0)
+    assert out.errors() == []
+    assert thread.sim.kept_modes.tolist() == [0, 1, 2, 3] and not thread.sim.fading
+
+
+def test_a_failing_step_is_reported_and_the_run_goes_back_to_rest(running, monkeypatch):
+    thread, out = running()
+    sim = thread.sim
+    real = sim._step_once
+    calls = []
+
+    def failing_once():
+        calls.append(1)
+        if len(calls) == 50:
+            raise RuntimeError("boom")
+        real()
+
+    monkeypatch.setattr(sim, "_step_once", failing_once)
+    assert wait_for(lambda: out.errors(), 5.0)
+    assert out.errors()[0] == ("simulation thread failed: RuntimeError('boom'); recovered: "
+                               "back to the rest state")
+    after = time.monotonic()
+    assert wait_for(lambda: len(out.frames_after(after)) > 10, 5.0)
+    assert thread.sim is sim and thread.alive
+    # the run started again from rest: its time went back to (about) zero after the failure
+    times = [t for _, t, _ in out.frames]
+    assert min(np.diff(times)) < 0
+    assert all(np.isfinite(p).all() for _, _, p in out.frames)
+
+
+def test_a_simulation_that_cannot_even_reset_is_rebuilt(running, monkeypatch):
+    thread, out = running()
+    broken = thread.sim
+
+    def fail(*_):
+        raise RuntimeError("broken state")
+
+    monkeypatch.setattr(broken, "_step_once", fail)
+    monkeypatch.setattr(broken, "reset", fail)
+    assert wait_for(lambda: thread.sim is not broken, 5.0)
+    after = time.monotonic()
+    assert wait_for(lambda: len(out.frames_after(after)) > 10, 5.0)
+    assert any("rebuilding the simulation" in e for e in out.errors())
+
+
+def test_every_request_is_answered_under_a_storm_of_them(running):
+    thread, out = running(settings=StreamSettings(publish_rate_hz=60.0))
+    sim0 = thread.sim
+    bands = [FilterBand("lowpass", 0, 12, "hz"), FilterBand("highpass", 10, 0, "hz"),
+             FilterBand("bandpass", 5, 40, "hz"), FilterBand()]
+    requests, lock = [], threading.Lock()
+
+    def submit(make, count, pause_s):
+        for k in range(count):
+            request = make(k)
+            with lock:
+                requests.append(request)
+            thread.submit(request)
+            time.sleep(pause_s)
+
+    makers = [
+        (lambda k: ChangeBand(band=bands[k % 4], transition_s=0.2), 100, 0.02),
+        (lambda k: Reset() if k % 2 else Pause(paused=k % 4 == 0), 60, 0.03),
+        (lambda k: ReplaceSimulation(simulation=rebuild(
+            sim0.model, sim0.basis, SimulationConfig(method=("full", "modal")[k % 2]))),
+         10, 0.15),
+    ]
+    workers = [threading.Thread(target=submit, args=m) for m in makers]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join()
+    thread.submit(Pause(paused=False))
+    assert wait_for(lambda: all(r.answered for r in requests), 5.0)
+    assert all(r.applied for r in requests), [r.message for r in requests if not r.applied]
+    after = time.monotonic()
+    assert wait_for(lambda: len(out.frames_after(after)) > 10, 5.0)
+    assert out.errors() == []
+    assert all(np.isfinite(p).all() for _, _, p in out.frames)
+
+
+def test_stopping_answers_the_requests_still_queued():
+    sim = build_simulation(load_scene("sheet_10x10"), SimulationConfig())
+    thread = SimulationThread(sim, Recorder(), StreamSettings, rebuild=lambda: sim)
+    pending = thread.submit(Reset())
+    thread.stop()
+    assert pending.answered and not pending.applied
+    assert pending.message == "the node is shutting down"
+
+
+def test_as_fast_as_possible_fills_each_frame_with_steps(running):
+    """realtime_factor 0: as many steps as fit between frames, so the achieved factor follows
+    the step cost (dt / step time), not one step per frame."""
+    scene = variant("sheet_10x10", anchor_motion=[])
+    sim = build_simulation(scene, SimulationConfig(band=FilterBand("lowpass", 0, 20, "hz")))
+    thread, out = running(sim, StreamSettings(publish_rate_hz=30.0, realtime_factor=0.0))
+    start_wall, start_sim = time.monotonic(), thread.sim.time
+    time.sleep(2.5)
+    achieved = (thread.sim.time - start_sim) / (time.monotonic() - start_wall)
+    step_s = np.median([r.step_us for _, r in out.reports if r.step_us > 0]) * 1e-6
+    possible = sim.dt / step_s
+    assert achieved > 0.4 * possible, (achieved, possible)
+    steps_per_frame = achieved / 30.0 / sim.dt
+    assert steps_per_frame > 20  # one step per frame would give 0.015 of real time
