@@ -11,7 +11,7 @@ from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.filter_band import FILTER_TYPES, BandError, FilterBand, parse_mode_range
 from modal_spring_ros.core.integrators import INTEGRATORS
 from modal_spring_ros.core.scene import SceneError
-from modal_spring_ros.core.simulations import METHODS
+from modal_spring_ros.core.simulations import DEFAULT_MAX_MODES, METHODS
 from modal_spring_ros.scenes.resources import DEFAULT_SCENE
 
 #: Exit status for bad input (as argparse uses).
@@ -64,7 +64,7 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--transition-s", type=float, default=0.5,
                    help="fade time of modes leaving the band, s")
     g.add_argument("--max-modes", type=int, default=None,
-                   help="most modes computed on large scenes (default 256)")
+                   help=f"most modes computed on large scenes (default {DEFAULT_MAX_MODES})")
     g.add_argument("--auto", action="store_true",
                    help="keep the fewest modes (within the band) that meet --tolerance for the "
                         "scene's loads, and the step they allow (unless --dt)")

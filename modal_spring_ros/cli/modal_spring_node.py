@@ -1,6 +1,6 @@
 """``modal_spring_node``: stream a scene's filtered deformation into the ROS graph.
 
-    modal_spring_node [--help] [--ros-args -p NAME:=VALUE ... --params-file FILE ...]
+    modal_spring_node [-h] [--ros-args -p NAME:=VALUE ... --params-file FILE ...]
 
 Every setting is a ROS parameter (listed by ``--help``); change them at runtime with
 ``ros2 param set`` or any ``SetParameters`` client.
@@ -26,12 +26,22 @@ PROG = "modal_spring_node"
 EXECUTOR_THREADS = 2
 
 
+USAGE = """usage: modal_spring_node [-h] [--ros-args -p NAME:=VALUE ... --params-file FILE ...]
+
+Steps a mass-spring scene in modal coordinates and streams it as sensor_msgs/PointCloud2 on
+'points', with /diagnostics. Every setting is a ROS parameter: give it at start with
+--ros-args -p NAME:=VALUE (or a parameter file), change it at runtime with ros2 param set or
+SetParameters(Atomically). Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool).
+
+parameters (read-only ones only at start):"""
+
+
 def usage() -> str:
     """The command line and every parameter with its default and description."""
-    lines = [__doc__.strip(), "", "parameters:"]
+    lines = [USAGE]
     for name, (default, descriptor) in PARAMETERS.items():
-        flags = " (read-only: set at start)" if descriptor.read_only else ""
-        lines.append(f"  {name} (default {default!r}){flags}")
+        flag = ", read-only" if descriptor.read_only else ""
+        lines.append(f"  {name} (default {default!r}{flag})")
         lines.append(f"      {descriptor.description}")
     return "\n".join(lines)
 

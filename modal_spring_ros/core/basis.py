@@ -26,6 +26,9 @@ from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.scene import SceneError
 from modal_spring_ros.core.worker import WorkerProcess
 
+#: Most modes computed on scenes too large for the dense solver, unless asked otherwise.
+DEFAULT_MAX_MODES = 256
+
 #: Largest number of free DOF for which every mode is computed with a dense solver.
 DENSE_LIMIT = 1000
 

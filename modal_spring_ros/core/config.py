@@ -12,14 +12,13 @@ from typing import Any, Mapping
 
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.integrators import INTEGRATORS
+from modal_spring_ros.core.mode_selection import DEFAULT_TOLERANCE
 from modal_spring_ros.core.simulations import DEFAULT_STRAIN_LIMIT, METHODS, MIN_DT_S
 
 #: Fraction of the explicit stability limit used when no time step is given.
 AUTO_DT_SAFETY = 0.5
 #: Largest spring strain still in the small-deformation regime the modal basis assumes.
 DEFAULT_STRAIN_WARNING = 0.1
-#: Default predicted relative error of the automatic mode choice.
-DEFAULT_TOLERANCE = 0.01
 #: Default fade time of modes leaving or entering the band, s.
 DEFAULT_TRANSITION_S = 0.5
 
@@ -37,7 +36,7 @@ class SimulationConfig:
     integrator: str = "explicit"
     dt: float | None = None            # None: the scene's, else from the stability limit
     transition_s: float = DEFAULT_TRANSITION_S
-    max_modes: int | None = None       # None: every mode (dense scenes) or 256
+    max_modes: int | None = None       # None: every mode (dense scenes) or DEFAULT_MAX_MODES
     strain_limit: float = DEFAULT_STRAIN_LIMIT
     auto: bool = False                 # choose the fewest modes (and dt) for ``tolerance``
     tolerance: float = DEFAULT_TOLERANCE

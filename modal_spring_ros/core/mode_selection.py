@@ -39,7 +39,7 @@ import math
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.basis import DEFAULT_MAX_MODES, ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model import MassSpringModel
 
@@ -123,7 +123,7 @@ class TruncationEstimator:
 
 def choose_modes(model: MassSpringModel, basis: ModalBasis, band: FilterBand = FilterBand(),
                  tolerance: float = DEFAULT_TOLERANCE, margin: float = DEFAULT_MARGIN,
-                 max_modes: int = 256) -> ModeChoice:
+                 max_modes: int = DEFAULT_MAX_MODES) -> ModeChoice:
     """The fewest lowest modes (within ``band``) meeting ``tolerance`` for every load.
 
     Computes modes only as far as needed (in growing batches on large scenes).

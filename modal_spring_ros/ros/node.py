@@ -11,7 +11,7 @@ thread as one typed request (:mod:`~modal_spring_ros.ros.requests`).
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
 (Marker TRIANGLE_LIST, for scenes with a surface, when subscribed), ``/diagnostics``, and
 ``/clock`` when ``publish_clock`` is true. Services: ``~/reset`` (Trigger), ``~/pause``
-(SetBool). See the README for every parameter.
+(SetBool). See docs/node.md for every parameter.
 """
 from __future__ import annotations
 

@@ -12,10 +12,11 @@ from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 
-from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TOLERANCE,
-                                          DEFAULT_TRANSITION_S, SimulationConfig)
+from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TRANSITION_S,
+                                          SimulationConfig)
 from modal_spring_ros.core.filter_band import FILTER_TYPES, UNITS, BandError, FilterBand
 from modal_spring_ros.core.integrators import INTEGRATORS
+from modal_spring_ros.core.mode_selection import DEFAULT_TOLERANCE
 from modal_spring_ros.core.simulations import DEFAULT_MAX_MODES, DEFAULT_STRAIN_LIMIT, METHODS
 from modal_spring_ros.scenes.resources import DEFAULT_SCENE
 

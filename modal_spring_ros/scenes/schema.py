@@ -1,7 +1,7 @@
 """The scene file schema: a scene's YAML (or the mapping it parses to) checked into a Scene.
 
 A scene file is YAML in SI units. Particles and springs are given either explicitly or by a
-lattice generator; see ``README.md`` ("Scene files") for the full format. Every problem found on
+lattice generator; see ``docs/scenes.md`` for the full format. Every problem found on
 load raises :class:`SceneError` with a message that names the field and the problem, so that
 command-line tools can print it instead of a traceback.
 """

@@ -145,11 +145,16 @@ def test_band_change_is_accepted_reported_and_removes_high_frequencies(running, 
     (dict(publish_rate_hz=0.0), "publish_rate_hz"),
     (dict(scene="chain_2"), "read-only"),
     (dict(modal__force_refresh=-1), "modal.force_refresh"),
+    # values that would freeze the stream without a word: t + dt == t
+    (dict(sim__dt=1e-300), "sim.dt (1e-300) must be a finite number of seconds, at least 1e-08"),
+    (dict(realtime_factor=1e-300), "realtime_factor (1e-300) must be 0 (as fast as possible)"),
+    (dict(modal__frequencies_hz=[1.0]), "modal.frequencies_hz is read-only"),
 ])
 def test_bad_values_are_rejected_with_their_reason_and_change_nothing(running, values, reason):
     _, client, _, _ = running
     names = ["filter.type", "filter.low_hz", "filter.high_hz", "method", "sim.dt",
-             "publish_rate_hz", "scene", "modal.force_refresh"]
+             "publish_rate_hz", "scene", "modal.force_refresh", "realtime_factor",
+             "modal.frequencies_hz"]
     before = client.get_parameters(NODE, *names)
     (result,) = client.set_parameters(NODE, atomically=True, **values)
     assert not result.successful

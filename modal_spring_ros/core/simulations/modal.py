@@ -25,7 +25,7 @@ import threading
 
 import numpy as np
 
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.basis import DEFAULT_MAX_MODES, ModalBasis
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.forces import GeneralizedForces
 from modal_spring_ros.core.integrators import DiagonalOperators
@@ -34,9 +34,6 @@ from modal_spring_ros.core.refreshed_forces import RefreshedForces
 from modal_spring_ros.core.scene import Damping
 from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simulation, check_step,
                                                     stable_step_limit)
-
-#: Most modes computed on scenes too large for the dense eigensolver, unless asked otherwise.
-DEFAULT_MAX_MODES = 256
 
 #: Stepped-mode sets a modal run keeps prepared ahead (a switch needs two: the modes stepped
 #: during its transition and after it); the oldest goes first.
