@@ -107,10 +107,13 @@ class Simulation(abc.ABC):
         self.diverged: DivergenceError | None = None
 
     # -- what every method offers --------------------------------------------------------------
+    #: the filter band, set by each method's constructor and by :meth:`set_band`
+    _band: FilterBand
+
     @property
-    @abc.abstractmethod
     def band(self) -> FilterBand:
         """The filter band (a full run keeps it for a switch to a modal run)."""
+        return self._band
 
     @property
     @abc.abstractmethod

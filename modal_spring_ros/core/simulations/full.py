@@ -117,10 +117,6 @@ class FullSimulation(Simulation):
         self.reset()
 
     @property
-    def band(self) -> FilterBand:
-        return self._band
-
-    @property
     def kept_modes(self) -> np.ndarray:
         """Every mode takes part in a full run: the indices of those computed."""
         return np.arange(self.basis.count if self.basis is not None else 0, dtype=np.int64)

@@ -122,10 +122,6 @@ class ModalSimulation(Simulation):
 
     # -- the contract --------------------------------------------------------------------------
     @property
-    def band(self) -> FilterBand:
-        return self._band
-
-    @property
     def kept_modes(self) -> np.ndarray:
         """Indices of the modes in the band (fading-out modes excluded)."""
         return self._set.kept
