@@ -5,6 +5,8 @@ import copy
 import os
 from pathlib import Path
 
+import numpy as np
+
 from modal_spring_ros.scenes.resources import load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict
 
@@ -31,3 +33,17 @@ def oscillator(k: float = 400.0, m: float = 0.25, gravity: float = 0.0):
         "springs": {"pairs": [[0, 1]], "stiffness": k},
         "fixed": {"indices": [0]}, "gravity": [gravity, 0.0, 0.0],
     })
+
+
+def power_above(sim, cutoff_hz: float, steps: int, below_hz: float = np.inf) -> float:
+    """Share of the displacement power above ``cutoff_hz`` (and below ``below_hz``) over the
+    next ``steps`` steps."""
+    frames = np.empty((steps, sim.model.n_free_dof))
+    for k in range(steps):
+        sim.step()
+        frames[k] = sim.displacement()
+    frames -= frames.mean(axis=0)
+    spectrum = np.abs(np.fft.rfft(frames * np.hanning(steps)[:, None], axis=0)) ** 2
+    power = spectrum.sum(axis=1)
+    f = np.fft.rfftfreq(steps, sim.dt)
+    return float(power[(f > cutoff_hz) & (f < below_hz)].sum() / power.sum())

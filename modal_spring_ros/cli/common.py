@@ -8,10 +8,12 @@ from pathlib import Path
 from typing import Callable, NoReturn
 
 from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import FILTER_TYPES, BandError, FilterBand, parse_mode_range
 from modal_spring_ros.core.integrators import INTEGRATORS
 from modal_spring_ros.core.scene import SceneError
 from modal_spring_ros.core.simulations import DEFAULT_MAX_MODES, METHODS
+from modal_spring_ros.core.simulations.coordinates import BASES
 from modal_spring_ros.scenes.resources import DEFAULT_SCENE
 
 #: Exit status for bad input (as argparse uses).
@@ -70,6 +72,13 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
                         "scene's loads, and the step they allow (unless --dt)")
     g.add_argument("--tolerance", type=float, default=0.01,
                    help="predicted relative error for --auto (default 0.01)")
+    g.add_argument("--basis", choices=BASES, default="derivatives",
+                   help="modal coordinates: the band's rest modes (the paper's method), or "
+                        "those plus their modal derivatives and static load vectors (right "
+                        "beyond small deformation; default)")
+    g.add_argument("--derivative-directions", type=int, default=DEFAULT_DIRECTIONS,
+                   metavar="N", help="modal-derivative directions a band adds "
+                                     f"(default {DEFAULT_DIRECTIONS})")
     g.add_argument("--force-refresh", type=int, default=0, metavar="N",
                    help="evaluate the nonlinear spring forces every N steps and continue "
                         "them along the static tangent in between (default: every step, "
@@ -106,7 +115,8 @@ def band_from_args(args: argparse.Namespace) -> FilterBand:
 OPTION_NAMES = {"method": "--method", "auto": "--auto", "integrator": "--integrator", "dt": "--dt",
                 "transition_s": "--transition-s", "max_modes": "--max-modes",
                 "strain_limit": "--strain-limit", "tolerance": "--tolerance",
-                "force_refresh": "--force-refresh"}
+                "force_refresh": "--force-refresh", "basis": "--basis",
+                "derivative_directions": "--derivative-directions"}
 
 
 def config_from_args(args: argparse.Namespace) -> SimulationConfig:
@@ -115,7 +125,9 @@ def config_from_args(args: argparse.Namespace) -> SimulationConfig:
                             integrator=args.integrator, dt=args.dt,
                             transition_s=args.transition_s, max_modes=args.max_modes,
                             auto=args.auto, tolerance=args.tolerance,
-                            force_refresh=args.force_refresh).validate(OPTION_NAMES)
+                            force_refresh=args.force_refresh, basis=args.basis,
+                            derivative_directions=args.derivative_directions,
+                            ).validate(OPTION_NAMES)
 
 
 def run_main(prog: str, body: Callable[[], int]) -> int:

@@ -10,15 +10,19 @@ import dataclasses
 import math
 from typing import Any, Mapping
 
+from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.integrators import INTEGRATORS
 from modal_spring_ros.core.mode_selection import DEFAULT_TOLERANCE
 from modal_spring_ros.core.simulations import DEFAULT_STRAIN_LIMIT, METHODS, MIN_DT_S
+from modal_spring_ros.core.simulations.coordinates import BASES
 
 #: Fraction of the explicit stability limit used when no time step is given.
 AUTO_DT_SAFETY = 0.5
 #: Largest spring strain still in the small-deformation regime the modal basis assumes.
 DEFAULT_STRAIN_WARNING = 0.1
+#: Range of the number of derivative directions a band may add.
+MIN_DIRECTIONS, MAX_DIRECTIONS = 1, 200
 #: Default fade time of modes leaving or entering the band, s.
 DEFAULT_TRANSITION_S = 0.5
 
@@ -41,6 +45,8 @@ class SimulationConfig:
     auto: bool = False                 # choose the fewest modes (and dt) for ``tolerance``
     tolerance: float = DEFAULT_TOLERANCE
     force_refresh: int = 0             # steps between spring evaluations; 0: 1, or auto's
+    basis: str = "derivatives"         # modal: rest modes, or rest modes and their derivatives
+    derivative_directions: int = DEFAULT_DIRECTIONS
 
     def validate(self, names: Mapping[str, str] | None = None) -> "SimulationConfig":
         """Check every rule; raise :class:`ConfigError` (or a ``BandError`` for the band)
@@ -69,6 +75,11 @@ class SimulationConfig:
             raise ConfigError(f"{name('strain_limit')} ({self.strain_limit}) must be positive")
         if not 0.0 < self.tolerance < 1.0:
             raise ConfigError(f"{name('tolerance')} ({self.tolerance}) must be between 0 and 1")
+        if self.basis not in BASES:
+            raise ConfigError(f"{name('basis')} '{self.basis}' must be one of {', '.join(BASES)}")
+        if not MIN_DIRECTIONS <= self.derivative_directions <= MAX_DIRECTIONS:
+            raise ConfigError(f"{name('derivative_directions')} ({self.derivative_directions}) "
+                              f"must be from {MIN_DIRECTIONS} to {MAX_DIRECTIONS}")
         if self.auto and self.method != "modal":
             raise ConfigError(f"{name('auto')} chooses modes: it needs {name('method')} modal")
         if self.force_refresh < 0:
@@ -84,6 +95,9 @@ class SimulationConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "SimulationConfig":
+        """A configuration as :meth:`to_dict` wrote it; one written before the basis was a
+        setting was a run of rest modes."""
         data = dict(data)
+        data.setdefault("basis", "rest")
         band = data.pop("band", {}) or {}
         return cls(band=FilterBand(**band), **data)

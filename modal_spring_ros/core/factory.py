@@ -10,7 +10,8 @@ import math
 
 from modal_spring_ros.core.basis import ModalBasis, Progress
 from modal_spring_ros.core.config import AUTO_DT_SAFETY, SimulationConfig
-from modal_spring_ros.core.mode_selection import choose_modes, choose_refresh, choose_step
+from modal_spring_ros.core.mode_selection import (STABILITY_SAFETY, choose_modes, choose_refresh,
+                                                  choose_step)
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSimulation,
@@ -42,7 +43,14 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
             transition_s=config.transition_s, max_modes=config.max_modes,
             strain_limit=config.strain_limit,
             highest_hz=choice.highest_hz if choice else None, force_refresh=refresh,
-            mode_choice=choice)
+            mode_choice=choice, basis_kind=config.basis,
+            derivative_directions=config.derivative_directions, progress=basis.progress)
+        if config.dt is None and config.integrator == "explicit":
+            # the step the scene or the mode choice suggests may be beyond the stability
+            # limit of what the band adds: stay within it
+            limit = sim.stability_limit()
+            if (dt or 0.0) >= STABILITY_SAFETY * limit:
+                dt = None
     else:
         sim = FullSimulation(model, basis, config.band, dt=dt or 1e-3,
                              integrator=config.integrator, strain_limit=config.strain_limit)

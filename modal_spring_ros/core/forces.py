@@ -59,7 +59,9 @@ class GeneralizedForces:
         last_max_strain: largest ``|L - l| / l`` over all springs at the last evaluation.
     """
 
-    def __init__(self, model, basis: np.ndarray | None):
+    def __init__(self, model, basis: np.ndarray | None, load_mask: np.ndarray | None = None):
+        """``load_mask`` (m, 4), with a basis: which loads (gravity, base acceleration along
+        x, y, z) act on each coordinate (all when None)."""
         s = model.scene
         d = model.dimension
         self.dimension = d
@@ -78,9 +80,7 @@ class GeneralizedForces:
             model.mass_dof[:, None]
             * (np.arange(model.n_free_dof)[:, None] % d == np.arange(d)[None, :]))
         self._load_coefficients = np.array([1.0, 0.0, 0.0, 0.0])
-        free_index = np.full(s.n_particles, -1)
-        free_index[model.free_particles] = np.arange(model.free_particles.size)
-        d_mat = spring_difference_matrix(s.springs, free_index, d, model.free_particles.size)
+        d_mat = model.spring_difference
         loads = np.column_stack([model.gravity_force, base_load])
         self._phi = None
         if basis is None:
@@ -93,6 +93,8 @@ class GeneralizedForces:
             else:
                 self._phi, self._phit = basis, np.ascontiguousarray(basis.T)
                 self._g, self._gt = d_mat, (-d_mat.T).tocsr()
+        if load_mask is not None:
+            loads = loads * load_mask
         self._load_matrix = np.ascontiguousarray(loads)
         self._gravity = self._load_matrix[:, 0].copy()
         self._kl = self._k * self._l

@@ -15,7 +15,7 @@ import functools
 import numpy as np
 import scipy.sparse as sp
 
-from modal_spring_ros.core.forces import GeneralizedForces
+from modal_spring_ros.core.forces import GeneralizedForces, spring_difference_matrix
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.core.stiffness import assemble_stiffness, reduce_to_free
 
@@ -51,6 +51,16 @@ class MassSpringModel:
         full = assemble_stiffness(s.rest_positions[:, self.axes], s.springs, s.stiffness,
                                   s.dimension)
         return reduce_to_free(full, self.free_dof)
+
+    @functools.cached_property
+    def spring_difference(self) -> sp.csr_matrix:
+        """Sparse ``D``: per spring and axis, ``u_j - u_i`` of a free-DOF displacement ``u``
+        (component-major rows: every spring's x, then every y, ...)."""
+        s = self.scene
+        free_index = np.full(s.n_particles, -1)
+        free_index[self.free_particles] = np.arange(self.free_particles.size)
+        return spring_difference_matrix(s.springs, free_index, self.dimension,
+                                        self.free_particles.size)
 
     # -- positions -----------------------------------------------------------------------------
     def anchor_offset(self, t: float) -> np.ndarray:

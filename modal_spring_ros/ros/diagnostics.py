@@ -77,7 +77,10 @@ def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, s
     return {
         "method": status.method,
         "band": status.band,
-        "modes stepped": str(status.coordinates),
+        "basis": status.basis,
+        "basis precompute (s)": f"{status.basis_seconds:.3g}",
+        "modes stepped": str(status.modes),
+        "coordinates stepped": str(status.coordinates),
         "modes computed": str(status.modes_computed),
         "automatic mode choice": status.mode_choice,
         "integrator": status.integrator,

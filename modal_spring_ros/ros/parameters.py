@@ -13,11 +13,13 @@ from typing import Any
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 
 from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TRANSITION_S,
-                                          SimulationConfig)
+                                          MAX_DIRECTIONS, MIN_DIRECTIONS, SimulationConfig)
+from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import FILTER_TYPES, UNITS, BandError, FilterBand
 from modal_spring_ros.core.integrators import INTEGRATORS
 from modal_spring_ros.core.mode_selection import DEFAULT_TOLERANCE
 from modal_spring_ros.core.simulations import DEFAULT_MAX_MODES, DEFAULT_STRAIN_LIMIT, METHODS
+from modal_spring_ros.core.simulations.coordinates import BASES
 from modal_spring_ros.scenes.resources import DEFAULT_SCENE
 
 #: the one parameter the node sets itself (refused from anyone else)
@@ -106,6 +108,13 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         "Steps between exact evaluations of the nonlinear spring forces (1 = every step, as "
         "the paper; N > 1 continues them along the static tangent in between); 0 = every "
         "step, or what modal.auto chooses", _I, int_range=(0, 10_000))),
+    "modal.basis": ("derivatives", _descriptor(
+        "Coordinates of the modal method: rest (the paper's rest modes of the band) or "
+        "derivatives (the band's rest modes plus their modal derivatives and static load "
+        "vectors: right beyond small deformation)", _S, constraints="rest or derivatives")),
+    "modal.derivative_directions": (DEFAULT_DIRECTIONS, _descriptor(
+        "Modal-derivative directions a band adds (modal.basis = derivatives)", _I,
+        int_range=(MIN_DIRECTIONS, MAX_DIRECTIONS))),
     "record.bag": ("", _descriptor(
         "If set, a new bag folder that every published frame is written to directly (no DDS), "
         "with the scene, the parameters and every change: re-simulates exactly", _S,
@@ -124,18 +133,20 @@ FREQUENCIES_DESCRIPTOR = _descriptor(
 #: parameters whose change rebuilds the simulation (state and time carried over); the other
 #: ``filter.*`` parameters change the band of the running one
 REBUILD_PARAMETERS = frozenset({"method", "integrator", "sim.dt", "modal.auto",
-                                "modal.tolerance", "modal.force_refresh"})
+                                "modal.tolerance", "modal.force_refresh", "modal.basis",
+                                "modal.derivative_directions"})
 #: parameters of the band
 BAND_PARAMETERS = frozenset({"filter.type", "filter.by", "filter.low_hz", "filter.high_hz",
                              "filter.low_mode", "filter.high_mode", "filter.transition_s"})
 #: string parameters with a fixed set of values
 CHOICES = {"method": tuple(METHODS), "filter.type": FILTER_TYPES, "filter.by": UNITS,
-           "integrator": tuple(INTEGRATORS), "stamp": STAMPS}
+           "integrator": tuple(INTEGRATORS), "stamp": STAMPS, "modal.basis": BASES}
 #: configuration field -> parameter name, so that configuration errors name the parameter
 CONFIG_NAMES = {"method": "method", "auto": "modal.auto", "integrator": "integrator",
                 "dt": "sim.dt", "transition_s": "filter.transition_s",
                 "max_modes": "modal.max_modes", "strain_limit": "sim.strain_limit",
-                "tolerance": "modal.tolerance", "force_refresh": "modal.force_refresh"}
+                "tolerance": "modal.tolerance", "force_refresh": "modal.force_refresh",
+                "basis": "modal.basis", "derivative_directions": "modal.derivative_directions"}
 
 
 def band_from_parameters(values: dict[str, Any]) -> FilterBand:
@@ -160,7 +171,10 @@ def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
         transition_s=values["filter.transition_s"], max_modes=values["modal.max_modes"],
         strain_limit=values["sim.strain_limit"], auto=values.get("modal.auto", False),
         tolerance=values.get("modal.tolerance", DEFAULT_TOLERANCE),
-        force_refresh=values.get("modal.force_refresh", 0)).validate(CONFIG_NAMES)
+        force_refresh=values.get("modal.force_refresh", 0),
+        basis=values.get("modal.basis", "rest"),
+        derivative_directions=values.get("modal.derivative_directions", DEFAULT_DIRECTIONS),
+    ).validate(CONFIG_NAMES)
 
 
 def check_stream(values: dict[str, Any]) -> None:

@@ -21,6 +21,7 @@ from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.stamps import to_seconds
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.simulations import DivergenceError
 from modal_spring_ros.ros.parameters import REBUILD_PARAMETERS, config_from_parameters
@@ -72,6 +73,9 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
         values = None
     else:
         values = dict(rec["parameters"])
+        # recorded before the basis was a parameter: the rest modes were the only basis
+        values.setdefault("modal.basis", "rest")
+        values.setdefault("modal.derivative_directions", DEFAULT_DIRECTIONS)
         config = config_from_parameters(values)
         changes = parameter_changes(bag, rec.get("node", "/modal_spring"))
     sim = build_simulation(scene, config, allow_unstable=True)

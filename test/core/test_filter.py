@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from helpers import power_above
 
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.filter_band import BandError, FilterBand, parse_mode_range
@@ -72,18 +73,6 @@ def test_a_band_that_keeps_no_mode_is_rejected(sheet_10x10):
     assert sim.band == FilterBand() and sim.kept_modes.size == 180  # nothing changed
 
 
-def _power_above(sim, cutoff_hz: float, steps: int) -> float:
-    frames = np.empty((steps, sim.model.n_free_dof))
-    for k in range(steps):
-        sim.step()
-        frames[k] = sim.displacement()
-    frames -= frames.mean(axis=0)
-    spectrum = np.abs(np.fft.rfft(frames * np.hanning(steps)[:, None], axis=0)) ** 2
-    power = spectrum.sum(axis=1)
-    f = np.fft.rfftfreq(steps, sim.dt)
-    return float(power[f > cutoff_hz].sum() / power.sum())
-
-
 def test_lowpass_leaves_under_one_percent_of_power_above_the_cutoff(sheet_undamped_still):
     model, basis = sheet_undamped_still
     # Broadband excitation: every mode displaced by the same modal amplitude (white).
@@ -93,8 +82,8 @@ def test_lowpass_leaves_under_one_percent_of_power_above_the_cutoff(sheet_undamp
     low.set_state(u0, np.zeros(model.n_free_dof))
     every = ModalSimulation(model, basis, FilterBand(), dt=5e-4)
     every.set_state(u0, np.zeros(model.n_free_dof))
-    assert _power_above(low, cutoff, 6000) < 0.01
-    assert _power_above(every, cutoff, 6000) > 0.2     # the excitation really is broadband
+    assert power_above(low, cutoff, 6000) < 0.01
+    assert power_above(every, cutoff, 6000) > 0.2     # the excitation really is broadband
 
 
 def test_changing_the_band_mid_run_moves_no_particle_more_than_ordinary_motion(sheet_10x10):

@@ -11,9 +11,8 @@ from modal_spring_ros.core.config import ConfigError, SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.integrators import INTEGRATORS, integrator
-from modal_spring_ros.core.simulations import (METHODS, MIN_DT_S, FullSimulation,
-                                               ModalSimulation, SimulationStatus,
-                                               UnstableStepError)
+from modal_spring_ros.core.simulations import (METHODS, MIN_DT_S, FullSimulation, ModalSimulation,
+                                               SimulationStatus, UnstableStepError)
 from modal_spring_ros.scenes.resources import load_scene
 
 
@@ -34,7 +33,7 @@ def test_registries_map_names_to_classes():
 @pytest.mark.parametrize("method", sorted(METHODS))
 def test_every_method_offers_the_contract(sheet, method):
     band = FilterBand("lowpass", 0.0, 20.0)
-    sim = build_simulation(sheet, SimulationConfig(method=method, band=band))
+    sim = build_simulation(sheet, SimulationConfig(method=method, band=band, basis="rest"))
     status = sim.status()
     assert isinstance(status, SimulationStatus)
     assert status.method == method and status.integrator == "explicit"
@@ -44,10 +43,10 @@ def test_every_method_offers_the_contract(sheet, method):
     f = sim.basis.frequencies_hz[sim.kept_modes]
     if method == "modal":
         assert f.max() <= 20.0 and status.coordinates == sim.kept_modes.size == 4
-        assert status.band == "lowpass <= 20 Hz"
+        assert status.band == "lowpass <= 20 Hz" and status.basis == "rest: 4 modes"
     else:  # every mode takes part; the band waits for a switch to modal
         assert sim.kept_modes.size == 180 and status.coordinates == 180
-        assert status.band == "full"
+        assert status.band == "full" and status.basis == "physical: every free DOF"
     sim.step(10)
     again = sim.with_dt(sim.dt / 2)
     assert type(again) is type(sim) and again.dt == sim.dt / 2 and again.time == 0.0
@@ -64,7 +63,7 @@ def test_with_dt_keeps_the_automatic_choice(sheet):
 def test_a_reset_during_a_band_fade_settles_the_band_and_rests(sheet):
     """One reset while a band change is still fading used to raise (shapes (0,) and (180,))
     and leave the run half-changed, killing the node's stream."""
-    sim = build_simulation(sheet, SimulationConfig())
+    sim = build_simulation(sheet, SimulationConfig(basis="rest"))
     sim.step(20)
     sim.set_band(FilterBand("lowpass", 0, 20, "hz"), 0.5)
     sim.step()
@@ -74,7 +73,8 @@ def test_a_reset_during_a_band_fade_settles_the_band_and_rests(sheet):
     assert sim.stepped_modes.tolist() == sim.kept_modes.tolist() == [0, 1, 2, 3]
     np.testing.assert_array_equal(sim.displacement(), 0.0)
     sim.step(200)  # and it runs on, like a fresh run of that band
-    fresh = build_simulation(sheet, SimulationConfig(band=FilterBand("lowpass", 0, 20, "hz")))
+    fresh = build_simulation(sheet, SimulationConfig(band=FilterBand("lowpass", 0, 20, "hz"),
+                                                     basis="rest"))
     fresh.step(200)
     np.testing.assert_allclose(sim.positions(), fresh.positions(), rtol=0, atol=1e-12)
 

@@ -13,7 +13,8 @@ from modal_spring_ros.ros.diagnostics import StreamReport, diagnostic_array
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 
 STATUS = SimulationStatus(
-    method="modal", band="lowpass <= 20 Hz", coordinates=4, modes_computed=180,
+    method="modal", band="lowpass <= 20 Hz", basis="rest: 4 modes", basis_seconds=0.012,
+    modes=4, coordinates=4, modes_computed=180,
     mode_choice="off", integrator="explicit", dt=5e-4, force_refresh=1, refresh_error=None,
     stability_limit=0.0123, time=2.5, steps=5000, max_strain=0.01, fading=False)
 STREAM = StreamReport(window_s=1.0, achieved_rtf=1.0, requested_rtf=1.0, step_us=31.4,

@@ -68,7 +68,10 @@ class SimulationStatus:
 
     method: str
     band: str                  # the band stepped, as text ("full" for a full run)
-    coordinates: int           # modes (modal) or free DOF (full) stepped
+    basis: str                 # what the coordinates are ("derivatives: 15 modes + ...")
+    basis_seconds: float       # time spent computing them (modes and what a band adds), s
+    modes: int                 # rest modes of the band (modal) or free DOF (full) stepped
+    coordinates: int           # every coordinate stepped (modal: modes and what they add)
     modes_computed: int
     mode_choice: str           # the automatic mode choice, or "off"
     integrator: str
@@ -151,11 +154,25 @@ class Simulation(abc.ABC):
     @property
     @abc.abstractmethod
     def coordinates(self) -> int:
-        """Number of coordinates stepped (modes, or free DOF)."""
+        """Number of coordinates stepped (modes and what the band adds, or free DOF)."""
+
+    @property
+    def modes(self) -> int:
+        """Number of rest modes of the band stepped (a full run: its free DOF)."""
+        return self.coordinates
 
     @abc.abstractmethod
     def describe_band(self) -> str:
         """The band stepped, as text."""
+
+    def describe_basis(self) -> str:
+        """What the coordinates stepped are, as text."""
+        return "physical: every free DOF"
+
+    @property
+    def basis_seconds(self) -> float:
+        """Time spent computing the basis of the coordinates stepped, s."""
+        return self.basis.solve_seconds if self.basis is not None else 0.0
 
     @abc.abstractmethod
     def set_band(self, band: FilterBand, transition_s: float | None = None) -> None:
@@ -185,7 +202,8 @@ class Simulation(abc.ABC):
     def status(self) -> SimulationStatus:
         choice = self.mode_choice
         return SimulationStatus(
-            method=self.method, band=self.describe_band(), coordinates=self.coordinates,
+            method=self.method, band=self.describe_band(), basis=self.describe_basis(),
+            basis_seconds=self.basis_seconds, modes=self.modes, coordinates=self.coordinates,
             modes_computed=self.basis.count if self.basis is not None else 0,
             mode_choice=choice.describe() if choice is not None else "off",
             integrator=self.integrator, dt=self.dt, force_refresh=self.force_refresh,

@@ -13,9 +13,17 @@ jump); a mode that enters starts from rest and takes on its load along the same 
 eases into place rather than dropping. Modes not computed yet are computed when a band first
 needs them (at most ``max_modes``).
 
-The modes stepped and their fade progress are one immutable :class:`ActiveSet`, replaced
-whole: a thread that prepares a band switch reads a consistent set, and a reset during a fade
-starts from the settled band instead of a half-changed one.
+With ``basis_kind="derivatives"`` each band also steps the coordinates it adds
+(:mod:`modal_spring_ros.core.derivatives`: the kept modes' second-order response and the static
+response to the loads), so that the stream stays right beyond small deformation. Rest modes and
+added coordinates are both "coordinates" here, identified by an id: a rest mode by its index,
+an added coordinate by an id from :data:`ADDED_ID` up (an :class:`AddedCoordinateBank` keeps
+them, per band). A band change fades the leaving band's added coordinates out and the new
+ones in, as it does rest modes.
+
+The coordinates stepped and their fade progress are one immutable :class:`ActiveSet`,
+replaced whole: a thread that prepares a band switch reads a consistent set, and a reset
+during a fade starts from the settled band instead of a half-changed one.
 """
 from __future__ import annotations
 
@@ -25,7 +33,8 @@ import threading
 
 import numpy as np
 
-from modal_spring_ros.core.basis import DEFAULT_MAX_MODES, ModalBasis
+from modal_spring_ros.core.basis import DEFAULT_MAX_MODES, ModalBasis, Progress
+from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS, AddedCoordinates
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.forces import GeneralizedForces
 from modal_spring_ros.core.integrators import DiagonalOperators
@@ -34,43 +43,12 @@ from modal_spring_ros.core.refreshed_forces import RefreshedForces
 from modal_spring_ros.core.scene import Damping
 from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simulation, check_step,
                                                     stable_step_limit)
+from modal_spring_ros.core.simulations.coordinates import (ADDED_ID, BASES, EMPTY_SET, ActiveSet,
+                                                           AddedCoordinateBank)
 
 #: Stepped-mode sets a modal run keeps prepared ahead (a switch needs two: the modes stepped
 #: during its transition and after it); the oldest goes first.
 PREPARED_SETS_KEPT = 4
-
-_NO_MODES = np.empty(0, dtype=np.int64)
-
-
-@dataclasses.dataclass(frozen=True)
-class ActiveSet:
-    """The modes stepped, which of them are in the band, and each one's fade progress
-    (1 = fully in, 0 = out)."""
-
-    modes: np.ndarray
-    target: np.ndarray
-    progress: np.ndarray
-
-    @classmethod
-    def settled(cls, keep: np.ndarray) -> "ActiveSet":
-        keep = np.asarray(keep, dtype=np.int64)
-        return cls(keep, np.ones(keep.size, dtype=bool), np.ones(keep.size))
-
-    @property
-    def fading(self) -> bool:
-        return bool(np.any(self.progress < 1.0) or not np.all(self.target))
-
-    @property
-    def kept(self) -> np.ndarray:
-        return self.modes[self.target]
-
-    def next_modes(self, keep: np.ndarray, instant: bool) -> np.ndarray:
-        """Modes stepped once ``keep`` is the band: ``keep`` plus the modes still fading out."""
-        leaving = self.modes[~np.isin(self.modes, keep) & (self.progress > 0.0)]
-        return np.union1d(keep, leaving[:0] if instant else leaving).astype(np.int64)
-
-
-EMPTY_SET = ActiveSet(_NO_MODES, np.empty(0, dtype=bool), np.empty(0))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,7 +69,9 @@ class ModalSimulation(Simulation):
     as the paper; ``N > 1`` evaluates them every ``N`` steps and continues them along the
     static tangent in between (:mod:`modal_spring_ros.core.refreshed_forces`), so that most
     steps cost nothing per spring. ``highest_hz``: modes above it are never stepped (set by the
-    automatic mode choice ``mode_choice``).
+    automatic mode choice ``mode_choice``). ``basis_kind``: ``rest`` (the paper's rest modes)
+    or ``derivatives`` (each band also steps ``derivative_directions`` modal-derivative
+    directions and the static load vectors; see the module text).
     """
 
     method = "modal"
@@ -100,9 +80,20 @@ class ModalSimulation(Simulation):
                  dt: float, integrator: str = "explicit", damping: Damping | None = None,
                  transition_s: float = 0.5, max_modes: int | None = None,
                  strain_limit: float = DEFAULT_STRAIN_LIMIT, highest_hz: float | None = None,
-                 force_refresh: int = 1, mode_choice=None):
+                 force_refresh: int = 1, mode_choice=None, basis_kind: str = "rest",
+                 derivative_directions: int = DEFAULT_DIRECTIONS,
+                 bank: AddedCoordinateBank | None = None, progress: Progress | None = None):
         super().__init__(model, basis, dt=dt, integrator=integrator, damping=damping,
                          strain_limit=strain_limit)
+        if basis_kind not in BASES:
+            raise ValueError(f"basis '{basis_kind}' must be one of {', '.join(BASES)}")
+        if not (isinstance(derivative_directions, (int, np.integer))
+                and derivative_directions >= 1):
+            raise ValueError(f"derivative directions ({derivative_directions}) must be a whole "
+                             "number, at least 1")
+        self.basis_kind = basis_kind
+        self._bank = bank if bank is not None else AddedCoordinateBank(
+            basis, derivative_directions, progress)
         if not (isinstance(force_refresh, (int, np.integer)) and force_refresh >= 1):
             raise ValueError(f"force refresh ({force_refresh}) must be a whole number of "
                              "steps, at least 1")
@@ -117,23 +108,47 @@ class ModalSimulation(Simulation):
         self._q = self._v = self._a = np.empty(0)
         self._built: dict[tuple[int, bytes], _SteppedSet] = {}
         self._built_lock = threading.Lock()
-        self._install(ActiveSet.settled(self.select_modes(band)), None)
+        self._install(ActiveSet.settled(self.coordinates_for(self.select_modes(band))), None)
         self.reset()
 
     # -- the contract --------------------------------------------------------------------------
     @property
     def kept_modes(self) -> np.ndarray:
-        """Indices of the modes in the band (fading-out modes excluded)."""
-        return self._set.kept
+        """Indices of the rest modes in the band (fading-out modes excluded)."""
+        kept = self._set.kept
+        return kept[kept < ADDED_ID]
 
     @property
     def stepped_modes(self) -> np.ndarray:
-        """Indices of the modes being stepped (band plus modes still fading out)."""
+        """Ids of the coordinates being stepped (the band's, plus those still fading out)."""
         return self._set.modes.copy()
+
+    @property
+    def added_coordinates(self) -> AddedCoordinates | None:
+        """What the band adds to its rest modes (``derivatives`` basis), or None."""
+        if self.basis_kind == "rest":
+            return None
+        return self._bank.for_band(self.kept_modes)[1]
+
+    @property
+    def basis_seconds(self) -> float:
+        added = self.added_coordinates
+        return self.basis.solve_seconds + (added.seconds if added is not None else 0.0)
+
+    def describe_basis(self) -> str:
+        added = self.added_coordinates
+        if added is None:
+            return f"rest: {self.kept_modes.size} modes"
+        return (f"derivatives: {self.kept_modes.size} modes + {added.derivative_count} "
+                f"derivative directions + {added.count - added.derivative_count} static")
 
     @property
     def coordinates(self) -> int:
         return int(self._set.kept.size)
+
+    @property
+    def modes(self) -> int:
+        return int(self.kept_modes.size)
 
     @property
     def fading(self) -> bool:
@@ -162,10 +177,18 @@ class ModalSimulation(Simulation):
                                transition_s=self.transition_s, max_modes=self.max_modes,
                                strain_limit=self.strain_limit, highest_hz=self.highest_hz,
                                force_refresh=self._force_refresh,
-                               mode_choice=self._mode_choice)
+                               mode_choice=self._mode_choice, basis_kind=self.basis_kind,
+                               derivative_directions=self._bank.directions, bank=self._bank)
 
     def stability_limit(self) -> float:
-        return stable_step_limit(float(self.basis.omega[self._set.modes].max()))
+        return stable_step_limit(float(self._bank.columns(self._set.modes)[1].max()))
+
+    def coordinates_for(self, keep: np.ndarray) -> np.ndarray:
+        """The coordinates stepped for a band keeping rest modes ``keep`` (computing what the
+        basis adds to them on first use; no state of the run changes)."""
+        if self.basis_kind == "rest":
+            return keep
+        return np.concatenate([keep, self._bank.for_band(keep)[0]])
 
     # -- band ----------------------------------------------------------------------------------
     def prepare_band(self, band: FilterBand) -> None:
@@ -204,8 +227,8 @@ class ModalSimulation(Simulation):
         return keep.astype(np.int64)
 
     def set_band(self, band: FilterBand, transition_s: float | None = None) -> None:
-        """Change the band; leaving modes fade out, entering modes start from rest."""
-        keep = self.select_modes(band)
+        """Change the band; leaving coordinates fade out, entering ones start from rest."""
+        keep = self.coordinates_for(self.select_modes(band))
         transition = self.transition_s if transition_s is None else float(transition_s)
         self._install(self._switched(self._set, keep, transition <= 0.0), self._set)
         self.transition_s = transition
@@ -220,16 +243,18 @@ class ModalSimulation(Simulation):
         return not self.basis.complete and self.basis.frequencies_hz[-1] <= edge
 
     def check_band(self, band: FilterBand, dt_name: str = "dt") -> np.ndarray:
-        """The modes ``band`` keeps, if this run can step them (computing them first).
+        """The coordinates stepped for ``band``, if this run can step them (computing them
+        first).
 
         Raises:
             BandError: it keeps no mode.
             UnstableStepError: its highest mode is unstable at ``dt`` (explicit).
         """
-        keep = self.select_modes(band)
-        check_step(self.integrator, self.dt,
-                   stable_step_limit(float(self.basis.omega[keep].max())), self.method, dt_name)
-        return keep
+        coordinates = self.coordinates_for(self.select_modes(band))
+        omega = self._bank.columns(coordinates)[1]
+        check_step(self.integrator, self.dt, stable_step_limit(float(omega.max())),
+                   self.method, dt_name)
+        return coordinates
 
     def prepare_switch(self, band: FilterBand, transition_s: float | None = None,
                        dt_name: str = "dt") -> None:
@@ -272,10 +297,9 @@ class ModalSimulation(Simulation):
         return built if built is not None else self._build_set(modes)
 
     def _build_set(self, modes: np.ndarray) -> _SteppedSet:
-        phi = np.ascontiguousarray(self.basis.vectors[:, modes])
-        omega = self.basis.omega[modes]
+        phi, omega = self._bank.columns(modes)
         damp = self.damping.modal_coefficients(omega)
-        exact = GeneralizedForces(self.model, phi)
+        exact = GeneralizedForces(self.model, phi, self._bank.load_mask(modes))
         forces = (exact if self._force_refresh == 1 else
                   RefreshedForces(exact, omega**2, self._force_refresh, self.dt,
                                   self.strain_limit))

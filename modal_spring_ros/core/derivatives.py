@@ -1,0 +1,228 @@
+"""Modal derivatives with static load vectors: the band's second-order response (Barbic and
+James 2005), added to the kept rest modes as a fixed basis per band.
+
+Rest modes describe the motion only while the springs barely rotate. A sheet swaying in its
+first mode rotates its vertical springs and shortens; written in rest modes that sway stretches
+them instead, so its stiffness, its resonance and its phase drift. The shortening is the
+second-order, quasi-static response of the kept modes, and it lies in stiff modes far above the
+band. The modal derivative of kept modes ``i <= j``,
+
+    K0 psi_ij = -(dK/dq_j) phi_i,
+
+is that response's direction. A band's added coordinates are built once per band:
+
+1. every ``psi_ij`` over the kept modes (the pairs of the lowest :data:`MAX_PAIR_MODES`),
+2. with their components on the kept modes and on every rest mode the band removes below its
+   top taken out, so that a band-pass never puts motion back into the modes it removes,
+3. weighted by ``omega_1^2 / (omega_i omega_j)`` and reduced to the leading
+   ``directions`` mass-PCA directions,
+4. with the static load vectors ``K0^-1 f_gravity`` and ``K0^-1 M 1_axis`` (each axis the base
+   moves along), projected the same way, each only when the load varies at frequencies within
+   the band's span (a quasi-static response moves at its load's frequencies),
+5. mass-orthonormalised and rotated so that ``K0`` is diagonal on them: each added coordinate
+   has an ``omega`` of its own, and the modal damping, the diagonal operators and both
+   integrators carry over unchanged. The forces stay exact (eq. 20 in physical space).
+
+The band keeps its meaning: the added coordinates move with what the kept modes drive (the
+springs' second-order response) and with the loads in the band, not with a load outside it (a
+base shaken at 8 Hz does not drive them in a low-pass below 8 Hz: their share of that load is
+left out, as it is of the static vectors).
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from modal_spring_ros.core.basis import ModalBasis, Progress
+from modal_spring_ros.core.model import MassSpringModel
+
+#: Default number of mass-PCA derivative directions added to a band.
+DEFAULT_DIRECTIONS = 15
+#: Pairs are formed among the band's lowest this many modes (their weight falls as
+#: ``1 / (omega_i omega_j)``; a 256-mode band would otherwise need 32,896 solves).
+MAX_PAIR_MODES = 48
+#: Pairs whose right-hand sides are built and solved at once (bounds the memory).
+PAIR_CHUNK = 64
+#: Directions whose mass norm falls below this share of the largest are dependent: dropped.
+DEPENDENT_RTOL = 1e-10
+#: A static response with less than this share of it outside the band's modes adds nothing.
+REMAINDER_RTOL = 1e-8
+
+
+@dataclasses.dataclass(frozen=True)
+class AddedCoordinates:
+    """The coordinates a band adds to its kept rest modes."""
+
+    vectors: np.ndarray     # (n_free_dof, r), mass-orthonormal, M-orthogonal to the rest modes
+    omega: np.ndarray       # (r,) sqrt of K0 on each (K0 is diagonal on them), rad/s
+    derivative_count: int   # how many of them are derivative directions (the rest: static)
+    seconds: float          # time to compute them
+    loads: np.ndarray       # (4,) bool: the loads (gravity, base x, y, z) that act on them
+
+    @property
+    def count(self) -> int:
+        return int(self.omega.size)
+
+
+def tangent_derivative(model: MassSpringModel, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(dK/du along b) a`` at the rest shape, for free-DOF displacement fields ``a`` and
+    ``b`` given as columns (n_free_dof, P): the change of the springs' tangent stiffness
+    applied to ``a`` per unit displacement along ``b``.
+
+    One spring's tangent block is ``k [(1 - l/L) I + (l/L) n n^T]``; along the spring's
+    difference ``beta`` of ``b`` (at rest ``L = l``, ``n = X / l``) its derivative is
+    ``k [(n.beta / l)(I - n n^T) + n' n^T + n n'^T]`` with ``n' = (beta - n (n.beta)) / l``.
+    """
+    d, lengths, stiffness, unit, diff = _spring_geometry(model)
+    n_springs = lengths.size
+    alpha = np.asarray(diff @ a).reshape(d, n_springs, -1)   # (d, E, P) spring differences
+    beta = np.asarray(diff @ b).reshape(d, n_springs, -1)
+    per_spring = _per_spring(alpha, beta, unit, lengths, stiffness)
+    return np.asarray(diff.T @ per_spring.reshape(d * n_springs, -1))
+
+
+def _per_spring(alpha: np.ndarray, beta: np.ndarray, unit: np.ndarray, lengths: np.ndarray,
+                stiffness: np.ndarray) -> np.ndarray:
+    """(d, E, P) per-spring vectors of the tangent derivative (see :func:`tangent_derivative`),
+    from the springs' differences ``alpha`` of ``a`` and ``beta`` of ``b``."""
+    n = unit[:, :, None]
+    n_beta = (n * beta).sum(axis=0)                 # (E, P)
+    n_alpha = (n * alpha).sum(axis=0)
+    inv_l = (1.0 / lengths)[:, None]
+    n_prime = (beta - n * n_beta) * inv_l
+    return stiffness[:, None] * (
+        n_beta * inv_l * (alpha - n * n_alpha)
+        + n_prime * n_alpha
+        + n * (n_prime * alpha).sum(axis=0))
+
+
+def _spring_geometry(model: MassSpringModel):
+    """Dimension, rest lengths, stiffness, rest unit vectors (d, E), and ``D``."""
+    s = model.scene
+    rest = model.rest
+    unit = (rest[s.springs[:, 1]] - rest[s.springs[:, 0]]).T / s.rest_length
+    return (model.dimension, np.asarray(s.rest_length, dtype=float),
+            np.asarray(s.stiffness, dtype=float), unit, model.spring_difference)
+
+
+def loads_in_band(model: MassSpringModel, low_hz: float = 0.0,
+                  high_hz: float = np.inf) -> np.ndarray:
+    """Which loads vary only at frequencies within ``low_hz .. high_hz``, as a mask over
+    (gravity, base acceleration along x, y, z): gravity is constant (0 Hz), a base axis moves
+    at its anchor motion's frequencies. A load the scene does not have is never in band."""
+    mask = np.zeros(4, dtype=bool)
+    mask[0] = bool(np.any(model.gravity_force != 0.0)) and low_hz <= 0.0
+    drives: dict[int, list[float]] = {}
+    for c in model.scene.anchor_motion.components:
+        if c.amplitude != 0.0 and c.axis in model.axes:
+            drives.setdefault(c.axis, []).append(c.frequency_hz)
+    for axis, f in drives.items():
+        mask[1 + axis] = low_hz <= min(f) and max(f) <= high_hz
+    return mask
+
+
+def static_load_vectors(model: MassSpringModel, low_hz: float = 0.0,
+                        high_hz: float = np.inf) -> np.ndarray:
+    """(n_free_dof, s) loads whose static response is added: gravity, and the inertial load
+    ``M 1_axis`` of each axis the base moves along, each only when it is in band
+    (:func:`loads_in_band`): the quasi-static response to a load moves at the load's
+    frequencies, so a load outside the band would put them back in."""
+    mask = loads_in_band(model, low_hz, high_hz)
+    loads = [model.gravity_force] if mask[0] else []
+    d = model.dimension
+    for slot, axis in enumerate(model.axes):
+        if mask[1 + axis]:
+            load = np.zeros(model.n_free_dof)
+            load[slot::d] = model.mass_dof[slot::d]
+            loads.append(load)
+    return np.column_stack(loads) if loads else np.empty((model.n_free_dof, 0))
+
+
+def added_coordinates(basis: ModalBasis, keep: np.ndarray,
+                      directions: int = DEFAULT_DIRECTIONS,
+                      progress: Progress | None = None) -> AddedCoordinates:
+    """The coordinates a band keeping rest modes ``keep`` adds (see the module text).
+
+    Modes ``0 .. max(keep)`` must be computed. Empty when the band keeps every mode of the
+    scene (nothing is left to add)."""
+    start = time.perf_counter()
+    model = basis.model
+    keep = np.asarray(keep, dtype=np.int64)
+    mass = model.mass_dof
+    below = basis.vectors[:, :int(keep.max()) + 1]   # the kept modes and those removed below
+
+    def project(x: np.ndarray) -> np.ndarray:
+        return x - below @ (below.T @ (mass[:, None] * x))
+
+    pair_modes = keep[:MAX_PAIR_MODES]
+    pairs = np.array([(i, j) for i in range(pair_modes.size)
+                      for j in range(i, pair_modes.size)], dtype=np.int64).reshape(-1, 2)
+    if progress is not None and pairs.size:
+        progress(f"modal derivatives: {len(pairs)} pairs of {pair_modes.size} modes")
+    d, lengths, stiffness, unit, diff = _spring_geometry(model)
+    g = np.asarray(diff @ basis.vectors[:, pair_modes]).reshape(d, lengths.size, -1)
+    omega = basis.omega[pair_modes]
+    weights = omega[0] ** 2 / (omega[pairs[:, 0]] * omega[pairs[:, 1]]) if pairs.size else []
+    blocks, scale = [], 0.0
+    for first in range(0, len(pairs), PAIR_CHUNK):
+        chunk = pairs[first:first + PAIR_CHUNK]
+        per_spring = _per_spring(g[:, :, chunk[:, 0]], g[:, :, chunk[:, 1]], unit, lengths,
+                                 stiffness)
+        rhs = -(diff.T @ per_spring.reshape(d * lengths.size, -1))
+        solved = basis.solve_stiffness(rhs) * weights[first:first + PAIR_CHUNK]
+        scale = max(scale, float(np.sqrt(np.einsum("ij,i,ij->j", solved, mass, solved).max())))
+        blocks.append(project(solved))
+    derivatives = _leading_directions(np.column_stack(blocks), mass, directions,
+                                      REMAINDER_RTOL * scale) \
+        if blocks else np.empty((model.n_free_dof, 0))
+    # the band's span: from 0 Hz when it keeps the lowest mode, else from its lowest mode
+    f = basis.frequencies_hz
+    span = (0.0 if keep[0] == 0 else float(f[keep[0]]), float(f[keep[-1]]))
+    static = _remainders(basis.solve_stiffness(static_load_vectors(model, *span)), mass,
+                         project)
+    vectors, omega2 = _orthonormal_diagonal(np.column_stack([derivatives, static]), mass,
+                                            model, project)
+    return AddedCoordinates(vectors, np.sqrt(np.maximum(omega2, 0.0)),
+                            min(derivatives.shape[1], vectors.shape[1]),
+                            time.perf_counter() - start, loads_in_band(model, *span))
+
+
+def _leading_directions(x: np.ndarray, mass: np.ndarray, count: int, floor: float
+                        ) -> np.ndarray:
+    """The ``count`` leading mass-PCA directions of the columns of ``x`` (mass-orthonormal),
+    of those whose singular value passes ``floor`` (below it, what is left after the
+    projection is round-off)."""
+    y = np.sqrt(mass)[:, None] * x
+    value, vector = np.linalg.eigh(y.T @ y)           # the SVD's right side, from the Gram
+    order = np.argsort(value)[::-1]
+    value, vector = value[order], vector[:, order]
+    keep = min(count, int(np.sum(value > max(DEPENDENT_RTOL ** 2 * max(value[0], 0.0),
+                                             floor ** 2))))
+    return (x @ vector[:, :keep]) / np.sqrt(value[:keep])
+
+
+def _remainders(x: np.ndarray, mass: np.ndarray, project) -> np.ndarray:
+    """The parts of the columns of ``x`` outside the projected modes, each scaled to unit mass
+    norm; a column with (almost) nothing outside them is dropped."""
+    before = np.sqrt(np.einsum("ij,i,ij->j", x, mass, x))
+    x = project(x)
+    after = np.sqrt(np.einsum("ij,i,ij->j", x, mass, x))
+    keep = after > REMAINDER_RTOL * before
+    return x[:, keep] / after[keep]
+
+
+def _orthonormal_diagonal(x: np.ndarray, mass: np.ndarray, model: MassSpringModel, project
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """Mass-orthonormalise the columns of ``x`` (dropping dependent ones), then rotate them so
+    that ``K0`` is diagonal on them; returns the vectors and ``omega^2``, ascending."""
+    if x.shape[1] == 0:
+        return x, np.empty(0)
+    gram = x.T @ (mass[:, None] * x)
+    value, vector = np.linalg.eigh(0.5 * (gram + gram.T))
+    independent = value > DEPENDENT_RTOL * value.max()
+    x = project(x @ (vector[:, independent] / np.sqrt(value[independent])))
+    stiffness = x.T @ (model.stiffness_free @ x)
+    omega2, rotation = np.linalg.eigh(0.5 * (stiffness + stiffness.T))
+    return np.ascontiguousarray(x @ rotation), omega2
