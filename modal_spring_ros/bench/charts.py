@@ -9,7 +9,8 @@ from matplotlib.figure import Figure
 from modal_spring_ros.bench.analysis import pareto
 
 COLORS = {"full explicit": "C3", "full average": "C1", "modal explicit": "C0",
-          "modal refreshed": "C4", "modal average": "C2", "modal auto": "k"}
+          "modal refreshed": "C4", "modal average": "C2", "modal auto": "k",
+          "modal derivatives": "C6"}
 
 
 def _subplots(*grid, **kw):
@@ -69,6 +70,13 @@ def stability_map(case: dict, path: Path) -> Path:
             label="modal explicit: largest stable step")
     ax.plot([s["modes"] for s in modal], [s["theory"] for s in modal], "k--",
             label="2 / omega_max of the kept modes")
+    derived = sorted((s for s in st if s["method"] == "modal derivatives"),
+                     key=lambda s: s["modes"])
+    if derived:
+        ax.plot([s["modes"] for s in derived], [s["largest_stable"] for s in derived], "s-",
+                c="C6", label="modal derivatives: largest stable step")
+        ax.plot([s["modes"] for s in derived], [s["theory"] for s in derived], ":", c="C6",
+                label="2 / omega_max of the modes and their added coordinates")
     for s in st:
         if s["method"] == "modal average":
             ax.scatter([s["modes"]], [s["largest_stable"]], marker="^", c="C2", zorder=3)
@@ -100,13 +108,17 @@ def fig8(costs: dict, path: Path) -> Path:
 
 def failure_chart(f: dict, path: Path) -> Path:
     fig, (top, bottom) = _subplots(2, 1, figsize=(8, 6.5), sharex=True)
-    top.semilogy(f["t"], f["rel_l2_window"], label="15 modes against full (0.25 s windows)")
+    top.semilogy(f["t"], f["rel_l2_window"],
+                 label="15 rest modes (the paper) against full (0.25 s windows)")
+    if "derivatives_rel_l2_window" in f:
+        top.semilogy(f["t"], f["derivatives_rel_l2_window"], c="C6",
+                     label="15 modes + derivatives against full")
     top.axhline(0.1, color="0.6", ls="--", lw=0.8)
     if f["error_passes_10pct_at"] is not None:
         top.axvline(f["error_passes_10pct_at"], color="C3",
                     label=f"error passes 10 % at {f['error_passes_10pct_at']:.2f} s")
     top.set_ylabel("relative L2 error")
-    top.set_title("Where the seed method fails: sheet_10x10_resonance (large deformation)")
+    top.set_title("Where rest modes fail, and derivatives hold: sheet_10x10_resonance")
     top.legend(fontsize=8)
     bottom.plot(f["t"], f["modal_strain"], label="modal run: largest spring strain")
     bottom.plot(f["t"], f["full_strain"], label="full run: largest spring strain", alpha=0.7)

@@ -24,18 +24,20 @@ import numpy as np
 
 from modal_spring_ros.bench.analysis import cheapest_reaching, pareto
 from modal_spring_ros.bench.charts import draw_all
+from modal_spring_ros.bench.failure import failure
 from modal_spring_ros.core.basis import ModalBasis
-from modal_spring_ros.core.config import DEFAULT_STRAIN_WARNING
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.mode_selection import choose_modes, choose_refresh, choose_step
 from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.simulations import (DivergenceError, FullSimulation, ModalSimulation,
                                                Simulation)
+from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
 from modal_spring_ros.scenes.resources import load_scene
 
 SAMPLE_S = 0.01
 METHODS = ("full explicit", "full average", "modal explicit", "modal refreshed",
-           "modal average", "modal auto")
+           "modal average", "modal auto", "modal derivatives")
 
 
 @dataclasses.dataclass
@@ -136,9 +138,14 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
     def full(dt, integrator="explicit"):
         return FullSimulation(model, dt=dt, integrator=integrator, basis=basis)
 
-    def modal(count, dt, integrator="explicit", refresh=1):
+    banks: dict[int, AddedCoordinateBank] = {}  # each band's derivatives, computed once
+
+    def modal(count, dt, integrator="explicit", refresh=1, basis_kind="rest"):
+        bank = banks.setdefault(count, AddedCoordinateBank(basis, DEFAULT_DIRECTIONS)) \
+            if basis_kind == "derivatives" else None
         return ModalSimulation(model, basis, FilterBand("lowpass", 0, count - 1, "index"),
-                               dt=dt, integrator=integrator, force_refresh=refresh)
+                               dt=dt, integrator=integrator, force_refresh=refresh,
+                               basis_kind=basis_kind, bank=bank)
 
     def refresh(count, dt):
         return choose_refresh(float(basis.frequencies_hz[count - 1]), dt)
@@ -178,6 +185,12 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
             if every > 1:
                 add("modal refreshed", modal(count, SAMPLE_S / k, refresh=every), count,
                     f"springs every {every} steps")
+        if count < model.n_free_dof:   # the band's derivatives: their own stability limit
+            probe = modal(count, SAMPLE_S, basis_kind="derivatives")
+            n = _divisor(0.95 * probe.stability_limit())
+            for k in (n, 2 * n):
+                add("modal derivatives", modal(count, SAMPLE_S / k, basis_kind="derivatives"),
+                    count, f"+ {probe.coordinates - count} derivative and static coordinates")
     for count in case.average_counts:
         for n in case.average_divisors:
             add("modal average", modal(count, SAMPLE_S / n, "average"), count)
@@ -205,6 +218,15 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
                           "largest_stable": largest_stable_step(
                               lambda dt, c=count: modal(c, dt), 0.5 * theory, 2.0 * theory,
                               u0)})
+    for count in case.stability_counts:
+        count = min(count, basis.count)
+        if count >= model.n_free_dof:
+            continue
+        theory = modal(count, SAMPLE_S, basis_kind="derivatives").stability_limit()
+        stability.append({"method": "modal derivatives", "modes": count, "theory": theory,
+                          "largest_stable": largest_stable_step(
+                              lambda dt, c=count: modal(c, dt, basis_kind="derivatives"),
+                              0.5 * theory, 2.0 * theory, u0)})
     for count in (case.stability_counts[0], case.stability_counts[-1]):
         count = min(count, basis.count)
         stability.append({"method": "modal average", "modes": count,
@@ -248,42 +270,6 @@ def step_costs(scenes: list[str], dropped: list[int], progress) -> dict:
         model, basis, FilterBand("lowpass", 0, 179 - d, "index"), dt=1e-4), 500)}
         for d in dropped]
     return {"fig7": fig7, "fig8": fig8}
-
-
-def failure(progress, duration: float) -> dict:
-    """The large-deformation scene: 15-mode low-pass (paper fig. 10b) against the full run,
-    windowed relative error over time, and the strain the node watches."""
-    progress("failure: sheet_10x10_resonance, 15 modes against full")
-    model = MassSpringModel(load_scene("sheet_10x10_resonance"))
-    basis = ModalBasis(model)
-    dt = model.scene.default_dt
-    full = FullSimulation(model, dt=dt, basis=basis)
-    modal = ModalSimulation(model, basis, FilterBand("lowpass", 0, 14, "index"), dt=dt)
-    window = int(round(0.25 / dt))
-    t, err, strain, full_strain = [], [], [], []
-    diverged_at = None
-    num = den = 0.0
-    for k in range(1, int(round(duration / dt)) + 1):
-        full.step()
-        if diverged_at is None:
-            try:
-                modal.step()
-            except DivergenceError:
-                diverged_at = modal.time
-        d = modal.displacement() - full.displacement()
-        num += float(d @ d)
-        den += float(full.displacement() @ full.displacement())
-        if k % window == 0:
-            t.append(full.time)
-            err.append(math.sqrt(num / max(den, 1e-300)))
-            strain.append(modal.max_strain())
-            full_strain.append(full.max_strain())
-            num = den = 0.0
-    crossing = next((ti for ti, e in zip(t, err) if e > 0.1), None)
-    warn = next((ti for ti, s in zip(t, strain) if s > DEFAULT_STRAIN_WARNING), None)
-    return {"t": t, "rel_l2_window": err, "modal_strain": strain, "full_strain": full_strain,
-            "error_passes_10pct_at": crossing, "strain_warning_at": warn,
-            "strain_warning": DEFAULT_STRAIN_WARNING, "modal_diverged_at": diverged_at}
 
 
 def _case_in_child(case: Case, queue) -> None:
@@ -361,5 +347,8 @@ def table(result: dict) -> str:
         lines.append(f"  cheapest at 1 %: {t}")
     f = result["failure"]
     lines.append(f"failure: error passes 10 % at {f['error_passes_10pct_at']} s, strain "
-                 f"warning at {f['strain_warning_at']} s")
+                 f"warning at {f['strain_warning_at']} s; with derivatives "
+                 f"({f['derivatives_coordinates']} coordinates) the largest window is "
+                 f"{max(f['derivatives_rel_l2_window']):.2%}, {f['derivatives_rel_l2']:.2%} over "
+                 "the run")
     return "\n".join(lines)

@@ -90,6 +90,8 @@ def summary(sim, diverged: str, seconds_per_step: float, wall: float) -> str:
                      f"({f[kept].min():.4g} .. {f[kept].max():.4g} Hz)"
                      + ("; band truncated at max_modes" if sim.truncated else ""))
         lines.append(f"band       {sim.band.describe()}")
+        lines.append(f"basis      {sim.describe_basis()}: {sim.coordinates} coordinates, "
+                     f"computed in {sim.basis_seconds:.3g} s")
     else:
         lines.append(f"method     full physical ({sim.model.n_free_dof} DOF)")
     if sim.refresh_error is not None:

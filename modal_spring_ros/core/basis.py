@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 import uuid
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 import scipy.linalg
@@ -123,6 +123,16 @@ class ModalBasis:
         if self.worker is None:
             return self._solver.solve(rhs)
         return self.worker.call(_solve_in_worker, self._solver, rhs)
+
+    def call_with_solve(self, function: Callable[..., Any], *args: Any) -> Any:
+        """``function(solve, *args)`` with ``solve(rhs) = K0^-1 rhs``: in the worker process
+        on a large scene that has one (so that the caller's interpreter stays free for the
+        stream; ``function`` must then be module-level), else here."""
+        if self.dense or self.worker is None:
+            return function(self.solve_stiffness, *args)
+        if self._solver is None:
+            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof)
+        return self.worker.call(_call_with_solve_in_worker, self._solver, function, args)
 
     def omega_max_estimate(self) -> float:
         """Largest circular frequency of the scene (exact when complete, else a Lanczos value)."""
@@ -255,3 +265,10 @@ def _lowest_modes_in_worker(solver: ShiftInvertModes, count: int
 def _solve_in_worker(solver: ShiftInvertModes, rhs: np.ndarray) -> np.ndarray:
     """Runs in a :class:`WorkerProcess`: ``solver.solve(rhs)``."""
     return _in_worker(solver).solve(rhs)
+
+
+def _call_with_solve_in_worker(solver: ShiftInvertModes, function: Callable[..., Any],
+                               args: tuple) -> Any:
+    """Runs in a :class:`WorkerProcess`: ``function(solve, *args)`` with the worker's
+    factor."""
+    return function(_in_worker(solver).solve, *args)

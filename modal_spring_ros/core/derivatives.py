@@ -41,8 +41,9 @@ from modal_spring_ros.core.model import MassSpringModel
 #: Default number of mass-PCA derivative directions added to a band.
 DEFAULT_DIRECTIONS = 15
 #: Pairs are formed among the band's lowest this many modes (their weight falls as
-#: ``1 / (omega_i omega_j)``; a 256-mode band would otherwise need 32,896 solves).
-MAX_PAIR_MODES = 48
+#: ``1 / (omega_i omega_j)``: the 24th mode's pairs weigh about 1/100 of the first's on the sheets;
+#: a 256-mode band would otherwise need 32,896 solves).
+MAX_PAIR_MODES = 24
 #: Pairs whose right-hand sides are built and solved at once (bounds the memory).
 PAIR_CHUNK = 64
 #: Directions whose mass norm falls below this share of the largest are dependent: dropped.
@@ -146,24 +147,40 @@ def added_coordinates(basis: ModalBasis, keep: np.ndarray,
     """The coordinates a band keeping rest modes ``keep`` adds (see the module text).
 
     Modes ``0 .. max(keep)`` must be computed. Empty when the band keeps every mode of the
-    scene (nothing is left to add)."""
+    scene (nothing is left to add). On a large scene with a worker process it is computed
+    there (the pair solves use the sparse factor kept in it)."""
     start = time.perf_counter()
-    model = basis.model
     keep = np.asarray(keep, dtype=np.int64)
+    pair_modes = keep[:MAX_PAIR_MODES]
+    if progress is not None and pair_modes.size:
+        pairs = pair_modes.size * (pair_modes.size + 1) // 2
+        progress(f"modal derivatives: {pairs} pairs of {pair_modes.size} modes"
+                 + (" in a worker process" if basis.worker and not basis.dense else ""))
+    # the band's span: from 0 Hz when it keeps the lowest mode, else from its lowest mode
+    f = basis.frequencies_hz
+    span = (0.0 if keep[0] == 0 else float(f[keep[0]]), float(f[keep[-1]]))
+    vectors, omega2, count = basis.call_with_solve(
+        _compute, basis.model, basis.vectors[:, :int(keep.max()) + 1],
+        basis.vectors[:, pair_modes], basis.omega[pair_modes], span, directions)
+    return AddedCoordinates(vectors, np.sqrt(np.maximum(omega2, 0.0)), count,
+                            time.perf_counter() - start, loads_in_band(basis.model, *span))
+
+
+def _compute(solve, model: MassSpringModel, below: np.ndarray, phi: np.ndarray,
+             omega: np.ndarray, span: tuple[float, float], directions: int
+             ) -> tuple[np.ndarray, np.ndarray, int]:
+    """The added vectors, their ``omega^2`` and how many are derivative directions, given
+    ``solve(rhs) = K0^-1 rhs``, the modes ``below`` to project out, and the pair modes."""
     mass = model.mass_dof
-    below = basis.vectors[:, :int(keep.max()) + 1]   # the kept modes and those removed below
 
     def project(x: np.ndarray) -> np.ndarray:
         return x - below @ (below.T @ (mass[:, None] * x))
 
-    pair_modes = keep[:MAX_PAIR_MODES]
-    pairs = np.array([(i, j) for i in range(pair_modes.size)
-                      for j in range(i, pair_modes.size)], dtype=np.int64).reshape(-1, 2)
-    if progress is not None and pairs.size:
-        progress(f"modal derivatives: {len(pairs)} pairs of {pair_modes.size} modes")
+    m = omega.size
+    pairs = np.array([(i, j) for i in range(m) for j in range(i, m)],
+                     dtype=np.int64).reshape(-1, 2)
     d, lengths, stiffness, unit, diff = _spring_geometry(model)
-    g = np.asarray(diff @ basis.vectors[:, pair_modes]).reshape(d, lengths.size, -1)
-    omega = basis.omega[pair_modes]
+    g = np.asarray(diff @ phi).reshape(d, lengths.size, -1)
     weights = omega[0] ** 2 / (omega[pairs[:, 0]] * omega[pairs[:, 1]]) if pairs.size else []
     blocks, scale = [], 0.0
     for first in range(0, len(pairs), PAIR_CHUNK):
@@ -171,22 +188,17 @@ def added_coordinates(basis: ModalBasis, keep: np.ndarray,
         per_spring = _per_spring(g[:, :, chunk[:, 0]], g[:, :, chunk[:, 1]], unit, lengths,
                                  stiffness)
         rhs = -(diff.T @ per_spring.reshape(d * lengths.size, -1))
-        solved = basis.solve_stiffness(rhs) * weights[first:first + PAIR_CHUNK]
+        solved = solve(rhs) * weights[first:first + PAIR_CHUNK]
         scale = max(scale, float(np.sqrt(np.einsum("ij,i,ij->j", solved, mass, solved).max())))
         blocks.append(project(solved))
     derivatives = _leading_directions(np.column_stack(blocks), mass, directions,
                                       REMAINDER_RTOL * scale) \
         if blocks else np.empty((model.n_free_dof, 0))
-    # the band's span: from 0 Hz when it keeps the lowest mode, else from its lowest mode
-    f = basis.frequencies_hz
-    span = (0.0 if keep[0] == 0 else float(f[keep[0]]), float(f[keep[-1]]))
-    static = _remainders(basis.solve_stiffness(static_load_vectors(model, *span)), mass,
-                         project)
+    loads = static_load_vectors(model, *span)
+    static = _remainders(solve(loads) if loads.size else loads, mass, project)
     vectors, omega2 = _orthonormal_diagonal(np.column_stack([derivatives, static]), mass,
                                             model, project)
-    return AddedCoordinates(vectors, np.sqrt(np.maximum(omega2, 0.0)),
-                            min(derivatives.shape[1], vectors.shape[1]),
-                            time.perf_counter() - start, loads_in_band(model, *span))
+    return vectors, omega2, min(derivatives.shape[1], vectors.shape[1])
 
 
 def _leading_directions(x: np.ndarray, mass: np.ndarray, count: int, floor: float

@@ -38,12 +38,17 @@ class AddedCoordinateBank:
 
     def for_band(self, keep: np.ndarray) -> tuple[np.ndarray, AddedCoordinates]:
         """The ids and coordinates the band keeping rest modes ``keep`` adds (computed on its
-        first use, from any thread)."""
+        first use, from any thread). The computation holds no lock: the simulation thread
+        reads the bank meanwhile; of two threads computing the same band, the first to finish
+        is kept."""
+        found = self.lookup(keep)
+        if found is not None:
+            return found
+        added = added_coordinates(self.basis, keep, self.directions, self.progress)
         key = keep.tobytes()
         with self._lock:
             if key in self._blocks:
                 return self._blocks[key]
-            added = added_coordinates(self.basis, keep, self.directions, self.progress)
             ids = np.arange(self._next, self._next + added.count, dtype=np.int64)
             self._next += added.count
             for k, i in enumerate(ids.tolist()):
@@ -52,6 +57,10 @@ class AddedCoordinateBank:
                 self._loads[i] = added.loads
             self._blocks[key] = (ids, added)
             return ids, added
+
+    def lookup(self, keep: np.ndarray) -> tuple[np.ndarray, AddedCoordinates] | None:
+        """What the band keeping ``keep`` adds, if it was computed (never computes)."""
+        return self._blocks.get(keep.tobytes())
 
     def columns(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Shapes (n_free_dof, len(ids)) and ``omega`` of coordinates ``ids`` (rest or added)."""

@@ -128,7 +128,8 @@ class ModalSimulation(Simulation):
         """What the band adds to its rest modes (``derivatives`` basis), or None."""
         if self.basis_kind == "rest":
             return None
-        return self._bank.for_band(self.kept_modes)[1]
+        found = self._bank.lookup(self.kept_modes)  # computed when the band was set
+        return found[1] if found is not None else None
 
     @property
     def basis_seconds(self) -> float:
@@ -138,7 +139,7 @@ class ModalSimulation(Simulation):
     def describe_basis(self) -> str:
         added = self.added_coordinates
         if added is None:
-            return f"rest: {self.kept_modes.size} modes"
+            return f"{self.basis_kind}: {self.kept_modes.size} modes"
         return (f"derivatives: {self.kept_modes.size} modes + {added.derivative_count} "
                 f"derivative directions + {added.count - added.derivative_count} static")
 
