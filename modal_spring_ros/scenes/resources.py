@@ -13,6 +13,7 @@ from ament_index_python.packages import PackageNotFoundError, get_package_share_
 
 from modal_spring_ros.core.scene import Scene, SceneError
 from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
+from modal_spring_ros.scenes.yaml_reading import read_scene_text
 
 PACKAGE_NAME = "modal_spring_ros"
 
@@ -63,11 +64,7 @@ def load_scene(name_or_path: str | Path) -> Scene:
                 f"(built-in: {', '.join(builtin_scene_names())})"
             )
         path = candidate
-    try:
-        raw = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise SceneError(f"{path}: cannot read scene file: {exc.strerror or exc}") from None
-    return scene_from_yaml(raw, source=str(path), default_name=path.stem)
+    return scene_from_yaml(read_scene_text(path), source=str(path), default_name=path.stem)
 
 
 def resolve_scene(scene: Scene | str | dict | None) -> Scene:

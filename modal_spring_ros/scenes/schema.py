@@ -8,25 +8,49 @@ command-line tools can print it instead of a traceback.
 from __future__ import annotations
 
 import math
+import os
+import re
 from typing import Any, Mapping
 
 import numpy as np
-import yaml
 
 from modal_spring_ros.core.anchor_motion import AnchorMotion, SineComponent
 from modal_spring_ros.core.scene import Damping, Scene, SceneError
 from modal_spring_ros.scenes.lattice import lattice_springs
+from modal_spring_ros.scenes.yaml_reading import load_yaml
 
 _AXES = {"x": 0, "y": 1, "z": 2}
+#: a decimal number as YAML 1.2 spells it (YAML 1.1 reads some of these as text)
+_DECIMAL = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+#: Ranges of the physical values: far beyond any scene, and small enough that no sum, square
+#: or product of them in the engine overflows.
+LIMITS = {"position": 1e6, "mass": 1e9, "stiffness": 1e12, "gravity": 1e4, "amplitude": 1e3,
+          "frequency_hz": 1e5, "phase": 1e6, "ramp_s": 1e6, "damping.ratio": 100.0,
+          "damping.alpha": 1e6, "damping.beta": 1e3, "duration": 1e7, "dt": 10.0}
+#: Most steps a scene's suggested run may take (its duration over its step).
+MAX_STEPS = 10**9
+#: Memory a scene takes to build, compute its modes (sparse LU) and run, per particle, bytes:
+#: measured on sheet_316x316 (99,856 particles, 1.15 GB at the peak of its factorisation).
+BYTES_PER_PARTICLE = 12_000
+
+
+def available_memory() -> int:
+    """Memory this machine has available now, bytes (MemAvailable; all of it elsewhere)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
 
 
 def scene_from_yaml(text: str, source: str = "<scene>", default_name: str = "scene") -> Scene:
-    """Parse and validate a scene from YAML text."""
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise SceneError(f"{source}: invalid YAML: {exc}") from None
-    return scene_from_dict(data, source=source, default_name=default_name)
+    """Parse (within the bounds of :mod:`~modal_spring_ros.scenes.yaml_reading`) and validate
+    a scene from YAML text."""
+    return scene_from_dict(load_yaml(text, source), source=source, default_name=default_name)
 
 
 def scene_from_dict(data: Any, source: str = "<scene>", default_name: str = "scene") -> Scene:
@@ -48,26 +72,39 @@ class _SceneParser:
         return value
 
     def number(self, value: Any, field: str, *, positive: bool = False,
-               non_negative: bool = False) -> float:
+               non_negative: bool = False, limit: float = math.inf) -> float:
+        """A finite number (at most ``limit`` in size). YAML 1.1 reads ``1e-4`` and ``1.0e308``
+        (an exponent without a sign, or no dot) as text; such text is taken as the number it
+        spells."""
+        if isinstance(value, str) and _DECIMAL.fullmatch(value.strip()):
+            value = float(value)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(field, f"must be a number, got {value!r}")
-        value = float(value)
+            raise self.fail(field, f"must be a number, got {_short(value)}")
+        try:
+            value = float(value)
+        except OverflowError:
+            raise self.fail(field, f"must be at most {limit:g} in size, got an integer of "
+                            f"{len(str(abs(value)))} digits") from None
         if not math.isfinite(value):
             raise self.fail(field, f"must be finite, got {value}")
+        if abs(value) > limit:
+            raise self.fail(field, f"must be at most {limit:g} in size, got {value:g}")
         if positive and value <= 0.0:
             raise self.fail(field, f"must be positive, got {value:g}")
         if non_negative and value < 0.0:
             raise self.fail(field, f"must not be negative, got {value:g}")
         return value
 
-    def per_item(self, value: Any, count: int, field: str, what: str) -> np.ndarray:
+    def per_item(self, value: Any, count: int, field: str, what: str, limit: float
+                 ) -> np.ndarray:
         """A positive scalar broadcast to ``count`` items, or a list of ``count`` of them."""
         if isinstance(value, (list, tuple)):
             if len(value) != count:
                 raise self.fail(field, f"has {len(value)} values for {count} {what}")
-            arr = np.array([self.number(v, f"{field}[{i}]") for i, v in enumerate(value)])
+            arr = np.array([self.number(v, f"{field}[{i}]", limit=limit)
+                            for i, v in enumerate(value)])
         else:
-            arr = np.full(count, self.number(value, field))
+            arr = np.full(count, self.number(value, field, limit=limit))
         bad = np.flatnonzero(arr <= 0.0)
         if bad.size:
             i = int(bad[0])
@@ -76,13 +113,19 @@ class _SceneParser:
                             + (f" ({bad.size} {what} affected)" if bad.size > 1 else ""))
         return arr
 
-    def vector3(self, value: Any, field: str) -> np.ndarray:
+    def vector3(self, value: Any, field: str, limit: float) -> np.ndarray:
         if not isinstance(value, (list, tuple)) or len(value) not in (2, 3):
-            raise self.fail(field, f"must be a list of 2 or 3 numbers, got {value!r}")
+            raise self.fail(field, f"must be a list of 2 or 3 numbers, got {_short(value)}")
         out = np.zeros(3)
         for i, v in enumerate(value):
-            out[i] = self.number(v, f"{field}[{i}]")
+            out[i] = self.number(v, f"{field}[{i}]", limit=limit)
         return out
+
+    def axis(self, value: Any, field: str, allowed: tuple[int, ...]) -> int:
+        if not isinstance(value, str) or value not in _AXES or _AXES[value] not in allowed:
+            raise self.fail(field, f"must be one of {', '.join('xyz'[a] for a in allowed)}, "
+                            f"got {_short(value)}")
+        return _AXES[value]
 
     # -- the scene ----------------------------------------------------------------------------
     def parse(self, data: Any, default_name: str) -> Scene:
@@ -95,13 +138,11 @@ class _SceneParser:
             raise self.fail(unknown[0], f"unknown key (known keys: {', '.join(sorted(known))})")
         name = str(data.get("name", default_name))
         dimension = data.get("dimension", 2)
-        if dimension not in (1, 2, 3) or isinstance(dimension, bool):
-            raise self.fail("dimension", f"must be 1, 2 or 3, got {dimension!r}")
+        if isinstance(dimension, bool) or not isinstance(dimension, int) \
+                or dimension not in (1, 2, 3):
+            raise self.fail("dimension", f"must be 1, 2 or 3, got {_short(dimension)}")
         if dimension == 1:
-            axis = data.get("axis", "x")
-            if axis not in _AXES:
-                raise self.fail("axis", f"must be x, y or z, got {axis!r}")
-            axes = (_AXES[axis],)
+            axes = (self.axis(data.get("axis", "x"), "axis", (0, 1, 2)),)
         elif "axis" in data:
             raise self.fail("axis", "only a 1D scene (dimension: 1) has an axis")
         else:
@@ -113,17 +154,19 @@ class _SceneParser:
             positions[:, [0, axes[0]]] = positions[:, [axes[0], 0]]
         n = positions.shape[0]
         mass = self.per_item(self.required(particles, "mass", "particles"), n,
-                             "particles.mass", "particles")
+                             "particles.mass", "particles", LIMITS["mass"])
 
         springs_spec = self.mapping(self.required(data, "springs", "scene"), "springs")
         pairs = self.pairs(springs_spec, n, lattice)
         stiffness = self.per_item(self.required(springs_spec, "stiffness", "springs"),
-                                  len(pairs), "springs.stiffness", "springs")
+                                  len(pairs), "springs.stiffness", "springs",
+                                  LIMITS["stiffness"])
         rest_length = self.check_springs(pairs, positions)
         fixed = self.fixed(data.get("fixed"), positions)
         self.check_connected(pairs, n)
 
-        gravity = self.vector3(data.get("gravity", [0.0, 0.0, 0.0]), "gravity")
+        gravity = self.vector3(data.get("gravity", [0.0, 0.0, 0.0]), "gravity",
+                               LIMITS["gravity"])
         still = [a for a in range(3) if a not in axes]
         if np.any(gravity[still] != 0.0):
             raise self.fail("gravity", f"a {dimension}D scene moves along "
@@ -137,8 +180,15 @@ class _SceneParser:
         anchor_motion = self.anchor_motion(data.get("anchor_motion", []), axes)
         sim = self.mapping(data.get("simulation", {}) or {}, "simulation")
         dt = sim.get("dt")
-        default_dt = None if dt is None else self.number(dt, "simulation.dt", positive=True)
-        duration = self.number(sim.get("duration", 5.0), "simulation.duration", positive=True)
+        default_dt = None if dt is None else self.number(dt, "simulation.dt", positive=True,
+                                                         limit=LIMITS["dt"])
+        duration = self.number(sim.get("duration", 5.0), "simulation.duration", positive=True,
+                               limit=LIMITS["duration"])
+        if default_dt is not None and duration / default_dt > MAX_STEPS:
+            raise self.fail("simulation.dt", f"{default_dt:g} s makes "
+                            f"{duration / default_dt:.3g} steps of the {duration:g} s run (at "
+                            f"most {MAX_STEPS:.0e}): a step this small does not advance "
+                            "the simulation in any useful time")
 
         def frozen(a: np.ndarray) -> np.ndarray:
             a.setflags(write=False)
@@ -178,7 +228,8 @@ class _SceneParser:
             raw = particles["positions"]
             if not isinstance(raw, (list, tuple)) or not raw:
                 raise self.fail("particles.positions", "must be a non-empty list of points")
-            pos = np.array([self.vector3(p, f"particles.positions[{i}]")
+            self.check_size(len(raw), "particles.positions")
+            pos = np.array([self.vector3(p, f"particles.positions[{i}]", LIMITS["position"])
                             for i, p in enumerate(raw)])
             return pos, None
         lat = self.mapping(particles["lattice"], "particles.lattice")
@@ -187,17 +238,21 @@ class _SceneParser:
                 or not all(isinstance(c, int) and not isinstance(c, bool) and c >= 1
                            for c in counts)):
             raise self.fail("particles.lattice.counts",
-                            f"must be {dimension} positive integers, got {counts!r}")
+                            f"must be {dimension} positive integers, got {_short(counts)}")
+        self.check_size(math.prod(counts), "particles.lattice.counts")
         spacing = lat.get("spacing", 1.0)
         if isinstance(spacing, (list, tuple)):
-            sp = [self.number(s, f"particles.lattice.spacing[{i}]", positive=True)
+            sp = [self.number(s, f"particles.lattice.spacing[{i}]", positive=True,
+                              limit=LIMITS["position"])
                   for i, s in enumerate(spacing)]
             if len(sp) != dimension:
                 raise self.fail("particles.lattice.spacing",
                                 f"must have {dimension} values, got {len(sp)}")
         else:
-            sp = [self.number(spacing, "particles.lattice.spacing", positive=True)] * dimension
-        origin = self.vector3(lat.get("origin", [0.0, 0.0, 0.0]), "particles.lattice.origin")
+            sp = [self.number(spacing, "particles.lattice.spacing", positive=True,
+                              limit=LIMITS["position"])] * dimension
+        origin = self.vector3(lat.get("origin", [0.0, 0.0, 0.0]), "particles.lattice.origin",
+                              LIMITS["position"])
         grids = np.meshgrid(*[np.arange(c) * s for c, s in zip(counts, sp)], indexing="ij")
         # Scene order: x fastest, then y, then z (row by row).
         coords = [g.transpose().ravel() for g in grids]
@@ -218,11 +273,14 @@ class _SceneParser:
             kinds = springs["connect"]
             if isinstance(kinds, str):
                 kinds = [kinds]
+            if not isinstance(kinds, (list, tuple)) or not kinds:
+                raise self.fail("springs.connect", f"must be a kind or a list of kinds, got "
+                                f"{_short(kinds)}")
             allowed = ("edges", "diagonals", "body_diagonals")
             for i, kind in enumerate(kinds):
-                if kind not in allowed:
+                if not isinstance(kind, str) or kind not in allowed:
                     raise self.fail(f"springs.connect[{i}]",
-                                    f"unknown '{kind}' (one of {', '.join(allowed)})")
+                                    f"unknown {_short(kind)} (one of {', '.join(allowed)})")
             return lattice_springs(lattice, kinds)
         raw = springs["pairs"]
         if not isinstance(raw, (list, tuple)) or not raw:
@@ -294,6 +352,14 @@ class _SceneParser:
             raise self.fail("fixed", "every particle is fixed: nothing can move")
         return fixed
 
+    def check_size(self, particles: int, field: str) -> None:
+        """Refuse a scene that would not fit in the memory available, before building it."""
+        need = particles * BYTES_PER_PARTICLE
+        have = available_memory()
+        if need > have:
+            raise self.fail(field, f"{particles:,} particles need about {need / 2**30:.3g} GiB "
+                            f"to build and run, and {have / 2**30:.3g} GiB are available")
+
     def check_connected(self, pairs: np.ndarray, n: int) -> None:
         degree = np.bincount(pairs.ravel(), minlength=n)
         lonely = np.flatnonzero(degree == 0)
@@ -306,10 +372,13 @@ class _SceneParser:
         unknown = sorted(set(spec) - {"ratio", "rayleigh"})
         if unknown:
             raise self.fail(f"damping.{unknown[0]}", "unknown key (use 'ratio' or 'rayleigh')")
-        ratio = self.number(spec.get("ratio", 0.0), "damping.ratio", non_negative=True)
+        ratio = self.number(spec.get("ratio", 0.0), "damping.ratio", non_negative=True,
+                            limit=LIMITS["damping.ratio"])
         ray = self.mapping(spec.get("rayleigh", {}) or {}, "damping.rayleigh")
-        alpha = self.number(ray.get("alpha", 0.0), "damping.rayleigh.alpha", non_negative=True)
-        beta = self.number(ray.get("beta", 0.0), "damping.rayleigh.beta", non_negative=True)
+        alpha = self.number(ray.get("alpha", 0.0), "damping.rayleigh.alpha", non_negative=True,
+                            limit=LIMITS["damping.alpha"])
+        beta = self.number(ray.get("beta", 0.0), "damping.rayleigh.beta", non_negative=True,
+                           limit=LIMITS["damping.beta"])
         return Damping(ratio, alpha, beta)
 
     def anchor_motion(self, spec: Any, axes: tuple[int, ...]) -> AnchorMotion:
@@ -321,17 +390,21 @@ class _SceneParser:
         for k, item in enumerate(spec):
             field = f"anchor_motion[{k}]"
             item = self.mapping(item, field)
-            axis = item.get("axis")
-            if axis not in _AXES or _AXES[axis] not in axes:
-                raise self.fail(f"{field}.axis", f"must be one of "
-                                f"{', '.join('xyz'[a] for a in axes)}, got {axis!r}")
             comps.append(SineComponent(
-                axis=_AXES[axis],
-                amplitude=self.number(item.get("amplitude"), f"{field}.amplitude"),
+                axis=self.axis(item.get("axis"), f"{field}.axis", axes),
+                amplitude=self.number(item.get("amplitude"), f"{field}.amplitude",
+                                      limit=LIMITS["amplitude"]),
                 frequency_hz=self.number(item.get("frequency_hz"), f"{field}.frequency_hz",
-                                         non_negative=True),
-                phase=self.number(item.get("phase", 0.0), f"{field}.phase"),
+                                         non_negative=True, limit=LIMITS["frequency_hz"]),
+                phase=self.number(item.get("phase", 0.0), f"{field}.phase",
+                                  limit=LIMITS["phase"]),
                 ramp_s=self.number(item.get("ramp_s", 0.0), f"{field}.ramp_s",
-                                   non_negative=True),
+                                   non_negative=True, limit=LIMITS["ramp_s"]),
             ))
         return AnchorMotion(tuple(comps))
+
+
+def _short(value: Any, limit: int = 60) -> str:
+    """``repr(value)``, cut short: a message stays one readable line."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
