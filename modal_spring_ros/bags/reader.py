@@ -118,9 +118,11 @@ class BagReader:
 
     def _scan_stream(self, f: Path) -> None:
         schemas: dict[int, Schema] = {}
+        records = 0
         try:
             with open(f, "rb") as fh:
                 for rec in StreamReader(fh, skip_magic=False).records:
+                    records += 1
                     if isinstance(rec, Schema):
                         schemas[rec.id] = rec
                     elif isinstance(rec, Channel):
@@ -132,8 +134,15 @@ class BagReader:
                     elif isinstance(rec, Metadata):
                         self.records.setdefault(rec.name, []).append(dict(rec.metadata))
         except Exception as exc:
-            if not self.topics:
-                raise BagError(f"{f}: not a readable MCAP file: {exc}") from None
+            if self.topics:
+                return  # the truncated tail of a killed writer's last chunk
+            if records:  # a good start, cut before its first chunk
+                raise BagError(f"{f}: empty: the recording stopped before its first chunk was "
+                               "written (no message is on disk)") from None
+            raise BagError(f"{f}: not a readable MCAP file: "
+                           f"{str(exc) or type(exc).__name__}") from None
+        if not self.topics:
+            raise BagError(f"{f}: empty: no topic and no message")
 
     def _add_topic(self, ch, schema, count: int) -> None:
         self._channel_topic[ch.id] = ch.topic

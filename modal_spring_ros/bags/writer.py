@@ -7,13 +7,16 @@ message encoding ``cdr`` and metadata ``offered_qos_profiles`` and ``topic_type_
 ``rosbag2`` metadata records (one at open, one at close) holding the serialized bag
 information; chunks with message indexes, and a summary with statistics.
 
-Messages are written as serialized CDR. The file is flushed whenever a chunk is complete, so a
-writer that is killed loses at most the chunk it was filling.
+Messages are written as serialized CDR. A chunk is closed when it is full or a second old
+(``chunk_seconds``), and the file is flushed whenever a chunk is closed, so a writer that is
+killed loses at most about the last second.
 """
 from __future__ import annotations
 
 import json
+import math
 import os
+import time
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +31,8 @@ METADATA_VERSION = 9
 ROS_DISTRO = "jazzy"
 #: rosbag2's MCAP default chunk size (bytes)
 DEFAULT_CHUNK_SIZE = 786_432
+#: a chunk older than this (wall time, s) is closed, full or not
+DEFAULT_CHUNK_SECONDS = 1.0
 #: name of the MCAP metadata record with the run's own description (scene, settings)
 RUN_RECORD = "modal_spring_ros"
 
@@ -53,7 +58,18 @@ def check_new_bag_path(directory: str | Path) -> Path:
 class BagWriter:
     """A rosbag2 MCAP bag being written. Use as a context manager or call :meth:`close`."""
 
-    def __init__(self, directory: str | Path, *, chunk_size: int = DEFAULT_CHUNK_SIZE):
+    def __init__(self, directory: str | Path, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
+                 chunk_seconds: float = DEFAULT_CHUNK_SECONDS):
+        """A chunk is closed (and put on disk) when it holds ``chunk_size`` bytes or when it
+        is ``chunk_seconds`` old, whichever comes first: a writer that is killed loses at
+        most about that much."""
+        if not (isinstance(chunk_size, int) and chunk_size >= 1):
+            raise BagError(f"chunk size ({chunk_size}) must be a whole number of bytes, "
+                           "at least 1")
+        if not (math.isfinite(chunk_seconds) and chunk_seconds > 0.0):
+            raise BagError(f"chunk seconds ({chunk_seconds}) must be a positive number")
+        self.chunk_seconds = float(chunk_seconds)
+        self._chunk_opened: float | None = None  # wall time of the open chunk's first message
         self.directory = check_new_bag_path(directory)
         try:
             self.directory.mkdir()
@@ -99,9 +115,21 @@ class BagWriter:
                                  sequence=t["count"])
         if self._fh.tell() != before:  # a chunk was completed: put it on disk now
             self._fh.flush()
+            self._chunk_opened = None
+        if self._chunk_opened is None:
+            self._chunk_opened = time.monotonic()
+        self.flush_if_due()
         t["count"] += 1
         self._start = log_time_ns if self._start is None else min(self._start, log_time_ns)
         self._end = log_time_ns if self._end is None else max(self._end, log_time_ns)
+
+    def flush_if_due(self) -> None:
+        """Close the open chunk if it is ``chunk_seconds`` old (call it now and then when
+        messages may stop coming)."""
+        if (self._chunk_opened is not None and not self._closed
+                and time.monotonic() - self._chunk_opened >= self.chunk_seconds):
+            self._writer.flush()
+            self._chunk_opened = None
 
     def write_message(self, topic: str, msg, log_time_ns: int,
                       publish_time_ns: int | None = None) -> None:

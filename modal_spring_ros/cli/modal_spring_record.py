@@ -8,6 +8,7 @@ See :mod:`modal_spring_ros.ros.recorder` for what is stored and how.
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 import time
@@ -15,8 +16,8 @@ import time
 import rclpy
 from rclpy.executors import ExternalShutdownException
 
-from modal_spring_ros.bags.writer import (DEFAULT_CHUNK_SIZE, BagError, BagWriter,
-                                          check_new_bag_path)
+from modal_spring_ros.bags.writer import (DEFAULT_CHUNK_SECONDS, DEFAULT_CHUNK_SIZE, BagError,
+                                          BagWriter, check_new_bag_path)
 from modal_spring_ros.cli.common import fail, split_ros_args
 from modal_spring_ros.core.scene import SceneError
 from modal_spring_ros.ros.recorder import DEFAULT_TOPICS, Recorder, snapshot_parameters
@@ -34,14 +35,21 @@ def main(argv: list[str] | None = None) -> int:
                    help="the simulation node whose scene and parameters are stored")
     p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
     p.add_argument("--chunk-size", type=int, default=DEFAULT_CHUNK_SIZE,
-                   help=f"MCAP chunk size in bytes (default {DEFAULT_CHUNK_SIZE}); a killed "
-                        "recorder loses at most one chunk")
+                   help=f"MCAP chunk size in bytes (default {DEFAULT_CHUNK_SIZE})")
+    p.add_argument("--chunk-seconds", type=float, default=DEFAULT_CHUNK_SECONDS,
+                   help=f"close a chunk when it is this old, full or not (default "
+                        f"{DEFAULT_CHUNK_SECONDS:g} s): a killed recorder loses at most "
+                        "about that much")
     p.add_argument("--wait-for-node", type=float, default=10.0,
                    help="seconds to wait for the node's parameters (default 10)")
     own, ros_args = split_ros_args(argv)
     args = p.parse_args(own)
     if args.duration is not None and not args.duration > 0:
         fail(PROG, f"--duration ({args.duration}) must be positive")
+    if args.chunk_size < 1:
+        fail(PROG, f"--chunk-size ({args.chunk_size}) must be at least 1 byte")
+    if not (math.isfinite(args.chunk_seconds) and args.chunk_seconds > 0):
+        fail(PROG, f"--chunk-seconds ({args.chunk_seconds}) must be a positive number")
     try:
         check_new_bag_path(args.output)
     except BagError as exc:
@@ -53,7 +61,8 @@ def main(argv: list[str] | None = None) -> int:
     target = node.resolve_topic_name(args.node) if not args.node.startswith("/") else args.node
     writer = None
     try:
-        writer = BagWriter(args.output, chunk_size=args.chunk_size)
+        writer = BagWriter(args.output, chunk_size=args.chunk_size,
+                           chunk_seconds=args.chunk_seconds)
         # Subscribe first, then take the parameters: a change in between is then both in the
         # snapshot and on /parameter_events (harmless), never in neither.
         Recorder(node, writer, args.topics, target)
@@ -74,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
         end = None if args.duration is None else time.monotonic() + args.duration
         while rclpy.ok() and (end is None or time.monotonic() < end):
             rclpy.spin_once(node, timeout_sec=0.05)
+            writer.flush_if_due()  # also when messages stop coming
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except BagError as exc:

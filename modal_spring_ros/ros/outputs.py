@@ -81,6 +81,8 @@ class NodeOutputs:
             self._mesh.publish(mesh_marker(positions, rest, self._triangles, header))
 
     def diagnostics(self, status: SimulationStatus, report: StreamReport) -> None:
+        if self._bag is not None:
+            self._bag.writer.flush_if_due()  # frames stop while paused: close their chunk
         self._diagnostics.publish(diagnostic_array(
             status, report, name=f"{self._node.get_fully_qualified_name()}: simulation",
             hardware_id=self._scene.name, stamp=self._node.get_clock().now().to_msg()))

@@ -7,11 +7,13 @@ import signal
 import subprocess
 import sys
 import textwrap
+import time
 
 import numpy as np
 import pytest
 import yaml
 from helpers import BAGS, REAL_BAGS
+from std_msgs.msg import String
 
 from modal_spring_ros.bags.message_definitions import DELIMITER, full_definition, share_directory
 from modal_spring_ros.bags.qos import profiles_from_yaml
@@ -284,3 +286,22 @@ def test_compare_reports_zero_for_the_same_run_and_refuses_different_scenes(tmp_
                      str(BAGS / "sheet_10x10_full"))
     assert different.returncode == 2
     assert "different scenes: chain.npz has 3 particles" in different.stderr
+
+
+def test_a_chunk_is_closed_once_it_is_old_full_or_not(tmp_path):
+    writer = BagWriter(tmp_path / "aging", chunk_seconds=0.2)
+    writer.add_topic("/t", "std_msgs/msg/String")
+    for k in range(10):
+        writer.write_message("/t", String(data=f"m{k}"), k)
+    with pytest.raises(BagError, match="empty: the recording stopped before its first chunk"):
+        BagReader(tmp_path / "aging")                    # one small open chunk: not on disk
+    time.sleep(0.25)
+    writer.flush_if_due()                                # as the recorder's loop calls it
+    on_disk = [m for m in BagReader(tmp_path / "aging").messages()]
+    assert len(on_disk) == 10                            # closed without waiting to fill
+    writer.close()
+    with pytest.raises(BagError, match=r"chunk size \(0\) must be a whole number of bytes"):
+        BagWriter(tmp_path / "zero", chunk_size=0)
+    with pytest.raises(BagError, match=r"chunk seconds \(-1\) must be a positive number"):
+        BagWriter(tmp_path / "negative", chunk_seconds=-1)
+    assert not (tmp_path / "zero").exists() and not (tmp_path / "negative").exists()

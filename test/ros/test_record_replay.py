@@ -150,19 +150,39 @@ def test_a_recorder_killed_with_sigkill_leaves_a_readable_bag(tmp_path):
         assert wait_for(lambda: len(points) > 10, 30)
         recorder = subprocess.Popen(
             [console_script("modal_spring_record"), "--output", str(out), "--topics", "points",
-             "--chunk-size", "20000", "--wait-for-node", "2", "--ros-args", "-r",
-             "__ns:=/kill"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             "--wait-for-node", "2", "--ros-args", "-r", "__ns:=/kill"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         log: list[str] = []
         threading.Thread(target=lambda: log.extend(iter(recorder.stderr.readline, "")),
                          daemon=True).start()
         assert wait_for(lambda: any("recording /kill/points" in line for line in log), 30)
-        time.sleep(3.0)                       # about 180 clouds of 1.7 kB: several chunks
-        recorder.kill()
+        time.sleep(3.0)                       # about 180 clouds of 1.7 kB: 300 kB, under one
+        recorder.kill()                       # full chunk (768 kB); chunks close each second
         recorder.wait(timeout=10)
     bag = BagReader(out)
     assert not bag.finalised and not (out / "metadata.yaml").exists()
     messages = list(bag.messages(["/kill/points"]))
-    assert len(messages) > 100               # all but the last (unfinished) chunk of ~11
+    assert len(messages) > 100               # all but the last second's (unfinished) chunk
     stamps = [bag.decode(m).header.stamp for m in messages]   # every one decodes
     ns = [s.sec * 1_000_000_000 + s.nanosec for s in stamps]
     assert ns == sorted(ns) and len(set(ns)) == len(ns)      # in order, none twice
+
+
+def test_the_nodes_capture_killed_with_sigkill_keeps_all_but_its_last_second(tmp_path):
+    out = tmp_path / "capture"
+    node = NodeProcess(f"record.bag:={out}", namespace="capkill")
+    client = Client("capkill_client")
+    try:
+        points = client.collect(PointCloud2, "/capkill/points", qos=500)
+        assert wait_for(lambda: len(points) > 10, 30)
+        time.sleep(3.0)
+        node.kill()
+    finally:
+        client.close()
+        node.kill()
+    bag = BagReader(out)
+    stamps, frames = bag.points("/points")
+    assert not bag.finalised
+    # 60 frames a second for about 3 s: a chunk closes every second, so at most about the
+    # last second (and the frames of the open chunk) is lost
+    assert len(frames) > 100 and stamps[-1] > 1.5
