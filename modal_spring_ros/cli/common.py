@@ -2,10 +2,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from pathlib import Path
-from typing import Callable, NoReturn
+from typing import Callable, Iterator, NoReturn
 
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
@@ -18,6 +19,8 @@ from modal_spring_ros.scenes.resources import DEFAULT_SCENE
 
 #: Exit status for bad input (as argparse uses).
 EXIT_USAGE = 2
+#: Bytes written (and taken back) to check that an output file has room.
+PROBE_BYTES = 4096
 
 
 def split_ros_args(argv: list[str] | None) -> tuple[list[str], list[str]]:
@@ -29,18 +32,73 @@ def split_ros_args(argv: list[str] | None) -> tuple[list[str], list[str]]:
     return argv, []
 
 
-def check_output_file(path: str, option: str) -> None:
-    """Fail before long work, not after it, when an output file cannot be written.
+def claim_output_file(path: str, option: str, others: dict[str, str | None] | None = None
+                      ) -> bool:
+    """Fail before long work, not after it, when an output file cannot be written: create it
+    now (an unwritable folder, a name too long, a full device fail here), and refuse one that
+    is the same file as another path of the command (``others``: name -> path, an input or
+    another output). Returns whether the file was created here (an existing one is left as it
+    is until it is written).
 
-    Raises ValueError naming ``option``; creates nothing."""
-    target = Path(path)
+    Raises ValueError naming ``option``."""
+    try:
+        return _claim(Path(path), path, option, others or {})
+    except OSError as exc:  # a name the file system refuses even to look up
+        raise ValueError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
+
+
+def _claim(target: Path, path: str, option: str, others: dict[str, str | None]) -> bool:
+    for name, other in others.items():
+        if other and (os.path.abspath(other) == os.path.abspath(target) or (
+                target.exists() and Path(other).exists() and os.path.samefile(other, target))):
+            raise ValueError(f"{option} {path}: is also {name}; choose another file "
+                             "(nothing was overwritten)")
+    if target.is_dir():
+        raise ValueError(f"{option} {path}: is a folder, not a file")
     folder = target.parent if str(target.parent) else Path(".")
     if not folder.is_dir():
         raise ValueError(f"{option} {path}: folder {folder} does not exist")
-    if target.is_dir():
-        raise ValueError(f"{option} {path}: is a folder, not a file")
-    if not os.access(target if target.exists() else folder, os.W_OK):
-        raise ValueError(f"{option} {path}: not writable")
+    existed = target.exists()
+    try:
+        with open(target, "ab") as fh:
+            if not existed:  # room for at least a block: a full device fails now
+                fh.write(bytes(PROBE_BYTES))
+                fh.flush()
+                os.fsync(fh.fileno())
+                fh.truncate(0)
+    except OSError as exc:
+        if not existed:
+            with contextlib.suppress(OSError):
+                target.unlink()
+        raise ValueError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
+    return not existed
+
+
+@contextlib.contextmanager
+def claimed_outputs(outputs: dict[str, str | None],
+                    others: dict[str, str | None] | None = None) -> Iterator[None]:
+    """Claim every output (option -> path, None when not asked for) before the work; if the
+    work fails, the files created here are removed again: bad input changes nothing."""
+    others = others or {}
+    created = [path for option, path in outputs.items()
+               if path and claim_output_file(path, option,
+                                             {k: v for k, v in others.items() if k != option})]
+    try:
+        yield
+    except BaseException:
+        for path in created:
+            with contextlib.suppress(OSError):
+                if os.path.getsize(path) == 0:
+                    os.remove(path)
+        raise
+
+
+def write_output(path: str, option: str, write: Callable[[], None]) -> None:
+    """Run ``write`` (which writes ``path``); a failure is one line naming ``option``."""
+    try:
+        write()
+    except OSError as exc:
+        raise ValueError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
 
 
 def fail(prog: str, message: str, status: int = EXIT_USAGE) -> NoReturn:

@@ -7,9 +7,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 from modal_spring_ros.bags.run_loading import load_run
-from modal_spring_ros.cli.common import check_output_file, run_main
+from modal_spring_ros.cli.common import claimed_outputs, run_main, write_output
 from modal_spring_ros.runs.comparison import compare, plot
 
 PROG = "modal_spring_compare"
@@ -25,10 +26,11 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
 
     def body() -> int:
-        for option, path in (("--plot", args.plot), ("--json", args.json)):
-            if path:
-                check_output_file(path, option)
-        result = compare(load_run(args.a, args.topic), load_run(args.b, args.topic))
+        with claimed_outputs({"--plot": args.plot, "--json": args.json},
+                             {"run A": args.a, "run B": args.b, "--plot": args.plot}):
+            return report(compare(load_run(args.a, args.topic), load_run(args.b, args.topic)))
+
+    def report(result: dict) -> int:
         print(f"{result['common_frames']} common frames of {result['a']['frames']} and "
               f"{result['b']['frames']}")
         print(f"RMS difference      {result['rms_m']:.4g} m")
@@ -41,11 +43,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"energy at the end   A {last['energy_a_J']:.6g} J, "
                   f"B {last['energy_b_J']:.6g} J")
         if args.json:
-            with open(args.json, "w") as fh:
-                json.dump(result, fh, indent=1)
+            write_output(args.json, "--json",
+                         lambda: Path(args.json).write_text(json.dumps(result, indent=1)))
             print(f"wrote {args.json}")
         if args.plot:
-            plot(result, args.plot)
+            write_output(args.plot, "--plot", lambda: plot(result, args.plot))
             print(f"wrote {args.plot}")
         return 0
 

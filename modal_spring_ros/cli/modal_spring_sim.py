@@ -11,8 +11,8 @@ import sys
 import time
 
 from modal_spring_ros.bags.capture import RunBagWriter
-from modal_spring_ros.cli.common import (add_simulation_options, check_output_file,
-                                         config_from_args, run_main)
+from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs,
+                                         config_from_args, run_main, write_output)
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.scenes.resources import load_scene
@@ -51,8 +51,10 @@ def main(argv: list[str] | None = None) -> int:
             sim.model.scene.default_duration
         if not duration > 0:
             raise ValueError(f"--duration ({duration}) must be positive")
-        if args.output:
-            check_output_file(args.output, "--output")
+        with claimed_outputs({"--output": args.output}, {"--bag": args.bag}):
+            return run_and_report(sim, config, duration)
+
+    def run_and_report(sim, config, duration: float) -> int:
         bag = None
         if args.bag:
             bag = RunBagWriter(args.bag, sim.model.scene, config, dt=sim.dt,
@@ -70,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         steps = max(sim.steps, 1)
         print(summary(sim, run.diverged, wall / steps, wall))
         if args.output:
-            run.save_npz(args.output)
+            write_output(args.output, "--output", lambda: run.save_npz(args.output))
             print(f"wrote {args.output} ({run.t.size} frames)")
         if args.bag:
             print(f"wrote bag {args.bag} ({run.t.size} frames)")
