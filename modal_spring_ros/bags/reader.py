@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import json
+import struct
 from pathlib import Path
 from typing import Iterator
 
@@ -17,11 +18,15 @@ import yaml
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.stream_reader import CRCValidationError, StreamReader
 from rclpy.serialization import deserialize_message
 
 from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.writer import RUN_RECORD, BagError
+
+
+#: the type of the clouds (checked for non-finite values)
+POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
 
 
 @dataclasses.dataclass
@@ -40,6 +45,24 @@ class BagMessage:
     log_time_ns: int
     publish_time_ns: int
     data: bytes
+
+
+def _bag_information(meta: Path) -> dict:
+    """The ``rosbag2_bagfile_information`` of a ``metadata.yaml``, its shape checked."""
+    try:
+        data = yaml.safe_load(meta.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise BagError(f"{meta}: not rosbag2 metadata: {' '.join(str(exc).split())}") from None
+    info = data.get("rosbag2_bagfile_information") if isinstance(data, dict) else None
+    if not isinstance(info, dict):
+        raise BagError(f"{meta}: not rosbag2 metadata: no rosbag2_bagfile_information mapping "
+                       f"(the top level is {type(data).__name__})")
+    paths = info.get("relative_file_paths", [])
+    if not isinstance(paths, list) or not all(isinstance(p, str) and p for p in paths):
+        raise BagError(f"{meta}: relative_file_paths must be a list of file names, got "
+                       f"{paths!r:.60}")
+    info["relative_file_paths"] = paths
+    return info
 
 
 def message_class(type_name: str):
@@ -70,12 +93,9 @@ class BagReader:
         if self.path.is_dir():
             meta = self.path / "metadata.yaml"
             if meta.exists():
-                try:
-                    info = yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"]
-                except (yaml.YAMLError, KeyError, TypeError) as exc:
-                    raise BagError(f"{meta}: not rosbag2 metadata: {exc}") from None
+                info = _bag_information(meta)
                 self.metadata = info
-                self.files = [self.path / f for f in info.get("relative_file_paths", [])]
+                self.files = [self.path / f for f in info["relative_file_paths"]]
                 if info.get("storage_identifier") != "mcap":
                     raise BagError(f"{self.path}: storage "
                                    f"'{info.get('storage_identifier')}' is not mcap")
@@ -159,18 +179,43 @@ class BagReader:
         wanted = set(topics) if topics else None
         for f in self.files:
             with open(f, "rb") as fh:
-                if self.finalised:
-                    it = make_reader(fh).iter_messages(topics=list(wanted) if wanted else None)
+                if not self.finalised:
+                    yield from self._stream_messages(fh, wanted)
+                    continue
+                try:
+                    it = make_reader(fh, validate_crcs=True).iter_messages(
+                        topics=list(wanted) if wanted else None)
                     for schema, channel, msg in it:
                         yield BagMessage(channel.topic, schema.name if schema else "",
                                          msg.log_time, msg.publish_time, msg.data)
-                else:
-                    yield from self._stream_messages(fh, wanted)
+                except CRCValidationError as exc:
+                    raise BagError(f"{f}: damaged: a chunk's checksum does not match its "
+                                   f"bytes ({exc})") from None
+                except (McapError, ValueError, EOFError, struct.error) as exc:
+                    raise BagError(f"{f}: damaged: {str(exc) or type(exc).__name__}") from None
+
+    def check(self, topics: list[str] | None = None) -> int:
+        """Decode every message of ``topics`` (or all) and check every cloud for non-finite
+        values; returns how many there are.
+
+        Raises:
+            BagError: a message is damaged (named by topic and log time) or there is none."""
+        count = 0
+        for m in self.messages(topics):
+            msg = self.decode(m)
+            if m.type == POINTCLOUD2 and not np.isfinite(xyz(msg)).all():
+                raise BagError(f"{self.path}: message on {m.topic} at log time "
+                               f"{m.log_time_ns} ns is damaged: its cloud holds non-finite "
+                               "values")
+            count += 1
+        if count == 0:
+            raise BagError(f"{self.path}: no message on {', '.join(topics or self.topics)}")
+        return count
 
     def _stream_messages(self, fh, wanted) -> Iterator[BagMessage]:
         schemas, channels = {}, {}
         try:
-            for rec in StreamReader(fh, skip_magic=False).records:
+            for rec in StreamReader(fh, skip_magic=False, validate_crcs=True).records:
                 if isinstance(rec, Schema):
                     schemas[rec.id] = rec
                 elif isinstance(rec, Channel):
@@ -182,12 +227,24 @@ class BagReader:
                     schema = schemas.get(ch.schema_id)
                     yield BagMessage(ch.topic, schema.name if schema else "", rec.log_time,
                                      rec.publish_time, rec.data)
+        except CRCValidationError as exc:
+            raise BagError(f"{self.path}: damaged: a chunk's checksum does not match its bytes "
+                           f"({exc})") from None
         except Exception:
             return  # the truncated tail of a killed writer's last chunk
 
     def decode(self, message: BagMessage):
-        """The message as an rclpy object (rclpy's own CDR deserializer)."""
-        return deserialize_message(message.data, message_class(message.type))
+        """The message as an rclpy object (rclpy's own CDR deserializer).
+
+        Raises:
+            BagError: its type is not installed, or its bytes are not a valid message."""
+        cls = message_class(message.type)
+        try:
+            return deserialize_message(message.data, cls)
+        except Exception as exc:  # rclpy raises several kinds for damaged CDR
+            raise BagError(f"{self.path}: message on {message.topic} at log time "
+                           f"{message.log_time_ns} ns is damaged: cannot decode it as "
+                           f"{message.type} ({type(exc).__name__})") from None
 
     # -- the run's own description -------------------------------------------------------------
     def run_record(self) -> dict:
@@ -209,8 +266,15 @@ class BagReader:
         stamps, frames = [], []
         for m in self.messages([topic]):
             msg = self.decode(m)
+            cloud = xyz(msg)
+            if not np.isfinite(cloud).all():
+                raise BagError(f"{self.path}: message on {topic} at log time "
+                               f"{m.log_time_ns} ns is damaged: its cloud holds non-finite "
+                               "values")
             stamps.append(msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec)
-            frames.append(xyz(msg))
+            frames.append(cloud)
         if not frames:
             raise BagError(f"{self.path}: topic {topic} has no messages")
+        if len({f.shape for f in frames}) > 1:
+            raise BagError(f"{self.path}: the clouds on {topic} differ in size")
         return np.array(stamps), np.array(frames)

@@ -49,10 +49,13 @@ def load_npz_run(path: str | Path) -> RunData:
         if data["frequencies_hz"].size and data["kept_modes"].size:
             kept = data["frequencies_hz"][data["kept_modes"]]
             band = (float(kept.min()), float(kept.max()))
-        return RunData(path.name, data["t"], data["positions"], scene, band,
-                       f"{data['method']} {data['band']}")
+        run = RunData(path.name, data["t"], data["positions"], scene, band,
+                      f"{data['method']} {data['band']}")
     except (OSError, KeyError, ValueError) as exc:
         raise RunError(f"{path}: not a modal_spring_sim .npz run: {exc}") from None
+    if not np.isfinite(run.positions).all():
+        raise RunError(f"{path}: damaged: its positions hold non-finite values")
+    return run
 
 
 def check_same_scene(a: RunData, b: RunData) -> None:

@@ -305,3 +305,65 @@ def test_a_chunk_is_closed_once_it_is_old_full_or_not(tmp_path):
     with pytest.raises(BagError, match=r"chunk seconds \(-1\) must be a positive number"):
         BagWriter(tmp_path / "negative", chunk_seconds=-1)
     assert not (tmp_path / "zero").exists() and not (tmp_path / "negative").exists()
+
+
+def _copy_bag(name: str, tmp_path):
+    import shutil
+    target = tmp_path / name
+    shutil.copytree(BAGS / name, target)
+    return target, target / f"{name}_0.mcap"
+
+
+@pytest.mark.parametrize("metadata, message", [
+    ("null\n", "no rosbag2_bagfile_information mapping (the top level is NoneType)"),
+    ("- 1\n- 2\n", "no rosbag2_bagfile_information mapping (the top level is list)"),
+    ("rosbag2_bagfile_information: {relative_file_paths: [null], storage_identifier: mcap}\n",
+     "relative_file_paths must be a list of file names, got [None]"),
+])
+def test_damaged_metadata_is_one_line(metadata, message, tmp_path):
+    bag, _ = _copy_bag("sheet_10x10_full", tmp_path)
+    (bag / "metadata.yaml").write_text(metadata)
+    for tool in ("modal_spring_replay", "modal_spring_compare"):
+        args = [str(bag)] if tool == "modal_spring_replay" else [str(bag), str(bag)]
+        run = _cli(f"modal_spring_ros.cli.{tool}", *args)
+        assert run.returncode == 2 and message in run.stderr, run.stderr
+        assert run.stderr.count("\n") == 1 and "Traceback" not in run.stderr
+
+
+def test_a_damaged_cloud_is_named_and_never_compared_or_played(tmp_path):
+    """16 bytes overwritten inside a cloud are found (the chunk's checksum, or the decoded
+    cloud's NaN values) and named; nothing is compared or played."""
+    bag, mcap = _copy_bag("sheet_10x10_full", tmp_path)
+    raw = bytearray(mcap.read_bytes())
+    at = raw.find(b"displacement") + 400                  # inside the first cloud's points
+    raw[at:at + 16] = b"\xff" * 16                        # NaN float32s
+    mcap.write_bytes(bytes(raw))
+    compared = _cli("modal_spring_ros.cli.modal_spring_compare", str(bag),
+                    str(BAGS / "sheet_10x10_full"))
+    assert compared.returncode == 2 and "damaged" in compared.stderr, compared.stderr
+    played = _cli("modal_spring_ros.cli.modal_spring_replay", str(bag))
+    assert played.returncode == 2 and "damaged" in played.stderr, played.stderr
+    for run in (compared, played):
+        assert run.stderr.count("\n") == 1 and "Traceback" not in run.stderr
+        assert "nan" not in run.stdout.lower()
+
+
+def test_a_cloud_with_non_finite_values_is_named(tmp_path):
+    from std_msgs.msg import Header
+
+    from modal_spring_ros.bags.pointcloud import to_pointcloud2
+    rest = load_scene("sheet_10x10").rest_positions
+    writer = BagWriter(tmp_path / "nan")
+    writer.add_topic("/points", "sensor_msgs/msg/PointCloud2")
+    for k, bad in enumerate((False, True)):
+        positions = rest.copy()
+        if bad:
+            positions[7, 1] = np.nan
+        writer.write_message("/points", to_pointcloud2(positions, rest, Header()), k + 1)
+    writer.close()
+    reader = BagReader(tmp_path / "nan")
+    with pytest.raises(BagError, match=r"message on /points at log time 2 ns is damaged: its "
+                                       r"cloud holds non-finite values"):
+        reader.points("/points")
+    with pytest.raises(BagError, match="log time 2 ns is damaged"):
+        reader.check()
