@@ -8,7 +8,6 @@ command-line tools can print it instead of a traceback.
 from __future__ import annotations
 
 import math
-import os
 import re
 from typing import Any, Mapping
 
@@ -17,34 +16,12 @@ import numpy as np
 from modal_spring_ros.core.anchor_motion import AnchorMotion, SineComponent
 from modal_spring_ros.core.scene import Damping, Scene, SceneError
 from modal_spring_ros.scenes.lattice import lattice_springs
+from modal_spring_ros.scenes.limits import BYTES_PER_PARTICLE, LIMITS, MAX_STEPS, available_memory
 from modal_spring_ros.scenes.yaml_reading import load_yaml
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 #: a decimal number as YAML 1.2 spells it (YAML 1.1 reads some of these as text)
 _DECIMAL = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
-
-#: Ranges of the physical values: far beyond any scene, and small enough that no sum, square
-#: or product of them in the engine overflows.
-LIMITS = {"position": 1e6, "mass": 1e9, "stiffness": 1e12, "gravity": 1e4, "amplitude": 1e3,
-          "frequency_hz": 1e5, "phase": 1e6, "ramp_s": 1e6, "damping.ratio": 100.0,
-          "damping.alpha": 1e6, "damping.beta": 1e3, "duration": 1e7, "dt": 10.0}
-#: Most steps a scene's suggested run may take (its duration over its step).
-MAX_STEPS = 10**9
-#: Memory a scene takes to build, compute its modes (sparse LU) and run, per particle, bytes:
-#: measured on sheet_316x316 (99,856 particles, 1.15 GB at the peak of its factorisation).
-BYTES_PER_PARTICLE = 12_000
-
-
-def available_memory() -> int:
-    """Memory this machine has available now, bytes (MemAvailable; all of it elsewhere)."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
 
 
 def scene_from_yaml(text: str, source: str = "<scene>", default_name: str = "scene") -> Scene:

@@ -40,7 +40,8 @@ def test_quick_bench_writes_every_output(quick_bench):
     (case,) = result["cases"]
     rows = case["configs"]
     assert {r["method"] for r in rows} == {"full explicit", "full average", "modal explicit",
-                                           "modal refreshed", "modal average", "modal auto"}
+                                           "modal refreshed", "modal average", "modal auto",
+                                           "modal derivatives"}
     assert len((out / "tradeoff.csv").read_text().splitlines()) == len(rows) + 1
     assert all(r["seconds_per_sim_second"] > 0 for r in rows if not r["diverged"])
     assert case["pareto"]
@@ -69,7 +70,8 @@ def test_bench_stability_limits_match_theory(quick_bench):
     _, result, _ = quick_bench
     (case,) = result["cases"]
     for s in case["stability"]:
-        if s["method"] in ("full explicit", "modal explicit"):
+        if s["method"] in ("full explicit", "modal explicit", "modal derivatives"):
+            # (derivatives: 2 / omega_max of the modes and the coordinates they add)
             assert 0.95 <= s["largest_stable"] / s["theory"] <= 1.05, s
         else:   # average acceleration: stable over the whole range searched (to 100x the
             #     explicit limit of all modes)
@@ -92,6 +94,8 @@ def test_large_deformation_failure_is_found_and_flagged_first(quick_bench):
     assert f["error_passes_10pct_at"] is not None   # then the basis fails ...
     assert f["strain_warning_at"] is not None        # ... and the strain says so
     assert f["strain_warning_at"] <= f["error_passes_10pct_at"] + 0.25
+    # the derivative basis holds where the rest modes fail, in every window of the chart
+    assert max(f["derivatives_rel_l2_window"]) < 0.02 and f["derivatives_rel_l2"] < 0.01
 
 
 def test_explicit_full_diverges_within_one_step_where_modal_lowpass_stays_accurate():
