@@ -42,6 +42,8 @@ def test_stress_band_changes_every_50ms_keep_the_stream_whole():
     diagnostics = client.collect(DiagnosticArray, "/diagnostics")
     try:
         assert wait_for(lambda: len(points) > 3, 30)
+        time.sleep(3.0)                                     # the same run's steady stream
+        steady = np.diff([t for t, _ in points if t >= time.monotonic() - 2.5])
         bands = [("lowpass", 0.0, 12.0), ("highpass", 10.0, 11.0), ("bandpass", 5.0, 40.0),
                  ("bandstop", 8.0, 30.0), ("allpass", 0.0, 1.0)]
         start = time.monotonic()
@@ -55,14 +57,15 @@ def test_stress_band_changes_every_50ms_keep_the_stream_whole():
         window = [(t, m) for t, m in points if t >= start]
         gaps = np.diff([t for t, _ in window])
         assert np.median(gaps) < 1.5 / RATE                 # frames at the publish rate
-        assert gaps.max() < 0.25                            # and no stall (a busy host may
-        #                                                     delay a frame by a few periods)
+        # no stall the band changes caused: gaps no longer than the same run's steady ones
+        # allow (measured against them, so that a busy host's delays are not counted)
+        assert gaps.max() < max(0.25, 4.0 * steady.max()), (gaps.max(), steady.max())
         for _, m in window:
             assert np.isfinite(np.frombuffer(bytes(m.data), dtype="<f4")).all()
-        levels = [d.status[0].level for t, d in diagnostics
-                  if t >= start and d.status[0].name.startswith("/stress/")]
-        assert levels
-        assert DiagnosticStatus.ERROR not in levels
+        mine = [d.status[0] for t, d in diagnostics
+                if t >= start and d.status[0].name.startswith("/stress/")]
+        assert mine
+        assert DiagnosticStatus.ERROR not in [s.level for s in mine]
     finally:
         client.close()
         code, _, err = node.interrupt()
@@ -177,7 +180,7 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
         points = client.collect(PointCloud2, "/grow/points", qos=500)
         diags = client.collect(DiagnosticArray, "/diagnostics")
         assert wait_for(lambda: len(points) > 10, 60)
-        time.sleep(2.0)                                  # a steady window to compare with
+        time.sleep(3.0)                                  # a steady window to compare with
         start = time.monotonic()
         (result,) = client.set_parameters("grow/modal_spring", timeout=60.0,
                                           filter__high_mode=99)
@@ -191,7 +194,7 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
         values = {kv.key: kv.value for kv in mine[-1][1].values}
         assert values["modes stepped"] == "100" and int(values["modes computed"]) >= 100
         times = np.array([t for t, _ in points])
-        steady = float(np.diff(times[(times > start - 2.0) & (times < start)]).max())
+        steady = float(np.diff(times[(times > start - 3.0) & (times < start)]).max())
         worst = float(np.diff(times[times > start - 0.5]).max())
         print(f"longest gap {worst:.3f} s (steady: {steady:.3f} s)")
         # here about 0.05 s (3 periods); on a loaded host no worse than its steady gaps allow
