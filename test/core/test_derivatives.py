@@ -204,3 +204,16 @@ def test_a_low_pass_with_derivatives_does_not_pass_a_load_above_it():
     assert shake["every mode"] > 0.5                   # the shake is really there
     assert shake["derivatives"] < 1e-5 * shake["every mode"], shake
     assert shake["rest"] < 1e-5 * shake["every mode"], shake
+
+
+def test_refreshed_forces_work_on_the_derivative_basis():
+    """modal.force_refresh: the springs every N steps, the static tangent in between, on the
+    band's modes and the coordinates they add."""
+    model = MassSpringModel(load_scene("sheet_10x10"))
+    basis = ModalBasis(model)
+    sims = {n: ModalSimulation(model, basis, LOWPASS_0_14, dt=5e-4, force_refresh=n,
+                               basis_kind="derivatives") for n in (1, 10)}
+    assert sims[10].refresh_error is not None and sims[1].refresh_error is None
+    errors = errors_against_full(model, basis, sims, 3.0, 5e-4)
+    assert errors[1][1] < 0.003 and errors[10][1] < 0.005, errors
+    assert sims[10].refresh_error < 0.01
