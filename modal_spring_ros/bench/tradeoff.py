@@ -315,7 +315,7 @@ def run(quick: bool, progress: Callable[[str], None]) -> dict:
     result["step_costs"] = step_costs(["sheet_10x10", "sheet_32x32"] if quick else
                                       ["sheet_10x10", "sheet_32x32", "sheet_100x100"],
                                       list(range(0, 180, 45 if quick else 15)), progress)
-    result["failure"] = failure(progress, 3.0 if quick else 6.0)
+    result["failure"] = failure(progress, 2.5 if quick else 6.0)
     return result
 
 

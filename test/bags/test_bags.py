@@ -2,6 +2,9 @@
 crash safety, real rosbag2 files, and bad input."""
 from __future__ import annotations
 
+import contextlib
+import importlib
+import io
 import os
 import signal
 import subprocess
@@ -238,8 +241,14 @@ def test_qos_round_trips_through_the_v9_text():
 
 
 def _cli(module: str, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", module, *args], capture_output=True, text=True,
-                          timeout=120)
+    """A console script's ``main`` run here (as its process would: exit status, output)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = importlib.import_module(module).main(list(args))
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else 1
+    return subprocess.CompletedProcess([module, *args], code, out.getvalue(), err.getvalue())
 
 
 def test_bad_bags_and_outputs_fail_clearly_and_overwrite_nothing(tmp_path):

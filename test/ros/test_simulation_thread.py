@@ -17,6 +17,8 @@ from modal_spring_ros.ros.requests import ChangeBand, Pause, ReplaceSimulation, 
 from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
 from modal_spring_ros.scenes.resources import load_scene
 
+pytestmark = pytest.mark.ros  # the node's own thread (no DDS, but seconds of wall time)
+
 
 class Recorder:
     """Outputs that keep what the thread publishes."""
