@@ -37,7 +37,7 @@ from modal_spring_ros.scenes.resources import load_scene
 
 NODE_NAME = "modal_spring"
 #: longest a service waits for the simulation thread to apply its request, s
-SERVICE_TIMEOUT_S = 2.0
+SERVICE_TIMEOUT_S = 5.0
 
 
 class ModalSpringNode(Node):
@@ -125,6 +125,8 @@ class ModalSpringNode(Node):
             finally:
                 self._computing = False
             self._publish_frequencies()
+            if change.values["publish_clock"]:
+                self._outputs.enable_clock()
             self._values = change.values
             if change.request is not None:
                 self._thread.submit(change.request)

@@ -64,7 +64,15 @@ class NodeOutputs:
         self._mesh = node.create_publisher(Marker, MESH_TOPIC, QUEUE_DEPTH)
         self._diagnostics = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC,
                                                   QUEUE_DEPTH)
-        self._clock = node.create_publisher(Clock, CLOCK_TOPIC, QUEUE_DEPTH)
+        self._clock = None  # /clock only when publish_clock asks for it
+        self._announced = False
+        if values()["publish_clock"]:
+            self.enable_clock()
+
+    def enable_clock(self) -> None:
+        """Create the /clock publisher (once; from the executor's thread)."""
+        if self._clock is None:
+            self._clock = self._node.create_publisher(Clock, CLOCK_TOPIC, QUEUE_DEPTH)
 
     def frame(self, sim: Simulation, positions: np.ndarray, mesh: bool) -> None:
         values = self._values()
@@ -75,8 +83,16 @@ class NodeOutputs:
         self._points.publish(to_pointcloud2(positions, rest, header))
         if self._bag is not None:
             self._bag.frame(sim.time, positions)
-        if values["publish_clock"]:
+        if values["publish_clock"] and self._clock is not None:
             self._clock.publish(Clock(clock=to_time_msg(sim.time)))
+        if not self._announced:
+            self._announced = True
+            status = sim.status()
+            self._node.get_logger().info(
+                f"streaming {self._scene.name} ({self._scene.n_particles} particles; "
+                f"{status.method}, {status.band}) on "
+                f"{self._points.topic_name} at {values['publish_rate_hz']:g} Hz, frame "
+                f"'{values['frame_id']}'")
         if mesh and self._triangles.size and self._mesh.get_subscription_count() > 0:
             self._mesh.publish(mesh_marker(positions, rest, self._triangles, header))
 

@@ -174,13 +174,23 @@ class SimulationThread:
                 return
 
     def _apply_requests(self) -> bool:
-        """Apply every queued request; True when one was applied."""
-        applied = False
+        """Apply every queued request, in order; True when one was applied. A band change
+        directly followed by another is not built: the later one takes its changed
+        parameters over (so a capture records them) and both are answered."""
+        batch: list[Request] = []
         while True:
             try:
-                request = self._requests.get_nowait()
+                batch.append(self._requests.get_nowait())
             except queue.Empty:
-                return applied
+                break
+        applied = False
+        for k, request in enumerate(batch):
+            following = batch[k + 1] if k + 1 < len(batch) else None
+            if isinstance(request, ChangeBand) and isinstance(following, ChangeBand):
+                following.changed = {**request.changed, **following.changed}
+                request.finish(True, f"band {request.band.describe()}, superseded by "
+                                     f"{following.band.describe()}")
+                continue
             try:
                 message = self._apply(request)
             except Exception as exc:  # refused: the run is as it was before the request
@@ -189,6 +199,7 @@ class SimulationThread:
                 continue
             request.finish(True, message)
             applied = True
+        return applied
 
     def _apply(self, request: Request) -> str:
         """Apply one request; returns what happened. Raises with the run unchanged."""

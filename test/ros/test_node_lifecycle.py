@@ -13,6 +13,7 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from helpers import REPO
 from ros_harness import Client, NodeProcess, node_with_client, wait_for
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
 
 pytestmark = pytest.mark.ros
@@ -56,7 +57,8 @@ def test_stress_band_changes_every_50ms_keep_the_stream_whole():
         assert node.proc.poll() is None                       # still running
         window = [(t, m) for t, m in points if t >= start]
         gaps = np.diff([t for t, _ in window])
-        assert np.median(gaps) < 1.5 / RATE                 # frames at the publish rate
+        # frames at the publish rate (or at the rate a busy host kept before the changes)
+        assert np.median(gaps) < 1.5 * max(1.0 / RATE, float(np.median(steady)))
         # no stall the band changes caused: gaps no longer than the same run's steady ones
         # allow (measured against them, so that a busy host's delays are not counted)
         assert gaps.max() < max(0.25, 4.0 * steady.max()), (gaps.max(), steady.max())
@@ -103,7 +105,6 @@ def _status(diags, prefix):
 
 
 def test_mesh_and_clock_are_published_when_asked_for():
-    from rosgraph_msgs.msg import Clock
     from visualization_msgs.msg import Marker
     with node_with_client("publish_clock:=true", "mesh_rate_hz:=5.0",
                           namespace="extras") as (node, client):
@@ -182,7 +183,7 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
         assert wait_for(lambda: len(points) > 10, 60)
         time.sleep(3.0)                                  # a steady window to compare with
         start = time.monotonic()
-        (result,) = client.set_parameters("grow/modal_spring", timeout=60.0,
+        (result,) = client.set_parameters("grow/modal_spring", timeout=180.0,
                                           filter__high_mode=99)
         assert result.successful, result.reason
         done = time.monotonic()
@@ -225,3 +226,29 @@ def test_a_signal_during_a_long_mode_computation_at_startup_cancels_it(sig):
     assert node.proc.returncode == 0, err[-3000:]
     assert "Traceback" not in err
     assert "256 modes ready" not in err                   # cancelled, not waited for
+
+
+def test_no_clock_unless_asked_and_one_line_once_streaming():
+    node = NodeProcess(namespace="quiet")
+    client = Client("quiet_client")
+    try:
+        points = client.collect(PointCloud2, "/quiet/points")
+        clocks = client.collect(Clock, "/clock")
+        assert wait_for(lambda: len(points) > 5, 30)
+
+        def clock_publishers():
+            return [i for i in client.node.get_publishers_info_by_topic("/clock")
+                    if i.node_namespace == "/quiet"]
+        assert clock_publishers() == []                 # no /clock publisher at all
+        (result,) = client.set_parameters("quiet/modal_spring", publish_clock=True)
+        assert result.successful, result.reason
+        assert wait_for(lambda: len(clocks) > 5, 10)    # created when asked for
+        assert len(clock_publishers()) == 1
+    finally:
+        client.close()
+        code, _, err = node.interrupt()
+    assert code == 0
+    lines = [x for x in err.splitlines() if "streaming sheet_10x10" in x]
+    assert len(lines) == 1, err[-2000:]
+    assert ("streaming sheet_10x10 (100 particles; modal, allpass) on /quiet/points at 60 Hz, "
+            "frame 'world'") in lines[0]

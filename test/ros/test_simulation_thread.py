@@ -27,6 +27,7 @@ class Recorder:
         self.frames: list[tuple[float, float, np.ndarray]] = []  # wall, sim time, positions
         self.reports = []
         self.logs = []
+        self.changes: list[dict] = []
 
     def frame(self, sim, positions, mesh):
         self.frames.append((time.monotonic(), sim.time, positions.copy()))
@@ -35,7 +36,7 @@ class Recorder:
         self.reports.append((status, report))
 
     def changed(self, sim, changed):
-        pass
+        self.changes.append(dict(changed))
 
     def log(self, level, message):
         self.logs.append((level, message))
@@ -189,3 +190,22 @@ def test_as_fast_as_possible_fills_each_frame_with_steps(running):
     assert achieved > 0.4 * possible, (achieved, possible)
     steps_per_frame = achieved / 30.0 / sim.dt
     assert steps_per_frame > 20  # one step per frame would give 0.015 of real time
+
+
+def test_band_changes_queued_together_build_only_the_last():
+    sim = build_simulation(load_scene("sheet_10x10"), SimulationConfig())
+    out = Recorder()
+    thread = SimulationThread(sim, out, StreamSettings, rebuild=lambda: sim)
+    first = thread.submit(ChangeBand(band=FilterBand("lowpass", 0, 12, "hz"),
+                                     changed={"filter.type": "lowpass", "filter.high_hz": 12.0}))
+    second = thread.submit(ChangeBand(band=FilterBand("lowpass", 0, 20, "hz"),
+                                      changed={"filter.high_hz": 20.0}))
+    thread.start()
+    try:
+        assert first.wait(5.0) and second.wait(5.0)
+        assert "superseded by lowpass <= 20 Hz" in first.message
+        assert thread.sim.band == FilterBand("lowpass", 0, 20, "hz")
+        # one change recorded, with every parameter the two changed
+        assert out.changes == [{"filter.type": "lowpass", "filter.high_hz": 20.0}]
+    finally:
+        thread.stop()
