@@ -47,3 +47,14 @@ def power_above(sim, cutoff_hz: float, steps: int, below_hz: float = np.inf) -> 
     power = spectrum.sum(axis=1)
     f = np.fft.rfftfreq(steps, sim.dt)
     return float(power[(f > cutoff_hz) & (f < below_hz)].sum() / power.sum())
+
+
+def max_step_motion(sim, steps: int) -> float:
+    """The most any particle moves in one step over the next ``steps`` steps, m."""
+    worst, prev = 0.0, sim.positions()
+    for _ in range(steps):
+        sim.step()
+        now = sim.positions()
+        worst = max(worst, float(np.linalg.norm(now - prev, axis=1).max()))
+        prev = now
+    return worst

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers import power_above
+from helpers import max_step_motion, power_above
 
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.derivatives import (added_coordinates, static_load_vectors,
@@ -156,22 +156,13 @@ def test_a_band_change_fades_the_added_coordinates_without_a_jump():
                           basis_kind="derivatives")
     sim.step(4000)                                         # 2 s: swaying steadily
 
-    def max_step_motion(steps: int) -> float:
-        worst, prev = 0.0, sim.positions()
-        for _ in range(steps):
-            sim.step()
-            now = sim.positions()
-            worst = max(worst, float(np.linalg.norm(now - prev, axis=1).max()))
-            prev = now
-        return worst
-
-    ordinary = max_step_motion(2000)
+    ordinary = max_step_motion(sim, 2000)
     first = set(sim.stepped_modes.tolist())
     for band in (FilterBand("lowpass", high=14, by="index"),
                  FilterBand("bandpass", 2, 30, by="index"), FilterBand("lowpass", 0, 20, "index")):
         sim.set_band(band)
         assert sim.fading
-        assert max_step_motion(2700) <= ordinary           # the fade and what follows it
+        assert max_step_motion(sim, 2700) <= ordinary           # the fade and what follows it
     assert not sim.fading
     assert sim.kept_modes.tolist() == list(range(21))
     assert set(sim.stepped_modes.tolist()) == first        # the band's own coordinates again

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers import power_above
+from helpers import max_step_motion, power_above
 
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.filter_band import BandError, FilterBand, parse_mode_range
@@ -91,20 +91,11 @@ def test_changing_the_band_mid_run_moves_no_particle_more_than_ordinary_motion(s
     sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4)   # default 0.5 s transition
     sim.step(4000)                                        # 2 s: swaying steadily
 
-    def max_step_motion(steps: int) -> float:
-        worst, prev = 0.0, sim.positions()
-        for _ in range(steps):
-            sim.step()
-            now = sim.positions()
-            worst = max(worst, float(np.linalg.norm(now - prev, axis=1).max()))
-            prev = now
-        return worst
-
-    ordinary = max_step_motion(2000)
+    ordinary = max_step_motion(sim, 2000)
     for band in (FilterBand("lowpass", high=14, by="index"), FilterBand("highpass", low=10.0),
                  FilterBand("bandpass", 2, 48, by="index"), FilterBand()):
         sim.set_band(band)
-        assert max_step_motion(2700) <= ordinary         # the fade and what follows it
+        assert max_step_motion(sim, 2700) <= ordinary         # the fade and what follows it
     assert not sim.fading and sim.stepped_modes.size == 180
 
 
