@@ -74,6 +74,14 @@ class AddedCoordinateBank:
             omega[k] = self._omega[int(ids[k])]
         return phi, omega
 
+    def omega(self, ids: np.ndarray) -> np.ndarray:
+        """``omega`` of coordinates ``ids`` (rest or added), without their shapes."""
+        rest = ids < ADDED_ID
+        omega = np.empty(ids.size)
+        omega[rest] = self.basis.omega[ids[rest]]
+        omega[~rest] = [self._omega[int(i)] for i in ids[~rest]]
+        return omega
+
     def load_mask(self, ids: np.ndarray) -> np.ndarray:
         """(len(ids), 4) bool: the loads (gravity, base x, y, z) acting on each coordinate
         (every load on a rest mode; the band's loads on an added coordinate)."""

@@ -182,7 +182,7 @@ class ModalSimulation(Simulation):
                                derivative_directions=self._bank.directions, bank=self._bank)
 
     def stability_limit(self) -> float:
-        return stable_step_limit(float(self._bank.columns(self._set.modes)[1].max()))
+        return stable_step_limit(float(self._bank.omega(self._set.modes).max()))
 
     def coordinates_for(self, keep: np.ndarray) -> np.ndarray:
         """The coordinates stepped for a band keeping rest modes ``keep`` (computing what the
@@ -252,7 +252,7 @@ class ModalSimulation(Simulation):
             UnstableStepError: its highest mode is unstable at ``dt`` (explicit).
         """
         coordinates = self.coordinates_for(self.select_modes(band))
-        omega = self._bank.columns(coordinates)[1]
+        omega = self._bank.omega(coordinates)
         check_step(self.integrator, self.dt, stable_step_limit(float(omega.max())),
                    self.method, dt_name)
         return coordinates
