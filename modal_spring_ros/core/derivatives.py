@@ -151,6 +151,9 @@ def added_coordinates(basis: ModalBasis, keep: np.ndarray,
     there (the pair solves use the sparse factor kept in it)."""
     start = time.perf_counter()
     keep = np.asarray(keep, dtype=np.int64)
+    if basis.complete and keep.size == basis.count:  # every mode: nothing left to add
+        return AddedCoordinates(np.empty((basis.n_dof, 0)), np.empty(0), 0, 0.0,
+                                np.zeros(4, dtype=bool))
     pair_modes = keep[:MAX_PAIR_MODES]
     if progress is not None and pair_modes.size:
         pairs = pair_modes.size * (pair_modes.size + 1) // 2

@@ -74,7 +74,7 @@ class ModalSpringNode(Node):
         self._thread = SimulationThread(
             sim, self._outputs, self._stream_settings,
             rebuild=lambda: rebuild(sim.model, sim.basis, config_from_parameters(self._values)),
-            computing_modes=lambda: self._computing)
+            computing_modes=lambda: self._computing, running=self.context.ok)
         services = MutuallyExclusiveCallbackGroup()
         self.create_service(Trigger, "~/reset", self._on_reset, callback_group=services)
         self.create_service(SetBool, "~/pause", self._on_pause, callback_group=services)

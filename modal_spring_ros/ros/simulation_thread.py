@@ -70,9 +70,13 @@ class SimulationThread:
     def __init__(self, sim: Simulation, outputs: Outputs,
                  settings: Callable[[], StreamSettings],
                  rebuild: Callable[[], Simulation],
-                 computing_modes: Callable[[], bool] = lambda: False):
+                 computing_modes: Callable[[], bool] = lambda: False,
+                 running: Callable[[], bool] = lambda: True):
         """``rebuild``: a fresh simulation of the current settings at rest (the last resort of
-        recovery); ``computing_modes``: whether a request is computing modes right now."""
+        recovery); ``computing_modes``: whether a request is computing modes right now;
+        ``running``: False once the node is shutting down (its publishers are then gone, and
+        the thread ends instead of reporting them as failures)."""
+        self._running = running
         self.sim = sim
         self.paused = False
         self._outputs = outputs
@@ -111,12 +115,15 @@ class SimulationThread:
         return self._thread.is_alive()
 
     # -- the thread ----------------------------------------------------------------------------
+    def _active(self) -> bool:
+        return not self._stop.is_set() and self._running()
+
     def _run(self) -> None:
-        while not self._stop.is_set():
+        while self._active():
             try:
                 self._loop()
             except Exception as exc:  # supervised: report, recover, go on
-                if self._stop.is_set():
+                if not self._active():
                     return
                 self._recover(f"simulation thread failed: {exc!r}")
 
@@ -125,7 +132,7 @@ class SimulationThread:
         next_diagnostics = next_publish + DIAGNOSTICS_PERIOD_S
         self._start_window(valid=True)
         published_time = None
-        while not self._stop.is_set():
+        while self._active():
             settings = self._settings()
             period = 1.0 / settings.publish_rate_hz
             rtf = settings.realtime_factor

@@ -33,6 +33,7 @@ def test_sigint_and_sigterm_end_the_node_cleanly():
         out, err = node.proc.communicate(timeout=15)
         assert node.proc.returncode == 0, err[-3000:]
         assert "Traceback" not in err
+        assert "failed" not in err and "ERROR" not in err, err[-3000:]
 
 
 @pytest.mark.slow
