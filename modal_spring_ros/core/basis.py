@@ -109,8 +109,9 @@ class ModalBasis:
         return changed
 
     def solve_stiffness(self, rhs: np.ndarray) -> np.ndarray:
-        """``K0^-1 rhs`` (columns) with the rest stiffness of the free DOF: a Cholesky factor
-        on dense scenes, the kept sparse LU (in the worker, when there is one) on large ones."""
+        """``K0^-1 rhs`` (columns) with the rest stiffness of the free DOF, in this process: a
+        Cholesky factor on dense scenes, the kept sparse LU on large ones (with a worker,
+        :meth:`call_with_solve` solves there instead)."""
         rhs = np.asarray(rhs, dtype=float)
         if rhs.size == 0:
             return rhs.copy()
@@ -120,9 +121,7 @@ class ModalBasis:
             return scipy.linalg.cho_solve(self._cholesky, rhs)
         if self._solver is None:
             self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof)
-        if self.worker is None:
-            return self._solver.solve(rhs)
-        return self.worker.call(_solve_in_worker, self._solver, rhs)
+        return self._solver.solve(rhs)
 
     def call_with_solve(self, function: Callable[..., Any], *args: Any) -> Any:
         """``function(solve, *args)`` with ``solve(rhs) = K0^-1 rhs``: in the worker process
@@ -260,11 +259,6 @@ def _lowest_modes_in_worker(solver: ShiftInvertModes, count: int
                             ) -> tuple[np.ndarray, np.ndarray]:
     """Runs in a :class:`WorkerProcess`: ``solver.lowest(count)``."""
     return _in_worker(solver).lowest(count)
-
-
-def _solve_in_worker(solver: ShiftInvertModes, rhs: np.ndarray) -> np.ndarray:
-    """Runs in a :class:`WorkerProcess`: ``solver.solve(rhs)``."""
-    return _in_worker(solver).solve(rhs)
 
 
 def _call_with_solve_in_worker(solver: ShiftInvertModes, function: Callable[..., Any],

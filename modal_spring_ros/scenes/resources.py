@@ -12,7 +12,7 @@ from pathlib import Path
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 
 from modal_spring_ros.core.scene import Scene, SceneError
-from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
+from modal_spring_ros.scenes.schema import scene_from_yaml
 from modal_spring_ros.scenes.yaml_reading import read_scene_text
 
 PACKAGE_NAME = "modal_spring_ros"
@@ -65,13 +65,3 @@ def load_scene(name_or_path: str | Path) -> Scene:
             )
         path = candidate
     return scene_from_yaml(read_scene_text(path), source=str(path), default_name=path.stem)
-
-
-def resolve_scene(scene: Scene | str | dict | None) -> Scene:
-    """A scene given as a :class:`Scene`, a mapping (the parsed YAML), or a built-in name or
-    file path (the default scene when empty)."""
-    if isinstance(scene, Scene):
-        return scene
-    if isinstance(scene, dict):
-        return scene_from_dict(scene, source="<embedded scene>")
-    return load_scene(scene or DEFAULT_SCENE)
