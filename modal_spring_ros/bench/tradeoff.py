@@ -24,7 +24,7 @@ import numpy as np
 
 from modal_spring_ros.bench.analysis import cheapest_reaching, pareto
 from modal_spring_ros.bench.charts import draw_all
-from modal_spring_ros.bench.failure import failure
+from modal_spring_ros.bench.failure import failure, turning_clamp
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.mode_selection import choose_modes, choose_refresh, choose_step
@@ -316,6 +316,7 @@ def run(quick: bool, progress: Callable[[str], None]) -> dict:
                                       ["sheet_10x10", "sheet_32x32", "sheet_100x100"],
                                       list(range(0, 180, 45 if quick else 15)), progress)
     result["failure"] = failure(progress, 2.5 if quick else 6.0)
+    result["turning_clamp"] = turning_clamp(progress, 3.0 if quick else 10.0)
     return result
 
 
@@ -351,4 +352,12 @@ def table(result: dict) -> str:
                  f"({f['derivatives_coordinates']} coordinates) the largest window is "
                  f"{max(f['derivatives_rel_l2_window']):.2%}, {f['derivatives_rel_l2']:.2%} over "
                  "the run")
+    c = result["turning_clamp"]
+    cost = c["seconds_per_step"]
+    lines.append(f"turning clamp (sheet_10x10_swing, 15 modes): derivatives "
+                 f"{c['rel_l2']['derivatives']:.3%}, rest modes {c['rel_l2']['rest']:.2%} in the "
+                 f"clamp's frame; turn left out {c['rel_l2']['turn left out']:.0%} (world); "
+                 f"step {1e6 * cost['sheet_10x10_swing']:.0f} us, "
+                 f"{cost['sheet_10x10_swing'] / cost['sheet_10x10']:.2f} x the translating "
+                 "sheet's")
     return "\n".join(lines)

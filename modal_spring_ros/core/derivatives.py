@@ -17,8 +17,10 @@ is that response's direction. A band's added coordinates are built once per band
 3. weighted by ``omega_1^2 / (omega_i omega_j)`` and reduced to the leading
    ``directions`` mass-PCA directions,
 4. with the static load vectors ``K0^-1 f_gravity`` and ``K0^-1 M 1_axis`` (each axis the base
-   moves along), projected the same way, each only when the load varies at frequencies within
-   the band's span (a quasi-static response moves at its load's frequencies),
+   moves along), and for a turning clamp those of its frame's load patterns (gravity turned,
+   centrifugal and Euler loads), projected the same way, each only when the load varies at
+   frequencies within the band's span (a quasi-static response moves at its load's
+   frequencies),
 5. mass-orthonormalised and rotated so that ``K0`` is diagonal on them: each added coordinate
    has an ``omega`` of its own, and the modal damping, the diagonal operators and both
    integrators carry over unchanged. The forces stay exact (eq. 20 in physical space).
@@ -36,6 +38,7 @@ import time
 import numpy as np
 
 from modal_spring_ros.core.basis import ModalBasis, Progress
+from modal_spring_ros.core.frame_loads import frame_load_patterns
 from modal_spring_ros.core.model import MassSpringModel
 
 #: Default number of mass-PCA derivative directions added to a band.
@@ -138,7 +141,15 @@ def static_load_vectors(model: MassSpringModel, low_hz: float = 0.0,
             load = np.zeros(model.n_free_dof)
             load[slot::d] = model.mass_dof[slot::d]
             loads.append(load)
+    if model.rotates and _turns_in_band(model, low_hz, high_hz):
+        loads.extend(frame_load_patterns(model))
     return np.column_stack(loads) if loads else np.empty((model.n_free_dof, 0))
+
+
+def _turns_in_band(model: MassSpringModel, low_hz: float, high_hz: float) -> bool:
+    """The clamp turns only at frequencies within ``low_hz .. high_hz``."""
+    f = model.scene.anchor_motion.rotation_frequencies_hz
+    return bool(f.size) and low_hz <= float(f.min()) and float(f.max()) <= high_hz
 
 
 def added_coordinates(basis: ModalBasis, keep: np.ndarray,

@@ -9,7 +9,9 @@ function of ``q``:
 
 with ``D`` the sparse spring-difference matrix. The force on the free DOF is ``-D^T`` of the
 per-spring force vectors, so its projection on the modes (paper fig. 5, step 4) is
-``Q = -G^T f_spring + Phi^T (f_gravity - M 1 a_base(t))``.
+``Q = -G^T f_spring + Phi^T (f_gravity - M 1 a_base(t))``. When the clamp turns, ``u`` is the
+displacement in its frame and the loads are the frame's
+(:mod:`~modal_spring_ros.core.frame_loads`).
 
 Per step this is one product with ``G``, a few vectorised operations over the springs and one
 product with ``G^T``: no Python loop over particles or springs. ``G`` is stored dense when that
@@ -19,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+
+from modal_spring_ros.core.frame_loads import FrameLoads
 
 #: Largest dense ``G`` (entries) kept; beyond it ``G q`` is computed as ``D (Phi q)``.
 DENSE_G_LIMIT = 400_000
@@ -96,6 +100,8 @@ class GeneralizedForces:
         if load_mask is not None:
             loads = loads * load_mask
         self._load_matrix = np.ascontiguousarray(loads)
+        #: the inertial loads of a turning clamp's frame (modal coordinates in that frame)
+        self.frame = FrameLoads(model, basis) if model.rotates and basis is not None else None
         self._gravity = self._load_matrix[:, 0].copy()
         self._kl = self._k * self._l
         self.last_max_strain = 0.0
@@ -133,7 +139,10 @@ class GeneralizedForces:
         return f
 
     def loads(self, t: float) -> np.ndarray:
-        """Generalized gravity and base-excitation load at time ``t`` (linear, exact)."""
+        """Generalized gravity and base-excitation load at time ``t`` (linear, exact); with a
+        turning clamp, the state-independent loads of its frame (:class:`FrameLoads`)."""
+        if self.frame is not None:
+            return self.frame.loads(t)
         if self._anchors_move:
             self._load_coefficients[1:] = self._base_motion.acceleration(t)
             return self._load_matrix @ self._load_coefficients

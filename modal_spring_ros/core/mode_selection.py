@@ -41,6 +41,7 @@ import scipy.sparse.linalg as spla
 
 from modal_spring_ros.core.basis import DEFAULT_MAX_MODES, ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.frame_loads import frame_load_patterns
 from modal_spring_ros.core.model import MassSpringModel
 
 DEFAULT_TOLERANCE = 0.01
@@ -73,7 +74,8 @@ class ModeChoice:
 
 
 def scene_loads(model: MassSpringModel) -> dict[str, np.ndarray]:
-    """Gravity and, per axis the base moves along, the unit base-excitation load."""
+    """Gravity, the unit base-excitation load per axis the base moves along, and a turning
+    clamp's frame load patterns."""
     loads = {}
     if np.any(model.gravity_force != 0.0):
         loads["gravity"] = model.gravity_force
@@ -84,6 +86,9 @@ def scene_loads(model: MassSpringModel) -> dict[str, np.ndarray]:
             pattern = np.zeros(model.n_free_dof)
             pattern[a::model.dimension] = -model.mass_dof[a::model.dimension]
             loads[f"base {'xyz'[axis]}"] = pattern
+    if model.rotates:  # a turning clamp: gravity turns, and centrifugal and Euler loads
+        for k, pattern in enumerate(frame_load_patterns(model)):
+            loads[f"turning clamp {k}"] = pattern
     return loads
 
 

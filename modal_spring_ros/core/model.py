@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from modal_spring_ros.core.forces import GeneralizedForces, spring_difference_matrix
+from modal_spring_ros.core.rigid_frame import RigidFrame
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.core.stiffness import assemble_stiffness, reduce_to_free
 
@@ -42,6 +43,8 @@ class MassSpringModel:
         self.gravity_force = (scene.mass[self.free_particles][:, None]
                               * scene.gravity[None, self.axes]).ravel()
         self._inv_l = 1.0 / self._l
+        self._frame: tuple[float, RigidFrame] | None = None
+        self._axes_index = np.ix_(self.axes, self.axes)
 
     # -- stiffness and mass at rest ------------------------------------------------------------
     @functools.cached_property
@@ -62,19 +65,45 @@ class MassSpringModel:
         return spring_difference_matrix(s.springs, free_index, self.dimension,
                                         self.free_particles.size)
 
-    # -- positions -----------------------------------------------------------------------------
+    # -- positions ---------------------------------------------------------------------------
+    @property
+    def rotates(self) -> bool:
+        """The clamp turns: displacements live in its (floating) frame."""
+        return self.scene.anchor_motion.rotates
+
+    def frame(self, t: float) -> RigidFrame:
+        """The clamp's rigid motion at ``t`` on the scene's axes (the last one is kept: the
+        same time is asked for by the forces, the positions and the energy)."""
+        cached = self._frame
+        if cached is not None and cached[0] == t:
+            return cached[1]
+        frame = self.scene.anchor_motion.frame(t).restricted(self._axes_index, self.axes)
+        self._frame = (t, frame)
+        return frame
+
     def anchor_offset(self, t: float) -> np.ndarray:
-        """(d,) rigid offset of the base (every fixed particle) at time ``t``."""
+        """(d,) rigid offset of the base (every fixed particle) at time ``t`` (a clamp that
+        only translates)."""
         return self.scene.anchor_motion.offset(t)[self.axes]
 
-    def base_velocity(self, t: float) -> np.ndarray:
-        return self.scene.anchor_motion.velocity(t)[self.axes]
-
     def positions(self, u: np.ndarray, t: float) -> np.ndarray:
-        """(n, d) positions for free displacement ``u`` (relative to the moving base) at ``t``."""
+        """(n, d) positions for displacement ``u`` in the clamp's frame at ``t``
+        (``x = R (X + u) + b``; ``X + u + p`` when the clamp only translates)."""
+        if self.rotates:
+            y = self.rest.copy()
+            y.reshape(-1)[self.free_dof] += u
+            return self.frame(t).carry(y)
         x = self.rest + self.anchor_offset(t)
         x.reshape(-1)[self.free_dof] += u  # flat index: several times faster than by rows
         return x
+
+    def world_velocity(self, u: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """Free-DOF velocity in the world (flat) from displacement ``u`` and velocity ``v``
+        in the clamp's frame: ``R v + R' (X + u) + b'``."""
+        frame = self.frame(t)
+        d = self.dimension
+        y = self.rest[self.free_particles] + u.reshape(-1, d)
+        return (v.reshape(-1, d) @ frame.rotation.T + frame.point_velocity(y)).ravel()
 
     def positions3(self, x: np.ndarray) -> np.ndarray:
         """(n, 3) positions from (n, d) working positions (axes that do not move stay at rest)."""

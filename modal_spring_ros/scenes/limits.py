@@ -7,8 +7,9 @@ import os
 #: Ranges of the physical values: far beyond any scene, and small enough that no sum, square
 #: or product of them in the engine overflows.
 LIMITS = {"position": 1e6, "mass": 1e9, "stiffness": 1e12, "gravity": 1e4, "amplitude": 1e3,
-          "frequency_hz": 1e5, "phase": 1e6, "ramp_s": 1e6, "damping.ratio": 100.0,
-          "damping.alpha": 1e6, "damping.beta": 1e3, "duration": 1e7, "dt": 10.0}
+          "amplitude_deg": 1e4, "frequency_hz": 1e5, "phase": 1e6, "ramp_s": 1e6,
+          "damping.ratio": 100.0, "damping.alpha": 1e6, "damping.beta": 1e3, "duration": 1e7,
+          "dt": 10.0}
 #: Most steps a scene's suggested run may take (its duration over its step).
 MAX_STEPS = 10**9
 #: Memory a scene takes to build, compute its modes (sparse LU) and run, per particle, bytes:

@@ -8,20 +8,16 @@ command-line tools can print it instead of a traceback.
 from __future__ import annotations
 
 import math
-import re
 from typing import Any, Mapping
 
 import numpy as np
 
-from modal_spring_ros.core.anchor_motion import AnchorMotion, SineComponent
-from modal_spring_ros.core.scene import Damping, Scene, SceneError
+from modal_spring_ros.core.anchor_motion import AnchorMotion, RotationComponent, SineComponent
+from modal_spring_ros.core.scene import Damping, Scene
+from modal_spring_ros.scenes.fields import AXES, FieldReader, short
 from modal_spring_ros.scenes.lattice import lattice_springs
 from modal_spring_ros.scenes.limits import BYTES_PER_PARTICLE, LIMITS, MAX_STEPS, available_memory
 from modal_spring_ros.scenes.yaml_reading import load_yaml
-
-_AXES = {"x": 0, "y": 1, "z": 2}
-#: a decimal number as YAML 1.2 spells it (YAML 1.1 reads some of these as text)
-_DECIMAL = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 
 def scene_from_yaml(text: str, source: str = "<scene>", default_name: str = "scene") -> Scene:
@@ -35,89 +31,21 @@ def scene_from_dict(data: Any, source: str = "<scene>", default_name: str = "sce
     return _SceneParser(source).parse(data, default_name)
 
 
-class _SceneParser:
-    def __init__(self, source: str):
-        self.source = source
-
-    def fail(self, field: str, problem: str) -> SceneError:
-        return SceneError(f"{self.source}: {field}: {problem}")
-
-    # -- small typed getters ------------------------------------------------------------------
-    def mapping(self, value: Any, field: str) -> Mapping[str, Any]:
-        if not isinstance(value, Mapping):
-            raise self.fail(field, f"must be a mapping, got {type(value).__name__}")
-        return value
-
-    def number(self, value: Any, field: str, *, positive: bool = False,
-               non_negative: bool = False, limit: float = math.inf) -> float:
-        """A finite number (at most ``limit`` in size). YAML 1.1 reads ``1e-4`` and ``1.0e308``
-        (an exponent without a sign, or no dot) as text; such text is taken as the number it
-        spells."""
-        if isinstance(value, str) and _DECIMAL.fullmatch(value.strip()):
-            value = float(value)
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(field, f"must be a number, got {_short(value)}")
-        try:
-            value = float(value)
-        except OverflowError:
-            raise self.fail(field, f"must be at most {limit:g} in size, got an integer of "
-                            f"{len(str(abs(value)))} digits") from None
-        if not math.isfinite(value):
-            raise self.fail(field, f"must be finite, got {value}")
-        if abs(value) > limit:
-            raise self.fail(field, f"must be at most {limit:g} in size, got {value:g}")
-        if positive and value <= 0.0:
-            raise self.fail(field, f"must be positive, got {value:g}")
-        if non_negative and value < 0.0:
-            raise self.fail(field, f"must not be negative, got {value:g}")
-        return value
-
-    def per_item(self, value: Any, count: int, field: str, what: str, limit: float
-                 ) -> np.ndarray:
-        """A positive scalar broadcast to ``count`` items, or a list of ``count`` of them."""
-        if isinstance(value, (list, tuple)):
-            if len(value) != count:
-                raise self.fail(field, f"has {len(value)} values for {count} {what}")
-            arr = np.array([self.number(v, f"{field}[{i}]", limit=limit)
-                            for i, v in enumerate(value)])
-        else:
-            arr = np.full(count, self.number(value, field, limit=limit))
-        bad = np.flatnonzero(arr <= 0.0)
-        if bad.size:
-            i = int(bad[0])
-            name = f"{field}[{i}]" if isinstance(value, (list, tuple)) else field
-            raise self.fail(name, f"must be positive, got {arr[i]:g}"
-                            + (f" ({bad.size} {what} affected)" if bad.size > 1 else ""))
-        return arr
-
-    def vector3(self, value: Any, field: str, limit: float) -> np.ndarray:
-        if not isinstance(value, (list, tuple)) or len(value) not in (2, 3):
-            raise self.fail(field, f"must be a list of 2 or 3 numbers, got {_short(value)}")
-        out = np.zeros(3)
-        for i, v in enumerate(value):
-            out[i] = self.number(v, f"{field}[{i}]", limit=limit)
-        return out
-
-    def axis(self, value: Any, field: str, allowed: tuple[int, ...]) -> int:
-        if not isinstance(value, str) or value not in _AXES or _AXES[value] not in allowed:
-            raise self.fail(field, f"must be one of {', '.join('xyz'[a] for a in allowed)}, "
-                            f"got {_short(value)}")
-        return _AXES[value]
-
+class _SceneParser(FieldReader):
     # -- the scene ----------------------------------------------------------------------------
     def parse(self, data: Any, default_name: str) -> Scene:
         data = self.mapping(data, "scene")
         known = {"name", "description", "dimension", "axis", "particles", "springs", "fixed",
                  "gravity",
                  "damping", "anchor_motion", "simulation"}
-        unknown = sorted(set(data) - known)
+        unknown = sorted(set(data) - known, key=str)
         if unknown:
             raise self.fail(unknown[0], f"unknown key (known keys: {', '.join(sorted(known))})")
         name = str(data.get("name", default_name))
         dimension = data.get("dimension", 2)
         if isinstance(dimension, bool) or not isinstance(dimension, int) \
                 or dimension not in (1, 2, 3):
-            raise self.fail("dimension", f"must be 1, 2 or 3, got {_short(dimension)}")
+            raise self.fail("dimension", f"must be 1, 2 or 3, got {short(dimension)}")
         if dimension == 1:
             axes = (self.axis(data.get("axis", "x"), "axis", (0, 1, 2)),)
         elif "axis" in data:
@@ -189,11 +117,6 @@ class _SceneParser:
             description=str(data.get("description", "")),
         )
 
-    def required(self, spec: Mapping[str, Any], key: str, parent: str) -> Any:
-        if key not in spec:
-            raise self.fail(f"{parent}.{key}", "missing")
-        return spec[key]
-
     def positions(self, particles: Mapping[str, Any], dimension: int
                   ) -> tuple[np.ndarray, tuple[int, ...] | None]:
         """Particle positions, and the lattice counts when a lattice generated them."""
@@ -215,7 +138,7 @@ class _SceneParser:
                 or not all(isinstance(c, int) and not isinstance(c, bool) and c >= 1
                            for c in counts)):
             raise self.fail("particles.lattice.counts",
-                            f"must be {dimension} positive integers, got {_short(counts)}")
+                            f"must be {dimension} positive integers, got {short(counts)}")
         self.check_size(math.prod(counts), "particles.lattice.counts")
         spacing = lat.get("spacing", 1.0)
         if isinstance(spacing, (list, tuple)):
@@ -252,12 +175,12 @@ class _SceneParser:
                 kinds = [kinds]
             if not isinstance(kinds, (list, tuple)) or not kinds:
                 raise self.fail("springs.connect", f"must be a kind or a list of kinds, got "
-                                f"{_short(kinds)}")
+                                f"{short(kinds)}")
             allowed = ("edges", "diagonals", "body_diagonals")
             for i, kind in enumerate(kinds):
                 if not isinstance(kind, str) or kind not in allowed:
                     raise self.fail(f"springs.connect[{i}]",
-                                    f"unknown {_short(kind)} (one of {', '.join(allowed)})")
+                                    f"unknown {short(kind)} (one of {', '.join(allowed)})")
             return lattice_springs(lattice, kinds)
         raw = springs["pairs"]
         if not isinstance(raw, (list, tuple)) or not raw:
@@ -313,13 +236,13 @@ class _SceneParser:
         if "face" in spec:
             face = spec["face"]
             if not isinstance(face, str) or len(face) != 2 or face[0] not in "+-" \
-                    or face[1] not in _AXES:
+                    or face[1] not in AXES:
                 raise self.fail("fixed.face", f"must be one of +x -x +y -y +z -z, got {face!r}")
-            coord = positions[:, _AXES[face[1]]]
+            coord = positions[:, AXES[face[1]]]
             edge = coord.max() if face[0] == "+" else coord.min()
             tol = 1e-9 * max(1.0, float(np.ptp(positions)))
             fixed |= np.abs(coord - edge) <= tol
-        unknown = sorted(set(spec) - {"indices", "face"})
+        unknown = sorted(set(spec) - {"indices", "face"}, key=str)
         if unknown:
             raise self.fail(f"fixed.{unknown[0]}", "unknown key (use 'indices' or 'face')")
         if not fixed.any():
@@ -346,7 +269,7 @@ class _SceneParser:
 
     def damping(self, spec: Any) -> Damping:
         spec = self.mapping(spec or {}, "damping")
-        unknown = sorted(set(spec) - {"ratio", "rayleigh"})
+        unknown = sorted(set(spec) - {"ratio", "rayleigh"}, key=str)
         if unknown:
             raise self.fail(f"damping.{unknown[0]}", "unknown key (use 'ratio' or 'rayleigh')")
         ratio = self.number(spec.get("ratio", 0.0), "damping.ratio", non_negative=True,
@@ -359,29 +282,62 @@ class _SceneParser:
         return Damping(ratio, alpha, beta)
 
     def anchor_motion(self, spec: Any, axes: tuple[int, ...]) -> AnchorMotion:
+        """Translation terms (``axis``) and rotation terms (``rotation``), in order."""
         if spec is None:
             return AnchorMotion(())
         if not isinstance(spec, (list, tuple)):
             raise self.fail("anchor_motion", "must be a list of sine components")
-        comps = []
+        moves, turns = [], []
         for k, item in enumerate(spec):
             field = f"anchor_motion[{k}]"
             item = self.mapping(item, field)
-            comps.append(SineComponent(
+            if "rotation" in item:
+                turns.append(self.rotation(item, field, axes))
+                continue
+            self.known_keys(item, field, _TRANSLATION_KEYS)
+            moves.append(SineComponent(
                 axis=self.axis(item.get("axis"), f"{field}.axis", axes),
                 amplitude=self.number(item.get("amplitude"), f"{field}.amplitude",
                                       limit=LIMITS["amplitude"]),
-                frequency_hz=self.number(item.get("frequency_hz"), f"{field}.frequency_hz",
-                                         non_negative=True, limit=LIMITS["frequency_hz"]),
-                phase=self.number(item.get("phase", 0.0), f"{field}.phase",
-                                  limit=LIMITS["phase"]),
-                ramp_s=self.number(item.get("ramp_s", 0.0), f"{field}.ramp_s",
-                                   non_negative=True, limit=LIMITS["ramp_s"]),
-            ))
-        return AnchorMotion(tuple(comps))
+                **self.sine_timing(item, field)))
+        return AnchorMotion(tuple(moves), tuple(turns))
+
+    def rotation(self, item: Mapping[str, Any], field: str, axes: tuple[int, ...]
+                 ) -> RotationComponent:
+        """A turn about an axis through a pivot; a 2D scene turns only about its normal."""
+        self.known_keys(item, field, _ROTATION_KEYS)
+        if len(axes) == 1:
+            raise self.fail(f"{field}.rotation", "a 1D scene cannot turn (it moves along "
+                            f"{'xyz'[axes[0]]} only)")
+        normal = tuple(a for a in range(3) if a not in axes) if len(axes) == 2 else (0, 1, 2)
+        value = item["rotation"]
+        if not isinstance(value, str) or value not in AXES:
+            raise self.fail(f"{field}.rotation", f"must be one of x, y, z, got {short(value)}")
+        if AXES[value] not in normal:
+            raise self.fail(f"{field}.rotation", f"a turn about {value} leaves the "
+                            f"{''.join('xyz'[a] for a in axes)} plane of this 2D scene: turn "
+                            f"about {'xyz'[normal[0]]}")
+        if "pivot" not in item:
+            raise self.fail(f"{field}.pivot", "missing: the point the axis goes through, "
+                            "[x, y, z]")
+        pivot = self.vector3(item["pivot"], f"{field}.pivot", LIMITS["position"])
+        degrees = self.number(self.required(item, "amplitude_deg", field),
+                              f"{field}.amplitude_deg", limit=LIMITS["amplitude_deg"])
+        return RotationComponent(axis=AXES[value], amplitude=math.radians(degrees),
+                                 pivot=tuple(float(p) for p in pivot),
+                                 **self.sine_timing(item, field))
+
+    def sine_timing(self, item: Mapping[str, Any], field: str) -> dict[str, float]:
+        """A sine term's frequency, phase and ramp."""
+        return {
+            "frequency_hz": self.number(item.get("frequency_hz"), f"{field}.frequency_hz",
+                                        non_negative=True, limit=LIMITS["frequency_hz"]),
+            "phase": self.number(item.get("phase", 0.0), f"{field}.phase",
+                                 limit=LIMITS["phase"]),
+            "ramp_s": self.number(item.get("ramp_s", 0.0), f"{field}.ramp_s",
+                                  non_negative=True, limit=LIMITS["ramp_s"]),
+        }
 
 
-def _short(value: Any, limit: int = 60) -> str:
-    """``repr(value)``, cut short: a message stays one readable line."""
-    text = repr(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+_TRANSLATION_KEYS = ("axis", "amplitude", "frequency_hz", "phase", "ramp_s")
+_ROTATION_KEYS = ("rotation", "amplitude_deg", "frequency_hz", "phase", "ramp_s", "pivot")

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from helpers import max_step_motion, power_above
 
+import modal_spring_ros.core.simulations.stepped_set as stepped_set
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.filter_band import BandError, FilterBand, parse_mode_range
 from modal_spring_ros.core.model import MassSpringModel
@@ -177,7 +178,6 @@ def test_a_switch_prepared_ahead_builds_nothing_when_applied_and_changes_no_resu
         sheet_10x10, monkeypatch):
     """The node prepares a band switch in its parameter thread; applying it in the stepping
     thread must then only map the state, and the run must be the same as unprepared."""
-    import modal_spring_ros.core.simulations.modal as simulation
     model, basis = sheet_10x10
     band = FilterBand("bandpass", 10, 40, by="index")   # from 0..30: steps 0..40, then 10..40
     runs = []
@@ -188,8 +188,8 @@ def test_a_switch_prepared_ahead_builds_nothing_when_applied_and_changes_no_resu
         if prepare:
             sim.prepare_switch(band)
             built = []
-            real = simulation.GeneralizedForces
-            monkeypatch.setattr(simulation, "GeneralizedForces",
+            real = stepped_set.GeneralizedForces
+            monkeypatch.setattr(stepped_set, "GeneralizedForces",
                                 lambda *a: built.append(a) or real(*a))
         sim.set_band(band)
         assert sim.fading and sim.stepped_modes.tolist() == list(range(41))

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import copy
+import math
 
 import numpy as np
 import pytest
@@ -64,6 +65,9 @@ def test_scene_round_trips_through_its_full_definition():
     assert again.damping == s.damping and again.anchor_motion == s.anchor_motion
 
 
+_TURN = {"amplitude_deg": 10, "frequency_hz": 1, "pivot": [0.5, 0.0]}
+
+
 def _chain(**override):
     data = {
         "name": "bad", "dimension": 2,
@@ -106,12 +110,60 @@ def _chain(**override):
      "anchor_motion[0].axis: must be one of x, y"),
     ({"damping": {"ratio": -0.1}}, "damping.ratio: must not be negative"),
     ({"colour": "red"}, "colour: unknown key"),
+    ({"anchor_motion": [{"rotation": "w", **_TURN}]},
+     "anchor_motion[0].rotation: must be one of x, y, z, got 'w'"),
+    ({"anchor_motion": [{"rotation": "x", **_TURN}]},
+     "anchor_motion[0].rotation: a turn about x leaves the xy plane of this 2D scene: turn "
+     "about z"),
+    ({"anchor_motion": [{"rotation": "z", "amplitude_deg": 10, "frequency_hz": 1}]},
+     "anchor_motion[0].pivot: missing: the point the axis goes through"),
+    ({"anchor_motion": [{"rotation": "z", **dict(_TURN, pivot=[0, "a"])}]},
+     "anchor_motion[0].pivot[1]: must be a number, got 'a'"),
+    ({"anchor_motion": [{"rotation": "z", **dict(_TURN, amplitude=3)}]},
+     "anchor_motion[0].amplitude: unknown key (known keys: rotation, amplitude_deg"),
+    ({"anchor_motion": [{"rotation": "z", "pivot": [0, 0], "frequency_hz": 1}]},
+     "anchor_motion[0].amplitude_deg: missing"),
+    ({"anchor_motion": [{"axis": "x", "amplitude": 1, "frequency_hz": 1, "pivot": [0, 0]}]},
+     "anchor_motion[0].pivot: unknown key (known keys: axis, amplitude"),
 ])
 def test_invalid_scene_names_field_and_problem(override, message):
     with pytest.raises(SceneError) as err:
         scene_from_dict(_chain(**override), source="bad.yaml")
     assert str(err.value).startswith("bad.yaml: ")
     assert message in str(err.value)
+
+
+def test_a_1d_scene_cannot_turn():
+    data = {"name": "rod", "dimension": 1, "axis": "x",
+            "particles": {"positions": [[0, 0], [1, 0]], "mass": 1.0},
+            "springs": {"pairs": [[0, 1]], "stiffness": 10.0}, "fixed": {"indices": [0]},
+            "anchor_motion": [{"rotation": "z", **_TURN}]}
+    with pytest.raises(SceneError, match=r"anchor_motion\[0\]\.rotation: a 1D scene cannot "
+                       "turn"):
+        scene_from_dict(data)
+
+
+def test_a_turning_clamp_round_trips_and_composes_in_order():
+    s = load_scene("sheet_10x10_swing")
+    (turn,) = s.anchor_motion.rotations
+    assert turn.axis == 2 and turn.pivot == (0.45, 0.0, 0.0)
+    assert turn.amplitude == pytest.approx(math.radians(45.0), rel=1e-15)
+    again = scene_from_yaml(s.to_yaml())
+    for t in (0.3, 1.7, 4.1):
+        a, b = s.anchor_motion.frame(t), again.anchor_motion.frame(t)
+        np.testing.assert_allclose(a.rotation, b.rotation, rtol=0, atol=1e-15)
+    # a 3D clamp: a turn about z, then one about x, then the offset
+    data = load_scene("cantilever_3d").to_dict()
+    data["anchor_motion"] = [
+        {"rotation": "z", "amplitude_deg": 90.0, "frequency_hz": 0.0, "phase": math.pi / 2,
+         "pivot": [0, 0, 0]},
+        {"rotation": "x", "amplitude_deg": 90.0, "frequency_hz": 0.0, "phase": math.pi / 2,
+         "pivot": [0, 0, 0]},
+        {"axis": "y", "amplitude": 2.0, "frequency_hz": 0.0, "phase": math.pi / 2}]
+    frame = scene_from_dict(data).anchor_motion.frame(0.0)
+    # e_x -> (z) e_y -> (x) e_z, then shifted 2 along y
+    np.testing.assert_allclose(frame.carry(np.array([[1.0, 0.0, 0.0]])), [[0.0, 2.0, 1.0]],
+                               atol=1e-15)
 
 
 def test_valid_minimal_scene_loads():

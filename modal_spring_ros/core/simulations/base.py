@@ -214,11 +214,12 @@ class Simulation(abc.ABC):
     # -- state in physical terms ---------------------------------------------------------------
     @abc.abstractmethod
     def displacement(self) -> np.ndarray:
-        """Free-DOF displacement ``u`` from rest, relative to the moving base (flat)."""
+        """Free-DOF displacement ``u`` from rest in the clamp's frame (relative to the moving
+        base; flat)."""
 
     @abc.abstractmethod
     def velocity(self) -> np.ndarray:
-        """Free-DOF velocity relative to the base (flat)."""
+        """Free-DOF velocity in the clamp's frame (flat)."""
 
     @abc.abstractmethod
     def stability_limit(self) -> float:
@@ -238,9 +239,9 @@ class Simulation(abc.ABC):
         return self.model.positions3(x)
 
     def energy(self) -> dict[str, float]:
-        x = self.model.positions(self.displacement(), self.time)
-        v = self.velocity().reshape(-1, self.model.dimension) + self.model.base_velocity(self.time)
-        return self.model.energy(x, v.ravel())
+        u = self.displacement()
+        x = self.model.positions(u, self.time)
+        return self.model.energy(x, self.model.world_velocity(u, self.velocity(), self.time))
 
     def max_strain(self) -> float:
         return self.model.max_strain(self.model.positions(self.displacement(), self.time))

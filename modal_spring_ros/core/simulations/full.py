@@ -17,6 +17,7 @@ from modal_spring_ros.core.scene import Damping
 from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simulation,
                                                     stable_step_limit)
 from modal_spring_ros.core.simulations.modal import ModalSimulation
+from modal_spring_ros.core.simulations.world_frame import WorldFrameRun
 
 
 class PhysicalOperators:
@@ -113,7 +114,9 @@ class FullSimulation(Simulation):
         self._band = band
         self._probe: ModalSimulation | None = None  # checks bands for a later modal run
         self._ops = PhysicalOperators(model, self.damping, self.dt, basis)
-        self._forces = GeneralizedForces(model, None)
+        # a turning clamp: world coordinates, the clamp prescribed (see world_frame)
+        self._world = WorldFrameRun(model, self._ops) if model.rotates else None
+        self._forces = self._world.forces if self._world else GeneralizedForces(model, None)
         self.reset()
 
     @property
@@ -158,15 +161,23 @@ class FullSimulation(Simulation):
         self.set_state(np.zeros(n), np.zeros(n))
 
     def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
-        self._u = np.array(displacement, dtype=float)
-        self._v = np.array(velocity, dtype=float)
-        f = self._forces(self._u, self.time) - self._ops.damp(self._v)
-        self._a = f / self.model.mass_dof
+        u = np.array(displacement, dtype=float)
+        v = np.array(velocity, dtype=float)
+        if self._world is not None:
+            u, v = self._world.to_world(u, v, self.time)
+            f = self._world.force(u, self.time) - self._world.damp(v)
+        else:
+            f = self._forces(u, self.time) - self._ops.damp(v)
+        self._u, self._v, self._a = u, v, f / self.model.mass_dof
 
     def displacement(self) -> np.ndarray:
+        if self._world is not None:
+            return self._world.to_frame(self._u, self._v, self.time)[0]
         return self._u.copy()
 
     def velocity(self) -> np.ndarray:
+        if self._world is not None:
+            return self._world.to_frame(self._u, self._v, self.time)[1]
         return self._v.copy()
 
     @property
@@ -174,9 +185,11 @@ class FullSimulation(Simulation):
         return self._forces.last_max_strain
 
     def _force(self, u: np.ndarray) -> np.ndarray:
+        if self._world is not None:
+            return self._world.force(u, self.time + self.dt)
         return self._forces(u, self.time + self.dt)
 
     def _step_once(self) -> None:
-        self._u, self._v, self._a = self._advance(self._u, self._v, self._a, self._force,
-                                                  self._ops)
+        ops = self._ops if self._world is None else self._world.at(self.time + self.dt)
+        self._u, self._v, self._a = self._advance(self._u, self._v, self._a, self._force, ops)
         self._commit()

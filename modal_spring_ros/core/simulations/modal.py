@@ -27,7 +27,6 @@ during a fade starts from the settled band instead of a half-changed one.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import threading
 
@@ -36,8 +35,6 @@ import numpy as np
 from modal_spring_ros.core.basis import DEFAULT_MAX_MODES, ModalBasis, Progress
 from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS, AddedCoordinates
 from modal_spring_ros.core.filter_band import BandError, FilterBand
-from modal_spring_ros.core.forces import GeneralizedForces
-from modal_spring_ros.core.integrators import DiagonalOperators
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.refreshed_forces import RefreshedForces
 from modal_spring_ros.core.scene import Damping
@@ -45,21 +42,11 @@ from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simula
                                                     stable_step_limit)
 from modal_spring_ros.core.simulations.coordinates import (ADDED_ID, BASES, EMPTY_SET, ActiveSet,
                                                            AddedCoordinateBank)
+from modal_spring_ros.core.simulations.stepped_set import SteppedSet
 
 #: Stepped-mode sets a modal run keeps prepared ahead (a switch needs two: the modes stepped
 #: during its transition and after it); the oldest goes first.
 PREPARED_SETS_KEPT = 4
-
-
-@dataclasses.dataclass(frozen=True)
-class _SteppedSet:
-    """What stepping one set of modes needs: shapes, ``omega^2``, damping, operators, forces."""
-
-    phi: np.ndarray
-    omega2: np.ndarray
-    damping: np.ndarray
-    ops: DiagonalOperators
-    forces: GeneralizedForces | RefreshedForces
 
 
 class ModalSimulation(Simulation):
@@ -106,7 +93,7 @@ class ModalSimulation(Simulation):
         self._band = band.validate()
         self._set = EMPTY_SET
         self._q = self._v = self._a = np.empty(0)
-        self._built: dict[tuple[int, bytes], _SteppedSet] = {}
+        self._built: dict[tuple[int, bytes], SteppedSet] = {}
         self._built_lock = threading.Lock()
         self._install(ActiveSet.settled(self.coordinates_for(self.select_modes(band))), None)
         self.reset()
@@ -291,21 +278,15 @@ class ModalSimulation(Simulation):
             while len(self._built) > PREPARED_SETS_KEPT:  # a switch superseded before use
                 self._built.pop(next(iter(self._built)))
 
-    def _take_set(self, modes: np.ndarray) -> _SteppedSet:
+    def _take_set(self, modes: np.ndarray) -> SteppedSet:
         """The operators of stepping ``modes``: prepared ones (used once), else built now."""
         with self._built_lock:
             built = self._built.pop((self.basis.count, modes.tobytes()), None)
         return built if built is not None else self._build_set(modes)
 
-    def _build_set(self, modes: np.ndarray) -> _SteppedSet:
-        phi, omega = self._bank.columns(modes)
-        damp = self.damping.modal_coefficients(omega)
-        exact = GeneralizedForces(self.model, phi, self._bank.load_mask(modes))
-        forces = (exact if self._force_refresh == 1 else
-                  RefreshedForces(exact, omega**2, self._force_refresh, self.dt,
-                                  self.strain_limit))
-        return _SteppedSet(phi, omega**2, damp, DiagonalOperators(1.0, damp, omega**2, self.dt),
-                           forces)
+    def _build_set(self, modes: np.ndarray) -> SteppedSet:
+        return SteppedSet.build(self.model, self._bank, modes, self.damping, self._force_refresh,
+                                self.dt, self.strain_limit)
 
     def _install(self, new: ActiveSet, old: ActiveSet | None) -> None:
         """Step ``new`` from now on. With ``old``, the state is projected onto the new modes
@@ -321,7 +302,7 @@ class ModalSimulation(Simulation):
         else:
             q = v = a = np.zeros(new.modes.size)
         self._phi, self._omega2, self._damp = stepped.phi, stepped.omega2, stepped.damping
-        self._ops, self._forces = stepped.ops, stepped.forces
+        self._ops, self._forces, self._frame = stepped.ops, stepped.forces, stepped.frame
         self._q, self._v, self._a = q, v, a
         self._set = new
         self._update_envelope()
@@ -367,6 +348,8 @@ class ModalSimulation(Simulation):
         self._q = self._phi.T @ (m * displacement)
         self._v = self._phi.T @ (m * velocity)
         self._a = self._forces(self._q, self.time) - self._damp * self._v
+        if self._frame is not None:
+            self._a += self._frame.coupling(self._q, self._v, self.time)
 
     @property
     def modal_coordinates(self) -> np.ndarray:
@@ -384,6 +367,11 @@ class ModalSimulation(Simulation):
 
     def _force(self, q: np.ndarray) -> np.ndarray:
         force = self._forces(q, self.time + self.dt)
+        if self._frame is not None:
+            # The Coriolis load depends on the velocity: like damping in the explicit step, it
+            # is taken at the predicted velocity v + dt/2 a.
+            force += self._frame.coupling(q, self._v + (0.5 * self.dt) * self._a,
+                                          self.time + self.dt)
         if self._is_fading:
             # An entering mode takes on its load (all but its own linear restoring force)
             # along its envelope, so it eases into place instead of dropping from rest.

@@ -1,0 +1,39 @@
+"""What stepping one set of a modal run's coordinates needs, built once per set."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from modal_spring_ros.core.forces import GeneralizedForces
+from modal_spring_ros.core.frame_loads import FrameLoads
+from modal_spring_ros.core.integrators import DiagonalOperators
+from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.refreshed_forces import RefreshedForces
+from modal_spring_ros.core.scene import Damping
+from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
+
+
+@dataclasses.dataclass(frozen=True)
+class SteppedSet:
+    """Shapes, ``omega^2``, damping, operators and forces of one set of coordinates."""
+
+    phi: np.ndarray
+    omega2: np.ndarray
+    damping: np.ndarray
+    ops: DiagonalOperators
+    forces: GeneralizedForces | RefreshedForces
+    frame: FrameLoads | None   # a turning clamp's inertial loads on these coordinates
+
+    @classmethod
+    def build(cls, model: MassSpringModel, bank: AddedCoordinateBank, modes: np.ndarray,
+              damping: Damping, force_refresh: int, dt: float, strain_limit: float
+              ) -> "SteppedSet":
+        """The set of coordinates ``modes`` (rest or added, from ``bank``)."""
+        phi, omega = bank.columns(modes)
+        damp = damping.modal_coefficients(omega)
+        exact = GeneralizedForces(model, phi, bank.load_mask(modes))
+        forces = (exact if force_refresh == 1 else
+                  RefreshedForces(exact, omega**2, force_refresh, dt, strain_limit))
+        return cls(phi, omega**2, damp, DiagonalOperators(1.0, damp, omega**2, dt), forces,
+                   exact.frame)
