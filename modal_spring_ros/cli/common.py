@@ -127,7 +127,8 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
                    help=f"most modes computed on large scenes (default {DEFAULT_MAX_MODES})")
     g.add_argument("--auto", action="store_true",
                    help="keep the fewest modes (within the band) that meet --tolerance for the "
-                        "scene's loads, and the step they allow (unless --dt)")
+                        "scene's loads, the step they allow (unless --dt), and the basis "
+                        "(in place of --basis)")
     g.add_argument("--tolerance", type=float, default=0.01,
                    help="predicted relative error for --auto (default 0.01)")
     g.add_argument("--basis", choices=BASES, default="derivatives",

@@ -6,16 +6,19 @@ everywhere (bit for bit: the engine is deterministic).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from modal_spring_ros.core.basis import ModalBasis, Progress
+from modal_spring_ros.core.basis_choice import choose_basis
 from modal_spring_ros.core.config import AUTO_DT_SAFETY, SimulationConfig
-from modal_spring_ros.core.mode_selection import (STABILITY_SAFETY, choose_modes, choose_refresh,
-                                                  choose_step)
+from modal_spring_ros.core.mode_selection import (SHARE, STABILITY_SAFETY, choose_modes,
+                                                  choose_refresh, choose_step)
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSimulation,
                                                Simulation)
+from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
 from modal_spring_ros.core.worker import WorkerProcess
 
 
@@ -24,7 +27,10 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
 
     With ``config.auto`` (modal), the fewest modes meeting ``config.tolerance`` are kept and,
     unless ``config.dt`` is given, the step follows from them, and unless
-    ``config.force_refresh`` is given, so does the spring-force refresh; the choice is the
+    ``config.force_refresh`` is given, so does the spring-force refresh; the basis (rest modes
+    or their derivatives) is chosen by its predicted error and cost
+    (:mod:`~modal_spring_ros.core.basis_choice`) in place of ``config.basis``, and beyond
+    small deformation the springs are evaluated on every step. The choice is the
     simulation's ``mode_choice``.
     """
     config.validate()
@@ -32,19 +38,27 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
     if config.method == "modal":
         choice = None
         refresh = config.force_refresh or 1
+        kind = config.basis
+        bank = AddedCoordinateBank(basis, config.derivative_directions, basis.progress)
         if config.auto:
             choice = choose_modes(model, basis, config.band, config.tolerance,
                                   max_modes=config.max_modes or DEFAULT_MAX_MODES)
+            chosen = choose_basis(model, basis, choice.modes, SHARE * config.tolerance,
+                                  lambda keep: bank.for_band(keep)[1])
+            choice = dataclasses.replace(choice, basis=chosen)
+            kind = chosen.kind
             dt = config.dt or choose_step(choice, config.integrator, config.tolerance,
                                           model.scene.damping)
-            refresh = config.force_refresh or choose_refresh(choice.highest_hz, dt)
+            refresh = config.force_refresh or (
+                choose_refresh(choice.highest_hz, dt) if chosen.small else 1)
         sim: Simulation = ModalSimulation(
             model, basis, config.band, dt=dt or 1e-3, integrator=config.integrator,
             transition_s=config.transition_s, max_modes=config.max_modes,
             strain_limit=config.strain_limit,
             highest_hz=choice.highest_hz if choice else None, force_refresh=refresh,
-            mode_choice=choice, basis_kind=config.basis,
-            derivative_directions=config.derivative_directions, progress=basis.progress)
+            mode_choice=choice, basis_kind=kind,
+            derivative_directions=config.derivative_directions, bank=bank,
+            progress=basis.progress)
         if config.dt is None and config.integrator == "explicit":
             # the step the scene or the mode choice suggests may be beyond the stability
             # limit of what the band adds: stay within it

@@ -40,6 +40,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from modal_spring_ros.core.basis import DEFAULT_MAX_MODES, ModalBasis
+from modal_spring_ros.core.basis_choice import BasisChoice
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.frame_loads import frame_load_patterns
 from modal_spring_ros.core.model import MassSpringModel
@@ -67,10 +68,12 @@ class ModeChoice:
     excitation_hz: float
     omega_max: float                # rad/s, highest kept mode
     omega_eff: float                # rad/s, response-weighted frequency of the kept modes
+    basis: BasisChoice | None = None  # the basis chosen for them, when it was chosen
 
     def describe(self) -> str:
-        return (f"{self.count} modes up to {self.highest_hz:.4g} Hz, predicted error "
+        text = (f"{self.count} modes up to {self.highest_hz:.4g} Hz, predicted error "
                 f"{self.predicted_error:.2%}")
+        return text if self.basis is None else f"{text}, {self.basis.describe()}"
 
 
 def scene_loads(model: MassSpringModel) -> dict[str, np.ndarray]:

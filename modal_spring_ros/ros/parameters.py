@@ -100,7 +100,9 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     "publish_clock": (False, _descriptor("Publish simulation time on /clock", _B)),
     "modal.auto": (False, _descriptor(
         "Keep the fewest modes (within the band) that meet modal.tolerance for the scene's "
-        "loads (gravity, anchor motion), and the step they allow unless sim.dt is set", _B)),
+        "loads (gravity, anchor motion), the step they allow unless sim.dt is set, and the "
+        "basis (rest or derivatives, by predicted error and cost, in place of modal.basis)",
+        _B)),
     "modal.tolerance": (DEFAULT_TOLERANCE, _descriptor(
         "Predicted relative error the automatic mode choice must meet", _D,
         float_range=(1e-6, 0.5))),
