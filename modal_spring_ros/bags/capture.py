@@ -4,11 +4,13 @@ without going through DDS; and the description needed to re-run it.
 Frames go to ``/points`` as PointCloud2 (stamped with simulation time, which is also the log
 and publish time). A ``modal_spring_ros`` metadata record holds the scene (full definition)
 and either the fixed settings (``modal_spring_sim --bag``) or the node's parameters at the
-start, with every later change on ``/parameter_events`` stamped with the simulation time it
-took effect at (``modal_spring_node`` with ``record.bag``).
+start, with every later change on ``/parameter_events`` and every input it followed (the clamp's
+poses on ``/anchor_pose``, clicked points on ``/clicked_point``) stamped with the simulation
+time it took effect at (``modal_spring_node`` with ``record.bag``).
 """
 from __future__ import annotations
 
+import copy
 import time
 
 import numpy as np
@@ -24,6 +26,15 @@ from modal_spring_ros.bags.writer import BagWriter
 from modal_spring_ros.core.config import SimulationConfig
 
 POINTS_TOPIC = "/points"
+#: where a node's capture keeps its inputs, by message type
+INPUT_TOPICS = {"geometry_msgs/msg/PoseStamped": "/anchor_pose",
+                "geometry_msgs/msg/PointStamped": "/clicked_point"}
+
+
+def _type_name(message) -> str:
+    """``package/msg/Type`` of a message instance."""
+    module = type(message).__module__.split(".")[0]
+    return f"{module}/msg/{type(message).__name__}"
 
 
 def parameter_events_qos_yaml() -> str:
@@ -71,6 +82,17 @@ class RunBagWriter:
             Parameter(name, value=value).to_parameter_msg() for name, value in changed.items()])
         self.writer.write_message("/parameter_events", event, self._log_time(),
                                   to_nanoseconds(stamp))
+
+    def input(self, t: float, message) -> None:
+        """Record an input (a pose the clamp followed, a clicked point) that took effect at
+        simulation time ``t``: the message as received, its header stamped with ``t``."""
+        type_name = _type_name(message)
+        topic = INPUT_TOPICS[type_name]
+        self.writer.add_topic(topic, type_name, points_qos_yaml())
+        message = copy.deepcopy(message)
+        message.header.stamp = to_time_msg(t)
+        self.writer.write_message(topic, message, self._log_time(),
+                                  to_nanoseconds(message.header.stamp))
 
     def _log_time(self) -> int | None:
         """Wall time for a node's capture (simulation time can go back on a reset, and MCAP

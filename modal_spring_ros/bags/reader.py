@@ -24,7 +24,6 @@ from rclpy.serialization import deserialize_message
 from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.writer import RUN_RECORD, BagError
 
-
 #: the type of the clouds (checked for non-finite values)
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from typing import ClassVar
 
 import numpy as np
 
@@ -78,6 +79,11 @@ class AnchorMotion:
 
     components: tuple[SineComponent, ...]
     rotations: tuple[RotationComponent, ...] = ()
+    #: changes when the motion does (a function of time alone: never)
+    revision: ClassVar[int] = 0
+
+    def restart(self) -> None:
+        """The run went back to t = 0 (a function of time has nothing to restart)."""
 
     @property
     def is_static(self) -> bool:

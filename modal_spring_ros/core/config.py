@@ -10,6 +10,7 @@ import dataclasses
 import math
 from typing import Any, Mapping
 
+from modal_spring_ros.core.clamp_follower import DEFAULT_FOLLOW_HZ
 from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.integrators import INTEGRATORS
@@ -25,6 +26,10 @@ DEFAULT_STRAIN_WARNING = 0.1
 MIN_DIRECTIONS, MAX_DIRECTIONS = 1, 200
 #: Default fade time of modes leaving or entering the band, s.
 DEFAULT_TRANSITION_S = 0.5
+#: Where the clamp's motion comes from: the scene's anchor_motion, or a stream of poses.
+ANCHOR_SOURCES = ("scene", "topic")
+#: Highest bandwidth a clamp follows poses with, Hz.
+MAX_FOLLOW_HZ = 100.0
 
 
 class ConfigError(ValueError):
@@ -47,6 +52,8 @@ class SimulationConfig:
     force_refresh: int = 0             # steps between spring evaluations; 0: 1, or auto's
     basis: str = "derivatives"         # modal: rest modes, or rest modes and their derivatives
     derivative_directions: int = DEFAULT_DIRECTIONS
+    anchor: str = "scene"              # the clamp moves as the scene says, or follows poses
+    follow_hz: float = DEFAULT_FOLLOW_HZ  # bandwidth of the filter poses are followed through
 
     def validate(self, names: Mapping[str, str] | None = None) -> "SimulationConfig":
         """Check every rule; raise :class:`ConfigError` (or a ``BandError`` for the band)
@@ -80,6 +87,12 @@ class SimulationConfig:
         if not MIN_DIRECTIONS <= self.derivative_directions <= MAX_DIRECTIONS:
             raise ConfigError(f"{name('derivative_directions')} ({self.derivative_directions}) "
                               f"must be from {MIN_DIRECTIONS} to {MAX_DIRECTIONS}")
+        if self.anchor not in ANCHOR_SOURCES:
+            raise ConfigError(f"{name('anchor')} '{self.anchor}' must be one of "
+                              f"{', '.join(ANCHOR_SOURCES)}")
+        if not (math.isfinite(self.follow_hz) and 0.0 < self.follow_hz <= MAX_FOLLOW_HZ):
+            raise ConfigError(f"{name('follow_hz')} ({self.follow_hz}) must be a number of Hz "
+                              f"above 0 and at most {MAX_FOLLOW_HZ:g}")
         if self.auto and self.method != "modal":
             raise ConfigError(f"{name('auto')} chooses modes: it needs {name('method')} modal")
         if self.force_refresh < 0:

@@ -11,6 +11,7 @@ import math
 
 from modal_spring_ros.core.basis import ModalBasis, Progress
 from modal_spring_ros.core.basis_choice import choose_basis
+from modal_spring_ros.core.clamp_follower import ClampFollower
 from modal_spring_ros.core.config import AUTO_DT_SAFETY, SimulationConfig
 from modal_spring_ros.core.mode_selection import (SHARE, STABILITY_SAFETY, choose_modes,
                                                   choose_refresh, choose_step)
@@ -78,6 +79,8 @@ def build_simulation(scene: Scene, config: SimulationConfig, *,
                      progress: Progress | None = None, allow_unstable: bool = False,
                      worker: WorkerProcess | None = None) -> Simulation:
     """Scene + options -> a simulation at rest at t = 0 (``worker``: see :class:`ModalBasis`).
+    With ``config.anchor`` ``topic`` the scene's clamp follows poses given to its
+    :class:`~modal_spring_ros.core.clamp_follower.ClampFollower` instead of its own motion.
 
     Raises:
         SceneError: a mechanism (the stiffness is singular on the free DOF).
@@ -86,6 +89,9 @@ def build_simulation(scene: Scene, config: SimulationConfig, *,
         ConfigError: other bad options (method, integrator, dt, ...).
     """
     config.validate()
+    if config.anchor == "topic":  # the clamp follows poses (from t = 0: at its rest pose)
+        scene = dataclasses.replace(scene, anchor_motion=ClampFollower(config.follow_hz,
+                                                                       scene.axes))
     model = MassSpringModel(scene)
     basis = ModalBasis(model, progress=progress, worker=worker)
     sim = rebuild(model, basis, config)

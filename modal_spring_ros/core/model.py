@@ -43,7 +43,7 @@ class MassSpringModel:
         self.gravity_force = (scene.mass[self.free_particles][:, None]
                               * scene.gravity[None, self.axes]).ravel()
         self._inv_l = 1.0 / self._l
-        self._frame: tuple[float, RigidFrame] | None = None
+        self._frame: tuple[tuple[float, int], RigidFrame] | None = None
         self._axes_index = np.ix_(self.axes, self.axes)
 
     # -- stiffness and mass at rest ------------------------------------------------------------
@@ -73,13 +73,20 @@ class MassSpringModel:
 
     def frame(self, t: float) -> RigidFrame:
         """The clamp's rigid motion at ``t`` on the scene's axes (the last one is kept: the
-        same time is asked for by the forces, the positions and the energy)."""
+        same time is asked for by the forces, the positions and the energy; a clamp following
+        poses changes its revision when it gets a new one)."""
+        motion = self.scene.anchor_motion
+        key = (t, motion.revision)
         cached = self._frame
-        if cached is not None and cached[0] == t:
+        if cached is not None and cached[0] == key:
             return cached[1]
-        frame = self.scene.anchor_motion.frame(t).restricted(self._axes_index, self.axes)
-        self._frame = (t, frame)
+        frame = motion.frame(t).restricted(self._axes_index, self.axes)
+        self._frame = (key, frame)
         return frame
+
+    def restart_clamp(self) -> None:
+        """The run went back to t = 0: so does a clamp with a state of its own."""
+        self.scene.anchor_motion.restart()
 
     def anchor_offset(self, t: float) -> np.ndarray:
         """(d,) rigid offset of the base (every fixed particle) at time ``t`` (a clamp that

@@ -41,6 +41,8 @@ class StreamReport:
     last_divergence: str = ""
     diverged_recently: bool = False
     error: str = ""                    # a failure reported now (ERROR)
+    anchor: str = ""                   # what the clamp follows (anchor.source topic)
+    anchor_stale: bool = False         # no pose for a while: the clamp holds the last
 
 
 def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[int, str]:
@@ -62,6 +64,9 @@ def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[i
         if stream.window_valid and stream.frames_in_window == 0 and stream.window_s > 0:
             level = DiagnosticStatus.WARN
             message = f"no frame published in the last {stream.window_s:.1f} s"
+    if stream.anchor_stale:
+        level = DiagnosticStatus.WARN
+        message = f"anchor pose: {stream.anchor}"
     if status.max_strain > stream.strain_warning and status.basis.startswith("rest"):
         # the rest modes' regime; the derivative basis follows the sway's rotation beyond it
         level = DiagnosticStatus.WARN
@@ -101,6 +106,7 @@ def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, s
         "paused": str(stream.paused).lower(),
         "longest gap between frames (s)": f"{stream.longest_gap_s:.3f}",
         "computing modes": str(stream.computing_modes).lower(),
+        **({"anchor pose": stream.anchor} if stream.anchor else {}),
     }
 
 

@@ -10,8 +10,10 @@ thread as one typed request (:mod:`~modal_spring_ros.ros.requests`).
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
 (Marker TRIANGLE_LIST, for scenes with a surface, when subscribed), ``/diagnostics``, and
-``/clock`` when ``publish_clock`` is true. Services: ``~/reset`` (Trigger), ``~/pause``
-(SetBool). See docs/node.md for every parameter.
+``/clock`` when ``publish_clock`` is true. Subscriptions (:mod:`~modal_spring_ros.ros.inputs`):
+``anchor_pose`` (PoseStamped, with ``anchor.source`` topic) and ``/clicked_point``
+(PointStamped). Services: ``~/reset`` (Trigger), ``~/pause`` (SetBool). See docs/node.md for
+every parameter.
 """
 from __future__ import annotations
 
@@ -27,6 +29,7 @@ from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError, WorkerProcess
+from modal_spring_ros.ros.inputs import NodeInputs
 from modal_spring_ros.ros.outputs import NodeOutputs
 from modal_spring_ros.ros.parameter_changes import ChangePlanner
 from modal_spring_ros.ros.parameters import (FREQUENCIES, FREQUENCIES_DESCRIPTOR, PARAMETERS,
@@ -74,7 +77,11 @@ class ModalSpringNode(Node):
         self._thread = SimulationThread(
             sim, self._outputs, self._stream_settings,
             rebuild=lambda: rebuild(sim.model, sim.basis, config_from_parameters(self._values)),
-            computing_modes=lambda: self._computing, running=self.context.ok)
+            computing_modes=lambda: self._computing, running=self.context.ok,
+            anchor_status=lambda: self._inputs.anchor_status())
+        follower = scene.anchor_motion if self._values["anchor.source"] == "topic" else None
+        self._inputs = NodeInputs(self, follower, lambda: self._values, self._thread.submit,
+                                  MutuallyExclusiveCallbackGroup())
         services = MutuallyExclusiveCallbackGroup()
         self.create_service(Trigger, "~/reset", self._on_reset, callback_group=services)
         self.create_service(SetBool, "~/pause", self._on_pause, callback_group=services)

@@ -107,6 +107,11 @@ class NodeOutputs:
         if self._bag is not None and changed:
             self._bag.parameter_event(sim.time, changed)
 
+    def received(self, sim: Simulation, message) -> None:
+        """An input (pose, clicked point) took effect at ``sim.time``: the capture keeps it."""
+        if self._bag is not None:
+            self._bag.input(sim.time, message)
+
     def log(self, level: str, message: str) -> None:
         logger = self._node.get_logger()
         {"error": logger.error, "warning": logger.warning, "info": logger.info}[level](message)

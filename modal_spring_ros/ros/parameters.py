@@ -12,8 +12,10 @@ from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 
+from modal_spring_ros.core.clamp_follower import DEFAULT_FOLLOW_HZ
 from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TRANSITION_S,
-                                          MAX_DIRECTIONS, MIN_DIRECTIONS, SimulationConfig)
+                                          MAX_DIRECTIONS, MAX_FOLLOW_HZ, MIN_DIRECTIONS,
+                                          SimulationConfig)
 from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import FILTER_TYPES, UNITS, BandError, FilterBand
 from modal_spring_ros.core.integrators import INTEGRATORS
@@ -98,6 +100,24 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         "node's clock when publishing, for latency measurement or wall-time TF)", _S,
         constraints="sim or wall")),
     "publish_clock": (False, _descriptor("Publish simulation time on /clock", _B)),
+    "anchor.source": ("scene", _descriptor(
+        "scene: the clamp moves as the scene's anchor_motion says; topic: it follows "
+        "geometry_msgs/PoseStamped on anchor_pose, relative to the first pose received", _S,
+        read_only=True, constraints="scene or topic")),
+    "anchor.follow_hz": (DEFAULT_FOLLOW_HZ, _descriptor(
+        "Bandwidth of the critically damped filter the clamp follows poses through, Hz", _D,
+        read_only=True, float_range=(0.1, MAX_FOLLOW_HZ))),
+    "anchor.max_jump_m": (0.5, _descriptor(
+        "A pose further than this from the last one followed is refused, m", _D,
+        float_range=(0.0, 1000.0))),
+    "interaction.stiffness": (50.0, _descriptor(
+        "Stiffness of the spring a /clicked_point pulls the nearest particle with, N/m", _D,
+        float_range=(0.0, 1e6))),
+    "interaction.hold_s": (2.0, _descriptor(
+        "How long a /clicked_point pulls, s of simulation time", _D,
+        float_range=(0.0, 3600.0))),
+    "interaction.max_force_n": (5.0, _descriptor(
+        "Largest force a /clicked_point pulls with, N", _D, float_range=(0.0, 1e6))),
     "modal.auto": (False, _descriptor(
         "Keep the fewest modes (within the band) that meet modal.tolerance for the scene's "
         "loads (gravity, anchor motion), the step they allow unless sim.dt is set, and the "
@@ -148,7 +168,8 @@ CONFIG_NAMES = {"method": "method", "auto": "modal.auto", "integrator": "integra
                 "dt": "sim.dt", "transition_s": "filter.transition_s",
                 "max_modes": "modal.max_modes", "strain_limit": "sim.strain_limit",
                 "tolerance": "modal.tolerance", "force_refresh": "modal.force_refresh",
-                "basis": "modal.basis", "derivative_directions": "modal.derivative_directions"}
+                "basis": "modal.basis", "derivative_directions": "modal.derivative_directions",
+                "anchor": "anchor.source", "follow_hz": "anchor.follow_hz"}
 
 
 def band_from_parameters(values: dict[str, Any]) -> FilterBand:
@@ -176,6 +197,8 @@ def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
         force_refresh=values.get("modal.force_refresh", 0),
         basis=values.get("modal.basis", "rest"),
         derivative_directions=values.get("modal.derivative_directions", DEFAULT_DIRECTIONS),
+        anchor=values.get("anchor.source", "scene"),
+        follow_hz=values.get("anchor.follow_hz", DEFAULT_FOLLOW_HZ),
     ).validate(CONFIG_NAMES)
 
 

@@ -66,3 +66,20 @@ class Pause(Request):
     """Stop (or restart) stepping and publishing."""
 
     paused: bool = True
+
+
+@dataclasses.dataclass(eq=False)
+class FollowPose(Request):
+    """The clamp follows a new pose from now on (``anchor.source`` topic)."""
+
+    message: Any = None            # geometry_msgs/PoseStamped, already checked
+
+
+@dataclasses.dataclass(eq=False)
+class PullPoint(Request):
+    """Pull the particle nearest to a clicked point toward it."""
+
+    message: Any = None            # geometry_msgs/PointStamped, already checked
+    stiffness: float = 0.0
+    max_force: float = 0.0
+    hold_s: float = 0.0

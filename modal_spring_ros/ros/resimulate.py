@@ -2,21 +2,23 @@
 
 A bag written by ``modal_spring_sim --bag`` describes its run completely (scene, settings,
 frame spacing), and so does the node's own capture (``record.bag``: parameters at the start,
-each change stamped with the simulation time it took effect at): re-simulating either
-reproduces every frame to float32 round-off. A bag recorded over DDS by
-``modal_spring_record`` holds the scene, the node's parameters at the start and every later
-change as received on ``/parameter_events``; those are applied before the first frame
-received after them, so the re-run follows the recording as closely as its stamps allow.
+each change and each input it followed (poses, clicked points) stamped with the simulation
+time it took effect at): re-simulating either reproduces every frame to float32 round-off.
+A bag recorded over DDS by ``modal_spring_record`` holds the scene, the node's parameters at
+the start and every later change as received on ``/parameter_events``; those are applied
+before the first frame received after them, so the re-run follows the recording as closely as
+its stamps allow.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
+from geometry_msgs.msg import PointStamped, PoseStamped
 from rclpy.parameter import parameter_value_to_python
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import PointCloud2
 
-from modal_spring_ros.bags.capture import POINTS_TOPIC, RunBagWriter
+from modal_spring_ros.bags.capture import INPUT_TOPICS, POINTS_TOPIC, RunBagWriter
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.stamps import to_seconds
 from modal_spring_ros.bags.writer import BagError
@@ -24,6 +26,7 @@ from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.simulations import DivergenceError
+from modal_spring_ros.ros.inputs import apply_click, apply_pose
 from modal_spring_ros.ros.parameters import REBUILD_PARAMETERS, config_from_parameters
 from modal_spring_ros.scenes.schema import scene_from_yaml
 
@@ -43,6 +46,20 @@ def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, int, dict]]:
         if values:
             out.append((m.log_time_ns, event.stamp.sec * 1_000_000_000 + event.stamp.nanosec,
                         values))
+    return out
+
+
+def recorded_inputs(bag: BagReader) -> list[tuple[int, int, object]]:
+    """(log time ns, stamp ns, message) of the inputs a node's capture kept (poses the clamp
+    followed, clicked points), each stamped with the simulation time it took effect at."""
+    topics = [t for t in INPUT_TOPICS.values() if t in bag.topics]
+    if not topics:
+        return []
+    out = []
+    for m in bag.messages(topics):
+        message = bag.decode(m)
+        stamp = message.header.stamp
+        out.append((m.log_time_ns, stamp.sec * 1_000_000_000 + stamp.nanosec, message))
     return out
 
 
@@ -86,7 +103,8 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
                           frame_id=rec.get("frame_id", "world"),
                           source="modal_spring_replay --resimulate")
     exact = rec.get("event_clock") == "sim"   # events stamped with simulation time
-    pending = list(changes)
+    pending = sorted(changes + (recorded_inputs(bag) if values is not None else []),
+                     key=lambda event: event[0])
     try:
         for log_time, stamp in frames:
             while pending and pending[0][0] <= log_time and values is not None:
@@ -94,7 +112,13 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
                 if exact:   # step to the simulation time the node applied it at
                     while sim.time < event_stamp * 1e-9 - 0.5 * sim.dt:
                         sim.step()
-                sim, values = _apply(sim, values, change)
+                if isinstance(change, PoseStamped):
+                    apply_pose(sim, change)
+                elif isinstance(change, PointStamped):
+                    apply_click(sim, change, values["interaction.stiffness"],
+                                values["interaction.max_force_n"], values["interaction.hold_s"])
+                else:
+                    sim, values = _apply(sim, values, change)
             if stamp < sim.time - 0.5 * sim.dt:   # the recording was reset
                 sim.reset()
             while sim.time < stamp - 0.5 * sim.dt:

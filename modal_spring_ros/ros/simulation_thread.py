@@ -20,7 +20,9 @@ import numpy as np
 
 from modal_spring_ros.core.simulations import DivergenceError, Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import StreamReport
-from modal_spring_ros.ros.requests import ChangeBand, Pause, ReplaceSimulation, Request, Reset
+from modal_spring_ros.ros.inputs import apply_click, apply_pose
+from modal_spring_ros.ros.requests import (ChangeBand, FollowPose, Pause, PullPoint,
+                                           ReplaceSimulation, Request, Reset)
 
 #: wall time between two diagnostics messages, s
 DIAGNOSTICS_PERIOD_S = 1.0
@@ -36,6 +38,8 @@ class Outputs(Protocol):
     def diagnostics(self, status: SimulationStatus, report: StreamReport) -> None: ...
 
     def changed(self, sim: Simulation, changed: dict) -> None: ...
+
+    def received(self, sim: Simulation, message) -> None: ...
 
     def log(self, level: str, message: str) -> None: ...
 
@@ -71,12 +75,15 @@ class SimulationThread:
                  settings: Callable[[], StreamSettings],
                  rebuild: Callable[[], Simulation],
                  computing_modes: Callable[[], bool] = lambda: False,
-                 running: Callable[[], bool] = lambda: True):
+                 running: Callable[[], bool] = lambda: True,
+                 anchor_status: Callable[[], tuple[str, bool]] = lambda: ("", False)):
         """``rebuild``: a fresh simulation of the current settings at rest (the last resort of
         recovery); ``computing_modes``: whether a request is computing modes right now;
         ``running``: False once the node is shutting down (its publishers are then gone, and
-        the thread ends instead of reporting them as failures)."""
+        the thread ends instead of reporting them as failures); ``anchor_status``: what the
+        clamp follows, and whether no pose came for a while."""
         self._running = running
+        self._anchor_status = anchor_status
         self.sim = sim
         self.paused = False
         self._outputs = outputs
@@ -212,8 +219,20 @@ class SimulationThread:
         """Apply one request; returns what happened. Raises with the run unchanged."""
         handlers: dict[type, Callable[[Request], str]] = {
             ChangeBand: self._change_band, ReplaceSimulation: self._replace,
-            Reset: self._reset, Pause: self._pause}
+            Reset: self._reset, Pause: self._pause, FollowPose: self._follow,
+            PullPoint: self._pull}
         return handlers[type(request)](request)
+
+    def _follow(self, request: FollowPose) -> str:
+        message = apply_pose(self.sim, request.message)
+        self._outputs.received(self.sim, request.message)
+        return message
+
+    def _pull(self, request: PullPoint) -> str:
+        message = apply_click(self.sim, request.message, request.stiffness, request.max_force,
+                              request.hold_s)
+        self._outputs.received(self.sim, request.message)
+        return message
 
     def _change_band(self, request: ChangeBand) -> str:
         self.sim.set_band(request.band, request.transition_s)
@@ -266,6 +285,7 @@ class SimulationThread:
         now = time.monotonic()
         span = now - w.wall
         achieved = (self.sim.time - w.sim_time) / span if span > 0 and w.valid else 0.0
+        anchor, stale = self._anchor_status()
         return StreamReport(
             window_s=span, window_valid=w.valid, achieved_rtf=achieved,
             requested_rtf=settings.realtime_factor,
@@ -275,7 +295,8 @@ class SimulationThread:
             computing_modes=w.computing_modes or self._computing_modes(), paused=self.paused,
             strain_warning=settings.strain_warning, divergences=self._divergences,
             last_divergence=self._last_divergence,
-            diverged_recently=self._diverged_recently, error=error)
+            diverged_recently=self._diverged_recently, error=error,
+            anchor=anchor, anchor_stale=stale)
 
     def _status(self) -> SimulationStatus:
         """The simulation's status, or the last one read when it cannot give one."""

@@ -23,6 +23,7 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.integrators import Integrator, NonConvergence, Operators
 from modal_spring_ros.core.integrators import integrator as make_integrator
 from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.pull import Pull
 from modal_spring_ros.core.scene import Damping
 
 #: Default spring strain treated as divergence (the simulation has left any meaningful regime).
@@ -108,6 +109,8 @@ class Simulation(abc.ABC):
         self._t0 = 0.0
         self.last_iterations = 1
         self.diverged: DivergenceError | None = None
+        #: a particle being pulled toward a point (:mod:`~modal_spring_ros.core.pull`)
+        self.pull: Pull | None = None
 
     # -- what every method offers --------------------------------------------------------------
     #: the filter band, set by each method's constructor and by :meth:`set_band`
@@ -249,7 +252,23 @@ class Simulation(abc.ABC):
     def take_over(self, other: "Simulation") -> None:
         """Continue from another simulation's physical state and time (a settings change)."""
         self._t0, self.steps, self.time = other.time, 0, other.time
+        self.pull = other.pull
         self.set_state(other.displacement(), other.velocity())
+
+    def start_pull(self, pull: Pull | None) -> None:
+        """Pull a particle from now on (None: stop pulling). A reset ends it too."""
+        self.pull = pull
+
+    def _pull_load(self, u_particle: np.ndarray, t: float) -> np.ndarray | None:
+        """The pull's force in the clamp's frame on its particle, given the particle's
+        displacement in that frame, or None when nothing pulls at ``t``."""
+        pull = self.pull
+        if pull is None:
+            return None
+        frame = self.model.frame(t)
+        x = frame.carry(self.model.rest[pull.particle] + u_particle)
+        f = pull.force(x, t)
+        return None if f is None else f @ frame.rotation
 
     # -- stepping ------------------------------------------------------------------------------
     def step(self, count: int = 1) -> None:

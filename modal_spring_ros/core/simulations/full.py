@@ -154,9 +154,12 @@ class FullSimulation(Simulation):
         return stable_step_limit(self.basis.omega_max_estimate())
 
     def reset(self) -> None:
+        if self.time or self.steps:  # not on construction: a rebuild takes the clamp over
+            self.model.restart_clamp()
         self.time = self._t0 = 0.0
         self.steps = 0
         self.diverged = None
+        self.pull = None
         n = self.model.n_free_dof
         self.set_state(np.zeros(n), np.zeros(n))
 
@@ -185,9 +188,18 @@ class FullSimulation(Simulation):
         return self._forces.last_max_strain
 
     def _force(self, u: np.ndarray) -> np.ndarray:
-        if self._world is not None:
-            return self._world.force(u, self.time + self.dt)
-        return self._forces(u, self.time + self.dt)
+        t = self.time + self.dt
+        force = (self._world.force(u, t) if self._world is not None else self._forces(u, t))
+        if self.pull is not None:
+            d = self.model.dimension
+            dof = slice(self.pull.slot * d, (self.pull.slot + 1) * d)
+            if self._world is None:
+                pulled = self._pull_load(u[dof], t)
+            else:  # world coordinates: the pull's own force
+                pulled = self.pull.force(self.model.rest[self.pull.particle] + u[dof], t)
+            if pulled is not None:
+                force[dof] += pulled
+        return force
 
     def _step_once(self) -> None:
         ops = self._ops if self._world is None else self._world.at(self.time + self.dt)

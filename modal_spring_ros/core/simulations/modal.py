@@ -335,9 +335,12 @@ class ModalSimulation(Simulation):
     def reset(self) -> None:
         if self._set.fading:  # settle the band: every kept mode fully in, none fading out
             self._install(ActiveSet.settled(self._set.kept), None)
+        if self.time or self.steps:  # not on construction: a rebuild takes the clamp over
+            self.model.restart_clamp()
         self.time = self._t0 = 0.0
         self.steps = 0
         self.diverged = None
+        self.pull = None
         self.set_state(np.zeros(self.model.n_free_dof), np.zeros(self.model.n_free_dof))
 
     def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
@@ -367,6 +370,12 @@ class ModalSimulation(Simulation):
 
     def _force(self, q: np.ndarray) -> np.ndarray:
         force = self._forces(q, self.time + self.dt)
+        if self.pull is not None:
+            d = self.model.dimension
+            rows = self._phi[self.pull.slot * d:(self.pull.slot + 1) * d]
+            pulled = self._pull_load(rows @ q, self.time + self.dt)
+            if pulled is not None:
+                force += pulled @ rows
         if self._frame is not None:
             # The Coriolis load depends on the velocity: like damping in the explicit step, it
             # is taken at the predicted velocity v + dt/2 a.
