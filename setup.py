@@ -39,6 +39,7 @@ setup(
             "modal_spring_replay = modal_spring_ros.cli.modal_spring_replay:main",
             "modal_spring_compare = modal_spring_ros.cli.modal_spring_compare:main",
             "modal_spring_record = modal_spring_ros.cli.modal_spring_record:main",
+            "modal_spring_gripper = modal_spring_ros.cli.modal_spring_gripper:main",
         ],
     },
 )

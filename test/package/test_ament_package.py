@@ -204,7 +204,7 @@ def _console_scripts() -> list[str]:
 def test_colcon_build_installs_the_ament_layout(colcon_install):
     prefix = colcon_install / PACKAGE
     scripts = _console_scripts()
-    assert "modal_spring_node" in scripts and len(scripts) == 6
+    assert "modal_spring_node" in scripts and len(scripts) == 7
     for name in scripts:  # where `ros2 run modal_spring_ros NAME` looks
         exe = prefix / "lib" / PACKAGE / name
         assert exe.is_file() and os.access(exe, os.X_OK), exe

@@ -1,0 +1,187 @@
+"""The node driven from ROS: a clamp following a pose stream, and a clicked point pulling the
+sheet, over real DDS (the node in its own process, as a user runs it)."""
+from __future__ import annotations
+
+import math
+import threading
+import time
+
+import numpy as np
+import pytest
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PointStamped, PoseStamped
+from helpers import variant
+from ros_harness import node_with_client, wait_for
+from sensor_msgs.msg import PointCloud2
+
+from modal_spring_ros.bags.pointcloud import xyz
+from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.ros.resimulate import resimulate
+from modal_spring_ros.scenes.resources import load_scene
+
+pytestmark = pytest.mark.ros
+
+PIVOT = (0.45, 0.0, 0.0)      # the centre of sheet_10x10's top row
+
+
+def pose(angle_deg: float, position=PIVOT, frame_id: str = "world",
+         quaternion=None) -> PoseStamped:
+    m = PoseStamped()
+    m.header.frame_id = frame_id
+    m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(v) for v in position)
+    a = math.radians(angle_deg)
+    q = quaternion if quaternion is not None else (0.0, 0.0, math.sin(a / 2), math.cos(a / 2))
+    o = m.pose.orientation
+    o.x, o.y, o.z, o.w = (float(v) for v in q)
+    return m
+
+
+class PoseStream:
+    """Publishes ``angle()`` as a pose at 50 Hz from a thread until stopped."""
+
+    def __init__(self, client, topic: str, angle):
+        self.publisher = client.node.create_publisher(PoseStamped, topic, 10)
+        self.angle = angle
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self):
+        start = time.monotonic()
+        while not self._stop.wait(0.02):
+            self.publisher.publish(pose(self.angle(time.monotonic() - start)))
+
+    def stop(self):
+        self._stop.set()
+        self._thread.join(2.0)
+
+
+def top_row(scene) -> np.ndarray:
+    return np.flatnonzero(scene.fixed)
+
+
+def turned(points: np.ndarray, angle_deg: float) -> np.ndarray:
+    a = math.radians(angle_deg)
+    r = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    out = points.copy()
+    out[:, :2] = (points[:, :2] - PIVOT[:2]) @ r.T + PIVOT[:2]
+    return out
+
+
+def latest(points: list) -> np.ndarray:
+    return xyz(points[-1][1])
+
+
+def test_a_pose_stream_turns_the_clamp_and_the_stream_stays_finite():
+    """The pose turns 30 degrees over a second; once the filter has settled the cloud's top
+    row is the rest row turned by 30 degrees about the pose's position, to 1 mm."""
+    scene = load_scene("sheet_10x10")
+    fixed = top_row(scene)
+    with node_with_client("anchor.source:=topic", "publish_rate_hz:=30.0",
+                          namespace="follow") as (node, client):
+        points = client.collect(PointCloud2, "/follow/points", qos=200)
+        assert wait_for(lambda: len(points) > 5, 30)
+        stream = PoseStream(client, "/follow/anchor_pose",
+                            lambda t: 30.0 * min(max(t - 0.5, 0.0), 1.0))
+        try:
+            assert wait_for(lambda: np.abs(latest(points)[fixed] - turned(
+                scene.rest_positions[fixed], 30.0)).max() < 1e-3, 20)
+            time.sleep(0.5)
+            np.testing.assert_allclose(latest(points)[fixed],
+                                       turned(scene.rest_positions[fixed], 30.0), atol=1e-3)
+        finally:
+            stream.stop()
+        for _, m in points:
+            assert np.isfinite(xyz(m)).all()
+
+
+def test_bad_poses_are_refused_change_nothing_and_silence_is_reported():
+    scene = load_scene("sheet_10x10")
+    fixed = top_row(scene)
+    with node_with_client("anchor.source:=topic", "anchor.max_jump_m:=0.2",
+                          namespace="badpose") as (node, client):
+        points = client.collect(PointCloud2, "/badpose/points", qos=500)
+        diags = client.collect(DiagnosticArray, "/diagnostics")
+        pub = client.node.create_publisher(PoseStamped, "/badpose/anchor_pose", 10)
+        assert wait_for(lambda: len(points) > 5 and pub.get_subscription_count() > 0, 30)
+        pub.publish(pose(0.0))                                       # the reference
+        time.sleep(0.3)
+        bad = [pose(20.0, frame_id="map"),                           # another frame
+               pose(20.0, position=(math.nan, 0.0, 0.0)),             # not finite
+               pose(0.0, quaternion=(0.0, 0.0, 0.0, 2.0)),            # not a unit quaternion
+               pose(0.0, position=(5.0, 0.0, 0.0)),                   # a 4.5 m jump
+               pose(0.0, quaternion=(0.0, 0.0, math.inf, 1.0))]
+        start = time.monotonic()
+        for _ in range(20):                                          # NaNs and jumps, 20 Hz
+            for m in bad:
+                pub.publish(m)
+            time.sleep(0.05)
+        time.sleep(0.5)
+        after = [m for t, m in points if t > start]
+        assert len(after) > 20
+        for m in after:
+            x = xyz(m)
+            assert np.isfinite(x).all()
+            np.testing.assert_allclose(x[fixed], scene.rest_positions[fixed], atol=1e-9)
+
+        def anchor(prefix):
+            for _, d in reversed(diags):
+                s = d.status[0]
+                if s.name.startswith(prefix):
+                    return s, {kv.key: kv.value for kv in s.values}
+            return None, {}
+        # no valid pose for more than 0.5 s: the clamp holds the last, and diagnostics say so
+        assert wait_for(lambda: "holding the last" in anchor("/badpose/")[1].get(
+            "anchor pose", ""), 10)
+        status, values = anchor("/badpose/")
+        assert status.level == DiagnosticStatus.WARN and "anchor pose" in status.message
+        assert "100 refused" in values["anchor pose"]
+
+
+def test_a_clicked_point_pulls_the_nearest_particle_toward_it(tmp_path):
+    scene_file = tmp_path / "still.yaml"
+    scene_file.write_text(yaml.safe_dump(variant("sheet_10x10", anchor_motion=[]).to_dict()))
+    with node_with_client(f"scene:={scene_file}", "interaction.max_force_n:=5.0",
+                          namespace="click") as (node, client):
+        points = client.collect(PointCloud2, "/click/points", qos=500)
+        pub = client.node.create_publisher(PointStamped, "/clicked_point", 10)
+        assert wait_for(lambda: len(points) > 5 and pub.get_subscription_count() > 0, 30)
+        time.sleep(1.0)                                   # settled in the sag
+        before = latest(points)
+        corner = int(np.argmax(before[:, 0] - before[:, 1]))   # the bottom right particle
+        click = PointStamped()
+        click.header.frame_id = "world"
+        click.point.x, click.point.y = before[corner, 0] + 0.5, before[corner, 1]
+        pub.publish(click)
+        assert wait_for(lambda: latest(points)[corner, 0] - before[corner, 0] > 0.01, 10)
+        moved = latest(points) - before
+        # the pulled corner moves the most, toward the point
+        assert int(np.argmax(np.linalg.norm(moved, axis=1))) == corner
+
+
+def test_the_capture_of_a_driven_run_resimulates_frame_for_frame(tmp_path):
+    out = tmp_path / "driven"
+    with node_with_client("anchor.source:=topic", f"record.bag:={out}",
+                          "publish_rate_hz:=30.0", namespace="driven") as (node, client):
+        points = client.collect(PointCloud2, "/driven/points")
+        assert wait_for(lambda: len(points) > 5, 30)
+        stream = PoseStream(client, "/driven/anchor_pose",
+                            lambda t: 25.0 * math.sin(2 * math.pi * 0.7 * t))
+        pub = client.node.create_publisher(PointStamped, "/clicked_point", 10)
+        time.sleep(1.0)
+        click = PointStamped()
+        click.header.frame_id = "world"
+        click.point.x, click.point.y = 1.2, -0.9
+        pub.publish(click)
+        time.sleep(1.5)
+        stream.stop()
+    bag = BagReader(out)
+    assert bag.topics["/anchor_pose"].count > 50 and bag.topics["/clicked_point"].count == 1
+    again = tmp_path / "again"
+    n = resimulate(out, again)
+    t_rec, x_rec = bag.points()
+    t_new, x_new = BagReader(again).points()
+    assert n == len(t_rec) and np.array_equal(t_new, t_rec)
+    assert np.abs(x_rec[-1] - x_rec[0]).max() > 0.05          # it was driven
+    np.testing.assert_allclose(x_new, x_rec, rtol=0, atol=2e-6)   # every frame
