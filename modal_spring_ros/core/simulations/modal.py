@@ -289,18 +289,16 @@ class ModalSimulation(Simulation):
                                 self.dt, self.strain_limit)
 
     def _install(self, new: ActiveSet, old: ActiveSet | None) -> None:
-        """Step ``new`` from now on. With ``old``, the state is projected onto the new modes
-        (``q_new = Phi_new^T M Phi_old q_old``: exact for modes in both sets; modes new to the
-        set start from rest); without, it starts at zero. Everything is built first and
-        assigned last, so a failure leaves the run as it was."""
+        """Step ``new`` from now on. With ``old``, coordinates in both sets keep their state
+        and those new to the set start from rest (a dropped one has faded to zero); without,
+        it starts at zero. Everything is built first and assigned last, so a failure leaves
+        the run as it was."""
         stepped = self._take_set(new.modes)
+        q, v, a = (np.zeros(new.modes.size) for _ in range(3))
         if old is not None and old.modes.size:
-            overlap = stepped.phi.T @ (self.model.mass_dof[:, None] * self._phi)
-            overlap[np.abs(overlap) < 1e-9] = 0.0
-            overlap[~np.isin(new.modes, old.modes)] = 0.0
-            q, v, a = overlap @ self._q, overlap @ self._v, overlap @ self._a
-        else:
-            q = v = a = np.zeros(new.modes.size)
+            kept = np.isin(new.modes, old.modes)
+            where = np.searchsorted(old.modes, new.modes[kept])
+            q[kept], v[kept], a[kept] = self._q[where], self._v[where], self._a[where]
         self._phi, self._omega2, self._damp = stepped.phi, stepped.omega2, stepped.damping
         self._ops, self._forces, self._frame = stepped.ops, stepped.forces, stepped.frame
         self._q, self._v, self._a = q, v, a
