@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Callable, Iterator, NoReturn
 
-from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.config import FORCES, SimulationConfig
 from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import FILTER_TYPES, BandError, FilterBand, parse_mode_range
 from modal_spring_ros.core.integrators import INTEGRATORS
@@ -138,6 +138,11 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--derivative-directions", type=int, default=DEFAULT_DIRECTIONS,
                    metavar="N", help="modal-derivative directions a band adds "
                                      f"(default {DEFAULT_DIRECTIONS})")
+    g.add_argument("--forces", choices=FORCES, default="exact",
+                   help="spring forces: exact (every spring, every step: the paper), "
+                        "refreshed (every --force-refresh steps, a tangent between) or "
+                        "sampled (a weighted sample of the springs within --tolerance, "
+                        "trained once and cached); --auto chooses in its place")
     g.add_argument("--force-refresh", type=int, default=0, metavar="N",
                    help="evaluate the nonlinear spring forces every N steps and continue "
                         "them along the static tangent in between (default: every step, "
@@ -175,7 +180,7 @@ OPTION_NAMES = {"method": "--method", "auto": "--auto", "integrator": "--integra
                 "transition_s": "--transition-s", "max_modes": "--max-modes",
                 "strain_limit": "--strain-limit", "tolerance": "--tolerance",
                 "force_refresh": "--force-refresh", "basis": "--basis",
-                "derivative_directions": "--derivative-directions"}
+                "derivative_directions": "--derivative-directions", "forces": "--forces"}
 
 
 def config_from_args(args: argparse.Namespace) -> SimulationConfig:
@@ -186,7 +191,7 @@ def config_from_args(args: argparse.Namespace) -> SimulationConfig:
                             auto=args.auto, tolerance=args.tolerance,
                             force_refresh=args.force_refresh, basis=args.basis,
                             derivative_directions=args.derivative_directions,
-                            ).validate(OPTION_NAMES)
+                            forces=args.forces).validate(OPTION_NAMES)
 
 
 def run_main(prog: str, body: Callable[[], int]) -> int:

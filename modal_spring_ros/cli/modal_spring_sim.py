@@ -96,6 +96,9 @@ def summary(sim, diverged: str, seconds_per_step: float, wall: float) -> str:
                      f"computed in {sim.basis_seconds:.3g} s")
     else:
         lines.append(f"method     full physical ({sim.model.n_free_dof} DOF)")
+    if status_forces := (sim.describe_forces() if sim.method == "modal" else ""):
+        if status_forces.startswith(("sampled", "exact (the")):
+            lines.append(f"forces     {status_forces}")
     if sim.refresh_error is not None:
         lines.append(f"forces     springs evaluated every {sim.force_refresh} steps; largest "
                      f"measured error of the continued force {sim.refresh_error:.2e}")

@@ -26,6 +26,14 @@ DEFAULT_STRAIN_WARNING = 0.1
 MIN_DIRECTIONS, MAX_DIRECTIONS = 1, 200
 #: Default fade time of modes leaving or entering the band, s.
 DEFAULT_TRANSITION_S = 0.5
+#: How the spring forces are evaluated: every spring every step (the paper), every spring
+#: every N steps with a tangent between, or a weighted sample of the springs every step.
+FORCES = ("exact", "refreshed", "sampled")
+#: Steps between exact evaluations of refreshed forces when neither it nor modal.auto says.
+DEFAULT_REFRESH = 10
+#: Scenes with at least this many springs get sampled forces from the automatic choice (on
+#: smaller ones training costs more than it saves).
+SAMPLE_MIN_SPRINGS = 20_000
 #: Where the clamp's motion comes from: the scene's anchor_motion, or a stream of poses.
 ANCHOR_SOURCES = ("scene", "topic")
 #: Highest bandwidth a clamp follows poses with, Hz.
@@ -52,6 +60,7 @@ class SimulationConfig:
     force_refresh: int = 0             # steps between spring evaluations; 0: 1, or auto's
     basis: str = "derivatives"         # modal: rest modes, or rest modes and their derivatives
     derivative_directions: int = DEFAULT_DIRECTIONS
+    forces: str = "exact"              # spring forces: exact, refreshed, or sampled (ECSW)
     anchor: str = "scene"              # the clamp moves as the scene says, or follows poses
     follow_hz: float = DEFAULT_FOLLOW_HZ  # bandwidth of the filter poses are followed through
 
@@ -87,6 +96,9 @@ class SimulationConfig:
         if not MIN_DIRECTIONS <= self.derivative_directions <= MAX_DIRECTIONS:
             raise ConfigError(f"{name('derivative_directions')} ({self.derivative_directions}) "
                               f"must be from {MIN_DIRECTIONS} to {MAX_DIRECTIONS}")
+        if self.forces not in FORCES:
+            raise ConfigError(f"{name('forces')} '{self.forces}' must be one of "
+                              f"{', '.join(FORCES)}")
         if self.anchor not in ANCHOR_SOURCES:
             raise ConfigError(f"{name('anchor')} '{self.anchor}' must be one of "
                               f"{', '.join(ANCHOR_SOURCES)}")

@@ -12,7 +12,8 @@ import math
 from modal_spring_ros.core.basis import ModalBasis, Progress
 from modal_spring_ros.core.basis_choice import choose_basis
 from modal_spring_ros.core.clamp_follower import ClampFollower
-from modal_spring_ros.core.config import AUTO_DT_SAFETY, SimulationConfig
+from modal_spring_ros.core.config import (AUTO_DT_SAFETY, DEFAULT_REFRESH, SAMPLE_MIN_SPRINGS,
+                                          SimulationConfig)
 from modal_spring_ros.core.mode_selection import (SHARE, STABILITY_SAFETY, choose_modes,
                                                   choose_refresh, choose_step)
 from modal_spring_ros.core.model import MassSpringModel
@@ -30,15 +31,17 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
     unless ``config.dt`` is given, the step follows from them, and unless
     ``config.force_refresh`` is given, so does the spring-force refresh; the basis (rest modes
     or their derivatives) is chosen by its predicted error and cost
-    (:mod:`~modal_spring_ros.core.basis_choice`) in place of ``config.basis``, and beyond
-    small deformation the springs are evaluated on every step. The choice is the
+    (:mod:`~modal_spring_ros.core.basis_choice`) in place of ``config.basis``, and so are the
+    forces in place of ``config.forces``: sampled springs on large scenes, refreshed ones in
+    small deformation, every spring on every step beyond it. The choice is the
     simulation's ``mode_choice``.
     """
     config.validate()
     dt = config.dt or model.scene.default_dt
     if config.method == "modal":
         choice = None
-        refresh = config.force_refresh or 1
+        forces = config.forces
+        refresh = config.force_refresh or (DEFAULT_REFRESH if forces == "refreshed" else 1)
         kind = config.basis
         bank = AddedCoordinateBank(basis, config.derivative_directions, basis.progress)
         if config.auto:
@@ -50,8 +53,10 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
             kind = chosen.kind
             dt = config.dt or choose_step(choice, config.integrator, config.tolerance,
                                           model.scene.damping)
+            forces = ("sampled" if model.scene.n_springs >= SAMPLE_MIN_SPRINGS else
+                      "refreshed" if chosen.small else "exact")
             refresh = config.force_refresh or (
-                choose_refresh(choice.highest_hz, dt) if chosen.small else 1)
+                choose_refresh(choice.highest_hz, dt) if forces == "refreshed" else 1)
         sim: Simulation = ModalSimulation(
             model, basis, config.band, dt=dt or 1e-3, integrator=config.integrator,
             transition_s=config.transition_s, max_modes=config.max_modes,
@@ -59,7 +64,8 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
             highest_hz=choice.highest_hz if choice else None, force_refresh=refresh,
             mode_choice=choice, basis_kind=kind,
             derivative_directions=config.derivative_directions, bank=bank,
-            progress=basis.progress)
+            progress=basis.progress,
+            sample_tolerance=config.tolerance if forces == "sampled" else None)
         if config.dt is None and config.integrator == "explicit":
             # the step the scene or the mode choice suggests may be beyond the stability
             # limit of what the band adds: stay within it

@@ -185,23 +185,52 @@ class GeneralizedForces:
         this returns the largest ``|G_e|_2 / l_e`` (spectral norms from the d x d Gram
         matrices ``G_e G_e^T``).
         """
-        gain = 0.0
-        for start in range(0, self._l.size, chunk):
-            stop = min(start + chunk, self._l.size)
-            g = self._g_rows(start, stop)                      # (d, chunk, m)
-            gram = np.einsum("acm,bcm->cab", g, g)
-            largest = np.linalg.eigvalsh(gram)[:, -1]
-            gain = max(gain, float((np.sqrt(np.maximum(largest, 0.0))
-                                    * self._inv_l[start:stop]).max()))
-        return gain
+        largest = np.linalg.eigvalsh(self.spring_grams(chunk))[:, -1]
+        return float((np.sqrt(np.maximum(largest, 0.0)) * self._inv_l).max())
 
     def _g_rows(self, start: int, stop: int) -> np.ndarray:
         """Rows of ``G`` for springs ``start:stop``, as (d, stop - start, m)."""
+        return self.g_rows_of(np.arange(start, stop))
+
+    def spring_grams(self, chunk: int = TANGENT_CHUNK) -> np.ndarray:
+        """(E, d, d) ``G_e G_e^T`` of every spring (``G_e``: its d rows of ``G``)."""
+        out = np.empty((self._l.size, self.dimension, self.dimension))
+        for start in range(0, self._l.size, chunk):
+            stop = min(start + chunk, self._l.size)
+            g = self._g_rows(start, stop)                      # (d, chunk, m)
+            out[start:stop] = np.einsum("acm,bcm->cab", g, g)
+        return out
+
+    def g_rows_of(self, springs: np.ndarray) -> np.ndarray:
+        """Rows of ``G`` for the springs ``springs``, as (d, len(springs), m)."""
         n_springs, d = self._l.size, self.dimension
-        rows = (np.arange(d)[:, None] * n_springs + np.arange(start, stop)[None, :]).ravel()
+        rows = (np.arange(d)[:, None] * n_springs + springs[None, :]).ravel()
         g = self._g[rows]
         if self._phi is not None:
             g = g @ self._phi
         elif sp.issparse(g):
             g = g.toarray()
-        return np.asarray(g).reshape(d, stop - start, -1)
+        return np.asarray(g).reshape(d, springs.size, -1)
+
+    def g_product(self, r: np.ndarray) -> np.ndarray:
+        """``G r`` for columns ``r`` (m, S): (d * E, S), component-major rows."""
+        return np.asarray(self._g @ (r if self._phi is None else self._phi @ r))
+
+    @property
+    def n_springs(self) -> int:
+        return int(self._l.size)
+
+    @property
+    def stiffness(self) -> np.ndarray:
+        """(E,) spring constants."""
+        return self._k
+
+    @property
+    def stiffness_length(self) -> np.ndarray:
+        """(E,) ``k l`` of each spring."""
+        return self._kl
+
+    @property
+    def rest_deltas(self) -> np.ndarray:
+        """(d * E,) spring vectors at rest, component-major."""
+        return self._delta_rest

@@ -64,6 +64,9 @@ def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[i
         if stream.window_valid and stream.frames_in_window == 0 and stream.window_s > 0:
             level = DiagnosticStatus.WARN
             message = f"no frame published in the last {stream.window_s:.1f} s"
+    if status.forces_fell_back:
+        level = DiagnosticStatus.WARN
+        message = f"spring sample off: {status.forces}"
     if stream.anchor_stale:
         level = DiagnosticStatus.WARN
         message = f"anchor pose: {stream.anchor}"
@@ -91,6 +94,7 @@ def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, s
         "automatic mode choice": status.mode_choice,
         "integrator": status.integrator,
         "dt (s)": f"{status.dt:g}",
+        "spring forces": status.forces,
         "force refresh (steps)": str(status.force_refresh),
         "force refresh error": ("exact every step" if status.refresh_error is None
                                 else f"{status.refresh_error:.2e}"),

@@ -14,8 +14,8 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 
 from modal_spring_ros.core.clamp_follower import DEFAULT_FOLLOW_HZ
 from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TRANSITION_S,
-                                          MAX_DIRECTIONS, MAX_FOLLOW_HZ, MIN_DIRECTIONS,
-                                          SimulationConfig)
+                                          FORCES, MAX_DIRECTIONS, MAX_FOLLOW_HZ,
+                                          MIN_DIRECTIONS, SimulationConfig)
 from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import FILTER_TYPES, UNITS, BandError, FilterBand
 from modal_spring_ros.core.integrators import INTEGRATORS
@@ -126,6 +126,11 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     "modal.tolerance": (DEFAULT_TOLERANCE, _descriptor(
         "Predicted relative error the automatic mode choice must meet", _D,
         float_range=(1e-6, 0.5))),
+    "modal.forces": ("exact", _descriptor(
+        "Spring forces: exact (every spring every step, the paper), refreshed (every spring "
+        "every modal.force_refresh steps, a tangent between) or sampled (a weighted sample of "
+        "the springs within modal.tolerance, trained once per band and cached); modal.auto "
+        "chooses in its place", _S, constraints="one of " + ", ".join(FORCES))),
     "modal.force_refresh": (0, _descriptor(
         "Steps between exact evaluations of the nonlinear spring forces (1 = every step, as "
         "the paper; N > 1 continues them along the static tangent in between); 0 = every "
@@ -156,20 +161,23 @@ FREQUENCIES_DESCRIPTOR = _descriptor(
 #: ``filter.*`` parameters change the band of the running one
 REBUILD_PARAMETERS = frozenset({"method", "integrator", "sim.dt", "modal.auto",
                                 "modal.tolerance", "modal.force_refresh", "modal.basis",
+                                "modal.forces",
                                 "modal.derivative_directions"})
 #: parameters of the band
 BAND_PARAMETERS = frozenset({"filter.type", "filter.by", "filter.low_hz", "filter.high_hz",
                              "filter.low_mode", "filter.high_mode", "filter.transition_s"})
 #: string parameters with a fixed set of values
 CHOICES = {"method": tuple(METHODS), "filter.type": FILTER_TYPES, "filter.by": UNITS,
-           "integrator": tuple(INTEGRATORS), "stamp": STAMPS, "modal.basis": BASES}
+           "integrator": tuple(INTEGRATORS), "stamp": STAMPS, "modal.basis": BASES,
+           "modal.forces": FORCES}
 #: configuration field -> parameter name, so that configuration errors name the parameter
 CONFIG_NAMES = {"method": "method", "auto": "modal.auto", "integrator": "integrator",
                 "dt": "sim.dt", "transition_s": "filter.transition_s",
                 "max_modes": "modal.max_modes", "strain_limit": "sim.strain_limit",
                 "tolerance": "modal.tolerance", "force_refresh": "modal.force_refresh",
                 "basis": "modal.basis", "derivative_directions": "modal.derivative_directions",
-                "anchor": "anchor.source", "follow_hz": "anchor.follow_hz"}
+                "anchor": "anchor.source", "follow_hz": "anchor.follow_hz",
+                "forces": "modal.forces"}
 
 
 def band_from_parameters(values: dict[str, Any]) -> FilterBand:
@@ -197,6 +205,7 @@ def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
         force_refresh=values.get("modal.force_refresh", 0),
         basis=values.get("modal.basis", "rest"),
         derivative_directions=values.get("modal.derivative_directions", DEFAULT_DIRECTIONS),
+        forces=values.get("modal.forces", "exact"),
         anchor=values.get("anchor.source", "scene"),
         follow_hz=values.get("anchor.follow_hz", DEFAULT_FOLLOW_HZ),
     ).validate(CONFIG_NAMES)

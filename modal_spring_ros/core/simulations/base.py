@@ -84,6 +84,8 @@ class SimulationStatus:
     steps: int
     max_strain: float
     fading: bool               # a band change is still fading modes in or out
+    forces: str = "exact every step"   # how the spring forces are evaluated
+    forces_fell_back: bool = False     # sampled springs fell back to exact ones (error)
 
 
 class Simulation(abc.ABC):
@@ -149,6 +151,16 @@ class Simulation(abc.ABC):
         """A band change is still fading modes in or out."""
         return False
 
+    def describe_forces(self) -> str:
+        """How the spring forces are evaluated, as text."""
+        every = self.force_refresh
+        return "exact every step" if every == 1 else f"exact every {every} steps, tangent between"
+
+    @property
+    def forces_fell_back(self) -> bool:
+        """Sampled springs passed their tolerance and the forces fell back to exact ones."""
+        return False
+
     @property
     def truncated(self) -> bool:
         """The band reaches past the modes computed (capped at ``max_modes``)."""
@@ -212,7 +224,8 @@ class Simulation(abc.ABC):
             integrator=self.integrator, dt=self.dt, force_refresh=self.force_refresh,
             refresh_error=self.refresh_error, stability_limit=self.stability_limit(),
             time=self.time, steps=self.steps, max_strain=self.max_strain(),
-            fading=self.fading)
+            fading=self.fading, forces=self.describe_forces(),
+            forces_fell_back=self.forces_fell_back)
 
     # -- state in physical terms ---------------------------------------------------------------
     @abc.abstractmethod

@@ -113,6 +113,18 @@ class ActiveSet:
     def kept(self) -> np.ndarray:
         return self.modes[self.target]
 
+    def switched(self, keep: np.ndarray, instant: bool) -> "ActiveSet":
+        """The active set once ``keep`` is the band: modes new to the set fade in from 0,
+        modes in both keep their progress, leaving ones fade out."""
+        modes = self.next_modes(keep, instant)
+        target = np.isin(modes, keep)
+        was = np.isin(modes, self.modes)
+        progress = np.zeros(modes.size)
+        progress[was] = self.progress[np.searchsorted(self.modes, modes[was])]
+        if instant or not self.modes.size:
+            progress[target] = 1.0
+        return ActiveSet(modes, target, progress)
+
     def next_modes(self, keep: np.ndarray, instant: bool) -> np.ndarray:
         """Modes stepped once ``keep`` is the band: ``keep`` plus the modes still fading out."""
         leaving = self.modes[~np.isin(self.modes, keep) & (self.progress > 0.0)]

@@ -37,6 +37,7 @@ from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS, AddedCoordinat
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.refreshed_forces import RefreshedForces
+from modal_spring_ros.core.sampled_forces import SampledForces
 from modal_spring_ros.core.scene import Damping
 from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simulation, check_step,
                                                     stable_step_limit)
@@ -69,7 +70,8 @@ class ModalSimulation(Simulation):
                  strain_limit: float = DEFAULT_STRAIN_LIMIT, highest_hz: float | None = None,
                  force_refresh: int = 1, mode_choice=None, basis_kind: str = "rest",
                  derivative_directions: int = DEFAULT_DIRECTIONS,
-                 bank: AddedCoordinateBank | None = None, progress: Progress | None = None):
+                 bank: AddedCoordinateBank | None = None, progress: Progress | None = None,
+                 sample_tolerance: float | None = None):
         super().__init__(model, basis, dt=dt, integrator=integrator, damping=damping,
                          strain_limit=strain_limit)
         if basis_kind not in BASES:
@@ -85,6 +87,8 @@ class ModalSimulation(Simulation):
             raise ValueError(f"force refresh ({force_refresh}) must be a whole number of "
                              "steps, at least 1")
         self._force_refresh = int(force_refresh)
+        #: the springs are sampled within this relative force error (None: they are not)
+        self.sample_tolerance = sample_tolerance
         self.highest_hz = highest_hz
         self._mode_choice = mode_choice
         self.max_modes = int(max_modes) if max_modes else (
@@ -156,6 +160,15 @@ class ModalSimulation(Simulation):
     def mode_choice(self):
         return self._mode_choice
 
+    def describe_forces(self) -> str:
+        if isinstance(self._forces, SampledForces):
+            return self._forces.describe()
+        return super().describe_forces()
+
+    @property
+    def forces_fell_back(self) -> bool:
+        return isinstance(self._forces, SampledForces) and self._forces.fell_back
+
     def describe_band(self) -> str:
         return self._band.describe()
 
@@ -166,7 +179,8 @@ class ModalSimulation(Simulation):
                                strain_limit=self.strain_limit, highest_hz=self.highest_hz,
                                force_refresh=self._force_refresh,
                                mode_choice=self._mode_choice, basis_kind=self.basis_kind,
-                               derivative_directions=self._bank.directions, bank=self._bank)
+                               derivative_directions=self._bank.directions, bank=self._bank,
+                               sample_tolerance=self.sample_tolerance)
 
     def stability_limit(self) -> float:
         return stable_step_limit(float(self._bank.omega(self._set.modes).max()))
@@ -218,7 +232,7 @@ class ModalSimulation(Simulation):
         """Change the band; leaving coordinates fade out, entering ones start from rest."""
         keep = self.coordinates_for(self.select_modes(band))
         transition = self.transition_s if transition_s is None else float(transition_s)
-        self._install(self._switched(self._set, keep, transition <= 0.0), self._set)
+        self._install(self._set.switched(keep, transition <= 0.0), self._set)
         self.transition_s = transition
         self._band = band
 
@@ -250,50 +264,41 @@ class ModalSimulation(Simulation):
         keep = self.check_band(band, dt_name)
         instant = (self.transition_s if transition_s is None else transition_s) <= 0.0
         current = self._set  # one consistent snapshot
-        self._prepare_set(current.next_modes(keep, instant))
-        self._prepare_set(keep)
+        self._prepare_set(current.next_modes(keep, instant), instant or not current.modes.size)
+        self._prepare_set(keep, True)
 
-    @staticmethod
-    def _switched(current: ActiveSet, keep: np.ndarray, instant: bool) -> ActiveSet:
-        """The active set once ``keep`` is the band: modes new to the set fade in from 0,
-        modes in both keep their progress, leaving ones fade out."""
-        modes = current.next_modes(keep, instant)
-        target = np.isin(modes, keep)
-        was = np.isin(modes, current.modes)
-        progress = np.zeros(modes.size)
-        progress[was] = current.progress[np.searchsorted(current.modes, modes[was])]
-        if instant or not current.modes.size:
-            progress[target] = 1.0
-        return ActiveSet(modes, target, progress)
-
-    def _prepare_set(self, modes: np.ndarray) -> None:
-        """Build the operators of stepping ``modes`` and keep them for :meth:`_take_set`."""
-        key = (self.basis.count, modes.tobytes())
+    def _prepare_set(self, modes: np.ndarray, settled: bool) -> None:
+        """Build the operators of stepping ``modes`` and keep them for :meth:`_take_set`
+        (``settled``: no coordinate fading, so the springs may be sampled)."""
+        key = (self.basis.count, modes.tobytes(), settled)
         with self._built_lock:
             if key in self._built:
                 return
-        built = self._build_set(modes)
+        built = self._build_set(modes, settled)
         with self._built_lock:  # the stepping thread may take from it meanwhile
             self._built[key] = built
             while len(self._built) > PREPARED_SETS_KEPT:  # a switch superseded before use
                 self._built.pop(next(iter(self._built)))
 
-    def _take_set(self, modes: np.ndarray) -> SteppedSet:
+    def _take_set(self, modes: np.ndarray, settled: bool) -> SteppedSet:
         """The operators of stepping ``modes``: prepared ones (used once), else built now."""
         with self._built_lock:
-            built = self._built.pop((self.basis.count, modes.tobytes()), None)
-        return built if built is not None else self._build_set(modes)
+            built = self._built.pop((self.basis.count, modes.tobytes(), settled), None)
+        return built if built is not None else self._build_set(modes, settled)
 
-    def _build_set(self, modes: np.ndarray) -> SteppedSet:
+    def _build_set(self, modes: np.ndarray, settled: bool) -> SteppedSet:
+        """Sampled springs only for a settled band (a fade is short: training for it would
+        cost more than it saves)."""
+        tolerance = self.sample_tolerance if settled else None
         return SteppedSet.build(self.model, self._bank, modes, self.damping, self._force_refresh,
-                                self.dt, self.strain_limit)
+                                self.dt, self.strain_limit, tolerance, self._bank.progress)
 
     def _install(self, new: ActiveSet, old: ActiveSet | None) -> None:
         """Step ``new`` from now on. With ``old``, coordinates in both sets keep their state
         and those new to the set start from rest (a dropped one has faded to zero); without,
         it starts at zero. Everything is built first and assigned last, so a failure leaves
         the run as it was."""
-        stepped = self._take_set(new.modes)
+        stepped = self._take_set(new.modes, not new.fading)
         q, v, a = (np.zeros(new.modes.size) for _ in range(3))
         if old is not None and old.modes.size:
             kept = np.isin(new.modes, old.modes)
@@ -327,7 +332,7 @@ class ModalSimulation(Simulation):
         self._v[out] *= ratio
         self._a[out] *= ratio
         if np.any(out & (progress <= 0.0)):
-            self._install(self._switched(self._set, self._set.kept, False), self._set)
+            self._install(self._set.switched(self._set.kept, False), self._set)
 
     # -- state ---------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -344,7 +349,7 @@ class ModalSimulation(Simulation):
     def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
         """Project a physical state onto the stepped modes (paper eq. 15: ``q = Phi^T M u``)."""
         m = self.model.mass_dof
-        if isinstance(self._forces, RefreshedForces):
+        if isinstance(self._forces, (RefreshedForces, SampledForces)):
             self._forces.restart()
         self._q = self._phi.T @ (m * displacement)
         self._v = self._phi.T @ (m * velocity)

@@ -10,6 +10,7 @@ from modal_spring_ros.core.frame_loads import FrameLoads
 from modal_spring_ros.core.integrators import DiagonalOperators
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.refreshed_forces import RefreshedForces
+from modal_spring_ros.core.sampled_forces import SampledForces, cached_sample
 from modal_spring_ros.core.scene import Damping
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
 
@@ -22,18 +23,24 @@ class SteppedSet:
     omega2: np.ndarray
     damping: np.ndarray
     ops: DiagonalOperators
-    forces: GeneralizedForces | RefreshedForces
+    forces: GeneralizedForces | RefreshedForces | SampledForces
     frame: FrameLoads | None   # a turning clamp's inertial loads on these coordinates
 
     @classmethod
     def build(cls, model: MassSpringModel, bank: AddedCoordinateBank, modes: np.ndarray,
-              damping: Damping, force_refresh: int, dt: float, strain_limit: float
-              ) -> "SteppedSet":
-        """The set of coordinates ``modes`` (rest or added, from ``bank``)."""
+              damping: Damping, force_refresh: int, dt: float, strain_limit: float,
+              sample_tolerance: float | None = None, progress=None) -> "SteppedSet":
+        """The set of coordinates ``modes`` (rest or added, from ``bank``); with
+        ``sample_tolerance``, the springs sampled within it (trained, or from the cache)."""
         phi, omega = bank.columns(modes)
         damp = damping.modal_coefficients(omega)
         exact = GeneralizedForces(model, phi, bank.load_mask(modes))
-        forces = (exact if force_refresh == 1 else
-                  RefreshedForces(exact, omega**2, force_refresh, dt, strain_limit))
+        if sample_tolerance is not None:
+            sample = cached_sample(exact, phi, omega**2, damp, dt, sample_tolerance, progress)
+            forces = SampledForces(exact, sample, sample_tolerance)
+        elif force_refresh == 1:
+            forces = exact
+        else:
+            forces = RefreshedForces(exact, omega**2, force_refresh, dt, strain_limit)
         return cls(phi, omega**2, damp, DiagonalOperators(1.0, damp, omega**2, dt), forces,
                    exact.frame)

@@ -1,0 +1,205 @@
+"""Generalized forces with the springs sampled (ECSW): a step whose cost does not depend on the
+number of springs.
+
+:class:`SampledForces` is called like
+:class:`~modal_spring_ros.core.forces.GeneralizedForces`: ``forces(q, t)``. The spring force is
+the weighted sum over the sampled springs (:mod:`~modal_spring_ros.core.spring_sampling`),
+still nonlinear (eq. 20 on each sampled spring); the loads stay exact. At a low rate
+(``check_every`` calls) the exact force is evaluated beside it: the relative difference is
+``sample_error`` (its largest value ``max_sample_error``), and the largest spring strain of
+that evaluation is what divergence detection sees until the next one (the sampled springs'
+strain otherwise). The sample is trained to half the tolerance; if its error on states it was
+not trained on, or at run time, passes ``tolerance``, the forces fall back to exact ones for
+good (``fell_back``), and the simulation reports it.
+
+The sample is trained per set of coordinates from snapshots of the scene's own motion
+(:func:`training_snapshots`) and cached on disk (:func:`cached_sample`), keyed by a hash of the
+scene, the coordinates and the tolerance, so a restart does not train again.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from modal_spring_ros.core.forces import GeneralizedForces
+from modal_spring_ros.core.integrators import DiagonalOperators, integrator
+from modal_spring_ros.core.spring_sampling import DEFAULT_TOLERANCE, SpringSample, train
+
+#: calls between two checks of the sampled force against the exact one
+DEFAULT_CHECK_EVERY = 200
+#: the sample is trained to this share of the tolerance, so that states it was not trained
+#: on stay within the tolerance
+TRAINING_SHARE = 0.3
+#: the exact run the snapshots are taken from: at most this long, s, and this many steps,
+#: and the snapshots taken from it
+TRAINING_RUN_S = 3.0
+TRAINING_STEPS = 6000
+RUN_SNAPSHOTS = 80
+#: random states around the run's, as a share of the snapshots, and their spread (in the
+#: run's standard deviations)
+RANDOM_SHARE = 0.5
+RANDOM_SPREAD = 1.5
+#: environment variable naming the cache folder ("" disables the cache)
+CACHE_ENV = "MODAL_SPRING_ROS_CACHE"
+
+
+def training_snapshots(exact: GeneralizedForces, omega2: np.ndarray, damping: np.ndarray,
+                       dt: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(training, held-out) snapshots of the coordinates: a short exact run from rest (the
+    scene released under its loads), alternately, and random states around it."""
+    ops = DiagonalOperators(1.0, damping, omega2, dt)
+    stepper = integrator("explicit" if dt < 2.0 / math.sqrt(max(omega2.max(), 1e-300))
+                         else "average")
+    steps = max(min(int(round(TRAINING_RUN_S / dt)), TRAINING_STEPS), RUN_SNAPSHOTS)
+    every = max(steps // RUN_SNAPSHOTS, 1)
+    q = v = np.zeros(omega2.size)
+    a = exact(q, 0.0) - damping * v
+    run = []
+    for k in range(1, steps + 1):
+        t = k * dt
+        q, v, a, _ = stepper.step(q, v, a, dt, lambda x: exact(x, t), ops)
+        if k % every == 0:
+            run.append(q.copy())
+    run = np.array(run)
+    rng = np.random.default_rng(seed)
+    spread = run.std(axis=0) + 1e-12 * np.abs(run).max()
+    random = run.mean(axis=0) + RANDOM_SPREAD * spread * rng.standard_normal(
+        (int(RANDOM_SHARE * len(run)), run.shape[1]))
+    train_part = np.concatenate([run[0::2], random[0::2]])
+    held_part = np.concatenate([run[1::2], random[1::2]])
+    return train_part, held_part
+
+
+def sample_key(exact: GeneralizedForces, phi: np.ndarray, tolerance: float) -> str:
+    """A hash of what a sample depends on: the springs, the coordinates, the tolerance."""
+    h = hashlib.sha256()
+    for array in (exact.stiffness, exact.stiffness_length, exact.rest_deltas, phi):
+        h.update(np.ascontiguousarray(array).tobytes())
+    h.update(repr(float(tolerance)).encode())
+    return h.hexdigest()[:32]
+
+
+def cache_folder() -> Path | None:
+    """Where samples are kept: ``$MODAL_SPRING_ROS_CACHE``, else the user's cache folder."""
+    value = os.environ.get(CACHE_ENV)
+    if value == "":
+        return None
+    if value:
+        return Path(value)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "modal_spring_ros" / "samples"
+
+
+def cached_sample(exact: GeneralizedForces, phi: np.ndarray, omega2: np.ndarray,
+                  damping: np.ndarray, dt: float, tolerance: float = DEFAULT_TOLERANCE,
+                  progress: Callable[[str], None] | None = None) -> SpringSample:
+    """The sample for these coordinates: from the cache, else trained (and cached)."""
+    folder = cache_folder()
+    path = folder / f"{sample_key(exact, phi, tolerance)}.npz" if folder else None
+    if path is not None and path.is_file():
+        try:
+            with np.load(path) as data:
+                return SpringSample(data["springs"], data["weights"],
+                                    float(data["training_error"]),
+                                    float(data["held_out_error"]), 0.0)
+        except (OSError, KeyError, ValueError):
+            pass  # a damaged cache entry is trained again
+    snapshots, held_out = training_snapshots(exact, omega2, damping, dt)
+    sample = train(exact, snapshots, held_out, TRAINING_SHARE * tolerance, progress)
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_suffix(".tmp.npz")
+            np.savez(tmp, springs=sample.springs, weights=sample.weights,
+                     training_error=sample.training_error,
+                     held_out_error=sample.held_out_error)
+            os.replace(tmp, path)
+        except OSError:
+            pass  # an unwritable cache only costs training again
+    return sample
+
+
+class SampledForces:
+    """``Q(q, t)`` with the springs sampled; see the module text."""
+
+    def __init__(self, exact: GeneralizedForces, sample: SpringSample,
+                 tolerance: float = DEFAULT_TOLERANCE,
+                 check_every: int = DEFAULT_CHECK_EVERY):
+        self.exact = exact
+        self.sample = sample
+        self.tolerance = tolerance
+        self.check_every = int(check_every)
+        d = exact.dimension
+        springs = sample.springs
+        self._g = exact.g_rows_of(springs).reshape(d * springs.size, -1)      # (d k, m)
+        self._gt = np.ascontiguousarray(-self._g.T)
+        rest = exact.rest_deltas.reshape(d, -1)[:, springs]
+        self._rest = rest.ravel()
+        self._k = exact.stiffness[springs]
+        self._kl = exact.stiffness_length[springs]
+        self._inv_l = self._k / self._kl
+        self._w = sample.weights
+        self._d = d
+        self.fell_back = not sample.held_out_error <= tolerance   # NaN: never checked
+        self.restart()
+
+    def restart(self) -> None:
+        self._calls = 0
+        self.sample_error = 0.0
+        self.max_sample_error = 0.0
+        self.last_max_strain = 0.0
+        self._checked_strain = 0.0
+
+    def spring_forces(self, q: np.ndarray) -> np.ndarray:
+        if self.fell_back:
+            force = self.exact.spring_forces(q)
+            self.last_max_strain = self.exact.last_max_strain
+            return force
+        self._calls += 1
+        delta = (self._g @ q + self._rest).reshape(self._d, -1)
+        length = np.sqrt(np.einsum("de,de->e", delta, delta))
+        ratio = length * self._inv_l
+        strain = max(float(ratio.max()) - 1.0, 1.0 - float(ratio.min()))
+        magnitude = self._w * (self._k - self._kl / length)
+        force = self._gt @ (delta * magnitude).ravel()
+        if self._calls % self.check_every == 1 or self.check_every == 1:
+            exact = self.exact.spring_forces(q)
+            scale = max(float(np.linalg.norm(exact)), float(np.linalg.norm(self.exact.gravity())),
+                        1e-300)
+            self.sample_error = float(np.linalg.norm(force - exact)) / scale
+            self.max_sample_error = max(self.max_sample_error, self.sample_error)
+            self._checked_strain = self.exact.last_max_strain
+            if self.sample_error > self.tolerance:
+                self.fell_back = True
+                force = exact
+        self.last_max_strain = max(strain, self._checked_strain)
+        return force
+
+    def describe(self) -> str:
+        sample = self.sample
+        if self.fell_back:
+            return (f"exact (the {sample.count}-spring sample fell back: error "
+                    f"{max(self.max_sample_error, sample.held_out_error):.2%} beyond "
+                    f"{self.tolerance:.2%})")
+        return (f"sampled: {sample.count} of {self.exact.n_springs} springs, held-out error "
+                f"{sample.held_out_error:.2%}, run-time {self.max_sample_error:.2%}")
+
+    def __call__(self, q: np.ndarray, t: float) -> np.ndarray:
+        force = self.spring_forces(q)
+        force += self.exact.loads(t)
+        return force
+
+    def loads(self, t: float) -> np.ndarray:
+        return self.exact.loads(t)
+
+    def gravity(self) -> np.ndarray:
+        return self.exact.gravity()
+
+    @property
+    def frame(self):
+        return self.exact.frame
