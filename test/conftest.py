@@ -1,12 +1,20 @@
 """Fixtures shared by the suite (helpers they use live in ``helpers.py``)."""
 from __future__ import annotations
 
+import os
+import tempfile
+
 import pytest
 from helpers import variant
 
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.scenes.resources import load_scene
+
+
+# Spring samples are cached per run of the suite, never in the user's cache folder (the
+# node's processes inherit it).
+os.environ["MODAL_SPRING_ROS_CACHE"] = tempfile.mkdtemp(prefix="modal_spring_samples_")
 
 
 @pytest.fixture(scope="session")

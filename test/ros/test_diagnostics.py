@@ -76,3 +76,26 @@ def test_large_deformation_warns_and_an_error_outranks_it():
     assert values["largest spring strain"] == "0.25000"
     entry, _ = _entry(strained, dataclasses.replace(STREAM, error="reset failed"))
     assert (entry.level, entry.message) == (ERROR, "reset failed")
+
+
+def test_sampled_springs_are_described_and_a_fallback_warns():
+    sampled = dataclasses.replace(STATUS, forces="sampled: 204 of 39402 springs, held-out "
+                                  "error 0.37%, run-time 0.21%")
+    entry, values = _entry(status=sampled)
+    assert entry.level == OK and values["spring forces"].startswith("sampled: 204 of 39402")
+    fell = dataclasses.replace(STATUS, forces="exact (the 3-spring sample fell back: error "
+                               "4.10% beyond 1.00%)", forces_fell_back=True)
+    entry, _ = _entry(status=fell)
+    assert entry.level == WARN
+    assert entry.message == ("spring sample off: exact (the 3-spring sample fell back: error "
+                             "4.10% beyond 1.00%)")
+
+
+def test_a_silent_pose_stream_warns_that_the_clamp_holds_the_last_pose():
+    stale = dataclasses.replace(STREAM, anchor="no pose for 1.3 s: holding the last",
+                                anchor_stale=True)
+    entry, values = _entry(stream=stale)
+    assert (entry.level, entry.message) == (WARN, "anchor pose: no pose for 1.3 s: holding "
+                                                  "the last")
+    assert values["anchor pose"] == "no pose for 1.3 s: holding the last"
+    assert "anchor pose" not in _entry()[1]               # the scene's own motion: not shown

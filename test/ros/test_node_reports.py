@@ -61,3 +61,18 @@ def test_node_automatic_mode_choice_is_reported():
 def _values(diags, prefix):
     status = [d.status[0] for _, d in diags if d.status[0].name.startswith(prefix)][-1]
     return {kv.key: kv.value for kv in status.values}
+
+
+def test_the_node_streams_with_sampled_springs():
+    """modal.forces sampled on sheet_32x32: the sample is trained at start (cached for the
+    suite) and reported on /diagnostics."""
+    with node_with_client("scene:=sheet_32x32", "modal.forces:=sampled", "filter.type:=lowpass",
+                          "filter.high_hz:=30.0", namespace="sampled") as (node, client):
+        points = client.collect(PointCloud2, "/sampled/points")
+        diags = client.collect(DiagnosticArray, "/diagnostics")
+        assert wait_for(lambda: len(points) > 10, 60)
+        assert wait_for(lambda: any(d.status[0].name.startswith("/sampled/")
+                                    for _, d in diags), 10)
+        assert _values(diags, "/sampled/")["spring forces"].startswith("sampled: ")
+        for _, m in points:
+            assert np.isfinite(np.frombuffer(bytes(m.data), dtype="<f4")).all()
