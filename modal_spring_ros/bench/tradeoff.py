@@ -26,10 +26,11 @@ from modal_spring_ros.bench.analysis import cheapest_reaching, pareto
 from modal_spring_ros.bench.charts import draw_all
 from modal_spring_ros.bench.failure import failure, turning_clamp
 from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.config import DEFAULT_REFRESH
+from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.mode_selection import choose_modes, choose_refresh, choose_step
 from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.simulations import (DivergenceError, FullSimulation, ModalSimulation,
                                                Simulation)
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
@@ -37,7 +38,7 @@ from modal_spring_ros.scenes.resources import load_scene
 
 SAMPLE_S = 0.01
 METHODS = ("full explicit", "full average", "modal explicit", "modal refreshed",
-           "modal average", "modal auto", "modal derivatives")
+           "modal average", "modal auto", "modal derivatives", "modal sampled")
 
 
 @dataclasses.dataclass
@@ -140,12 +141,13 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
 
     banks: dict[int, AddedCoordinateBank] = {}  # each band's derivatives, computed once
 
-    def modal(count, dt, integrator="explicit", refresh=1, basis_kind="rest"):
+    def modal(count, dt, integrator="explicit", refresh=1, basis_kind="rest", sampled=False):
         bank = banks.setdefault(count, AddedCoordinateBank(basis, DEFAULT_DIRECTIONS)) \
             if basis_kind == "derivatives" else None
         return ModalSimulation(model, basis, FilterBand("lowpass", 0, count - 1, "index"),
                                dt=dt, integrator=integrator, force_refresh=refresh,
-                               basis_kind=basis_kind, bank=bank)
+                               basis_kind=basis_kind, bank=bank,
+                               sample_tolerance=SAMPLE_TOLERANCE if sampled else None)
 
     def refresh(count, dt):
         return choose_refresh(float(basis.frequencies_hz[count - 1]), dt)
@@ -185,6 +187,9 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
             if every > 1:
                 add("modal refreshed", modal(count, SAMPLE_S / k, refresh=every), count,
                     f"springs every {every} steps")
+            if count < model.n_free_dof:   # trained once per band (cached), then reused
+                sampled = modal(count, SAMPLE_S / k, sampled=True)
+                add("modal sampled", sampled, count, sampled.describe_forces())
         if count < model.n_free_dof:   # the band's derivatives: their own stability limit
             probe = modal(count, SAMPLE_S, basis_kind="derivatives")
             n = _divisor(0.95 * probe.stability_limit())
@@ -240,9 +245,16 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
             "reference_check_rel_l2": ref_check, "configs": configs, "stability": stability}
 
 
+#: the band of the extended fig. 7
+FIG7_MODES = 32
+#: relative force error the sampled springs are trained to keep
+SAMPLE_TOLERANCE = 0.01
+
+
 def step_costs(scenes: list[str], dropped: list[int], progress) -> dict:
-    """The paper's figs. 7 and 8: time per step against particle count (full vs 2 modes) and
-    of sheet_10x10 against the number of dropped modes (medians of repeated batches)."""
+    """The paper's figs. 7 and 8, extended: time per step against particle count (full, and
+    a 32-mode band with exact, refreshed and sampled spring forces), and of sheet_10x10 against
+    the number of dropped modes (medians of repeated batches)."""
     def per_step(sim, steps):
         sim.step(steps)
         times = []
@@ -253,16 +265,24 @@ def step_costs(scenes: list[str], dropped: list[int], progress) -> dict:
         return float(np.median(times))
 
     fig7 = []
+    band = FilterBand("lowpass", 0, FIG7_MODES - 1, "index")
     for name in scenes:
         progress(f"fig. 7: {name}")
         model = MassSpringModel(load_scene(name))
-        basis = ModalBasis(model, initial_modes=2)
+        basis = ModalBasis(model, initial_modes=FIG7_MODES, progress=progress)
         steps = max(20, 4000 // max(1, model.scene.n_particles // 25))
-        full = FullSimulation(model, dt=1e-5, basis=basis)
-        fig7.append({"scene": name, "particles": model.scene.n_particles,
-                     "full": per_step(full, steps),
-                     "modal_2": per_step(ModalSimulation(
-                         model, basis, FilterBand("lowpass", 0, 1, "index"), dt=1e-5), steps)})
+        row = {"scene": name, "particles": model.scene.n_particles,
+               "springs": model.scene.n_springs,
+               "full": per_step(FullSimulation(model, dt=1e-5, basis=basis), steps)}
+        for label, options in (("modal_exact", {}),
+                               ("modal_refreshed", {"force_refresh": DEFAULT_REFRESH}),
+                               ("modal_sampled", {"sample_tolerance": 0.01})):
+            sim = ModalSimulation(model, basis, band, dt=1e-4, basis_kind="rest", **options)
+            row[label] = per_step(sim, max(steps, 200))
+            if label == "modal_sampled":
+                row["sampled_springs"] = sim._forces.sample.count
+                row["sample_seconds"] = sim._forces.sample.seconds
+        fig7.append(row)
     progress("fig. 8: sheet_10x10, dropped modes")
     model = MassSpringModel(load_scene("sheet_10x10"))
     basis = ModalBasis(model)
@@ -313,7 +333,8 @@ def run(quick: bool, progress: Callable[[str], None]) -> dict:
             targets[name] = best["seconds_per_sim_second"] if best else None
         case["cheapest_at_1pct"] = targets
     result["step_costs"] = step_costs(["sheet_10x10", "sheet_32x32"] if quick else
-                                      ["sheet_10x10", "sheet_32x32", "sheet_100x100"],
+                                      ["sheet_10x10", "sheet_32x32", "sheet_100x100",
+                                       "sheet_316x316"],
                                       list(range(0, 180, 45 if quick else 15)), progress)
     result["failure"] = failure(progress, 2.5 if quick else 6.0)
     result["turning_clamp"] = turning_clamp(progress, 3.0 if quick else 10.0)

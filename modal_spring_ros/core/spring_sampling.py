@@ -33,7 +33,7 @@ DEFAULT_TOLERANCE = 0.01
 #: (most leave again with a zero weight).
 POOL = 400
 #: Most greedy rounds.
-MAX_ROUNDS = 60
+MAX_ROUNDS = 200
 
 
 @dataclasses.dataclass(frozen=True)
