@@ -37,7 +37,7 @@ DEFAULT_CHECK_EVERY = 200
 TRAINING_SHARE = 0.3
 #: the exact run the snapshots are taken from: at most this long, s, and this many steps,
 #: and the snapshots taken from it
-TRAINING_RUN_S = 3.0
+TRAINING_RUN_S = 2.0
 TRAINING_STEPS = 6000
 RUN_SNAPSHOTS = 80
 #: random states around the run's, as a share of the snapshots, and their spread (in the
