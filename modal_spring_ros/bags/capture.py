@@ -1,12 +1,13 @@
 """Lossless capture: a simulation run written straight to a rosbag2 MCAP bag, every frame,
 without going through DDS; and the description needed to re-run it.
 
-Frames go to ``/points`` as PointCloud2 (stamped with simulation time, which is also the log
-and publish time). A ``modal_spring_ros`` metadata record holds the scene (full definition)
-and either the fixed settings (``modal_spring_sim --bag``) or the node's parameters at the
-start, with every later change on ``/parameter_events`` and every input it followed (the clamp's
-poses on ``/anchor_pose``, clicked points on ``/clicked_point``) stamped with the simulation
-time it took effect at (``modal_spring_node`` with ``record.bag``).
+Frames go to ``/points`` as PointCloud2, stamped with simulation time (also the publish
+time); a fixed run's log times are the wall time it was recorded at plus that stamp, so bag
+tools show when it was made. A ``modal_spring_ros`` metadata record holds the scene (full
+definition) and either the fixed settings (``modal_spring_sim --bag``) or the node's
+parameters at the start, with every later change on ``/parameter_events`` and every input it
+followed (the clamp's poses on ``/anchor_pose``, clicked points on ``/clicked_point``) stamped
+with the simulation time it took effect at (``modal_spring_node`` with ``record.bag``).
 """
 from __future__ import annotations
 
@@ -67,6 +68,9 @@ class RunBagWriter:
             record["config"] = config.to_dict()
         #: log messages at wall time (a node's capture) rather than at their stamp
         self.wall_log_time = parameters is not None
+        #: a fixed run is logged from the wall time it was recorded at (bag tools show its
+        #: date, not 1970), its messages spaced as their stamps (simulation time)
+        self._epoch_ns = time.time_ns()
         if parameters is not None:
             record.update(parameters=parameters, node=node, event_clock="sim")
             self.writer.add_topic("/parameter_events", "rcl_interfaces/msg/ParameterEvent",
@@ -96,7 +100,7 @@ class RunBagWriter:
 
     def _log_time(self) -> int | None:
         """Wall time for a node's capture (simulation time can go back on a reset, and MCAP
-        readers order by log time); None (= the stamp) for a fixed run."""
+        readers order by log time); None for a fixed run (its start plus the stamp)."""
         return time.time_ns() if self.wall_log_time else None
 
     def frame(self, t: float, positions: np.ndarray, log_time_ns: int | None = None) -> None:
@@ -108,7 +112,8 @@ class RunBagWriter:
                              Header(stamp=stamp, frame_id=self.frame_id))
         ns = to_nanoseconds(stamp)
         log = log_time_ns if log_time_ns is not None else self._log_time()
-        self.writer.write_message(POINTS_TOPIC, msg, ns if log is None else log, ns)
+        self.writer.write_message(POINTS_TOPIC, msg, self._epoch_ns + ns if log is None else log,
+                                  ns)
 
     def close(self) -> None:
         self.writer.close()

@@ -72,12 +72,13 @@ class SimulationConfig:
         def name(field: str) -> str:
             return names.get(field, field)
 
-        if self.method not in METHODS:
-            raise ConfigError(f"{name('method')} '{self.method}' must be one of "
-                              f"{', '.join(METHODS)}")
-        if self.integrator not in INTEGRATORS:
-            raise ConfigError(f"{name('integrator')} '{self.integrator}' must be one of "
-                              f"{', '.join(INTEGRATORS)}")
+        for field, choices in (("method", METHODS), ("integrator", INTEGRATORS),
+                               ("basis", BASES), ("forces", FORCES),
+                               ("anchor", ANCHOR_SOURCES)):
+            value = getattr(self, field)
+            if value not in choices:
+                raise ConfigError(f"{name(field)} '{value}' must be one of "
+                                  f"{', '.join(choices)}")
         if self.dt is not None and not (math.isfinite(self.dt) and self.dt >= MIN_DT_S):
             raise ConfigError(f"{name('dt')} ({self.dt}) must be a finite number of seconds, "
                               f"at least {MIN_DT_S:g} s (a smaller step does not advance "
@@ -91,17 +92,9 @@ class SimulationConfig:
             raise ConfigError(f"{name('strain_limit')} ({self.strain_limit}) must be positive")
         if not 0.0 < self.tolerance < 1.0:
             raise ConfigError(f"{name('tolerance')} ({self.tolerance}) must be between 0 and 1")
-        if self.basis not in BASES:
-            raise ConfigError(f"{name('basis')} '{self.basis}' must be one of {', '.join(BASES)}")
         if not MIN_DIRECTIONS <= self.derivative_directions <= MAX_DIRECTIONS:
             raise ConfigError(f"{name('derivative_directions')} ({self.derivative_directions}) "
                               f"must be from {MIN_DIRECTIONS} to {MAX_DIRECTIONS}")
-        if self.forces not in FORCES:
-            raise ConfigError(f"{name('forces')} '{self.forces}' must be one of "
-                              f"{', '.join(FORCES)}")
-        if self.anchor not in ANCHOR_SOURCES:
-            raise ConfigError(f"{name('anchor')} '{self.anchor}' must be one of "
-                              f"{', '.join(ANCHOR_SOURCES)}")
         if not (math.isfinite(self.follow_hz) and 0.0 < self.follow_hz <= MAX_FOLLOW_HZ):
             raise ConfigError(f"{name('follow_hz')} ({self.follow_hz}) must be a number of Hz "
                               f"above 0 and at most {MAX_FOLLOW_HZ:g}")

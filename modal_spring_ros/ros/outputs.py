@@ -14,6 +14,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point
 from rclpy.node import Node
+from rclpy.qos_overriding_options import QoSOverridingOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import ColorRGBA, Header
@@ -60,8 +61,14 @@ class NodeOutputs:
         self._triangles = scene.surface_triangles()
         self._values = values
         self._bag = bag
-        self._points = node.create_publisher(PointCloud2, POINTS_TOPIC, QUEUE_DEPTH)
-        self._mesh = node.create_publisher(Marker, MESH_TOPIC, QUEUE_DEPTH)
+        # the stream's QoS can be overridden at start, as rclpy nodes commonly allow:
+        # -p qos_overrides./<namespace>/points.publisher.reliability:=best_effort (also
+        # history, depth, durability)
+        overrides = QoSOverridingOptions.with_default_policies()
+        self._points = node.create_publisher(PointCloud2, POINTS_TOPIC, QUEUE_DEPTH,
+                                             qos_overriding_options=overrides)
+        self._mesh = node.create_publisher(Marker, MESH_TOPIC, QUEUE_DEPTH,
+                                           qos_overriding_options=overrides)
         self._diagnostics = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC,
                                                   QUEUE_DEPTH)
         self._clock = None  # /clock only when publish_clock asks for it

@@ -376,3 +376,16 @@ def test_a_cloud_with_non_finite_values_is_named(tmp_path):
         reader.points("/points")
     with pytest.raises(BagError, match="log time 2 ns is damaged"):
         reader.check()
+
+
+def test_reference_bags_start_at_the_date_they_were_made_and_keep_simulation_stamps():
+    """Bag tools show a bag's start from its log times: not 1970. The stamps stay simulation
+    time (0 to 3 s), spaced as the log times."""
+    bag = BagReader(BAGS / "sheet_10x10_lowpass_0_14")
+    info = yaml.safe_load((bag.path / "metadata.yaml").read_text())[
+        "rosbag2_bagfile_information"]
+    assert info["starting_time"]["nanoseconds_since_epoch"] > 1_700_000_000 * 10**9  # 2023 on
+    logs = np.array([m.log_time_ns for m in bag.messages(["/points"])])
+    stamps, _ = bag.points()
+    assert stamps[0] < 0.1 and abs(stamps[-1] - 3.0) < 0.1
+    np.testing.assert_allclose(np.diff(logs) * 1e-9, np.diff(stamps), atol=1e-9)

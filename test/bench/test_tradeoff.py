@@ -41,7 +41,7 @@ def test_quick_bench_writes_every_output(quick_bench):
     rows = case["configs"]
     assert {r["method"] for r in rows} == {"full explicit", "full average", "modal explicit",
                                            "modal refreshed", "modal average", "modal auto",
-                                           "modal derivatives"}
+                                           "modal derivatives", "modal sampled"}
     assert len((out / "tradeoff.csv").read_text().splitlines()) == len(rows) + 1
     assert all(r["seconds_per_sim_second"] > 0 for r in rows if not r["diverged"])
     assert case["pareto"]

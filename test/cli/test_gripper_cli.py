@@ -22,7 +22,9 @@ def test_the_gripper_starts_a_node_that_follows_it():
                              "__ns:=/grip"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     try:
-        assert wait_for(lambda: len(points) > 10, 30)
+        if not wait_for(lambda: len(points) > 10, 60):
+            proc.kill()
+            raise AssertionError(f"no stream from the node: {proc.communicate()[1][-3000:]}")
         rest = xyz(points[0][1])[fixed]
         # the clamp circles 0.1 m and turns +-30 degrees: its row leaves its rest place
         assert wait_for(lambda: np.abs(xyz(points[-1][1])[fixed] - rest).max() > 0.02, 15)

@@ -131,6 +131,10 @@ def test_preparing_switches_from_another_thread_while_stepping_and_fading(sheet)
     (dict(tolerance=1.5), "tolerance (1.5) must be between 0 and 1"),
     (dict(force_refresh=-2), "force_refresh (-2) must be at least 1 step"),
     (dict(auto=True, method="full"), "auto chooses modes: it needs method modal"),
+    (dict(forces="fast"), "forces 'fast' must be one of exact, refreshed, sampled"),
+    (dict(anchor="joystick"), "anchor 'joystick' must be one of scene, topic"),
+    (dict(follow_hz=0.0), "follow_hz (0.0) must be a number of Hz above 0 and at most 100"),
+    (dict(follow_hz=float("inf")), "follow_hz (inf) must be a number of Hz"),
 ])
 def test_the_configuration_names_what_is_wrong(changes, message):
     with pytest.raises(ConfigError) as info:

@@ -346,7 +346,7 @@ def test_the_launch_file_starts_the_node_with_its_arguments(colcon_install, tmp_
         status = ours()[-1]
         values = {kv.key: kv.value for kv in status.values}
         assert status.hardware_id == "cantilever_3d"             # the launch argument
-        assert values["band"] == "lowpass <= 45 Hz"              # the parameter file
+        assert values["band"] == "allpass"          # the parameter file: the node's defaults
         assert clouds[-1][1].width == load_scene("cantilever_3d").n_particles
 
 
@@ -383,3 +383,12 @@ def test_the_rviz_view_shows_what_the_node_publishes():
     assert view["Global Options"]["Fixed Frame"] == PARAMETERS["frame_id"][0]
     params = yaml.safe_load((REPO / "config" / "modal_spring.yaml").read_text())
     assert list(params) == [f"/**/{NODE_NAME}"]              # the launch file's node name
+
+
+def test_the_shipped_parameter_file_holds_the_node_s_own_defaults():
+    """One source of defaults: config/modal_spring.yaml is every parameter at the value the
+    node declares, so a user reading it, or launching with it, sees what the node does."""
+    from modal_spring_ros.ros.parameters import PARAMETERS
+    params = yaml.safe_load((REPO / "config" / "modal_spring.yaml").read_text())
+    values = params["/**/modal_spring"]["ros__parameters"]
+    assert values == {name: default for name, (default, _) in PARAMETERS.items()}

@@ -75,10 +75,13 @@ def test_stress_band_changes_every_50ms_keep_the_stream_whole():
         assert code == 0 and "Traceback" not in err
 
 
-def test_params_file_is_accepted_as_ros2_run_would_pass_it():
-
+def test_params_file_is_accepted_as_ros2_run_would_pass_it(tmp_path):
+    """The shipped file (the node's defaults) with one value edited, as a user would."""
     from diagnostic_msgs.msg import DiagnosticArray as Diag
-    params = REPO / "config" / "modal_spring.yaml"
+    text = (REPO / "config" / "modal_spring.yaml").read_text()
+    params = tmp_path / "mine.yaml"
+    params.write_text(text.replace('filter.type: "allpass"', 'filter.type: "lowpass"')
+                      .replace("filter.high_hz: 1000.0", "filter.high_hz: 45.0"))
     import subprocess
 
     from ros_harness import console_script
@@ -254,3 +257,13 @@ def test_no_clock_unless_asked_and_one_line_once_streaming():
     assert len(lines) == 1, err[-2000:]
     assert ("streaming sheet_10x10 (100 particles; modal, allpass) on /quiet/points at 60 Hz, "
             "frame 'world'") in lines[0]
+
+
+def test_the_stream_s_qos_can_be_overridden_at_start():
+    from rclpy.qos import ReliabilityPolicy
+    from ros_harness import node_with_client
+    with node_with_client("qos_overrides./qos/points.publisher.reliability:=best_effort",
+                          namespace="qos") as (node, client):
+        assert wait_for(lambda: client.node.get_publishers_info_by_topic("/qos/points"), 30)
+        (info,) = client.node.get_publishers_info_by_topic("/qos/points")
+        assert info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
