@@ -96,6 +96,16 @@ class ClampFollower:
         self.revision = 0
         self.restart()
 
+    def __getstate__(self) -> dict:
+        """Picklable (a large scene's model goes to the worker process): without the lock."""
+        state = dict(self.__dict__)
+        del state["_lock"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
     @property
     def frequencies_hz(self) -> np.ndarray:
         """The motion's content: from 0 up to the filter's bandwidth."""

@@ -56,6 +56,20 @@ def _norms(delta: np.ndarray) -> np.ndarray:
     return np.sqrt(length, out=length)
 
 
+def pull_springs(delta: np.ndarray, stiffness: np.ndarray, stiffness_length: np.ndarray,
+                 inv_rest: np.ndarray) -> float:
+    """Turn the (d, E) spring vectors ``delta`` into the springs' force vectors in place (eq.
+    20: each pulls with ``k (L - l) / L (x_j - x_i) = (k - k l / L) delta``) and return the
+    largest strain ``|L / l - 1|`` (through the largest and smallest ``L / l``)."""
+    length = _norms(delta)
+    ratio = length * inv_rest
+    strain = max(float(np.maximum.reduce(ratio)) - 1.0, 1.0 - float(np.minimum.reduce(ratio)))
+    np.divide(stiffness_length, length, out=length)
+    np.subtract(stiffness, length, out=length)
+    delta *= length
+    return strain
+
+
 class GeneralizedForces:
     """``Q(q, t)``: total force on the free DOF projected on ``Phi`` (identity when None).
 
@@ -120,23 +134,19 @@ class GeneralizedForces:
         return f
 
     def spring_forces(self, q: np.ndarray) -> np.ndarray:
-        """Generalized nonlinear spring force ``-G^T f_spring`` (sets ``last_max_strain``).
-
-        Each spring pulls with ``k (L - l) / L (x_j - x_i) = (k - k l / L) delta``; the strain
-        ``|L / l - 1|`` is watched through the largest and smallest ``L / l``.
-        """
-        delta = self.spring_deltas(q)
-        length = _norms(delta)
-        ratio = length * self._inv_l
-        self.last_max_strain = max(float(np.maximum.reduce(ratio)) - 1.0,
-                                   1.0 - float(np.minimum.reduce(ratio)))
-        np.divide(self._kl, length, out=length)
-        np.subtract(self._k, length, out=length)
-        delta *= length
+        """Generalized nonlinear spring force ``-G^T f_spring`` (sets ``last_max_strain``;
+        see :func:`pull_springs`)."""
+        delta = self.spring_force_vectors(q)
         f = self._gt @ delta.ravel()
         if self._phi is not None:
             f = self._phit @ f
         return f
+
+    def spring_force_vectors(self, q: np.ndarray) -> np.ndarray:
+        """(d, E) force vectors of the springs at ``q`` (sets ``last_max_strain``)."""
+        delta = self.spring_deltas(q)
+        self.last_max_strain = pull_springs(delta, self._k, self._kl, self._inv_l)
+        return delta
 
     def loads(self, t: float) -> np.ndarray:
         """Generalized gravity and base-excitation load at time ``t`` (linear, exact); with a

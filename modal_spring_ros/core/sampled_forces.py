@@ -26,7 +26,7 @@ from typing import Callable
 
 import numpy as np
 
-from modal_spring_ros.core.forces import GeneralizedForces
+from modal_spring_ros.core.forces import GeneralizedForces, pull_springs
 from modal_spring_ros.core.integrators import DiagonalOperators, integrator
 from modal_spring_ros.core.spring_sampling import DEFAULT_TOLERANCE, SpringSample, train
 
@@ -142,7 +142,7 @@ class SampledForces:
         self._rest = rest.ravel()
         self._k = exact.stiffness[springs]
         self._kl = exact.stiffness_length[springs]
-        self._inv_l = self._k / self._kl
+        self._inv_l = self._k / self._kl                                   # 1 / l
         self._w = sample.weights
         self._d = d
         self.fell_back = not sample.held_out_error <= tolerance   # NaN: never checked
@@ -162,11 +162,9 @@ class SampledForces:
             return force
         self._calls += 1
         delta = (self._g @ q + self._rest).reshape(self._d, -1)
-        length = np.sqrt(np.einsum("de,de->e", delta, delta))
-        ratio = length * self._inv_l
-        strain = max(float(ratio.max()) - 1.0, 1.0 - float(ratio.min()))
-        magnitude = self._w * (self._k - self._kl / length)
-        force = self._gt @ (delta * magnitude).ravel()
+        strain = pull_springs(delta, self._k, self._kl, self._inv_l)
+        delta *= self._w
+        force = self._gt @ delta.ravel()
         if self._calls % self.check_every == 1 or self.check_every == 1:
             exact = self.exact.spring_forces(q)
             scale = max(float(np.linalg.norm(exact)), float(np.linalg.norm(self.exact.gravity())),

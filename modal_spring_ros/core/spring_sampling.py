@@ -51,13 +51,6 @@ class SpringSample:
         return int(self.springs.size)
 
 
-def _per_spring_forces(forces, q: np.ndarray) -> np.ndarray:
-    """(d, E) spring force vectors ``k (1 - l/L) delta`` at ``q``."""
-    delta = forces.spring_deltas(q)
-    length = np.sqrt(np.einsum("de,de->e", delta, delta))
-    return delta * (forces.stiffness - forces.stiffness_length / length)
-
-
 def _g_times(forces, r: np.ndarray) -> np.ndarray:
     """``G r`` for columns ``r`` (m, S), as (S, d, E)."""
     return forces.g_product(r).T.reshape(-1, forces.dimension, forces.n_springs)
@@ -75,7 +68,7 @@ def relative_error(forces, sample: SpringSample, snapshots: np.ndarray) -> float
     worst = 0.0
     for q in snapshots:
         exact = forces.spring_forces(q)
-        per_spring = _per_spring_forces(forces, q)[None]
+        per_spring = forces.spring_force_vectors(q)[None]
         sampled = _columns(forces, per_spring, sample.springs) @ sample.weights
         worst = max(worst, float(np.linalg.norm(sampled - exact))
                     / max(float(np.linalg.norm(exact)), 1e-300))
@@ -89,7 +82,7 @@ def train(forces, snapshots: np.ndarray, held_out: np.ndarray,
     :class:`~modal_spring_ros.core.forces.GeneralizedForces`) on ``snapshots`` (S, m) within
     ``tolerance`` (relative, each snapshot), checked on ``held_out``."""
     start = time.perf_counter()
-    per_spring = np.stack([_per_spring_forces(forces, q) for q in snapshots])   # (S, d, E)
+    per_spring = np.stack([forces.spring_force_vectors(q) for q in snapshots])   # (S, d, E)
     totals = np.stack([forces.spring_forces(q) for q in snapshots])             # (S, m)
     scale = 1.0 / np.maximum(np.linalg.norm(totals, axis=1), 1e-300)            # per snapshot
     b = (totals * scale[:, None]).ravel()

@@ -1,6 +1,8 @@
 """modal_spring_gripper: one command starts a node and carries its clamp around (over DDS)."""
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 
 import numpy as np
@@ -15,23 +17,23 @@ from modal_spring_ros.scenes.resources import load_scene
 @pytest.mark.ros
 def test_the_gripper_starts_a_node_that_follows_it():
     fixed = np.flatnonzero(load_scene("sheet_10x10").fixed)
-    client = Client("gripper_client")
-    points = client.collect(PointCloud2, "/grip/points", qos=500)
     proc = subprocess.Popen([console_script("modal_spring_gripper"), "--start-node",
-                             "--duration", "8", "--ramp-s", "0.5", "--ros-args", "-r",
+                             "--duration", "10", "--ramp-s", "0.5", "--ros-args", "-r",
                              "__ns:=/grip"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, start_new_session=True)   # its node in its group
+    client = Client("gripper_client")        # after the processes, as the node tests do
+    points = client.collect(PointCloud2, "/grip/points", qos=500)
     try:
         if not wait_for(lambda: len(points) > 10, 60):
-            proc.kill()
+            os.killpg(proc.pid, signal.SIGKILL)
             raise AssertionError(f"no stream from the node: {proc.communicate()[1][-3000:]}")
-        rest = xyz(points[0][1])[fixed]
+        rest = load_scene("sheet_10x10").rest_positions[fixed]
         # the clamp circles 0.1 m and turns +-30 degrees: its row leaves its rest place
         assert wait_for(lambda: np.abs(xyz(points[-1][1])[fixed] - rest).max() > 0.02, 15)
         out, err = proc.communicate(timeout=40)
     finally:
         if proc.poll() is None:
-            proc.kill()
+            os.killpg(proc.pid, signal.SIGKILL)             # the gripper and its node
         client.close()
     assert proc.returncode == 0, err[-2000:]
     assert "Traceback" not in err

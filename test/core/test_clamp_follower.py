@@ -1,0 +1,79 @@
+"""The clamp that follows poses: a critically damped filter in closed form."""
+from __future__ import annotations
+
+import math
+import pickle
+
+import numpy as np
+
+from modal_spring_ros.core.clamp_follower import ClampFollower
+
+Q0 = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+def turn_z(angle: float) -> np.ndarray:
+    return np.array([0.0, 0.0, math.sin(angle / 2), math.cos(angle / 2)])
+
+
+def test_a_step_in_the_pose_is_followed_critically_damped():
+    follower = ClampFollower(2.0, (0, 1))
+    w = 2 * math.pi * 2.0
+    follower.follow(0.0, [0.4, 0.0, 0.0], Q0)                  # the reference
+    follower.follow(1.0, [0.5, 0.0, 0.0], turn_z(0.3))          # 0.1 m and 0.3 rad at t = 1
+    for tau in (0.0, 0.05, 0.2, 1.0):
+        frame = follower.frame(1.0 + tau)
+        share = 1.0 - (1.0 + w * tau) * math.exp(-w * tau)       # x(t) / T from rest
+        angle = math.atan2(frame.rotation[1, 0], frame.rotation[0, 0])
+        assert abs(angle - 0.3 * share) < 1e-12
+        # the first pose's position is carried by the turn and the shift
+        np.testing.assert_allclose(frame.carry(np.array([[0.4, 0.0, 0.0]]))[0],
+                                   [0.4 + 0.1 * share, 0.0, 0.0], atol=1e-12)
+    # bounded acceleration, at most omega^2 times the jump (at the jump): of the first pose's
+    # point, and of the turn
+    frame = follower.frame(1.0)
+    point = frame.rotation_acceleration @ np.array([0.4, 0.0, 0.0]) + frame.acceleration
+    assert np.linalg.norm(point) <= w * w * 0.1 * (1 + 1e-6)
+    assert abs(frame.rotation_acceleration[1, 0]) <= w * w * 0.3 * (1 + 1e-6)
+
+
+def test_a_new_pose_changes_nothing_at_the_instant_it_comes():
+    follower = ClampFollower(5.0, (0, 1, 2))
+    follower.follow(0.0, [0.0, 0.0, 0.0], Q0)
+    follower.follow(0.2, [0.1, 0.05, 0.0], turn_z(0.5))
+    before = follower.frame(0.37)
+    follower.follow(0.37, [-0.1, 0.0, 0.02], turn_z(-0.2))
+    after = follower.frame(0.37)
+    for name in ("rotation", "translation"):
+        np.testing.assert_allclose(getattr(after, name), getattr(before, name), atol=1e-12)
+    for name in ("rotation_rate", "velocity"):    # rates of the turn by central differences
+        np.testing.assert_allclose(getattr(after, name), getattr(before, name), atol=1e-4)
+    h = 1e-5                                     # the rates are the derivatives of the motion
+    for t in (0.4, 0.6):
+        d = (follower.frame(t + h).rotation - follower.frame(t - h).rotation) / (2 * h)
+        np.testing.assert_allclose(d, follower.frame(t).rotation_rate, atol=1e-6)
+        d = (follower.frame(t + h).velocity - follower.frame(t - h).velocity) / (2 * h)
+        np.testing.assert_allclose(d, follower.frame(t).acceleration, atol=1e-4)
+
+
+def test_bad_poses_are_named_and_a_2d_scene_follows_only_its_plane():
+    follower = ClampFollower(5.0, (0, 1))
+    follower.follow(0.0, [0.0, 0.0, 0.0], Q0)
+    assert follower.check([math.nan, 0, 0], Q0, 1.0) == "non-finite position or orientation"
+    assert follower.check([0, 0, 0], 2 * Q0, 1.0).startswith("orientation is not a unit "
+                                                             "quaternion (norm 2")
+    assert follower.check([3.0, 0, 0], Q0, 1.0).startswith("position jumps 3 m")
+    assert follower.check([0.5, 0, 0], Q0, 1.0) is None
+    tilt = np.array([math.sin(0.2), 0.0, 0.0, math.cos(0.2)])   # about x: out of the plane
+    follower.follow(0.0, [0.0, 0.0, 0.3], tilt)
+    frame = follower.frame(10.0)
+    np.testing.assert_allclose(frame.rotation, np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(frame.translation, 0.0, atol=1e-12)
+
+
+def test_a_follower_goes_to_the_worker_process_and_comes_back_the_same():
+    follower = ClampFollower(5.0, (0, 1))
+    follower.follow(0.0, [0.45, 0.0, 0.0], Q0)
+    follower.follow(0.1, [0.5, 0.0, 0.0], turn_z(0.4))
+    again = pickle.loads(pickle.dumps(follower))
+    np.testing.assert_array_equal(again.frame(0.3).rotation, follower.frame(0.3).rotation)
+    again.follow(0.3, [0.5, 0.0, 0.0], Q0)                     # its lock works
