@@ -249,6 +249,18 @@ class Simulation(abc.ABC):
     def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
         """Start from a free-DOF displacement and velocity (relative to the base)."""
 
+    def _at_rest(self) -> None:
+        """Back to rest at t = 0: no pull, and a clamp with a state of its own restarted (not
+        on construction: a simulation rebuilt for other settings takes the clamp over)."""
+        if self.time or self.steps:
+            self.model.restart_clamp()
+        self.time = self._t0 = 0.0
+        self.steps = 0
+        self.diverged = None
+        self.pull = None
+        n = self.model.n_free_dof
+        self.set_state(np.zeros(n), np.zeros(n))
+
     def positions(self) -> np.ndarray:
         """(n, 3) particle positions (scene order)."""
         x = self.model.positions(self.displacement(), self.time)

@@ -154,14 +154,7 @@ class FullSimulation(Simulation):
         return stable_step_limit(self.basis.omega_max_estimate())
 
     def reset(self) -> None:
-        if self.time or self.steps:  # not on construction: a rebuild takes the clamp over
-            self.model.restart_clamp()
-        self.time = self._t0 = 0.0
-        self.steps = 0
-        self.diverged = None
-        self.pull = None
-        n = self.model.n_free_dof
-        self.set_state(np.zeros(n), np.zeros(n))
+        self._at_rest()
 
     def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
         u = np.array(displacement, dtype=float)

@@ -59,7 +59,9 @@ class ModalSimulation(Simulation):
     steps cost nothing per spring. ``highest_hz``: modes above it are never stepped (set by the
     automatic mode choice ``mode_choice``). ``basis_kind``: ``rest`` (the paper's rest modes)
     or ``derivatives`` (each band also steps ``derivative_directions`` modal-derivative
-    directions and the static load vectors; see the module text).
+    directions and the static load vectors; see the module text). ``sample_tolerance``: the
+    springs of a settled band are sampled within it
+    (:mod:`modal_spring_ros.core.sampled_forces`).
     """
 
     method = "modal"
@@ -338,13 +340,7 @@ class ModalSimulation(Simulation):
     def reset(self) -> None:
         if self._set.fading:  # settle the band: every kept mode fully in, none fading out
             self._install(ActiveSet.settled(self._set.kept), None)
-        if self.time or self.steps:  # not on construction: a rebuild takes the clamp over
-            self.model.restart_clamp()
-        self.time = self._t0 = 0.0
-        self.steps = 0
-        self.diverged = None
-        self.pull = None
-        self.set_state(np.zeros(self.model.n_free_dof), np.zeros(self.model.n_free_dof))
+        self._at_rest()
 
     def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
         """Project a physical state onto the stepped modes (paper eq. 15: ``q = Phi^T M u``)."""
