@@ -31,7 +31,6 @@ class FrameLoads:
     def __init__(self, model, phi: np.ndarray):
         d = model.dimension
         self.model = model
-        self.dimension = d
         mass = model.scene.mass[model.free_particles]                 # (p,)
         rows = [phi[a::d] for a in range(d)]                          # (p, m) per axis
         m = phi.shape[1]

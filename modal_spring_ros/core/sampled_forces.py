@@ -197,7 +197,3 @@ class SampledForces:
 
     def gravity(self) -> np.ndarray:
         return self.exact.gravity()
-
-    @property
-    def frame(self):
-        return self.exact.frame
