@@ -115,13 +115,15 @@ def test_mesh_and_clock_are_published_when_asked_for():
         points = client.collect(PointCloud2, "/extras/points")
         meshes = client.collect(Marker, "/extras/mesh")
         clocks = client.collect(Clock, "/clock")
-        assert wait_for(lambda: len(meshes) >= 3 and len(clocks) > 10, 30)
+        assert wait_for(lambda: len(meshes) >= 6 and len(clocks) > 10, 30)
         marker = meshes[-1][1]
         assert marker.type == Marker.TRIANGLE_LIST and marker.header.frame_id == "world"
         assert len(marker.points) == 3 * 2 * 81 == len(marker.colors)   # 2 per cell
         assert all(0.0 <= c.r <= 1.0 and c.a == 1.0 for c in marker.colors)
-        t0, t1 = meshes[0][0], meshes[-1][0]
-        assert 0.5 * 5 <= (len(meshes) - 1) / (t1 - t0) <= 1.5 * 5
+        # about every 0.2 s of a real-time run: judged by the markers' own stamps (receive
+        # times bunch up when DDS delivers what it queued while the subscriber was matching)
+        stamps_s = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for _, m in meshes]
+        assert 0.1 <= float(np.median(np.diff(stamps_s))) <= 0.4
         # /clock carries the simulation time of the frames
         stamps = {(m.header.stamp.sec, m.header.stamp.nanosec) for _, m in points}
         assert sum((c.clock.sec, c.clock.nanosec) in stamps for _, c in clocks) > 5
