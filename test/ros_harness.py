@@ -5,11 +5,10 @@ import contextlib
 import os
 import signal
 import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
 
+from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -17,46 +16,51 @@ from rclpy.parameter import Parameter
 
 # One DDS domain per test session, loopback discovery only: parallel sessions stay apart.
 DOMAIN_ID = 20 + os.getpid() % 70
-os.environ["ROS_DOMAIN_ID"] = str(DOMAIN_ID)
-os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ['ROS_DOMAIN_ID'] = str(DOMAIN_ID)
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+
+
+def node_of(status) -> str:
+    """Return the fully qualified name of the node a ``DiagnosticStatus`` is about."""
+    return next((kv.value for kv in status.values if kv.key == 'node'), '')
 
 
 def console_script(name: str) -> str:
-    """The installed console script next to this interpreter (how a user starts it)."""
-    path = Path(sys.executable).parent / name
-    if not path.exists():
-        raise RuntimeError(f"{name} is not installed next to {sys.executable}")
-    return str(path)
+    """Return the installed console script, found as ``ros2 run`` would (or in the venv)."""
+    return str(executable(name))
 
 
 class NodeProcess:
     """``modal_spring_node`` with ``--ros-args -p`` overrides, in its own process group."""
 
-    def __init__(self, *params: str, namespace: str = "",
-                 executable: str = "modal_spring_node", argv: list[str] | None = None):
-        """``argv``, when given, is the whole command line (``params`` and ``namespace``
-        unused)."""
+    def __init__(self, *params: str, namespace: str = '',
+                 executable: str = 'modal_spring_node', argv: list[str] | None = None):
+        """Start the node; ``argv``, when given, is the whole command line (no other options)."""
         args = argv
         if args is None:
             args = [console_script(executable)]
-            ros_args = [x for p in params for x in ("-p", p)]
+            ros_args = [x for p in params for x in ('-p', p)]
             if namespace:
-                ros_args += ["-r", f"__ns:=/{namespace}"]
+                ros_args += ['-r', f'__ns:=/{namespace}']
             if ros_args:
-                args += ["--ros-args"] + ros_args
+                args += ['--ros-args'] + ros_args
         self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, env=dict(os.environ), start_new_session=True)
 
     def interrupt(self, timeout: float = 15.0) -> tuple[int, str, str]:
-        """SIGINT, as Ctrl-C would; a node still running after ``timeout`` is killed and the
-        test fails with what it printed (never left running into the next test)."""
+        """
+        SIGINT, as Ctrl-C would.
+
+        A node still running after ``timeout`` is killed and the test fails with what it printed
+        (never left running into the next test).
+        """
         self.proc.send_signal(signal.SIGINT)
         try:
             out, err = self.proc.communicate(timeout=timeout)
         except subprocess.TimeoutExpired:
             out, err = self.kill()
-            raise AssertionError(f"node still running {timeout} s after SIGINT; "
-                                 f"stderr: {err[-2000:]}") from None
+            raise AssertionError(f'node still running {timeout} s after SIGINT; '
+                                 f'stderr: {err[-2000:]}') from None
         return self.proc.returncode, out, err
 
     def kill(self) -> tuple[str, str]:
@@ -67,11 +71,12 @@ class NodeProcess:
         try:
             return self.proc.communicate(timeout=10.0)
         except (subprocess.TimeoutExpired, ValueError):  # ValueError: pipes already read
-            return "", ""
+            return '', ''
 
 
 class Client:
-    """A test node in its own context, spun by a background thread.
+    """
+    A test node in its own context, spun by a background thread.
 
     The thread spins in short slices and is joined before anything is destroyed:
     ``Executor.shutdown`` does not wait for a ``spin`` running in another thread, and cleaning
@@ -81,7 +86,7 @@ class Client:
 
     SLICE_S = 0.05
 
-    def __init__(self, name: str = "test_client"):
+    def __init__(self, name: str = 'test_client'):
         self.context = Context()
         rclpy.init(context=self.context, domain_id=DOMAIN_ID)
         self.node = rclpy.create_node(name, context=self.context)
@@ -91,7 +96,7 @@ class Client:
         self._clients: dict = {}
         self._clients_lock = threading.Lock()
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._spin, name=f"{name}_spin", daemon=True)
+        self._thread = threading.Thread(target=self._spin, name=f'{name}_spin', daemon=True)
         self._thread.start()
 
     def _spin(self) -> None:
@@ -109,42 +114,45 @@ class Client:
         return received
 
     def call(self, srv_type, name: str, request, timeout: float = 20.0):
-        """Call a service and wait for its answer. One client per service, kept: a client
-        created per call can send its request before the server has matched its response
-        reader, and DDS then drops the answer."""
+        """
+        Call a service and wait for its answer.
+
+        One client per service, kept: a client created per call can send its request before the
+        server has matched its response reader, and DDS then drops the answer.
+        """
         with self._clients_lock:
             client = self._clients.get((srv_type, name))
             if client is None:
                 client = self.node.create_client(srv_type, name)
                 if not client.wait_for_service(timeout_sec=timeout):
-                    raise TimeoutError(f"service {name} not available")
+                    raise TimeoutError(f'service {name} not available')
                 self._clients[(srv_type, name)] = client
         future = client.call_async(request)
         end = time.monotonic() + timeout
         while not future.done() and time.monotonic() < end:
             time.sleep(0.01)
         if not future.done():
-            raise TimeoutError(f"service {name} did not answer")
+            raise TimeoutError(f'service {name} did not answer')
         return future.result()
 
     def set_parameters(self, node: str, atomically: bool = False, timeout: float = 20.0,
                        **values):
         from rcl_interfaces.srv import SetParameters, SetParametersAtomically
-        params = [Parameter(k.replace("__", "."), value=v).to_parameter_msg()
+        params = [Parameter(k.replace('__', '.'), value=v).to_parameter_msg()
                   for k, v in values.items()]
         if atomically:
             req = SetParametersAtomically.Request(parameters=params)
-            return [self.call(SetParametersAtomically, f"/{node}/set_parameters_atomically",
+            return [self.call(SetParametersAtomically, f'/{node}/set_parameters_atomically',
                               req, timeout).result]
-        return self.call(SetParameters, f"/{node}/set_parameters",
+        return self.call(SetParameters, f'/{node}/set_parameters',
                          SetParameters.Request(parameters=params), timeout).results
 
     def get_parameters(self, node: str, *names: str) -> list:
         from rcl_interfaces.srv import GetParameters
-        res = self.call(GetParameters, f"/{node}/get_parameters",
+        res = self.call(GetParameters, f'/{node}/get_parameters',
                         GetParameters.Request(names=list(names)))
         return [Parameter.from_parameter_msg(
-            __import__("rcl_interfaces.msg", fromlist=["Parameter"]).Parameter(
+            __import__('rcl_interfaces.msg', fromlist=['Parameter']).Parameter(
                 name=n, value=v)).value for n, v in zip(names, res.values)]
 
     def close(self) -> None:
@@ -171,11 +179,14 @@ def wait_for(predicate, timeout: float, interval: float = 0.02) -> bool:
 
 @contextlib.contextmanager
 def node_with_client(*params: str, namespace: str, argv: list[str] | None = None):
-    """A node in ``namespace`` (or started by the command line ``argv``) and a client; the
-    node must end cleanly on SIGINT afterwards. Whatever fails, neither outlives the test."""
+    """
+    Return a node in ``namespace`` (or started by the command line ``argv``) and a client.
+
+    The node must end cleanly on SIGINT afterwards. Whatever fails, neither outlives the test.
+    """
     node = NodeProcess(*params, namespace=namespace, argv=argv)
     try:
-        client = Client(f"{namespace}_client")
+        client = Client(f'{namespace}_client')
         try:
             yield node, client
         finally:
@@ -184,4 +195,4 @@ def node_with_client(*params: str, namespace: str, argv: list[str] | None = None
         node.kill()
         raise
     code, _, err = node.interrupt()
-    assert code == 0 and "Traceback" not in err, err[-2000:]
+    assert code == 0 and 'Traceback' not in err, err[-2000:]

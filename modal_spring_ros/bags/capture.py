@@ -1,5 +1,8 @@
-"""Lossless capture: a simulation run written straight to a rosbag2 MCAP bag, every frame,
-without going through DDS; and the description needed to re-run it.
+"""
+Lossless capture.
+
+A simulation run written straight to a rosbag2 MCAP bag, every frame, without going through DDS;
+and the description needed to re-run it.
 
 Frames go to ``/points`` as PointCloud2, stamped with simulation time (also the publish
 time); a fixed run's log times are the wall time it was recorded at plus that stamp, so bag
@@ -14,28 +17,27 @@ from __future__ import annotations
 import copy
 import time
 
+from modal_spring_ros.bags.pointcloud import to_pointcloud2
+from modal_spring_ros.bags.qos import profiles_to_yaml
+from modal_spring_ros.bags.stamps import to_nanoseconds, to_time_msg
+from modal_spring_ros.bags.writer import BagWriter
+from modal_spring_ros.core.config import SimulationConfig
 import numpy as np
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSPresetProfiles, QoSProfile
 from std_msgs.msg import Header
 
-from modal_spring_ros.bags.pointcloud import to_pointcloud2
-from modal_spring_ros.bags.qos import profiles_to_yaml
-from modal_spring_ros.bags.stamps import to_nanoseconds, to_time_msg
-from modal_spring_ros.bags.writer import BagWriter
-from modal_spring_ros.core.config import SimulationConfig
-
-POINTS_TOPIC = "/points"
+POINTS_TOPIC = '/points'
 #: where a node's capture keeps its inputs, by message type
-INPUT_TOPICS = {"geometry_msgs/msg/PoseStamped": "/anchor_pose",
-                "geometry_msgs/msg/PointStamped": "/clicked_point"}
+INPUT_TOPICS = {'geometry_msgs/msg/PoseStamped': '/anchor_pose',
+                'geometry_msgs/msg/PointStamped': '/clicked_point'}
 
 
 def _type_name(message) -> str:
     """``package/msg/Type`` of a message instance."""
-    module = type(message).__module__.split(".")[0]
-    return f"{module}/msg/{type(message).__name__}"
+    module = type(message).__module__.split('.')[0]
+    return f'{module}/msg/{type(message).__name__}'
 
 
 def parameter_events_qos_yaml() -> str:
@@ -43,7 +45,7 @@ def parameter_events_qos_yaml() -> str:
 
 
 def points_qos_yaml() -> str:
-    """The QoS the node offers on ``points`` (reliable, volatile, keep last 10)."""
+    """Return the QoS the node offers on ``points`` (reliable, volatile, keep last 10)."""
     return profiles_to_yaml([QoSProfile(depth=10)])
 
 
@@ -51,45 +53,55 @@ class RunBagWriter:
     """Frames of one run into a new bag; call :meth:`frame` per frame, then :meth:`close`."""
 
     def __init__(self, directory, scene, config: SimulationConfig | None, *, dt: float,
-                 frame_every: int, duration: float, frame_id: str = "world",
-                 source: str = "modal_spring_sim", parameters: dict | None = None,
-                 node: str = ""):
-        """``config`` describes a run made of fixed settings; a node's run gives its
-        ``parameters`` (and ``node`` name) instead, and its changes go through
-        :meth:`parameter_event`, stamped with the simulation time they took effect at."""
+                 frame_every: int, duration: float, frame_id: str = 'world',
+                 source: str = 'modal_spring_sim', parameters: dict | None = None,
+                 node: str = ''):
+        """
+        ``config`` describes a run made of fixed settings.
+
+        A node's run gives its ``parameters`` (and ``node`` name) instead, and its changes go
+        through :meth:`parameter_event`, stamped with the simulation time they took effect at.
+        """
         self.scene = scene
         self.frame_id = frame_id
         self.node = node
         self.writer = BagWriter(directory)
-        self.writer.add_topic(POINTS_TOPIC, "sensor_msgs/msg/PointCloud2", points_qos_yaml())
-        record = {"source": source, "scene_yaml": scene.to_yaml(), "dt": dt,
-                  "frame_every": frame_every, "duration": duration, "frame_id": frame_id}
+        self.writer.add_topic(POINTS_TOPIC, 'sensor_msgs/msg/PointCloud2', points_qos_yaml())
+        record = {'source': source, 'scene_yaml': scene.to_yaml(), 'dt': dt,
+                  'frame_every': frame_every, 'duration': duration, 'frame_id': frame_id}
         if config is not None:
-            record["config"] = config.to_dict()
+            record['config'] = config.to_dict()
         #: log messages at wall time (a node's capture) rather than at their stamp
         self.wall_log_time = parameters is not None
         #: a fixed run is logged from the wall time it was recorded at (bag tools show its
         #: date, not 1970), its messages spaced as their stamps (simulation time)
         self._epoch_ns = time.time_ns()
         if parameters is not None:
-            record.update(parameters=parameters, node=node, event_clock="sim")
-            self.writer.add_topic("/parameter_events", "rcl_interfaces/msg/ParameterEvent",
+            record.update(parameters=parameters, node=node, event_clock='sim')
+            self.writer.add_topic('/parameter_events', 'rcl_interfaces/msg/ParameterEvent',
                                   parameter_events_qos_yaml())
         self.writer.add_run_record(record)
 
     def parameter_event(self, t: float, changed: dict) -> None:
-        """Record parameter changes that took effect at simulation time ``t`` (the event's
-        stamp; logged at wall time, like the frames of a node's capture)."""
+        """
+        Record parameter changes that took effect at simulation time ``t``.
 
+        ``t`` is the event's stamp; the event is logged at wall time, like the frames of a node's
+        capture.
+        """
         stamp = to_time_msg(t)
         event = ParameterEvent(stamp=stamp, node=self.node, changed_parameters=[
             Parameter(name, value=value).to_parameter_msg() for name, value in changed.items()])
-        self.writer.write_message("/parameter_events", event, self._log_time(),
+        self.writer.write_message('/parameter_events', event, self._log_time(),
                                   to_nanoseconds(stamp))
 
-    def input(self, t: float, message) -> None:
-        """Record an input (a pose the clamp followed, a clicked point) that took effect at
-        simulation time ``t``: the message as received, its header stamped with ``t``."""
+    def record_input(self, t: float, message) -> None:
+        """
+        Record an input that took effect at simulation time ``t``.
+
+        An input is a pose the clamp followed or a clicked point: the message as received, its
+        header stamped with ``t``.
+        """
         type_name = _type_name(message)
         topic = INPUT_TOPICS[type_name]
         self.writer.add_topic(topic, type_name, points_qos_yaml())
@@ -99,14 +111,21 @@ class RunBagWriter:
                                   to_nanoseconds(message.header.stamp))
 
     def _log_time(self) -> int | None:
-        """Wall time for a node's capture (simulation time can go back on a reset, and MCAP
-        readers order by log time); None for a fixed run (its start plus the stamp)."""
+        """
+        Wall time for a node's capture; None for a fixed run.
+
+        Simulation time can go back on a reset, and MCAP readers order by log time. A fixed run
+        logs its start plus the stamp.
+        """
         return time.time_ns() if self.wall_log_time else None
 
     def frame(self, t: float, positions: np.ndarray, log_time_ns: int | None = None) -> None:
-        """One frame at simulation time ``t`` (``log_time_ns``: when re-creating a recorded
-        frame, its original log time, so that both bags read in the same order)."""
+        """
+        Write one frame at simulation time ``t``.
 
+        ``log_time_ns``: when re-creating a recorded frame, its original log time, so that both
+        bags read in the same order.
+        """
         stamp = to_time_msg(t)
         msg = to_pointcloud2(positions, self.scene.rest_positions,
                              Header(stamp=stamp, frame_id=self.frame_id))

@@ -1,4 +1,5 @@
-"""Message definitions as rosbag2 stores them in MCAP schemas, and ROS 2 type hashes.
+"""
+Message definitions as rosbag2 stores them in MCAP schemas, and ROS 2 type hashes.
 
 rosbag2 (``LocalMessageDefinitionSource``) stores a type's full definition as its ``.msg``
 text followed, for each dependency (sorted by name, depth first, each once), by a newline, a
@@ -11,16 +12,16 @@ from __future__ import annotations
 import functools
 import json
 import os
+from pathlib import Path
 import re
 import sys
-from pathlib import Path
 
-from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
 
-DELIMITER = "=" * 80 + "\n"
-_FIELD_TYPE = re.compile(r"(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+")
-_PRIMITIVES = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16",
-               "int32", "uint32", "int64", "uint64", "string"}
+DELIMITER = '=' * 80 + '\n'
+_FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
+_PRIMITIVES = {'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16',
+               'int32', 'uint32', 'int64', 'uint64', 'string'}
 
 
 class DefinitionNotFound(LookupError):
@@ -29,18 +30,18 @@ class DefinitionNotFound(LookupError):
 
 def share_directory(package: str) -> Path:
     """``share/<package>``: from the ament index when there is one, else the Python prefix."""
-    if os.environ.get("AMENT_PREFIX_PATH"):
+    if os.environ.get('AMENT_PREFIX_PATH'):
         try:
             return Path(get_package_share_directory(package))
         except PackageNotFoundError:
             pass
-    return Path(sys.prefix) / "share" / package
+    return Path(sys.prefix) / 'share' / package
 
 
 def _split(type_name: str) -> tuple[str, str, str]:
-    parts = type_name.split("/")
+    parts = type_name.split('/')
     if len(parts) == 2:
-        return parts[0], "msg", parts[1]
+        return parts[0], 'msg', parts[1]
     if len(parts) == 3:
         return parts[0], parts[1], parts[2]
     raise ValueError(f"invalid message type name '{type_name}'")
@@ -49,11 +50,11 @@ def _split(type_name: str) -> tuple[str, str, str]:
 @functools.lru_cache(maxsize=None)
 def msg_text(type_name: str) -> str:
     package, kind, name = _split(type_name)
-    path = share_directory(package) / kind / f"{name}.msg"
+    path = share_directory(package) / kind / f'{name}.msg'
     try:
-        return path.read_text(encoding="utf-8")
+        return path.read_text(encoding='utf-8')
     except OSError:
-        raise DefinitionNotFound(f"no message definition for {type_name} ({path})") from None
+        raise DefinitionNotFound(f'no message definition for {type_name} ({path})') from None
 
 
 def dependencies(text: str, package: str) -> list[str]:
@@ -62,12 +63,12 @@ def dependencies(text: str, package: str) -> list[str]:
         t = match.group(1)
         if t in _PRIMITIVES:
             continue
-        deps.add(t if "/" in t else f"{package}/{t}")
+        deps.add(t if '/' in t else f'{package}/{t}')
     return sorted(deps)
 
 
 def full_definition(type_name: str) -> str:
-    """The ``ros2msg`` schema text rosbag2 writes for ``type_name`` (e.g. sensor_msgs/msg/X)."""
+    """Return the ``ros2msg`` schema text rosbag2 writes for ``type_name`` (pkg/msg/Type)."""
     seen: set[str] = set()
 
     def expand(name: str) -> str:
@@ -76,7 +77,7 @@ def full_definition(type_name: str) -> str:
         for dep in dependencies(text, _split(name)[0]):
             if dep not in seen:
                 seen.add(dep)
-                out += "\n" + DELIMITER + f"MSG: {dep}\n" + expand(dep)
+                out += '\n' + DELIMITER + f'MSG: {dep}\n' + expand(dep)
         return out
 
     return expand(type_name)
@@ -84,15 +85,15 @@ def full_definition(type_name: str) -> str:
 
 @functools.lru_cache(maxsize=None)
 def type_hash(type_name: str) -> str:
-    """The RIHS01 type description hash of ``type_name`` (empty when unknown)."""
+    """Return the RIHS01 type description hash of ``type_name`` (empty when unknown)."""
     package, kind, name = _split(type_name)
-    path = share_directory(package) / kind / f"{name}.json"
+    path = share_directory(package) / kind / f'{name}.json'
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(path.read_text(encoding='utf-8'))
     except (OSError, ValueError):
-        return ""
-    full = f"{package}/{kind}/{name}"
-    for entry in data.get("type_hashes", []):
-        if entry.get("type_name") == full:
-            return entry.get("hash_string", "")
-    return ""
+        return ''
+    full = f'{package}/{kind}/{name}'
+    for entry in data.get('type_hashes', []):
+        if entry.get('type_name') == full:
+            return entry.get('hash_string', '')
+    return ''

@@ -1,4 +1,5 @@
-"""QoS profiles as rosbag2 (metadata version 9) writes them: a YAML list in a string.
+"""
+QoS profiles as rosbag2 (metadata version 9) writes them: a YAML list in a string.
 
 Each profile: ``history``, ``depth``, ``reliability``, ``durability``, ``deadline``,
 ``lifespan``, ``liveliness``, ``liveliness_lease_duration`` and
@@ -7,40 +8,40 @@ version 9, as integers before; durations as ``{sec, nsec}``.
 """
 from __future__ import annotations
 
-import yaml
 from rclpy.duration import Duration
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
                        ReliabilityPolicy)
+import yaml
 
-_POLICIES = {"history": HistoryPolicy, "reliability": ReliabilityPolicy,
-             "durability": DurabilityPolicy, "liveliness": LivelinessPolicy}
-_DURATIONS = ("deadline", "lifespan", "liveliness_lease_duration")
+_POLICIES = {'history': HistoryPolicy, 'reliability': ReliabilityPolicy,
+             'durability': DurabilityPolicy, 'liveliness': LivelinessPolicy}
+_DURATIONS = ('deadline', 'lifespan', 'liveliness_lease_duration')
 
 
 def _duration(d: Duration) -> dict:
     ns = d.nanoseconds
-    return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+    return {'sec': ns // 1_000_000_000, 'nsec': ns % 1_000_000_000}
 
 
 def profile_to_dict(p: QoSProfile) -> dict:
     return {
-        "history": p.history.name.lower(),
-        "depth": int(p.depth),
-        "reliability": p.reliability.name.lower(),
-        "durability": p.durability.name.lower(),
-        "deadline": _duration(p.deadline),
-        "lifespan": _duration(p.lifespan),
-        "liveliness": p.liveliness.name.lower(),
-        "liveliness_lease_duration": _duration(p.liveliness_lease_duration),
-        "avoid_ros_namespace_conventions": bool(p.avoid_ros_namespace_conventions),
+        'history': p.history.name.lower(),
+        'depth': int(p.depth),
+        'reliability': p.reliability.name.lower(),
+        'durability': p.durability.name.lower(),
+        'deadline': _duration(p.deadline),
+        'lifespan': _duration(p.lifespan),
+        'liveliness': p.liveliness.name.lower(),
+        'liveliness_lease_duration': _duration(p.liveliness_lease_duration),
+        'avoid_ros_namespace_conventions': bool(p.avoid_ros_namespace_conventions),
     }
 
 
 def profiles_to_yaml(profiles: list[QoSProfile]) -> str:
-    """The ``offered_qos_profiles`` string (empty list -> empty string, as rosbag2)."""
+    """Return the ``offered_qos_profiles`` string (empty list -> empty string, as rosbag2)."""
     if not profiles:
-        return ""
-    return yaml.safe_dump([profile_to_dict(p) for p in profiles], sort_keys=False).rstrip("\n")
+        return ''
+    return yaml.safe_dump([profile_to_dict(p) for p in profiles], sort_keys=False).rstrip('\n')
 
 
 def profiles_from_yaml(text: str) -> list[QoSProfile]:
@@ -49,7 +50,7 @@ def profiles_from_yaml(text: str) -> list[QoSProfile]:
         return []
     out = []
     for item in yaml.safe_load(text) or []:
-        kwargs = {"depth": int(item.get("depth", 10)) or 10}
+        kwargs = {'depth': int(item.get('depth', 10)) or 10}
         for key, enum in _POLICIES.items():
             value = item.get(key)
             if value is None:
@@ -58,16 +59,20 @@ def profiles_from_yaml(text: str) -> list[QoSProfile]:
         for key in _DURATIONS:
             if key in item:
                 d = item[key]
-                kwargs[key] = Duration(seconds=int(d["sec"]), nanoseconds=int(d["nsec"]))
-        kwargs["avoid_ros_namespace_conventions"] = bool(
-            item.get("avoid_ros_namespace_conventions", False))
+                kwargs[key] = Duration(seconds=int(d['sec']), nanoseconds=int(d['nsec']))
+        kwargs['avoid_ros_namespace_conventions'] = bool(
+            item.get('avoid_ros_namespace_conventions', False))
         out.append(QoSProfile(**kwargs))
     return out
 
 
 def playback_profile(profiles: list[QoSProfile]) -> QoSProfile:
-    """What a player offers: the recorded offer when all publishers agreed, else the default
-    (reliable, volatile, keep last 10), as rosbag2 does."""
+    """
+    Return what a player offers.
+
+    The recorded offer when all publishers agreed, else the default (reliable, volatile, keep last
+    10), as rosbag2 does.
+    """
     if not profiles:
         return QoSProfile(depth=10)
     first = profiles[0]

@@ -1,4 +1,5 @@
-"""Read rosbag2 MCAP bags (folders or single ``.mcap`` files) as raw messages or numpy arrays.
+"""
+Read rosbag2 MCAP bags (folders or single ``.mcap`` files) as raw messages or numpy arrays.
 
 Reads what rosbag2 writes (metadata versions up to 9, with or without ``metadata.yaml``) and
 what :mod:`modal_spring_ros.bags.writer` writes, including a file whose writer was killed before
@@ -9,29 +10,28 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import json
-import struct
 from pathlib import Path
+import struct
 from typing import Iterator
 
-import numpy as np
-import yaml
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
-from rclpy.serialization import deserialize_message
-
 from modal_spring_ros.bags.pointcloud import xyz
-from modal_spring_ros.bags.writer import RUN_RECORD, BagError
+from modal_spring_ros.bags.writer import BagError, RUN_RECORD
+import numpy as np
+from rclpy.serialization import deserialize_message
+import yaml
 
 #: the type of the clouds (checked for non-finite values)
-POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
+POINTCLOUD2 = 'sensor_msgs/msg/PointCloud2'
 
 
 @dataclasses.dataclass
 class TopicInfo:
     name: str
-    type: str
+    type_name: str
     count: int
     offered_qos_profiles: str
     type_hash: str
@@ -40,68 +40,68 @@ class TopicInfo:
 @dataclasses.dataclass
 class BagMessage:
     topic: str
-    type: str
+    type_name: str
     log_time_ns: int
     publish_time_ns: int
     data: bytes
 
 
 def _bag_information(meta: Path) -> dict:
-    """The ``rosbag2_bagfile_information`` of a ``metadata.yaml``, its shape checked."""
+    """Return the ``rosbag2_bagfile_information`` of a ``metadata.yaml``, its shape checked."""
     try:
-        data = yaml.safe_load(meta.read_text(encoding="utf-8"))
+        data = yaml.safe_load(meta.read_text(encoding='utf-8'))
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise BagError(f"{meta}: not rosbag2 metadata: {' '.join(str(exc).split())}") from None
-    info = data.get("rosbag2_bagfile_information") if isinstance(data, dict) else None
+    info = data.get('rosbag2_bagfile_information') if isinstance(data, dict) else None
     if not isinstance(info, dict):
-        raise BagError(f"{meta}: not rosbag2 metadata: no rosbag2_bagfile_information mapping "
-                       f"(the top level is {type(data).__name__})")
-    paths = info.get("relative_file_paths", [])
+        raise BagError(f'{meta}: not rosbag2 metadata: no rosbag2_bagfile_information mapping '
+                       f'(the top level is {type(data).__name__})')
+    paths = info.get('relative_file_paths', [])
     if not isinstance(paths, list) or not all(isinstance(p, str) and p for p in paths):
-        raise BagError(f"{meta}: relative_file_paths must be a list of file names, got "
-                       f"{paths!r:.60}")
-    info["relative_file_paths"] = paths
+        raise BagError(f'{meta}: relative_file_paths must be a list of file names, got '
+                       f'{paths!r:.60}')
+    info['relative_file_paths'] = paths
     return info
 
 
 def message_class(type_name: str):
-    """The rclpy message class of ``pkg/msg/Type`` (the package must be installed)."""
-    package, kind, name = type_name.split("/") if type_name.count("/") == 2 else \
-        (type_name.split("/")[0], "msg", type_name.split("/")[-1])
+    """Return the rclpy message class of ``pkg/msg/Type`` (the package must be installed)."""
+    package, kind, name = type_name.split('/') if type_name.count('/') == 2 else \
+        (type_name.split('/')[0], 'msg', type_name.split('/')[-1])
     try:
-        return getattr(importlib.import_module(f"{package}.{kind}"), name)
+        return getattr(importlib.import_module(f'{package}.{kind}'), name)
     except (ImportError, AttributeError):
-        raise BagError(f"message type {type_name} is not installed") from None
+        raise BagError(f'message type {type_name} is not installed') from None
 
 
 class BagReader:
-    """A bag opened for reading.
+    """
+    A bag opened for reading.
 
-    Attributes:
-        path: the bag folder or file given.
-        files: the MCAP files, in order.
-        metadata: the ``rosbag2_bagfile_information`` mapping, or None without metadata.yaml.
-        finalised: every file has its summary (False after a killed writer).
+    :ivar path: the bag folder or file given.
+    :ivar files: the MCAP files, in order.
+    :ivar metadata: the ``rosbag2_bagfile_information`` mapping, or None without metadata.yaml.
+    :ivar finalised: every file has its summary (False after a killed writer).
     """
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
         if not self.path.exists():
-            raise BagError(f"{self.path}: no such bag (folder or .mcap file)")
+            raise BagError(f'{self.path}: no such bag (folder or .mcap file)')
         self.metadata = None
         if self.path.is_dir():
-            meta = self.path / "metadata.yaml"
+            meta = self.path / 'metadata.yaml'
             if meta.exists():
                 info = _bag_information(meta)
                 self.metadata = info
-                self.files = [self.path / f for f in info["relative_file_paths"]]
-                if info.get("storage_identifier") != "mcap":
-                    raise BagError(f"{self.path}: storage "
+                self.files = [self.path / f for f in info['relative_file_paths']]
+                if info.get('storage_identifier') != 'mcap':
+                    raise BagError(f'{self.path}: storage '
                                    f"'{info.get('storage_identifier')}' is not mcap")
             else:
-                self.files = sorted(self.path.glob("*.mcap"))
+                self.files = sorted(self.path.glob('*.mcap'))
             if not self.files:
-                raise BagError(f"{self.path}: no .mcap file in the bag")
+                raise BagError(f'{self.path}: no .mcap file in the bag')
         else:
             self.files = [self.path]
         self._scan()
@@ -114,14 +114,14 @@ class BagReader:
         self.finalised = True
         for f in self.files:
             try:
-                with open(f, "rb") as fh:
+                with open(f, 'rb') as fh:
                     reader = make_reader(fh)
                     header = reader.get_header()
-                    if header.profile != "ros2":
+                    if header.profile != 'ros2':
                         raise BagError(f"{f}: MCAP profile '{header.profile}' is not ros2")
                     summary = reader.get_summary()
                     if summary is None:
-                        raise McapError("no summary")
+                        raise McapError('no summary')
                     counts = summary.statistics.channel_message_counts \
                         if summary.statistics else {}
                     for cid, ch in summary.channels.items():
@@ -139,7 +139,7 @@ class BagReader:
         schemas: dict[int, Schema] = {}
         records = 0
         try:
-            with open(f, "rb") as fh:
+            with open(f, 'rb') as fh:
                 for rec in StreamReader(fh, skip_magic=False).records:
                     records += 1
                     if isinstance(rec, Schema):
@@ -156,12 +156,12 @@ class BagReader:
             if self.topics:
                 return  # the truncated tail of a killed writer's last chunk
             if records:  # a good start, cut before its first chunk
-                raise BagError(f"{f}: empty: the recording stopped before its first chunk was "
-                               "written (no message is on disk)") from None
-            raise BagError(f"{f}: not a readable MCAP file: "
-                           f"{str(exc) or type(exc).__name__}") from None
+                raise BagError(f'{f}: empty: the recording stopped before its first chunk was '
+                               'written (no message is on disk)') from None
+            raise BagError(f'{f}: not a readable MCAP file: '
+                           f'{str(exc) or type(exc).__name__}') from None
         if not self.topics:
-            raise BagError(f"{f}: empty: no topic and no message")
+            raise BagError(f'{f}: empty: no topic and no message')
 
     def _add_topic(self, ch, schema, count: int) -> None:
         self._channel_topic[ch.id] = ch.topic
@@ -169,15 +169,15 @@ class BagReader:
             self.topics[ch.topic].count += count
             return
         self.topics[ch.topic] = TopicInfo(
-            name=ch.topic, type=schema.name if schema else "", count=count,
-            offered_qos_profiles=ch.metadata.get("offered_qos_profiles", ""),
-            type_hash=ch.metadata.get("topic_type_hash", ""))
+            name=ch.topic, type_name=schema.name if schema else '', count=count,
+            offered_qos_profiles=ch.metadata.get('offered_qos_profiles', ''),
+            type_hash=ch.metadata.get('topic_type_hash', ''))
 
     def messages(self, topics: list[str] | None = None) -> Iterator[BagMessage]:
         """Raw messages in log-time order (file order for an unfinalised file)."""
         wanted = set(topics) if topics else None
         for f in self.files:
-            with open(f, "rb") as fh:
+            with open(f, 'rb') as fh:
                 if not self.finalised:
                     yield from self._stream_messages(fh, wanted)
                     continue
@@ -185,27 +185,29 @@ class BagReader:
                     it = make_reader(fh, validate_crcs=True).iter_messages(
                         topics=list(wanted) if wanted else None)
                     for schema, channel, msg in it:
-                        yield BagMessage(channel.topic, schema.name if schema else "",
+                        yield BagMessage(channel.topic, schema.name if schema else '',
                                          msg.log_time, msg.publish_time, msg.data)
                 except CRCValidationError as exc:
                     raise BagError(f"{f}: damaged: a chunk's checksum does not match its "
-                                   f"bytes ({exc})") from None
+                                   f'bytes ({exc})') from None
                 except (McapError, ValueError, EOFError, struct.error) as exc:
-                    raise BagError(f"{f}: damaged: {str(exc) or type(exc).__name__}") from None
+                    raise BagError(f'{f}: damaged: {str(exc) or type(exc).__name__}') from None
 
     def check(self, topics: list[str] | None = None) -> int:
-        """Decode every message of ``topics`` (or all) and check every cloud for non-finite
-        values; returns how many there are.
+        """
+        Decode every message of ``topics`` (or all) and check every cloud for non-finite values.
 
-        Raises:
-            BagError: a message is damaged (named by topic and log time) or there is none."""
+        Returns how many there are.
+
+        :raises BagError: a message is damaged (named by topic and log time) or there is none.
+        """
         count = 0
         for m in self.messages(topics):
             msg = self.decode(m)
-            if m.type == POINTCLOUD2 and not np.isfinite(xyz(msg)).all():
-                raise BagError(f"{self.path}: message on {m.topic} at log time "
-                               f"{m.log_time_ns} ns is damaged: its cloud holds non-finite "
-                               "values")
+            if m.type_name == POINTCLOUD2 and not np.isfinite(xyz(msg)).all():
+                raise BagError(f'{self.path}: message on {m.topic} at log time '
+                               f'{m.log_time_ns} ns is damaged: its cloud holds non-finite '
+                               'values')
             count += 1
         if count == 0:
             raise BagError(f"{self.path}: no message on {', '.join(topics or self.topics)}")
@@ -224,30 +226,31 @@ class BagReader:
                     if ch is None or (wanted and ch.topic not in wanted):
                         continue
                     schema = schemas.get(ch.schema_id)
-                    yield BagMessage(ch.topic, schema.name if schema else "", rec.log_time,
+                    yield BagMessage(ch.topic, schema.name if schema else '', rec.log_time,
                                      rec.publish_time, rec.data)
         except CRCValidationError as exc:
             raise BagError(f"{self.path}: damaged: a chunk's checksum does not match its bytes "
-                           f"({exc})") from None
+                           f'({exc})') from None
         except Exception:
             return  # the truncated tail of a killed writer's last chunk
 
     def decode(self, message: BagMessage):
-        """The message as an rclpy object (rclpy's own CDR deserializer).
+        """
+        Return the message as an rclpy object (rclpy's own CDR deserializer).
 
-        Raises:
-            BagError: its type is not installed, or its bytes are not a valid message."""
-        cls = message_class(message.type)
+        :raises BagError: its type is not installed, or its bytes are not a valid message.
+        """
+        cls = message_class(message.type_name)
         try:
             return deserialize_message(message.data, cls)
         except Exception as exc:  # rclpy raises several kinds for damaged CDR
-            raise BagError(f"{self.path}: message on {message.topic} at log time "
-                           f"{message.log_time_ns} ns is damaged: cannot decode it as "
-                           f"{message.type} ({type(exc).__name__})") from None
+            raise BagError(f'{self.path}: message on {message.topic} at log time '
+                           f'{message.log_time_ns} ns is damaged: cannot decode it as '
+                           f'{message.type_name} ({type(exc).__name__})') from None
 
     # -- the run's own description -------------------------------------------------------------
     def run_record(self) -> dict:
-        """The ``modal_spring_ros`` record (JSON values decoded), or {} when absent."""
+        """Return the ``modal_spring_ros`` record (JSON values decoded), or {} when absent."""
         merged: dict = {}
         for rec in self.records.get(RUN_RECORD, []):
             for k, v in rec.items():
@@ -257,23 +260,23 @@ class BagReader:
                     merged[k] = v
         return merged
 
-    def points(self, topic: str = "/points") -> tuple[np.ndarray, np.ndarray]:
+    def points(self, topic: str = '/points') -> tuple[np.ndarray, np.ndarray]:
         """(F,) header stamps in seconds and (F, n, 3) float64 positions of a cloud topic."""
         if topic not in self.topics:
-            raise BagError(f"{self.path}: no topic {topic} (topics: "
+            raise BagError(f'{self.path}: no topic {topic} (topics: '
                            f"{', '.join(sorted(self.topics)) or 'none'})")
         stamps, frames = [], []
         for m in self.messages([topic]):
             msg = self.decode(m)
             cloud = xyz(msg)
             if not np.isfinite(cloud).all():
-                raise BagError(f"{self.path}: message on {topic} at log time "
-                               f"{m.log_time_ns} ns is damaged: its cloud holds non-finite "
-                               "values")
+                raise BagError(f'{self.path}: message on {topic} at log time '
+                               f'{m.log_time_ns} ns is damaged: its cloud holds non-finite '
+                               'values')
             stamps.append(msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec)
             frames.append(cloud)
         if not frames:
-            raise BagError(f"{self.path}: topic {topic} has no messages")
+            raise BagError(f'{self.path}: topic {topic} has no messages')
         if len({f.shape for f in frames}) > 1:
-            raise BagError(f"{self.path}: the clouds on {topic} differ in size")
+            raise BagError(f'{self.path}: the clouds on {topic} differ in size')
         return np.array(stamps), np.array(frames)

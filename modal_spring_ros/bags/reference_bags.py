@@ -1,4 +1,5 @@
-"""The reference runs of ``sheet_10x10`` in ``bags/``: remade by one command.
+"""
+The reference runs of ``sheet_10x10`` in ``bags/``: remade by one command.
 
     python -m modal_spring_ros.bags.reference_bags [FOLDER]      (default: bags)
 
@@ -9,9 +10,9 @@ replace earlier ones of the same names in FOLDER.
 """
 from __future__ import annotations
 
+from pathlib import Path
 import shutil
 import sys
-from pathlib import Path
 
 from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.core.config import SimulationConfig
@@ -20,15 +21,15 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.scenes.resources import load_scene
 
-SCENE = "sheet_10x10"
+SCENE = 'sheet_10x10'
 DURATION_S = 3.0
 FRAME_EVERY = 33
 RUNS = {
-    "sheet_10x10_full": SimulationConfig(method="full"),
-    "sheet_10x10_allpass": SimulationConfig(),
-    "sheet_10x10_lowpass_0_14": SimulationConfig(band=FilterBand("lowpass", 0, 14, "index")),
-    "sheet_10x10_bandpass_2_48": SimulationConfig(band=FilterBand("bandpass", 2, 48, "index")),
-    "sheet_10x10_highpass_10hz": SimulationConfig(band=FilterBand("highpass", 10.0)),
+    'sheet_10x10_full': SimulationConfig(method='full'),
+    'sheet_10x10_allpass': SimulationConfig(),
+    'sheet_10x10_lowpass_0_14': SimulationConfig(band=FilterBand('lowpass', 0, 14, 'index')),
+    'sheet_10x10_bandpass_2_48': SimulationConfig(band=FilterBand('bandpass', 2, 48, 'index')),
+    'sheet_10x10_highpass_10hz': SimulationConfig(band=FilterBand('highpass', 10.0)),
 }
 
 
@@ -48,9 +49,9 @@ def write_reference_bags(folder: str | Path) -> list[Path]:
         finally:
             bag.close()
         written.append(target)
-        print(f"wrote {target}")
+        print(f'wrote {target}')
     return written
 
 
-if __name__ == "__main__":
-    write_reference_bags(sys.argv[1] if len(sys.argv) > 1 else "bags")
+if __name__ == '__main__':
+    write_reference_bags(sys.argv[1] if len(sys.argv) > 1 else 'bags')

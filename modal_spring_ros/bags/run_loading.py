@@ -1,5 +1,9 @@
-"""Load a run for comparison from wherever it was recorded: a ``.npz`` run or a bag (folder
-or ``.mcap``), with the band its recorded settings kept when the bag says."""
+"""
+Load a run for comparison from wherever it was recorded.
+
+A ``.npz`` run or a bag (folder or ``.mcap``), with the band its recorded settings kept when the
+bag says.
+"""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,28 +12,28 @@ from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.runs.comparison import RunData, load_npz_run
+from modal_spring_ros.runs.comparison import load_npz_run, RunData
 from modal_spring_ros.scenes.schema import scene_from_yaml
 
 
-def load_run(path: str | Path, topic: str = "/points") -> RunData:
-    """A ``.npz`` run or a bag (folder or ``.mcap``) as arrays. Raises BagError/RunError."""
+def load_run(path: str | Path, topic: str = '/points') -> RunData:
+    """Return a ``.npz`` run or a bag (folder or ``.mcap``) as arrays. Raises BagError/RunError."""
     path = Path(path)
     if not path.exists():
-        raise BagError(f"{path}: no such run (.npz, bag folder or .mcap)")
-    if path.suffix == ".npz":
+        raise BagError(f'{path}: no such run (.npz, bag folder or .mcap)')
+    if path.suffix == '.npz':
         return load_npz_run(path)
     bag = BagReader(path)
     stamps, frames = bag.points(topic)
     rec = bag.run_record()
-    scene = scene_from_yaml(rec["scene_yaml"], source=f"{path} (scene)") \
-        if "scene_yaml" in rec else None
-    label, band = "", None
-    if "config" in rec and scene is not None:
-        config = SimulationConfig.from_dict(rec["config"])
-        label = f"{config.method} {config.band.describe()}"
+    scene = scene_from_yaml(rec['scene_yaml'], source=f'{path} (scene)') \
+        if 'scene_yaml' in rec else None
+    label, band = '', None
+    if 'config' in rec and scene is not None:
+        config = SimulationConfig.from_dict(rec['config'])
+        label = f'{config.method} {config.band.describe()}'
         sim = build_simulation(scene, config, allow_unstable=True)
         kept = sim.basis.frequencies_hz[sim.kept_modes]
-        if config.method == "modal":
+        if config.method == 'modal':
             band = (float(kept.min()), float(kept.max()))
     return RunData(path.name, stamps, frames, scene, band, label)

@@ -1,4 +1,5 @@
-"""Write rosbag2 bags in MCAP storage, as ``ros2 bag record`` on Jazzy writes them.
+"""
+Write rosbag2 bags in MCAP storage, as ``ros2 bag record`` on Jazzy writes them.
 
 A bag is a folder ``NAME/`` with ``NAME_0.mcap`` and, once closed, ``metadata.yaml``
 (``rosbag2_bagfile_information``, version 9). The MCAP file has profile ``ros2``; one schema
@@ -16,25 +17,24 @@ from __future__ import annotations
 import json
 import math
 import os
-import time
 from pathlib import Path
+import time
 from typing import Any
 
-import yaml
 from mcap.writer import CompressionType, Writer
-from rclpy.serialization import serialize_message
-
 from modal_spring_ros import __version__
 from modal_spring_ros.bags.message_definitions import full_definition, type_hash
+from rclpy.serialization import serialize_message
+import yaml
 
 METADATA_VERSION = 9
-ROS_DISTRO = "jazzy"
+ROS_DISTRO = 'jazzy'
 #: rosbag2's MCAP default chunk size (bytes)
 DEFAULT_CHUNK_SIZE = 786_432
 #: a chunk older than this (wall time, s) is closed, full or not
 DEFAULT_CHUNK_SECONDS = 1.0
 #: name of the MCAP metadata record with the run's own description (scene, settings)
-RUN_RECORD = "modal_spring_ros"
+RUN_RECORD = 'modal_spring_ros'
 
 
 class BagError(ValueError):
@@ -42,16 +42,16 @@ class BagError(ValueError):
 
 
 def check_new_bag_path(directory: str | Path) -> Path:
-    """The folder a new bag may be written to; raises BagError (and touches nothing)."""
+    """Return the folder a new bag may be written to; raises BagError (and touches nothing)."""
     d = Path(directory)
     if d.exists():
-        raise BagError(f"{d}: already exists; a bag is written to a new folder "
-                       "(nothing was overwritten)")
-    parent = d.parent if str(d.parent) else Path(".")
+        raise BagError(f'{d}: already exists; a bag is written to a new folder '
+                       '(nothing was overwritten)')
+    parent = d.parent if str(d.parent) else Path('.')
     if not parent.is_dir():
-        raise BagError(f"{d}: parent folder {parent} does not exist")
+        raise BagError(f'{d}: parent folder {parent} does not exist')
     if not os.access(parent, os.W_OK):
-        raise BagError(f"{d}: parent folder {parent} is not writable")
+        raise BagError(f'{d}: parent folder {parent} is not writable')
     return d
 
 
@@ -60,72 +60,79 @@ class BagWriter:
 
     def __init__(self, directory: str | Path, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
                  chunk_seconds: float = DEFAULT_CHUNK_SECONDS):
-        """A chunk is closed (and put on disk) when it holds ``chunk_size`` bytes or when it
-        is ``chunk_seconds`` old, whichever comes first: a writer that is killed loses at
-        most about that much."""
+        """
+        Return a chunk is closed (and put on disk) by size or by age.
+
+        A chunk is closed (and put on disk) when it holds ``chunk_size`` bytes or when it is
+        ``chunk_seconds`` old, whichever comes first: a writer that is killed loses at most about
+        that much.
+        """
         if not (isinstance(chunk_size, int) and chunk_size >= 1):
-            raise BagError(f"chunk size ({chunk_size}) must be a whole number of bytes, "
-                           "at least 1")
+            raise BagError(f'chunk size ({chunk_size}) must be a whole number of bytes, '
+                           'at least 1')
         if not (math.isfinite(chunk_seconds) and chunk_seconds > 0.0):
-            raise BagError(f"chunk seconds ({chunk_seconds}) must be a positive number")
+            raise BagError(f'chunk seconds ({chunk_seconds}) must be a positive number')
         self.chunk_seconds = float(chunk_seconds)
         self._chunk_opened: float | None = None  # wall time of the open chunk's first message
         self.directory = check_new_bag_path(directory)
         try:
             self.directory.mkdir()
         except OSError as exc:
-            raise BagError(f"{self.directory}: cannot create: {exc.strerror or exc}") from None
-        self.file_name = f"{self.directory.name}_0.mcap"
-        self._fh = open(self.directory / self.file_name, "wb")
+            raise BagError(f'{self.directory}: cannot create: {exc.strerror or exc}') from None
+        self.file_name = f'{self.directory.name}_0.mcap'
+        self._fh = open(self.directory / self.file_name, 'wb')
         self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.NONE)
-        self._writer.start(profile="ros2", library=f"modal_spring_ros {__version__}")
+        self._writer.start(profile='ros2', library=f'modal_spring_ros {__version__}')
         self._schemas: dict[str, int] = {}
         self._topics: dict[str, dict[str, Any]] = {}
         self._start: int | None = None
         self._end: int | None = None
         self._closed = False
-        self._writer.add_metadata("rosbag2", {"serialized_metadata": self._info_yaml()})
+        self._writer.add_metadata('rosbag2', {'serialized_metadata': self._info_yaml()})
         self._fh.flush()
 
     # -- topics and messages -------------------------------------------------------------------
-    def add_topic(self, name: str, type_name: str, offered_qos_profiles: str = "") -> None:
+    def add_topic(self, name: str, type_name: str, offered_qos_profiles: str = '') -> None:
         """Declare a topic (type like ``sensor_msgs/msg/PointCloud2``)."""
         if name in self._topics:
             return
         if type_name not in self._schemas:
             self._schemas[type_name] = self._writer.register_schema(
-                name=type_name, encoding="ros2msg",
-                data=full_definition(type_name).encode("utf-8"))
+                name=type_name, encoding='ros2msg',
+                data=full_definition(type_name).encode('utf-8'))
         channel = self._writer.register_channel(
-            topic=name, message_encoding="cdr", schema_id=self._schemas[type_name],
-            metadata={"offered_qos_profiles": offered_qos_profiles,
-                      "topic_type_hash": type_hash(type_name)})
-        self._topics[name] = {"channel": channel, "type": type_name, "count": 0,
-                              "qos": offered_qos_profiles}
+            topic=name, message_encoding='cdr', schema_id=self._schemas[type_name],
+            metadata={'offered_qos_profiles': offered_qos_profiles,
+                      'topic_type_hash': type_hash(type_name)})
+        self._topics[name] = {'channel': channel, 'type': type_name, 'count': 0,
+                              'qos': offered_qos_profiles}
 
     def write(self, topic: str, data: bytes, log_time_ns: int,
               publish_time_ns: int | None = None) -> None:
         """Write one serialized (CDR) message."""
         t = self._topics[topic]
         before = self._fh.tell()
-        self._writer.add_message(channel_id=t["channel"], log_time=int(log_time_ns),
+        self._writer.add_message(channel_id=t['channel'], log_time=int(log_time_ns),
                                  data=bytes(data),
                                  publish_time=int(log_time_ns if publish_time_ns is None
                                                   else publish_time_ns),
-                                 sequence=t["count"])
+                                 sequence=t['count'])
         if self._fh.tell() != before:  # a chunk was completed: put it on disk now
             self._fh.flush()
             self._chunk_opened = None
         if self._chunk_opened is None:
             self._chunk_opened = time.monotonic()
         self.flush_if_due()
-        t["count"] += 1
+        t['count'] += 1
         self._start = log_time_ns if self._start is None else min(self._start, log_time_ns)
         self._end = log_time_ns if self._end is None else max(self._end, log_time_ns)
 
     def flush_if_due(self) -> None:
-        """Close the open chunk if it is ``chunk_seconds`` old (call it now and then when
-        messages may stop coming)."""
+        """
+        Close the open chunk if it is ``chunk_seconds`` old.
+
+        Call it now and then when messages may stop coming.
+        """
         if (self._chunk_opened is not None and not self._closed
                 and time.monotonic() - self._chunk_opened >= self.chunk_seconds):
             self._writer.flush()
@@ -136,14 +143,18 @@ class BagWriter:
         self.write(topic, serialize_message(msg), log_time_ns, publish_time_ns)
 
     def add_run_record(self, data: dict[str, Any]) -> None:
-        """Store the run's description (scene YAML, settings) in a ``modal_spring_ros``
-        metadata record; values that are not strings are stored as JSON."""
+        """
+        Store the run's description in a ``modal_spring_ros`` metadata record.
+
+        The description is the scene YAML and the settings; values that are not strings are stored
+        as JSON.
+        """
         self._writer.add_metadata(RUN_RECORD, {k: v if isinstance(v, str) else json.dumps(v)
                                                for k, v in data.items()})
 
     @property
     def message_count(self) -> int:
-        return sum(t["count"] for t in self._topics.values())
+        return sum(t['count'] for t in self._topics.values())
 
     # -- closing -------------------------------------------------------------------------------
     def _info(self) -> dict[str, Any]:
@@ -151,27 +162,27 @@ class BagWriter:
         duration = (self._end - start) if self._end is not None else 0
         count = self.message_count
         return {
-            "version": METADATA_VERSION,
-            "storage_identifier": "mcap",
-            "duration": {"nanoseconds": int(duration)},
-            "starting_time": {"nanoseconds_since_epoch": int(start)},
-            "message_count": count,
-            "topics_with_message_count": [
-                {"topic_metadata": {"name": name, "type": t["type"],
-                                    "serialization_format": "cdr",
-                                    "offered_qos_profiles": t["qos"],
-                                    "type_description_hash": type_hash(t["type"])},
-                 "message_count": t["count"]}
+            'version': METADATA_VERSION,
+            'storage_identifier': 'mcap',
+            'duration': {'nanoseconds': int(duration)},
+            'starting_time': {'nanoseconds_since_epoch': int(start)},
+            'message_count': count,
+            'topics_with_message_count': [
+                {'topic_metadata': {'name': name, 'type': t['type'],
+                                    'serialization_format': 'cdr',
+                                    'offered_qos_profiles': t['qos'],
+                                    'type_description_hash': type_hash(t['type'])},
+                 'message_count': t['count']}
                 for name, t in sorted(self._topics.items())],
-            "compression_format": "",
-            "compression_mode": "",
-            "relative_file_paths": [self.file_name],
-            "files": [{"path": self.file_name,
-                       "starting_time": {"nanoseconds_since_epoch": int(start)},
-                       "duration": {"nanoseconds": int(duration)},
-                       "message_count": count}],
-            "custom_data": {},
-            "ros_distro": ROS_DISTRO,
+            'compression_format': '',
+            'compression_mode': '',
+            'relative_file_paths': [self.file_name],
+            'files': [{'path': self.file_name,
+                       'starting_time': {'nanoseconds_since_epoch': int(start)},
+                       'duration': {'nanoseconds': int(duration)},
+                       'message_count': count}],
+            'custom_data': {},
+            'ros_distro': ROS_DISTRO,
         }
 
     def _info_yaml(self) -> str:
@@ -182,13 +193,13 @@ class BagWriter:
         if self._closed:
             return
         self._closed = True
-        self._writer.add_metadata("rosbag2", {"serialized_metadata": self._info_yaml()})
+        self._writer.add_metadata('rosbag2', {'serialized_metadata': self._info_yaml()})
         self._writer.finish()
         self._fh.close()
-        (self.directory / "metadata.yaml").write_text(
-            yaml.safe_dump({"rosbag2_bagfile_information": self._info()}, sort_keys=False))
+        (self.directory / 'metadata.yaml').write_text(
+            yaml.safe_dump({'rosbag2_bagfile_information': self._info()}, sort_keys=False))
 
-    def __enter__(self) -> "BagWriter":
+    def __enter__(self) -> 'BagWriter':
         return self
 
     def __exit__(self, *exc) -> None:

@@ -1,2 +1,1 @@
-"""Benchmarks: step cost, the live stream, and speed against accuracy (with charts).
-"""
+"""Benchmarks: step cost, the live stream, and speed against accuracy (with charts)."""

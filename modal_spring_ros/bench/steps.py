@@ -1,4 +1,5 @@
-"""Step benchmark: time per step and basis cost, as medians, with peak memory.
+"""
+Step benchmark: time per step and basis cost, as medians, with peak memory.
 
 Each case runs in its own child process (so its peak memory is its own): it builds the
 simulation, warms up, then times repeated batches of steps and reports the median time per
@@ -21,15 +22,15 @@ from modal_spring_ros.scenes.resources import load_scene
 #: (label, scene, method, kept modes or None, dt, steps between spring evaluations); the
 #: method "derivatives" is the modal method with the band's derivative coordinates
 CASES = [
-    ("sheet_10x10 modal 15 modes", "sheet_10x10", "modal", 15, 5e-4, 1),
-    ("sheet_10x10 modal 15 modes + derivatives", "sheet_10x10", "derivatives", 15, 5e-4, 1),
-    ("sheet_10x10 modal 15 modes, springs /10", "sheet_10x10", "modal", 15, 5e-4, 10),
-    ("sheet_10x10 full", "sheet_10x10", "full", None, 5e-4, 1),
-    ("sheet_100x100 modal 32 modes", "sheet_100x100", "modal", 32, 1e-4, 1),
-    ("sheet_100x100 modal 32 modes, springs /10", "sheet_100x100", "modal", 32, 1e-4, 10),
-    ("sheet_100x100 modal 32 modes + derivatives", "sheet_100x100", "derivatives", 32, 1e-4,
+    ('sheet_10x10 modal 15 modes', 'sheet_10x10', 'modal', 15, 5e-4, 1),
+    ('sheet_10x10 modal 15 modes + derivatives', 'sheet_10x10', 'derivatives', 15, 5e-4, 1),
+    ('sheet_10x10 modal 15 modes, springs /10', 'sheet_10x10', 'modal', 15, 5e-4, 10),
+    ('sheet_10x10 full', 'sheet_10x10', 'full', None, 5e-4, 1),
+    ('sheet_100x100 modal 32 modes', 'sheet_100x100', 'modal', 32, 1e-4, 1),
+    ('sheet_100x100 modal 32 modes, springs /10', 'sheet_100x100', 'modal', 32, 1e-4, 10),
+    ('sheet_100x100 modal 32 modes + derivatives', 'sheet_100x100', 'derivatives', 32, 1e-4,
      1),
-    ("sheet_100x100 full", "sheet_100x100", "full", None, 1e-4, 1),
+    ('sheet_100x100 full', 'sheet_100x100', 'full', None, 1e-4, 1),
 ]
 
 
@@ -37,11 +38,11 @@ def _measure(scene_name: str, method: str, modes: int | None, dt: float, refresh
              batches: int, batch_steps: int, out: mp.Queue) -> None:
     model = MassSpringModel(load_scene(scene_name))
     start = time.perf_counter()
-    if method in ("modal", "derivatives"):
+    if method in ('modal', 'derivatives'):
         basis = ModalBasis(model, initial_modes=modes)
-        sim = ModalSimulation(model, basis, FilterBand("lowpass", 0, modes - 1, "index"), dt=dt,
+        sim = ModalSimulation(model, basis, FilterBand('lowpass', 0, modes - 1, 'index'), dt=dt,
                               force_refresh=refresh,
-                              basis_kind="rest" if method == "modal" else "derivatives")
+                              basis_kind='rest' if method == 'modal' else 'derivatives')
         basis_seconds = time.perf_counter() - start
     else:
         basis = ModalBasis(model, initial_modes=8)  # for the damping and stability limit
@@ -54,16 +55,16 @@ def _measure(scene_name: str, method: str, modes: int | None, dt: float, refresh
         sim.step(batch_steps)
         times.append((time.perf_counter() - t0) / batch_steps)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    out.put({"step_us": 1e6 * statistics.median(times), "basis_s": basis_seconds,
-             "peak_mb": peak_mb, "dt": dt})
+    out.put({'step_us': 1e6 * statistics.median(times), 'basis_s': basis_seconds,
+             'peak_mb': peak_mb, 'dt': dt})
 
 
 def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:
-    ctx = mp.get_context("spawn")
+    ctx = mp.get_context('spawn')
     results = []
     for k, (label, scene, method, modes, dt, refresh) in enumerate(CASES):
-        progress(f"steps {k + 1}/{len(CASES)}: {label}")
-        small = scene == "sheet_10x10"
+        progress(f'steps {k + 1}/{len(CASES)}: {label}')
+        small = scene == 'sheet_10x10'
         batches = 5 if quick else 15
         batch_steps = (400 if small else 20) if quick else (2000 if small else 100)
         q: mp.Queue = ctx.Queue()
@@ -74,13 +75,13 @@ def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:
         p.join()
         res.update(label=label, scene=scene, method=method, modes=modes)
         results.append(res)
-    by = {r["label"]: r for r in results}
+    by = {r['label']: r for r in results}
     for r in results:
         full = by.get(f"{r['scene']} full")
-        r["speedup_vs_full"] = full["step_us"] / r["step_us"] if full else None
-        rest = by.get(r["label"].replace(" + derivatives", "")) \
-            if r["method"] == "derivatives" else None
-        r["cost_vs_rest_modes"] = r["step_us"] / rest["step_us"] if rest else None
+        r['speedup_vs_full'] = full['step_us'] / r['step_us'] if full else None
+        rest = by.get(r['label'].replace(' + derivatives', '')) \
+            if r['method'] == 'derivatives' else None
+        r['cost_vs_rest_modes'] = r['step_us'] / rest['step_us'] if rest else None
     return results
 
 
@@ -88,12 +89,12 @@ def table(results: list[dict]) -> str:
     lines = [f"{'case':44s} {'us/step':>10s} {'basis s':>8s} {'peak MB':>8s} {'x full':>7s} "
              f"{'x rest':>7s}"]
     for r in results:
-        ratio = f"{r['speedup_vs_full']:.1f}" if r["speedup_vs_full"] else "-"
-        rest = f"{r['cost_vs_rest_modes']:.2f}" if r.get("cost_vs_rest_modes") else "-"
+        ratio = f"{r['speedup_vs_full']:.1f}" if r['speedup_vs_full'] else '-'
+        rest = f"{r['cost_vs_rest_modes']:.2f}" if r.get('cost_vs_rest_modes') else '-'
         lines.append(f"{r['label']:44s} {r['step_us']:10.1f} {r['basis_s']:8.2f} "
                      f"{r['peak_mb']:8.0f} {ratio:>7s} {rest:>7s}")
-    return "\n".join(lines)
+    return '\n'.join(lines)
 
 
 def write_outputs(results: dict, out, progress) -> None:
-    """This suite writes nothing beside its JSON results."""
+    """Write nothing: this suite has only its JSON results."""

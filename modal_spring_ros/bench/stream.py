@@ -1,5 +1,7 @@
-"""Streaming benchmark: publish rate and end-to-end latency of the node, seen by a subscriber
-in another process.
+"""
+Streaming benchmark.
+
+Publish rate and end-to-end latency of the node, seen by a subscriber in another process.
 
 The node runs as a user runs it (console script, own process) with ``stamp:=wall``; this
 process subscribes to its points and diagnostics and measures the receive rate and the
@@ -12,30 +14,29 @@ import random
 import signal
 import statistics
 import subprocess
-import sys
 import time
-from pathlib import Path
 from typing import Callable
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from modal_spring_ros.scenes.resources import executable
+import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import PointCloud2
 
 #: (label, scene, extra node parameters)
 CASES = [
-    ("sheet_10x10, modal all modes", "sheet_10x10", []),
-    ("sheet_100x100, modal 32 modes", "sheet_100x100",
-     ["filter.type:=lowpass", "filter.by:=index", "filter.high_mode:=31"]),
-    ("sheet_316x316 (100k), modal 32 modes", "sheet_316x316",
-     ["filter.type:=lowpass", "filter.by:=index", "filter.high_mode:=31"]),
-    ("sheet_316x316 (100k), modal 32 modes, springs every 10 steps", "sheet_316x316",
-     ["filter.type:=lowpass", "filter.by:=index", "filter.high_mode:=31",
-      "modal.force_refresh:=10"]),
-    ("sheet_316x316 (100k), modal 32 modes, sampled springs", "sheet_316x316",
-     ["filter.type:=lowpass", "filter.by:=index", "filter.high_mode:=31",
-      "modal.forces:=sampled", "modal.basis:=rest"]),
+    ('sheet_10x10, modal all modes', 'sheet_10x10', []),
+    ('sheet_100x100, modal 32 modes', 'sheet_100x100',
+     ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31']),
+    ('sheet_316x316 (100k), modal 32 modes', 'sheet_316x316',
+     ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31']),
+    ('sheet_316x316 (100k), modal 32 modes, springs every 10 steps', 'sheet_316x316',
+     ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31',
+      'modal.force_refresh:=10']),
+    ('sheet_316x316 (100k), modal 32 modes, sampled springs', 'sheet_316x316',
+     ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31',
+      'modal.forces:=sampled', 'modal.basis:=rest']),
 ]
 
 
@@ -43,22 +44,22 @@ def measure(scene: str, params: list[str], seconds: float, startup_timeout: floa
             progress: Callable[[str], None]) -> dict:
 
     domain = random.randint(110, 200)
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    exe = Path(sys.executable).parent / "modal_spring_node"
-    args = [str(exe), "--ros-args", "-p", f"scene:={scene}", "-p", "stamp:=wall"]
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    exe = executable('modal_spring_node')
+    args = [str(exe), '--ros-args', '-p', f'scene:={scene}', '-p', 'stamp:=wall']
     for p in params:
-        args += ["-p", p]
+        args += ['-p', p]
     node = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, start_new_session=True)
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     ctx = Context()
     rclpy.init(context=ctx, domain_id=domain)
-    sub = rclpy.create_node("modal_spring_bench_subscriber", context=ctx)
+    sub = rclpy.create_node('modal_spring_bench_subscriber', context=ctx)
     received: list[tuple[float, float, int]] = []
     diags: list = []
-    sub.create_subscription(PointCloud2, "/points", lambda m: received.append(
+    sub.create_subscription(PointCloud2, '/points', lambda m: received.append(
         (time.time(), m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec, m.width)), 50)
-    sub.create_subscription(DiagnosticArray, "/diagnostics", lambda m: diags.append(m), 10)
+    sub.create_subscription(DiagnosticArray, '/diagnostics', lambda m: diags.append(m), 10)
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(sub)
     try:
@@ -66,8 +67,8 @@ def measure(scene: str, params: list[str], seconds: float, startup_timeout: floa
         while not received and time.monotonic() < end and node.poll() is None:
             ex.spin_once(timeout_sec=0.1)
         if not received:
-            raise RuntimeError(f"no points from the node within {startup_timeout:.0f} s")
-        progress(f"{scene}: streaming, measuring {seconds:g} s")
+            raise RuntimeError(f'no points from the node within {startup_timeout:.0f} s')
+        progress(f'{scene}: streaming, measuring {seconds:g} s')
         warm = time.monotonic() + 2.0
         while time.monotonic() < warm:
             ex.spin_once(timeout_sec=0.05)
@@ -91,15 +92,15 @@ def measure(scene: str, params: list[str], seconds: float, startup_timeout: floa
     if diags:
         values = {kv.key: kv.value for kv in diags[-1].status[0].values}
     return {
-        "scene": scene, "particles": received[0][2] if received else 0,
-        "rate_hz": (len(received) - 1) / (received[-1][0] - received[0][0])
+        'scene': scene, 'particles': received[0][2] if received else 0,
+        'rate_hz': (len(received) - 1) / (received[-1][0] - received[0][0])
         if len(received) > 1 else 0.0,
-        "latency_median_ms": statistics.median(latencies) if latencies else None,
-        "latency_p95_ms": sorted(latencies)[int(0.95 * (len(latencies) - 1))]
+        'latency_median_ms': statistics.median(latencies) if latencies else None,
+        'latency_p95_ms': sorted(latencies)[int(0.95 * (len(latencies) - 1))]
         if latencies else None,
-        "achieved_rtf": float(values.get("achieved real-time factor", "nan")),
-        "step_us": float(values.get("step time (us)", "nan")),
-        "modes": values.get("modes stepped"),
+        'achieved_rtf': float(values.get('achieved real-time factor', 'nan')),
+        'step_us': float(values.get('step time (us)', 'nan')),
+        'modes': values.get('modes stepped'),
     }
 
 
@@ -107,23 +108,23 @@ def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:
     results = []
     cases = CASES[:2] if quick else CASES
     for k, (label, scene, params) in enumerate(cases):
-        progress(f"stream {k + 1}/{len(cases)}: {label}")
+        progress(f'stream {k + 1}/{len(cases)}: {label}')
         res = measure(scene, params, 3.0 if quick else 10.0, 240.0, progress)
-        res["label"] = label
+        res['label'] = label
         results.append(res)
     return results
 
 
 def table(results: list[dict]) -> str:
-    w = max([len("case")] + [len(r["label"]) for r in results])
+    w = max([len('case')] + [len(r['label']) for r in results])
     lines = [f"{'case':{w}s} {'points':>7s} {'rate Hz':>8s} {'lat med ms':>10s} "
              f"{'lat p95 ms':>10s} {'RTF':>6s} {'us/step':>9s}"]
     for r in results:
         lines.append(f"{r['label']:{w}s} {r['particles']:7d} {r['rate_hz']:8.1f} "
                      f"{r['latency_median_ms']:10.2f} {r['latency_p95_ms']:10.2f} "
                      f"{r['achieved_rtf']:6.2f} {r['step_us']:9.0f}")
-    return "\n".join(lines)
+    return '\n'.join(lines)
 
 
 def write_outputs(results: dict, out, progress) -> None:
-    """This suite writes nothing beside its JSON results."""
+    """Write nothing: this suite has only its JSON results."""

@@ -1,4 +1,5 @@
-"""Speed against accuracy, stability where methods fail, and the automatic mode choice.
+"""
+Speed against accuracy, stability where methods fail, and the automatic mode choice.
 
 For each scene, every configuration (method x kept modes x time step) runs the same simulated
 time, sampled every ``SAMPLE_S``; its error is measured against a converged reference (the
@@ -14,13 +15,11 @@ import csv
 import dataclasses
 import math
 import multiprocessing as mp
+from pathlib import Path
 import resource
 import sys
 import time
-from pathlib import Path
 from typing import Callable
-
-import numpy as np
 
 from modal_spring_ros.bench.analysis import cheapest_reaching, pareto
 from modal_spring_ros.bench.charts import draw_all
@@ -35,10 +34,11 @@ from modal_spring_ros.core.simulations import (DivergenceError, FullSimulation, 
                                                Simulation)
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
 
 SAMPLE_S = 0.01
-METHODS = ("full explicit", "full average", "modal explicit", "modal refreshed",
-           "modal average", "modal auto", "modal derivatives", "modal sampled")
+METHODS = ('full explicit', 'full average', 'modal explicit', 'modal refreshed',
+           'modal average', 'modal auto', 'modal derivatives', 'modal sampled')
 
 
 @dataclasses.dataclass
@@ -53,13 +53,13 @@ class Case:
     repeats: int = 3                        # timed runs per configuration (median)
 
 
-QUICK = [Case("sheet_10x10", 1.0, (2, 4, 8, 16, 32, 64, 180), (4, 16), (1, 2, 4),
+QUICK = [Case('sheet_10x10', 1.0, (2, 4, 8, 16, 32, 64, 180), (4, 16), (1, 2, 4),
               (2, 8, 32, 180), repeats=1)]
 FULL = [
-    Case("sheet_10x10", 2.0, (2, 4, 8, 16, 32, 64, 180), (4, 16, 64), (1, 2, 4, 8),
+    Case('sheet_10x10', 2.0, (2, 4, 8, 16, 32, 64, 180), (4, 16, 64), (1, 2, 4, 8),
          (2, 4, 8, 16, 32, 64, 128, 180)),
-    Case("sheet_32x32", 1.0, (2, 4, 8, 16, 32, 64), (4, 16), (1, 2, 4), (2, 8, 32, 64)),
-    Case("sheet_100x100", 0.5, (4, 8, 16, 32), (16,), (1, 2, 4, 8), (4, 16, 32), 1.0 / 8, 1),
+    Case('sheet_32x32', 1.0, (2, 4, 8, 16, 32, 64), (4, 16), (1, 2, 4), (2, 8, 32, 64)),
+    Case('sheet_100x100', 0.5, (4, 8, 16, 32), (16,), (1, 2, 4, 8), (4, 16, 32), 1.0 / 8, 1),
 ]
 
 
@@ -69,9 +69,12 @@ def _divisor(dt: float) -> int:
 
 
 def _run(sim: Simulation, duration: float, repeats: int = 1) -> dict:
-    """Step ``sim`` for ``duration`` (after a warm-up), ``repeats`` times from rest; samples
-    of the relative displacement from the last run, and the median wall time of
-    stepping and reading the displacement (the energy, a measurement, is not timed)."""
+    """
+    Step ``sim`` for ``duration`` (after a warm-up), ``repeats`` times from rest.
+
+    Samples of the relative displacement from the last run, and the median wall time of stepping
+    and reading the displacement (the energy, a measurement, is not timed).
+    """
     per = int(round(SAMPLE_S / sim.dt))
     samples = int(round(duration / SAMPLE_S))
     out = np.empty((samples, sim.model.n_free_dof))
@@ -87,22 +90,22 @@ def _run(sim: Simulation, duration: float, repeats: int = 1) -> dict:
                 sim.step(per)
                 out[k] = sim.displacement()
                 wall += time.perf_counter() - start
-                energy[k] = sim.energy()["total"]  # a measurement, not part of the cost
+                energy[k] = sim.energy()['total']  # a measurement, not part of the cost
         except DivergenceError as exc:
-            return {"diverged": str(exc), "wall": wall}
+            return {'diverged': str(exc), 'wall': wall}
         walls.append(wall)
-    return {"u": out, "energy": energy, "wall": float(np.median(walls)),
-            "steps": samples * per}
+    return {'u': out, 'energy': energy, 'wall': float(np.median(walls)),
+            'steps': samples * per}
 
 
 def _errors(run: dict, ref: dict) -> dict:
-    if "diverged" in run:
-        return {"rel_l2": math.inf, "max_err": math.inf, "energy_drift": math.inf}
-    diff = run["u"] - ref["u"]
-    return {"rel_l2": float(np.linalg.norm(diff) / np.linalg.norm(ref["u"])),
-            "max_err": float(np.abs(diff).max()),
-            "energy_drift": float(np.abs(run["energy"] - ref["energy"]).max()
-                                  / max(np.ptp(ref["energy"]), 1e-300))}
+    if 'diverged' in run:
+        return {'rel_l2': math.inf, 'max_err': math.inf, 'energy_drift': math.inf}
+    diff = run['u'] - ref['u']
+    return {'rel_l2': float(np.linalg.norm(diff) / np.linalg.norm(ref['u'])),
+            'max_err': float(np.abs(diff).max()),
+            'energy_drift': float(np.abs(run['energy'] - ref['energy']).max()
+                                  / max(np.ptp(ref['energy']), 1e-300))}
 
 
 def _stable(make: Callable[[float], Simulation], dt: float, u0: np.ndarray) -> bool:
@@ -136,15 +139,15 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
     omega_max = basis.omega_max_estimate()
     limit = 2.0 / omega_max
 
-    def full(dt, integrator="explicit"):
+    def full(dt, integrator='explicit'):
         return FullSimulation(model, dt=dt, integrator=integrator, basis=basis)
 
     banks: dict[int, AddedCoordinateBank] = {}  # each band's derivatives, computed once
 
-    def modal(count, dt, integrator="explicit", refresh=1, basis_kind="rest", sampled=False):
+    def modal(count, dt, integrator='explicit', refresh=1, basis_kind='rest', sampled=False):
         bank = banks.setdefault(count, AddedCoordinateBank(basis, DEFAULT_DIRECTIONS)) \
-            if basis_kind == "derivatives" else None
-        return ModalSimulation(model, basis, FilterBand("lowpass", 0, count - 1, "index"),
+            if basis_kind == 'derivatives' else None
+        return ModalSimulation(model, basis, FilterBand('lowpass', 0, count - 1, 'index'),
                                dt=dt, integrator=integrator, force_refresh=refresh,
                                basis_kind=basis_kind, bank=bank,
                                sample_tolerance=SAMPLE_TOLERANCE if sampled else None)
@@ -152,97 +155,97 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
     def refresh(count, dt):
         return choose_refresh(float(basis.frequencies_hz[count - 1]), dt)
 
-    progress(f"{case.scene}: reference (full explicit at "
-             f"1/{round(1 / case.reference_fraction)} of its limit, and at twice that step)")
+    progress(f'{case.scene}: reference (full explicit at '
+             f'1/{round(1 / case.reference_fraction)} of its limit, and at twice that step)')
     n_ref = 2 * _divisor(2 * case.reference_fraction * limit)
     ref = _run(full(SAMPLE_S / n_ref), case.duration)
     check = _run(full(2 * SAMPLE_S / n_ref), case.duration)
-    ref_check = _errors(check, ref)["rel_l2"]   # the reference's error is about a third
+    ref_check = _errors(check, ref)['rel_l2']   # the reference's error is about a third
     configs = []
 
-    def add(method, sim, modes, note=""):
-        progress(f"{case.scene}: {method}, {modes} modes, dt {sim.dt:.3g} s {note}")
+    def add(method, sim, modes, note=''):
+        progress(f'{case.scene}: {method}, {modes} modes, dt {sim.dt:.3g} s {note}')
         r = _run(sim, case.duration, case.repeats)
-        row = {"scene": case.scene, "method": method, "modes": modes, "dt": sim.dt,
-               "stability_limit": sim.stability_limit(), **_errors(r, ref),
-               "seconds_per_sim_second": r["wall"] / case.duration if "steps" in r else None,
-               "seconds_per_step": r["wall"] / r["steps"] if "steps" in r else None,
-               "diverged": r.get("diverged", ""), "note": note}
+        row = {'scene': case.scene, 'method': method, 'modes': modes, 'dt': sim.dt,
+               'stability_limit': sim.stability_limit(), **_errors(r, ref),
+               'seconds_per_sim_second': r['wall'] / case.duration if 'steps' in r else None,
+               'seconds_per_step': r['wall'] / r['steps'] if 'steps' in r else None,
+               'diverged': r.get('diverged', ''), 'note': note}
         configs.append(row)
         return row
 
     n_full = _divisor(0.95 * limit)
     for n in (n_full, 2 * n_full):
-        add("full explicit", full(SAMPLE_S / n), model.n_free_dof)
+        add('full explicit', full(SAMPLE_S / n), model.n_free_dof)
     for n in case.average_divisors:
-        add("full average", full(SAMPLE_S / n, "average"), model.n_free_dof)
+        add('full average', full(SAMPLE_S / n, 'average'), model.n_free_dof)
     for count in case.modal_counts:
         if count > basis.count and not basis.complete:
             basis.ensure_count(count)
         count = min(count, basis.count)
         n = _divisor(0.95 * 2.0 / basis.omega[count - 1])
         for k in (n, 2 * n, 4 * n):
-            add("modal explicit", modal(count, SAMPLE_S / k), count)
+            add('modal explicit', modal(count, SAMPLE_S / k), count)
             every = refresh(count, SAMPLE_S / k)
             if every > 1:
-                add("modal refreshed", modal(count, SAMPLE_S / k, refresh=every), count,
-                    f"springs every {every} steps")
+                add('modal refreshed', modal(count, SAMPLE_S / k, refresh=every), count,
+                    f'springs every {every} steps')
             if count < model.n_free_dof:   # trained once per band (cached), then reused
                 sampled = modal(count, SAMPLE_S / k, sampled=True)
-                add("modal sampled", sampled, count, sampled.describe_forces())
+                add('modal sampled', sampled, count, sampled.describe_forces())
         if count < model.n_free_dof:   # the band's derivatives: their own stability limit
-            probe = modal(count, SAMPLE_S, basis_kind="derivatives")
+            probe = modal(count, SAMPLE_S, basis_kind='derivatives')
             n = _divisor(0.95 * probe.stability_limit())
             for k in (n, 2 * n):
-                add("modal derivatives", modal(count, SAMPLE_S / k, basis_kind="derivatives"),
-                    count, f"+ {probe.coordinates - count} derivative and static coordinates")
+                add('modal derivatives', modal(count, SAMPLE_S / k, basis_kind='derivatives'),
+                    count, f'+ {probe.coordinates - count} derivative and static coordinates')
     for count in case.average_counts:
         for n in case.average_divisors:
-            add("modal average", modal(count, SAMPLE_S / n, "average"), count)
+            add('modal average', modal(count, SAMPLE_S / n, 'average'), count)
     for tol in (0.05, 0.01):
         choice = choose_modes(model, basis, tolerance=tol)
-        dt = choose_step(choice, "explicit", tol, model.scene.damping)
+        dt = choose_step(choice, 'explicit', tol, model.scene.damping)
         dt = SAMPLE_S / _divisor(dt)
         every = choose_refresh(choice.highest_hz, dt)
-        add("modal auto", modal(choice.count, dt, refresh=every), choice.count,
-            f"tolerance {tol:g}: {choice.describe()}, springs every {every} steps").update(
+        add('modal auto', modal(choice.count, dt, refresh=every), choice.count,
+            f'tolerance {tol:g}: {choice.describe()}, springs every {every} steps').update(
             predicted_error=choice.predicted_error, tolerance=tol)
-        add("modal explicit", modal(choice.count, dt), choice.count,
-            f"the automatic choice at tolerance {tol:g} with the springs every step (paper)")
+        add('modal explicit', modal(choice.count, dt), choice.count,
+            f'the automatic choice at tolerance {tol:g} with the springs every step (paper)')
 
-    progress(f"{case.scene}: stability limits (bisection)")
+    progress(f'{case.scene}: stability limits (bisection)')
     rng = np.random.default_rng(7)
     u0 = basis.vectors @ rng.normal(scale=1e-4, size=basis.count)  # every computed mode
-    stability = [{"method": "full explicit", "modes": model.n_free_dof,
-                  "theory": limit, "largest_stable": largest_stable_step(
+    stability = [{'method': 'full explicit', 'modes': model.n_free_dof,
+                  'theory': limit, 'largest_stable': largest_stable_step(
                       lambda dt: full(dt), 0.5 * limit, 2.0 * limit, u0)}]
     for count in case.stability_counts:
         count = min(count, basis.count)
         theory = 2.0 / basis.omega[count - 1]
-        stability.append({"method": "modal explicit", "modes": count, "theory": theory,
-                          "largest_stable": largest_stable_step(
+        stability.append({'method': 'modal explicit', 'modes': count, 'theory': theory,
+                          'largest_stable': largest_stable_step(
                               lambda dt, c=count: modal(c, dt), 0.5 * theory, 2.0 * theory,
                               u0)})
     for count in case.stability_counts:
         count = min(count, basis.count)
         if count >= model.n_free_dof:
             continue
-        theory = modal(count, SAMPLE_S, basis_kind="derivatives").stability_limit()
-        stability.append({"method": "modal derivatives", "modes": count, "theory": theory,
-                          "largest_stable": largest_stable_step(
-                              lambda dt, c=count: modal(c, dt, basis_kind="derivatives"),
+        theory = modal(count, SAMPLE_S, basis_kind='derivatives').stability_limit()
+        stability.append({'method': 'modal derivatives', 'modes': count, 'theory': theory,
+                          'largest_stable': largest_stable_step(
+                              lambda dt, c=count: modal(c, dt, basis_kind='derivatives'),
                               0.5 * theory, 2.0 * theory, u0)})
     for count in (case.stability_counts[0], case.stability_counts[-1]):
         count = min(count, basis.count)
-        stability.append({"method": "modal average", "modes": count,
-                          "theory": math.inf, "largest_stable": largest_stable_step(
-                              lambda dt, c=count: modal(c, dt, "average"), limit,
+        stability.append({'method': 'modal average', 'modes': count,
+                          'theory': math.inf, 'largest_stable': largest_stable_step(
+                              lambda dt, c=count: modal(c, dt, 'average'), limit,
                               100 * limit, u0, iterations=6)})
-    return {"scene": case.scene, "particles": model.scene.n_particles,
-            "free_dof": model.n_free_dof, "duration": case.duration, "repeats": case.repeats,
-            "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-            "omega_max": omega_max, "reference_dt": SAMPLE_S / n_ref,
-            "reference_check_rel_l2": ref_check, "configs": configs, "stability": stability}
+    return {'scene': case.scene, 'particles': model.scene.n_particles,
+            'free_dof': model.n_free_dof, 'duration': case.duration, 'repeats': case.repeats,
+            'peak_memory_mb': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+            'omega_max': omega_max, 'reference_dt': SAMPLE_S / n_ref,
+            'reference_check_rel_l2': ref_check, 'configs': configs, 'stability': stability}
 
 
 #: the band of the extended fig. 7
@@ -252,9 +255,13 @@ SAMPLE_TOLERANCE = 0.01
 
 
 def step_costs(scenes: list[str], dropped: list[int], progress) -> dict:
-    """The paper's figs. 7 and 8, extended: time per step against particle count (full, and
-    a 32-mode band with exact, refreshed and sampled spring forces), and of sheet_10x10 against
-    the number of dropped modes (medians of repeated batches)."""
+    """
+    Return the paper's figs.
+
+    7 and 8, extended: time per step against particle count (full, and a 32-mode band with exact,
+    refreshed and sampled spring forces), and of sheet_10x10 against the number of dropped modes
+    (medians of repeated batches).
+    """
     def per_step(sim, steps):
         sim.step(steps)
         times = []
@@ -265,42 +272,42 @@ def step_costs(scenes: list[str], dropped: list[int], progress) -> dict:
         return float(np.median(times))
 
     fig7 = []
-    band = FilterBand("lowpass", 0, FIG7_MODES - 1, "index")
+    band = FilterBand('lowpass', 0, FIG7_MODES - 1, 'index')
     for name in scenes:
-        progress(f"fig. 7: {name}")
+        progress(f'fig. 7: {name}')
         model = MassSpringModel(load_scene(name))
         basis = ModalBasis(model, initial_modes=FIG7_MODES, progress=progress)
         steps = max(20, 4000 // max(1, model.scene.n_particles // 25))
-        row = {"scene": name, "particles": model.scene.n_particles,
-               "springs": model.scene.n_springs,
-               "full": per_step(FullSimulation(model, dt=1e-5, basis=basis), steps)}
-        for label, options in (("modal_exact", {}),
-                               ("modal_refreshed", {"force_refresh": DEFAULT_REFRESH}),
-                               ("modal_sampled", {"sample_tolerance": 0.01})):
-            sim = ModalSimulation(model, basis, band, dt=1e-4, basis_kind="rest", **options)
+        row = {'scene': name, 'particles': model.scene.n_particles,
+               'springs': model.scene.n_springs,
+               'full': per_step(FullSimulation(model, dt=1e-5, basis=basis), steps)}
+        for label, options in (('modal_exact', {}),
+                               ('modal_refreshed', {'force_refresh': DEFAULT_REFRESH}),
+                               ('modal_sampled', {'sample_tolerance': 0.01})):
+            sim = ModalSimulation(model, basis, band, dt=1e-4, basis_kind='rest', **options)
             row[label] = per_step(sim, max(steps, 200))
-            if label == "modal_sampled":
-                row["sampled_springs"] = sim._forces.sample.count
-                row["sample_seconds"] = sim._forces.sample.seconds
+            if label == 'modal_sampled':
+                row['sampled_springs'] = sim._forces.sample.count
+                row['sample_seconds'] = sim._forces.sample.seconds
         fig7.append(row)
-    progress("fig. 8: sheet_10x10, dropped modes")
-    model = MassSpringModel(load_scene("sheet_10x10"))
+    progress('fig. 8: sheet_10x10, dropped modes')
+    model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
-    fig8 = [{"dropped": d, "seconds_per_step": per_step(ModalSimulation(
-        model, basis, FilterBand("lowpass", 0, 179 - d, "index"), dt=1e-4), 500)}
+    fig8 = [{'dropped': d, 'seconds_per_step': per_step(ModalSimulation(
+        model, basis, FilterBand('lowpass', 0, 179 - d, 'index'), dt=1e-4), 500)}
         for d in dropped]
-    return {"fig7": fig7, "fig8": fig8}
+    return {'fig7': fig7, 'fig8': fig8}
 
 
 def _case_in_child(case: Case, queue) -> None:
     def progress(msg: str) -> None:
-        print(f"[modal_spring_bench] {msg}", file=sys.stderr, flush=True)
+        print(f'[modal_spring_bench] {msg}', file=sys.stderr, flush=True)
     queue.put(run_case(case, progress))
 
 
 def run_case_isolated(case: Case) -> dict:
     """:func:`run_case` in its own process, so that its peak memory is the scene's own."""
-    ctx = mp.get_context("spawn")
+    ctx = mp.get_context('spawn')
     queue = ctx.Queue()
     child = ctx.Process(target=_case_in_child, args=(case, queue))
     child.start()
@@ -311,74 +318,74 @@ def run_case_isolated(case: Case) -> dict:
 
 def run(quick: bool, progress: Callable[[str], None]) -> dict:
     cases = QUICK if quick else FULL
-    result = {"quick": quick, "sample_s": SAMPLE_S,
-              "cases": [run_case_isolated(c) for c in cases]}
-    for case in result["cases"]:
-        rows = case["configs"]
-        case["pareto"] = [(r["method"], r["modes"], r["dt"]) for r in pareto(rows)]
-        for auto in (r for r in rows if r["method"] == "modal auto"):
-            best = cheapest_reaching(rows, auto["rel_l2"], METHODS)
-            auto["cheapest_same_error"] = best["seconds_per_sim_second"] if best else None
-            auto["cost_ratio_to_cheapest"] = (auto["seconds_per_sim_second"]
-                                              / best["seconds_per_sim_second"]) if best else None
+    result = {'quick': quick, 'sample_s': SAMPLE_S,
+              'cases': [run_case_isolated(c) for c in cases]}
+    for case in result['cases']:
+        rows = case['configs']
+        case['pareto'] = [(r['method'], r['modes'], r['dt']) for r in pareto(rows)]
+        for auto in (r for r in rows if r['method'] == 'modal auto'):
+            best = cheapest_reaching(rows, auto['rel_l2'], METHODS)
+            auto['cheapest_same_error'] = best['seconds_per_sim_second'] if best else None
+            auto['cost_ratio_to_cheapest'] = (auto['seconds_per_sim_second']
+                                              / best['seconds_per_sim_second']) if best else None
         targets = {}
-        for name, methods in (("full explicit", ("full explicit",)),
-                              ("full average", ("full average",)),
-                              ("modal auto", ("modal auto",)),
-                              ("modal, springs every step", ("modal explicit",
-                                                             "modal average")),
-                              ("modal (any)", ("modal explicit", "modal refreshed",
-                                               "modal average", "modal auto"))):
+        for name, methods in (('full explicit', ('full explicit',)),
+                              ('full average', ('full average',)),
+                              ('modal auto', ('modal auto',)),
+                              ('modal, springs every step', ('modal explicit',
+                                                             'modal average')),
+                              ('modal (any)', ('modal explicit', 'modal refreshed',
+                                               'modal average', 'modal auto'))):
             best = cheapest_reaching(rows, 0.01, methods)
-            targets[name] = best["seconds_per_sim_second"] if best else None
-        case["cheapest_at_1pct"] = targets
-    result["step_costs"] = step_costs(["sheet_10x10", "sheet_32x32"] if quick else
-                                      ["sheet_10x10", "sheet_32x32", "sheet_100x100",
-                                       "sheet_316x316"],
+            targets[name] = best['seconds_per_sim_second'] if best else None
+        case['cheapest_at_1pct'] = targets
+    result['step_costs'] = step_costs(['sheet_10x10', 'sheet_32x32'] if quick else
+                                      ['sheet_10x10', 'sheet_32x32', 'sheet_100x100',
+                                       'sheet_316x316'],
                                       list(range(0, 180, 45 if quick else 15)), progress)
-    result["failure"] = failure(progress, 2.5 if quick else 6.0)
-    result["turning_clamp"] = turning_clamp(progress, 3.0 if quick else 10.0)
+    result['failure'] = failure(progress, 2.5 if quick else 6.0)
+    result['turning_clamp'] = turning_clamp(progress, 3.0 if quick else 10.0)
     return result
 
 
 def write_outputs(result: dict, out: Path, progress) -> None:
-    fields = ["scene", "method", "modes", "dt", "stability_limit", "rel_l2", "max_err",
-              "energy_drift", "seconds_per_sim_second", "seconds_per_step", "diverged", "note"]
-    with open(out / "tradeoff.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
+    fields = ['scene', 'method', 'modes', 'dt', 'stability_limit', 'rel_l2', 'max_err',
+              'energy_drift', 'seconds_per_sim_second', 'seconds_per_step', 'diverged', 'note']
+    with open(out / 'tradeoff.csv', 'w', newline='') as fh:
+        w = csv.DictWriter(fh, fieldnames=fields, extrasaction='ignore')
         w.writeheader()
-        for case in result["cases"]:
-            w.writerows(case["configs"])
+        for case in result['cases']:
+            w.writerows(case['configs'])
     for path in draw_all(result, out):
-        progress(f"chart {path}")
+        progress(f'chart {path}')
 
 
 def table(result: dict) -> str:
     lines = []
-    for case in result["cases"]:
+    for case in result['cases']:
         lines.append(f"{case['scene']}: reference check {case['reference_check_rel_l2']:.1e}, "
                      f"peak memory {case['peak_memory_mb']:.0f} MB, median of "
                      f"{case['repeats']} timed run(s)")
         lines.append(f"  {'method':15s} {'modes':>5s} {'dt ms':>7s} {'rel L2':>9s} "
                      f"{'s/sim s':>9s}")
-        for r in case["configs"]:
-            cost = f"{r['seconds_per_sim_second']:.3g}" if r["seconds_per_sim_second"] else "-"
+        for r in case['configs']:
+            cost = f"{r['seconds_per_sim_second']:.3g}" if r['seconds_per_sim_second'] else '-'
             lines.append(f"  {r['method']:15s} {r['modes']:5d} {1e3 * r['dt']:7.3f} "
                          f"{r['rel_l2']:9.2e} {cost:>9s}")
-        t = case["cheapest_at_1pct"]
-        lines.append(f"  cheapest at 1 %: {t}")
-    f = result["failure"]
+        t = case['cheapest_at_1pct']
+        lines.append(f'  cheapest at 1 %: {t}')
+    f = result['failure']
     lines.append(f"failure: error passes 10 % at {f['error_passes_10pct_at']} s, strain "
                  f"warning at {f['strain_warning_at']} s; with derivatives "
                  f"({f['derivatives_coordinates']} coordinates) the largest window is "
                  f"{max(f['derivatives_rel_l2_window']):.2%}, {f['derivatives_rel_l2']:.2%} over "
-                 "the run")
-    c = result["turning_clamp"]
-    cost = c["seconds_per_step"]
-    lines.append(f"turning clamp (sheet_10x10_swing, 15 modes): derivatives "
+                 'the run')
+    c = result['turning_clamp']
+    cost = c['seconds_per_step']
+    lines.append(f'turning clamp (sheet_10x10_swing, 15 modes): derivatives '
                  f"{c['rel_l2']['derivatives']:.3%}, rest modes {c['rel_l2']['rest']:.2%} in the "
                  f"clamp's frame; turn left out {c['rel_l2']['turn left out']:.0%} (world); "
                  f"step {1e6 * cost['sheet_10x10_swing']:.0f} us, "
                  f"{cost['sheet_10x10_swing'] / cost['sheet_10x10']:.2f} x the translating "
                  "sheet's")
-    return "\n".join(lines)
+    return '\n'.join(lines)

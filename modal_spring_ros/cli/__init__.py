@@ -1,2 +1,1 @@
-"""Console scripts, one module each, named after the script; ``common`` holds what they share.
-"""
+"""Console scripts, one module each, named after the script; ``common`` holds what they share."""

@@ -4,13 +4,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
-import sys
 from pathlib import Path
+import sys
 from typing import Callable, Iterator, NoReturn
 
 from modal_spring_ros.core.config import FORCES, SimulationConfig
 from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
-from modal_spring_ros.core.filter_band import FILTER_TYPES, BandError, FilterBand, parse_mode_range
+from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand, parse_mode_range
 from modal_spring_ros.core.integrators import INTEGRATORS
 from modal_spring_ros.core.scene import SceneError
 from modal_spring_ros.core.simulations import DEFAULT_MAX_MODES, METHODS
@@ -23,44 +23,53 @@ EXIT_USAGE = 2
 PROBE_BYTES = 4096
 
 
+def script_parser(prog: str, doc: str) -> argparse.ArgumentParser:
+    """Return the parser of a console script whose module text starts ``prog: what it does.``."""
+    summary = doc.strip().splitlines()[0]
+    return argparse.ArgumentParser(prog=prog, description=summary.split(': ', 1)[1])
+
+
 def split_ros_args(argv: list[str] | None) -> tuple[list[str], list[str]]:
-    """(the tool's own arguments, ``--ros-args ...`` for rclpy), as ROS executables take them."""
+    """Split the tool's own arguments from ``--ros-args ...`` (for rclpy), as ROS tools do."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if "--ros-args" in argv:
-        k = argv.index("--ros-args")
+    if '--ros-args' in argv:
+        k = argv.index('--ros-args')
         return argv[:k], argv[k:]
     return argv, []
 
 
 def claim_output_file(path: str, option: str, others: dict[str, str | None] | None = None
                       ) -> bool:
-    """Fail before long work, not after it, when an output file cannot be written: create it
-    now (an unwritable folder, a name too long, a full device fail here), and refuse one that
-    is the same file as another path of the command (``others``: name -> path, an input or
-    another output). Returns whether the file was created here (an existing one is left as it
-    is until it is written).
+    """
+    Fail before long work, not after it, when an output file cannot be written.
 
-    Raises ValueError naming ``option``."""
+    Create it now (an unwritable folder, a name too long, a full device fail here), and refuse one
+    that is the same file as another path of the command (``others``: name -> path, an input or
+    another output). Returns whether the file was created here (an existing one is left as it is
+    until it is written).
+
+    Raises ValueError naming ``option``.
+    """
     try:
         return _claim(Path(path), path, option, others or {})
     except OSError as exc:  # a name the file system refuses even to look up
-        raise ValueError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
+        raise ValueError(f'{option} {path}: cannot write: {exc.strerror or exc}') from None
 
 
 def _claim(target: Path, path: str, option: str, others: dict[str, str | None]) -> bool:
     for name, other in others.items():
         if other and (os.path.abspath(other) == os.path.abspath(target) or (
                 target.exists() and Path(other).exists() and os.path.samefile(other, target))):
-            raise ValueError(f"{option} {path}: is also {name}; choose another file "
-                             "(nothing was overwritten)")
+            raise ValueError(f'{option} {path}: is also {name}; choose another file '
+                             '(nothing was overwritten)')
     if target.is_dir():
-        raise ValueError(f"{option} {path}: is a folder, not a file")
-    folder = target.parent if str(target.parent) else Path(".")
+        raise ValueError(f'{option} {path}: is a folder, not a file')
+    folder = target.parent if str(target.parent) else Path('.')
     if not folder.is_dir():
-        raise ValueError(f"{option} {path}: folder {folder} does not exist")
+        raise ValueError(f'{option} {path}: folder {folder} does not exist')
     existed = target.exists()
     try:
-        with open(target, "ab") as fh:
+        with open(target, 'ab') as fh:
             if not existed:  # room for at least a block: a full device fails now
                 fh.write(bytes(PROBE_BYTES))
                 fh.flush()
@@ -70,15 +79,18 @@ def _claim(target: Path, path: str, option: str, others: dict[str, str | None]) 
         if not existed:
             with contextlib.suppress(OSError):
                 target.unlink()
-        raise ValueError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
+        raise ValueError(f'{option} {path}: cannot write: {exc.strerror or exc}') from None
     return not existed
 
 
 @contextlib.contextmanager
 def claimed_outputs(outputs: dict[str, str | None],
                     others: dict[str, str | None] | None = None) -> Iterator[None]:
-    """Claim every output (option -> path, None when not asked for) before the work; if the
-    work fails, the files created here are removed again: bad input changes nothing."""
+    """
+    Claim every output (option -> path, None when not asked for) before the work.
+
+    If the work fails, the files created here are removed again: bad input changes nothing.
+    """
     others = others or {}
     created = [path for option, path in outputs.items()
                if path and claim_output_file(path, option,
@@ -98,93 +110,93 @@ def write_output(path: str, option: str, write: Callable[[], None]) -> None:
     try:
         write()
     except OSError as exc:
-        raise ValueError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
+        raise ValueError(f'{option} {path}: cannot write: {exc.strerror or exc}') from None
 
 
 def fail(prog: str, message: str, status: int = EXIT_USAGE) -> NoReturn:
-    print(f"{prog}: error: {message}", file=sys.stderr)
+    print(f'{prog}: error: {message}', file=sys.stderr)
     raise SystemExit(status)
 
 
 def add_simulation_options(parser: argparse.ArgumentParser) -> None:
-    g = parser.add_argument_group("simulation")
-    g.add_argument("--scene", default=DEFAULT_SCENE,
-                   help=f"built-in scene name or YAML path (default {DEFAULT_SCENE})")
-    g.add_argument("--method", choices=METHODS, default="modal")
-    g.add_argument("--filter", dest="filter_type", choices=FILTER_TYPES, default=None,
-                   help="filter band type (default allpass)")
-    g.add_argument("--low-hz", type=float, default=None, help="lower band edge, Hz")
-    g.add_argument("--high-hz", type=float, default=None, help="upper band edge, Hz")
-    g.add_argument("--modes", default=None, metavar="FIRST:LAST",
-                   help="keep modes FIRST..LAST (zero-based, inclusive) instead of a Hz band;"
-                        " with --filter bandstop, drop them")
-    g.add_argument("--integrator", choices=INTEGRATORS, default="explicit")
-    g.add_argument("--dt", type=float, default=None,
+    g = parser.add_argument_group('simulation')
+    g.add_argument('--scene', default=DEFAULT_SCENE,
+                   help=f'built-in scene name or YAML path (default {DEFAULT_SCENE})')
+    g.add_argument('--method', choices=METHODS, default='modal')
+    g.add_argument('--filter', dest='filter_type', choices=FILTER_TYPES, default=None,
+                   help='filter band type (default allpass)')
+    g.add_argument('--low-hz', type=float, default=None, help='lower band edge, Hz')
+    g.add_argument('--high-hz', type=float, default=None, help='upper band edge, Hz')
+    g.add_argument('--modes', default=None, metavar='FIRST:LAST',
+                   help='keep modes FIRST..LAST (zero-based, inclusive) instead of a Hz band;'
+                        ' with --filter bandstop, drop them')
+    g.add_argument('--integrator', choices=INTEGRATORS, default='explicit')
+    g.add_argument('--dt', type=float, default=None,
                    help="time step, s (default: the scene's, else half the stability limit)")
-    g.add_argument("--transition-s", type=float, default=0.5,
-                   help="fade time of modes leaving the band, s")
-    g.add_argument("--max-modes", type=int, default=None,
-                   help=f"most modes computed on large scenes (default {DEFAULT_MAX_MODES})")
-    g.add_argument("--auto", action="store_true",
-                   help="keep the fewest modes (within the band) that meet --tolerance for the "
+    g.add_argument('--transition-s', type=float, default=0.5,
+                   help='fade time of modes leaving the band, s')
+    g.add_argument('--max-modes', type=int, default=None,
+                   help=f'most modes computed on large scenes (default {DEFAULT_MAX_MODES})')
+    g.add_argument('--auto', action='store_true',
+                   help='keep the fewest modes (within the band) that meet --tolerance for the '
                         "scene's loads, the step they allow (unless --dt), and the basis "
-                        "(in place of --basis)")
-    g.add_argument("--tolerance", type=float, default=0.01,
-                   help="predicted relative error for --auto (default 0.01)")
-    g.add_argument("--basis", choices=BASES, default="derivatives",
+                        '(in place of --basis)')
+    g.add_argument('--tolerance', type=float, default=0.01,
+                   help='predicted relative error for --auto (default 0.01)')
+    g.add_argument('--basis', choices=BASES, default='derivatives',
                    help="modal coordinates: the band's rest modes (the paper's method), or "
-                        "those plus their modal derivatives and static load vectors (right "
-                        "beyond small deformation; default)")
-    g.add_argument("--derivative-directions", type=int, default=DEFAULT_DIRECTIONS,
-                   metavar="N", help="modal-derivative directions a band adds "
-                                     f"(default {DEFAULT_DIRECTIONS})")
-    g.add_argument("--forces", choices=FORCES, default="exact",
-                   help="spring forces: exact (every spring, every step: the paper), "
-                        "refreshed (every --force-refresh steps, a tangent between) or "
-                        "sampled (a weighted sample of the springs within --tolerance, "
-                        "trained once and cached); --auto chooses in its place")
-    g.add_argument("--force-refresh", type=int, default=0, metavar="N",
-                   help="evaluate the nonlinear spring forces every N steps and continue "
-                        "them along the static tangent in between (default: every step, "
-                        "or what --auto chooses)")
+                        'those plus their modal derivatives and static load vectors (right '
+                        'beyond small deformation; default)')
+    g.add_argument('--derivative-directions', type=int, default=DEFAULT_DIRECTIONS,
+                   metavar='N', help='modal-derivative directions a band adds '
+                                     f'(default {DEFAULT_DIRECTIONS})')
+    g.add_argument('--forces', choices=FORCES, default='exact',
+                   help='spring forces: exact (every spring, every step: the paper), '
+                        'refreshed (every --force-refresh steps, a tangent between) or '
+                        'sampled (a weighted sample of the springs within --tolerance, '
+                        'trained once and cached); --auto chooses in its place')
+    g.add_argument('--force-refresh', type=int, default=0, metavar='N',
+                   help='evaluate the nonlinear spring forces every N steps and continue '
+                        'them along the static tangent in between (default: every step, '
+                        'or what --auto chooses)')
 
 
 def band_from_args(args: argparse.Namespace) -> FilterBand:
-    """The filter band the options describe. Raises BandError naming the option."""
-    kind = args.filter_type or ("bandpass" if args.modes else "allpass")
+    """Return the filter band the options describe. Raises BandError naming the option."""
+    kind = args.filter_type or ('bandpass' if args.modes else 'allpass')
     if args.modes is not None:
         if args.low_hz is not None or args.high_hz is not None:
-            raise BandError("--modes and --low-hz/--high-hz exclude each other")
+            raise BandError('--modes and --low-hz/--high-hz exclude each other')
         band = parse_mode_range(args.modes)
-        if kind == "bandstop":
-            return FilterBand("bandstop", band.low, band.high, "index").validate(
-                ("FIRST", "LAST"))
-        if kind not in ("bandpass", "lowpass"):
-            raise BandError(f"--modes keeps a range of modes: use it with --filter bandpass "
-                            f"or bandstop, not {kind}")
+        if kind == 'bandstop':
+            return FilterBand('bandstop', band.low, band.high, 'index').validate(
+                ('FIRST', 'LAST'))
+        if kind not in ('bandpass', 'lowpass'):
+            raise BandError(f'--modes keeps a range of modes: use it with --filter bandpass '
+                            f'or bandstop, not {kind}')
         return band
-    if kind != "allpass":
-        needs_low = kind in ("highpass", "bandpass", "bandstop")
-        needs_high = kind in ("lowpass", "bandpass", "bandstop")
+    if kind != 'allpass':
+        needs_low = kind in ('highpass', 'bandpass', 'bandstop')
+        needs_high = kind in ('lowpass', 'bandpass', 'bandstop')
         if needs_low and args.low_hz is None:
-            raise BandError(f"--filter {kind} needs --low-hz")
+            raise BandError(f'--filter {kind} needs --low-hz')
         if needs_high and args.high_hz is None:
-            raise BandError(f"--filter {kind} needs --high-hz")
+            raise BandError(f'--filter {kind} needs --high-hz')
     low = args.low_hz if args.low_hz is not None else 0.0
-    high = args.high_hz if args.high_hz is not None else float("inf")
-    return FilterBand(kind, low, high, "hz").validate(("--low-hz", "--high-hz"))
+    high = args.high_hz if args.high_hz is not None else float('inf')
+    return FilterBand(kind, low, high, 'hz').validate(('--low-hz', '--high-hz'))
 
 
 #: configuration field -> option, so that configuration errors name the option
-OPTION_NAMES = {"method": "--method", "auto": "--auto", "integrator": "--integrator", "dt": "--dt",
-                "transition_s": "--transition-s", "max_modes": "--max-modes",
-                "strain_limit": "--strain-limit", "tolerance": "--tolerance",
-                "force_refresh": "--force-refresh", "basis": "--basis",
-                "derivative_directions": "--derivative-directions", "forces": "--forces"}
+OPTION_NAMES = {'method': '--method', 'auto': '--auto', 'integrator': '--integrator', 'dt': '--dt',
+                'transition_s': '--transition-s', 'max_modes': '--max-modes',
+                'strain_limit': '--strain-limit', 'tolerance': '--tolerance',
+                'force_refresh': '--force-refresh', 'basis': '--basis',
+                'derivative_directions': '--derivative-directions', 'forces': '--forces'}
 
 
 def config_from_args(args: argparse.Namespace) -> SimulationConfig:
-    """The run the options describe, validated (errors name the option)."""
+    """Return the run the options describe, validated (errors name the option)."""
     return SimulationConfig(method=args.method, band=band_from_args(args),
                             integrator=args.integrator, dt=args.dt,
                             transition_s=args.transition_s, max_modes=args.max_modes,

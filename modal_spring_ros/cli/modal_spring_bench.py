@@ -1,4 +1,5 @@
-"""``modal_spring_bench``: the project's benchmarks, as suites, with their results on disk.
+"""
+``modal_spring_bench``: the project's benchmarks, as suites, with their results on disk.
 
     modal_spring_bench [--suite steps,stream] [--quick] [--out DIR]
 
@@ -10,27 +11,26 @@ failure, with CSV and PNG charts). Results are printed as tables and written to
 """
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 from pathlib import Path
+import sys
 
 from modal_spring_ros.bench import steps, stream, tradeoff
-from modal_spring_ros.cli.common import fail
+from modal_spring_ros.cli.common import fail, script_parser
 
-PROG = "modal_spring_bench"
+PROG = 'modal_spring_bench'
 #: suite name -> module with run(quick, progress), table(results), write_outputs(...)
-SUITES = {"steps": steps, "stream": stream, "tradeoff": tradeoff}
+SUITES = {'steps': steps, 'stream': stream, 'tradeoff': tradeoff}
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0].split(": ")[1])
-    p.add_argument("--suite", default="steps",
+    p = script_parser(PROG, __doc__)
+    p.add_argument('--suite', default='steps',
                    help=f"comma-separated suites: {', '.join(SUITES)} (default steps)")
-    p.add_argument("--quick", action="store_true", help="fewer repetitions and cases")
-    p.add_argument("--out", default=None, help="folder for the JSON results")
+    p.add_argument('--quick', action='store_true', help='fewer repetitions and cases')
+    p.add_argument('--out', default=None, help='folder for the JSON results')
     args = p.parse_args(argv)
-    suites = [s.strip() for s in args.suite.split(",") if s.strip()]
+    suites = [s.strip() for s in args.suite.split(',') if s.strip()]
     unknown = [s for s in suites if s not in SUITES]
     if unknown or not suites:
         fail(PROG, f"--suite: unknown {', '.join(unknown) or '(none)'} "
@@ -40,21 +40,21 @@ def main(argv: list[str] | None = None) -> int:
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            fail(PROG, f"--out {out}: cannot create: {exc.strerror or exc}")
+            fail(PROG, f'--out {out}: cannot create: {exc.strerror or exc}')
 
     def progress(msg: str) -> None:
-        print(f"[{PROG}] {msg}", file=sys.stderr, flush=True)
+        print(f'[{PROG}] {msg}', file=sys.stderr, flush=True)
 
     for name in suites:
         module = SUITES[name]
         results = module.run(args.quick, progress)
-        print(f"== {name} ==")
+        print(f'== {name} ==')
         print(module.table(results))
         if out is not None:
-            (out / f"{name}.json").write_text(json.dumps(results, indent=1, default=float))
+            (out / f'{name}.json').write_text(json.dumps(results, indent=1, default=float))
             module.write_outputs(results, out, progress)
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,4 +1,5 @@
-"""``modal_spring_gripper``: an example gripper that carries the sheet's clamp in a circle.
+"""
+``modal_spring_gripper``: an example gripper that carries the sheet's clamp in a circle.
 
     modal_spring_gripper [--start-node] [--radius M] [--frequency-hz F] [--turn-deg D]
                          [--centre X Y Z] [--rate-hz R] [--duration S] [--ros-args ...]
@@ -19,21 +20,20 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
-import rclpy
 from geometry_msgs.msg import PoseStamped
+from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args
+from modal_spring_ros.core.clamp_follower import DEFAULT_FOLLOW_HZ
+from modal_spring_ros.scenes.resources import executable
+import rclpy
 from rclpy.executors import ExternalShutdownException
 
-from modal_spring_ros.cli.common import EXIT_USAGE, split_ros_args
-from modal_spring_ros.core.clamp_follower import DEFAULT_FOLLOW_HZ
-
-PROG = "modal_spring_gripper"
-TOPIC = "anchor_pose"
+PROG = 'modal_spring_gripper'
+TOPIC = 'anchor_pose'
 
 
 def gripper_pose(t: float, args: argparse.Namespace) -> PoseStamped:
-    """The gripper's pose at time ``t`` (s): on the circle, turned by the swing angle."""
+    """Return the gripper's pose at time ``t`` (s): on the circle, turned by the swing angle."""
     m = PoseStamped()
     m.header.frame_id = args.frame_id
     phase = 2.0 * math.pi * args.frequency_hz * t
@@ -48,44 +48,43 @@ def gripper_pose(t: float, args: argparse.Namespace) -> PoseStamped:
 
 
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0].split(": ")[1])
-    p.add_argument("--start-node", action="store_true",
-                   help="also start modal_spring_node following the gripper (stopped on exit)")
-    p.add_argument("--radius", type=float, default=0.1, help="circle radius, m (default 0.1)")
-    p.add_argument("--frequency-hz", type=float, default=0.3,
-                   help="turns per second around the circle (default 0.3)")
-    p.add_argument("--turn-deg", type=float, default=30.0,
-                   help="how far the gripper turns to and fro about z, degrees (default 30)")
-    p.add_argument("--centre", type=float, nargs=3, default=[0.45, 0.0, 0.0],
-                   metavar=("X", "Y", "Z"),
+    p = script_parser(PROG, __doc__)
+    p.add_argument('--start-node', action='store_true',
+                   help='also start modal_spring_node following the gripper (stopped on exit)')
+    p.add_argument('--radius', type=float, default=0.1, help='circle radius, m (default 0.1)')
+    p.add_argument('--frequency-hz', type=float, default=0.3,
+                   help='turns per second around the circle (default 0.3)')
+    p.add_argument('--turn-deg', type=float, default=30.0,
+                   help='how far the gripper turns to and fro about z, degrees (default 30)')
+    p.add_argument('--centre', type=float, nargs=3, default=[0.45, 0.0, 0.0],
+                   metavar=('X', 'Y', 'Z'),
                    help="where the circle starts from, m (default the default scene's clamp "
-                        "centre, 0.45 0 0)")
-    p.add_argument("--ramp-s", type=float, default=2.0,
-                   help="seconds over which the motion grows from still (default 2)")
-    p.add_argument("--rate-hz", type=float, default=50.0, help="poses per second (default 50)")
-    p.add_argument("--duration", type=float, default=0.0,
-                   help="seconds to run; 0 = until Ctrl-C (default)")
-    p.add_argument("--frame-id", default="world", help="header.frame_id (default world)")
+                        'centre, 0.45 0 0)')
+    p.add_argument('--ramp-s', type=float, default=2.0,
+                   help='seconds over which the motion grows from still (default 2)')
+    p.add_argument('--rate-hz', type=float, default=50.0, help='poses per second (default 50)')
+    p.add_argument('--duration', type=float, default=0.0,
+                   help='seconds to run; 0 = until Ctrl-C (default)')
+    p.add_argument('--frame-id', default='world', help='header.frame_id (default world)')
     return p
 
 
 def check(args: argparse.Namespace) -> str | None:
-    """What is wrong with the options, or None."""
-    for name in ("radius", "frequency_hz", "turn_deg", "ramp_s", "duration"):
+    """Return what is wrong with the options, or None."""
+    for name in ('radius', 'frequency_hz', 'turn_deg', 'ramp_s', 'duration'):
         value = getattr(args, name)
         if not (math.isfinite(value) and value >= 0.0):
             return f"--{name.replace('_', '-')} ({value}) must be finite and not negative"
     if not (math.isfinite(args.rate_hz) and 0.0 < args.rate_hz <= 1000.0):
-        return f"--rate-hz ({args.rate_hz}) must be above 0 and at most 1000"
+        return f'--rate-hz ({args.rate_hz}) must be above 0 and at most 1000'
     if not all(math.isfinite(v) for v in args.centre):
-        return "--centre must be three finite numbers"
+        return '--centre must be three finite numbers'
     return None
 
 
 def start_node(ros_args: list[str]) -> subprocess.Popen:
-    node = Path(sys.executable).parent / "modal_spring_node"
-    command = [str(node) if node.exists() else "modal_spring_node", "--ros-args", "-p",
-               "anchor.source:=topic", "-p", f"anchor.follow_hz:={DEFAULT_FOLLOW_HZ}"]
+    command = [str(executable('modal_spring_node')), '--ros-args', '-p', 'anchor.source:=topic',
+               '-p', f'anchor.follow_hz:={DEFAULT_FOLLOW_HZ}']
     extra = ros_args[1:] if ros_args else []
     return subprocess.Popen(command + extra)
 
@@ -95,14 +94,14 @@ def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(own)
     problem = check(args)
     if problem:
-        print(f"{PROG}: error: {problem}", file=sys.stderr)
+        print(f'{PROG}: error: {problem}', file=sys.stderr)
         return EXIT_USAGE
     node_process = start_node(ros_args) if args.start_node else None
     rclpy.init(args=[sys.argv[0], *ros_args] if ros_args else None)
-    node = rclpy.create_node("modal_spring_gripper")
+    node = rclpy.create_node('modal_spring_gripper')
     publisher = node.create_publisher(PoseStamped, TOPIC, 10)
-    print(f"[{PROG}] circling {args.radius:g} m at {args.frequency_hz:g} Hz, turning "
-          f"+-{args.turn_deg:g} degrees, on {publisher.topic_name}", file=sys.stderr)
+    print(f'[{PROG}] circling {args.radius:g} m at {args.frequency_hz:g} Hz, turning '
+          f'+-{args.turn_deg:g} degrees, on {publisher.topic_name}', file=sys.stderr)
     start = time.monotonic()
     try:
         while rclpy.ok():
@@ -126,5 +125,5 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

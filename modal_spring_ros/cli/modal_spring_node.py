@@ -1,4 +1,5 @@
-"""``modal_spring_node``: stream a scene's filtered deformation into the ROS graph.
+"""
+``modal_spring_node``: stream a scene's filtered deformation into the ROS graph.
 
     modal_spring_node [-h] [--ros-args -p NAME:=VALUE ... --params-file FILE ...]
 
@@ -10,18 +11,17 @@ from __future__ import annotations
 import signal
 import sys
 
-import rclpy
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.cli.common import EXIT_USAGE, split_ros_args
 from modal_spring_ros.core.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.parameters import PARAMETERS
+import rclpy
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 
-PROG = "modal_spring_node"
+PROG = 'modal_spring_node'
 #: executor threads: the parameter services, and the node's own services beside them
 EXECUTOR_THREADS = 2
 
@@ -37,24 +37,28 @@ parameters (read-only ones only at start):"""
 
 
 def usage() -> str:
-    """The command line and every parameter with its default and description."""
+    """Return the command line and every parameter with its default and description."""
     lines = [USAGE]
     for name, (default, descriptor) in PARAMETERS.items():
-        flag = ", read-only" if descriptor.read_only else ""
-        lines.append(f"  {name} (default {default!r}{flag})")
-        lines.append(f"      {descriptor.description}")
-    return "\n".join(lines)
+        flag = ', read-only' if descriptor.read_only else ''
+        lines.append(f'  {name} (default {default!r}{flag})')
+        lines.append(f'      {descriptor.description}')
+    return '\n'.join(lines)
 
 
 def _ignore_after_rclpy(signum, frame) -> None:
-    """rclpy's SIGTERM handler shuts the context down and then chains to the previous
-    handler; with this one (instead of the default, which kills the process) spin returns and
-    the node ends as cleanly as on SIGINT."""
+    """
+    Let rclpy's SIGTERM handler end the node as cleanly as on SIGINT.
+
+    rclpy's handler shuts the context down and then chains to the previous handler. With this one
+    (instead of the default, which kills the process) spin returns and the node ends as cleanly as
+    on SIGINT.
+    """
 
 
 def main(args: list[str] | None = None) -> int:
     own, _ = split_ros_args(args)
-    if own and own[0] in ("-h", "--help"):
+    if own and own[0] in ('-h', '--help'):
         print(usage())
         return 0
     signal.signal(signal.SIGTERM, _ignore_after_rclpy)
@@ -68,12 +72,12 @@ def main(args: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (SceneError, ValueError, ParameterException, BagError) as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        print(f'{PROG}: error: {exc}', file=sys.stderr)
         return EXIT_USAGE
     except WorkerError as exc:
         if not rclpy.ok():
             return 0  # interrupted while starting (say, during a long mode computation)
-        print(f"{PROG}: error: computing the modes failed: {exc}", file=sys.stderr)
+        print(f'{PROG}: error: computing the modes failed: {exc}', file=sys.stderr)
         return 1
     except Exception:
         if not rclpy.ok():
@@ -87,5 +91,5 @@ def main(args: list[str] | None = None) -> int:
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,4 +1,5 @@
-"""``modal_spring_record``: record topics into a rosbag2 MCAP bag, as ``ros2 bag record`` does.
+"""
+``modal_spring_record``: record topics into a rosbag2 MCAP bag, as ``ros2 bag record`` does.
 
     modal_spring_record --output DIR [--topics points mesh /diagnostics /parameter_events]
                         [--node modal_spring] [--duration S]
@@ -7,49 +8,47 @@ See :mod:`modal_spring_ros.ros.recorder` for what is stored and how.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import signal
 import sys
 import time
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
-
-from modal_spring_ros.bags.writer import (DEFAULT_CHUNK_SECONDS, DEFAULT_CHUNK_SIZE, BagError,
-                                          BagWriter, check_new_bag_path)
-from modal_spring_ros.cli.common import fail, split_ros_args
+from modal_spring_ros.bags.writer import (BagError, BagWriter, check_new_bag_path,
+                                          DEFAULT_CHUNK_SECONDS, DEFAULT_CHUNK_SIZE)
+from modal_spring_ros.cli.common import fail, script_parser, split_ros_args
 from modal_spring_ros.core.scene import SceneError
 from modal_spring_ros.ros.recorder import DEFAULT_TOPICS, Recorder, snapshot_parameters
 from modal_spring_ros.scenes.resources import load_scene
+import rclpy
+from rclpy.executors import ExternalShutdownException
 
-PROG = "modal_spring_record"
+PROG = 'modal_spring_record'
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0].split(": ", 1)[1])
-    p.add_argument("--output", "-o", required=True, help="new bag folder")
-    p.add_argument("--topics", nargs="+", default=DEFAULT_TOPICS,
+    p = script_parser(PROG, __doc__)
+    p.add_argument('--output', '-o', required=True, help='new bag folder')
+    p.add_argument('--topics', nargs='+', default=DEFAULT_TOPICS,
                    help=f"topics to record (default: {' '.join(DEFAULT_TOPICS)})")
-    p.add_argument("--node", default="modal_spring",
-                   help="the simulation node whose scene and parameters are stored")
-    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
-    p.add_argument("--chunk-size", type=int, default=DEFAULT_CHUNK_SIZE,
-                   help=f"MCAP chunk size in bytes (default {DEFAULT_CHUNK_SIZE})")
-    p.add_argument("--chunk-seconds", type=float, default=DEFAULT_CHUNK_SECONDS,
-                   help=f"close a chunk when it is this old, full or not (default "
-                        f"{DEFAULT_CHUNK_SECONDS:g} s): a killed recorder loses at most "
-                        "about that much")
-    p.add_argument("--wait-for-node", type=float, default=10.0,
+    p.add_argument('--node', default='modal_spring',
+                   help='the simulation node whose scene and parameters are stored')
+    p.add_argument('--duration', type=float, default=None, help='stop after S seconds')
+    p.add_argument('--chunk-size', type=int, default=DEFAULT_CHUNK_SIZE,
+                   help=f'MCAP chunk size in bytes (default {DEFAULT_CHUNK_SIZE})')
+    p.add_argument('--chunk-seconds', type=float, default=DEFAULT_CHUNK_SECONDS,
+                   help=f'close a chunk when it is this old, full or not (default '
+                        f'{DEFAULT_CHUNK_SECONDS:g} s): a killed recorder loses at most '
+                        'about that much')
+    p.add_argument('--wait-for-node', type=float, default=10.0,
                    help="seconds to wait for the node's parameters (default 10)")
     own, ros_args = split_ros_args(argv)
     args = p.parse_args(own)
     if args.duration is not None and not args.duration > 0:
-        fail(PROG, f"--duration ({args.duration}) must be positive")
+        fail(PROG, f'--duration ({args.duration}) must be positive')
     if args.chunk_size < 1:
-        fail(PROG, f"--chunk-size ({args.chunk_size}) must be at least 1 byte")
+        fail(PROG, f'--chunk-size ({args.chunk_size}) must be at least 1 byte')
     if not (math.isfinite(args.chunk_seconds) and args.chunk_seconds > 0):
-        fail(PROG, f"--chunk-seconds ({args.chunk_seconds}) must be a positive number")
+        fail(PROG, f'--chunk-seconds ({args.chunk_seconds}) must be a positive number')
     try:
         check_new_bag_path(args.output)
     except BagError as exc:
@@ -57,8 +56,8 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGTERM, lambda *_: None)  # rclpy shuts down first, then this
     rclpy.init(args=[PROG] + ros_args)
-    node = rclpy.create_node("modal_spring_recorder")
-    target = node.resolve_topic_name(args.node) if not args.node.startswith("/") else args.node
+    node = rclpy.create_node('modal_spring_recorder')
+    target = node.resolve_topic_name(args.node) if not args.node.startswith('/') else args.node
     writer = None
     try:
         writer = BagWriter(args.output, chunk_size=args.chunk_size,
@@ -67,18 +66,18 @@ def main(argv: list[str] | None = None) -> int:
         # snapshot and on /parameter_events (harmless), never in neither.
         Recorder(node, writer, args.topics, target)
         params = snapshot_parameters(node, target, args.wait_for_node)
-        record = {"source": PROG, "node": target}
+        record = {'source': PROG, 'node': target}
         if params is None:
-            node.get_logger().warning(f"node {target} did not answer: the bag will not hold "
-                                      "its scene and parameters (no --resimulate)")
+            node.get_logger().warning(f'node {target} did not answer: the bag will not hold '
+                                      'its scene and parameters (no --resimulate)')
         else:
-            record["parameters"] = params
+            record['parameters'] = params
             try:
-                record["scene_yaml"] = load_scene(params.get("scene", "")).to_yaml()
+                record['scene_yaml'] = load_scene(params.get('scene', '')).to_yaml()
             except SceneError as exc:
-                node.get_logger().warning(f"scene not stored: {exc}")
-            node.get_logger().info(f"stored {len(params)} parameters of node {target}"
-                                   + (" and its scene" if "scene_yaml" in record else ""))
+                node.get_logger().warning(f'scene not stored: {exc}')
+            node.get_logger().info(f'stored {len(params)} parameters of node {target}'
+                                   + (' and its scene' if 'scene_yaml' in record else ''))
         writer.add_run_record(record)
         end = None if args.duration is None else time.monotonic() + args.duration
         while rclpy.ok() and (end is None or time.monotonic() < end):
@@ -91,11 +90,11 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if writer is not None:
             writer.close()
-            print(f"wrote {args.output}: {writer.message_count} messages")
+            print(f'wrote {args.output}: {writer.message_count} messages')
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,4 +1,5 @@
-"""``modal_spring_replay``: play a bag back on its topics, or re-simulate it into a new bag.
+"""
+``modal_spring_replay``: play a bag back on its topics, or re-simulate it into a new bag.
 
     modal_spring_replay BAG [--rate R] [--loop] [--topics T ...] [--wait-for-subscribers]
     modal_spring_replay BAG --resimulate OUT
@@ -13,23 +14,23 @@ import sys
 
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.writer import BagError
-from modal_spring_ros.cli.common import fail, run_main, split_ros_args
+from modal_spring_ros.cli.common import fail, run_main, script_parser, split_ros_args
 from modal_spring_ros.ros.player import play
 from modal_spring_ros.ros.resimulate import resimulate
 
-PROG = "modal_spring_replay"
+PROG = 'modal_spring_replay'
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0].split(": ")[1])
-    p.add_argument("bag", help="bag folder or .mcap file")
-    p.add_argument("--rate", type=float, default=1.0, help="playback speed factor")
-    p.add_argument("--loop", action="store_true", help="play again from the start")
-    p.add_argument("--topics", nargs="+", default=None, help="only these topics")
-    p.add_argument("--wait-for-subscribers", action="store_true",
-                   help="start only when every topic has a subscriber (up to 30 s)")
-    p.add_argument("--resimulate", metavar="OUT", default=None,
-                   help="re-run the recorded simulation and write it to the new bag OUT")
+    p = script_parser(PROG, __doc__)
+    p.add_argument('bag', help='bag folder or .mcap file')
+    p.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
+    p.add_argument('--loop', action='store_true', help='play again from the start')
+    p.add_argument('--topics', nargs='+', default=None, help='only these topics')
+    p.add_argument('--wait-for-subscribers', action='store_true',
+                   help='start only when every topic has a subscriber (up to 30 s)')
+    p.add_argument('--resimulate', metavar='OUT', default=None,
+                   help='re-run the recorded simulation and write it to the new bag OUT')
     return p
 
 
@@ -38,16 +39,16 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(own)
     args.ros_args = ros_args
     if not args.rate > 0:
-        fail(PROG, f"--rate ({args.rate}) must be positive")
+        fail(PROG, f'--rate ({args.rate}) must be positive')
 
     def body() -> int:
         if args.resimulate:
             count = resimulate(args.bag, args.resimulate)
-            print(f"re-simulated {count} frames into {args.resimulate}")
+            print(f're-simulated {count} frames into {args.resimulate}')
             return 0
         played = play(BagReader(args.bag), args.topics, args.rate, args.loop,
                       args.wait_for_subscribers, [PROG] + args.ros_args)
-        print(f"played {played} messages")
+        print(f'played {played} messages')
         return 0
 
     try:
@@ -56,5 +57,5 @@ def main(argv: list[str] | None = None) -> int:
         fail(PROG, str(exc))
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

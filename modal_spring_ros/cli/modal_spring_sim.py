@@ -1,4 +1,5 @@
-"""``modal_spring_sim``: run a scene headless (no ROS) and save the run as ``.npz``.
+"""
+``modal_spring_sim``: run a scene headless (no ROS) and save the run as ``.npz``.
 
 Example::
 
@@ -11,28 +12,28 @@ import sys
 import time
 
 from modal_spring_ros.bags.capture import RunBagWriter
-from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs,
-                                         config_from_args, run_main, write_output)
+from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs, config_from_args,
+                                         run_main, script_parser, write_output)
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.scenes.resources import load_scene
 
-PROG = "modal_spring_sim"
+PROG = 'modal_spring_sim'
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0].split(": ", 1)[1])
+    p = script_parser(PROG, __doc__)
     add_simulation_options(p)
-    p.add_argument("--duration", type=float, default=None,
+    p.add_argument('--duration', type=float, default=None,
                    help="simulated seconds (default: the scene's)")
-    p.add_argument("--frame-every", type=int, default=1,
-                   help="keep every N-th step as a frame (default 1: every step)")
-    p.add_argument("--output", default=None, help="write the run to this .npz file")
-    p.add_argument("--bag", default=None,
-                   help="also write every frame to this new rosbag2 MCAP bag folder")
-    p.add_argument("--allow-unstable", action="store_true",
-                   help="step even above the explicit stability limit (to study divergence)")
-    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    p.add_argument('--frame-every', type=int, default=1,
+                   help='keep every N-th step as a frame (default 1: every step)')
+    p.add_argument('--output', default=None, help='write the run to this .npz file')
+    p.add_argument('--bag', default=None,
+                   help='also write every frame to this new rosbag2 MCAP bag folder')
+    p.add_argument('--allow-unstable', action='store_true',
+                   help='step even above the explicit stability limit (to study divergence)')
+    p.add_argument('--quiet', action='store_true', help='no progress on stderr')
     return p
 
 
@@ -41,17 +42,17 @@ def main(argv: list[str] | None = None) -> int:
 
     def body() -> int:
         if args.frame_every < 1:
-            raise ValueError(f"--frame-every ({args.frame_every}) must be at least 1")
+            raise ValueError(f'--frame-every ({args.frame_every}) must be at least 1')
         config = config_from_args(args)
-        progress = None if args.quiet else (lambda msg: print(f"[{PROG}] {msg}",
+        progress = None if args.quiet else (lambda msg: print(f'[{PROG}] {msg}',
                                                               file=sys.stderr))
         sim = build_simulation(load_scene(args.scene), config, progress=progress,
                                allow_unstable=args.allow_unstable)
         duration = args.duration if args.duration is not None else \
             sim.model.scene.default_duration
         if not duration > 0:
-            raise ValueError(f"--duration ({duration}) must be positive")
-        with claimed_outputs({"--output": args.output}, {"--bag": args.bag}):
+            raise ValueError(f'--duration ({duration}) must be positive')
+        with claimed_outputs({'--output': args.output}, {'--bag': args.bag}):
             return run_and_report(sim, config, duration)
 
     def run_and_report(sim, config, duration: float) -> int:
@@ -63,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             run = record(sim, duration, frame_every=args.frame_every,
                          on_progress=None if args.quiet else
-                         (lambda frac: print(f"[{PROG}] {frac:4.0%}", file=sys.stderr)),
+                         (lambda frac: print(f'[{PROG}] {frac:4.0%}', file=sys.stderr)),
                          on_frame=bag.frame if bag else None)
         finally:
             if bag:
@@ -72,10 +73,10 @@ def main(argv: list[str] | None = None) -> int:
         steps = max(sim.steps, 1)
         print(summary(sim, run.diverged, wall / steps, wall))
         if args.output:
-            write_output(args.output, "--output", lambda: run.save_npz(args.output))
-            print(f"wrote {args.output} ({run.t.size} frames)")
+            write_output(args.output, '--output', lambda: run.save_npz(args.output))
+            print(f'wrote {args.output} ({run.t.size} frames)')
         if args.bag:
-            print(f"wrote bag {args.bag} ({run.t.size} frames)")
+            print(f'wrote bag {args.bag} ({run.t.size} frames)')
         return 1 if run.diverged else 0
 
     return run_main(PROG, body)
@@ -83,39 +84,39 @@ def main(argv: list[str] | None = None) -> int:
 
 def summary(sim, diverged: str, seconds_per_step: float, wall: float) -> str:
     scene = sim.model.scene
-    lines = [f"scene      {scene.name}: {scene.n_particles} particles, {scene.n_springs} "
-             f"springs, {sim.model.n_free_dof} free DOF"]
+    lines = [f'scene      {scene.name}: {scene.n_particles} particles, {scene.n_springs} '
+             f'springs, {sim.model.n_free_dof} free DOF']
     kept = sim.kept_modes
-    if sim.method == "modal":
+    if sim.method == 'modal':
         f = sim.basis.frequencies_hz
-        lines.append(f"modes      {kept.size} stepped of {sim.basis.count} computed "
-                     f"({f[kept].min():.4g} .. {f[kept].max():.4g} Hz)"
-                     + ("; band truncated at max_modes" if sim.truncated else ""))
-        lines.append(f"band       {sim.band.describe()}")
-        lines.append(f"basis      {sim.describe_basis()}: {sim.coordinates} coordinates, "
-                     f"computed in {sim.basis_seconds:.3g} s")
+        lines.append(f'modes      {kept.size} stepped of {sim.basis.count} computed '
+                     f'({f[kept].min():.4g} .. {f[kept].max():.4g} Hz)'
+                     + ('; band truncated at max_modes' if sim.truncated else ''))
+        lines.append(f'band       {sim.band.describe()}')
+        lines.append(f'basis      {sim.describe_basis()}: {sim.coordinates} coordinates, '
+                     f'computed in {sim.basis_seconds:.3g} s')
     else:
-        lines.append(f"method     full physical ({sim.model.n_free_dof} DOF)")
-    if status_forces := (sim.describe_forces() if sim.method == "modal" else ""):
-        if status_forces.startswith(("sampled", "exact (the")):
-            lines.append(f"forces     {status_forces}")
+        lines.append(f'method     full physical ({sim.model.n_free_dof} DOF)')
+    if status_forces := (sim.describe_forces() if sim.method == 'modal' else ''):
+        if status_forces.startswith(('sampled', 'exact (the')):
+            lines.append(f'forces     {status_forces}')
     if sim.refresh_error is not None:
-        lines.append(f"forces     springs evaluated every {sim.force_refresh} steps; largest "
-                     f"measured error of the continued force {sim.refresh_error:.2e}")
+        lines.append(f'forces     springs evaluated every {sim.force_refresh} steps; largest '
+                     f'measured error of the continued force {sim.refresh_error:.2e}')
     choice = sim.mode_choice
     if choice is not None:
-        errors = ", ".join(f"{k} {v:.2%}" for k, v in choice.load_errors.items())
-        lines.append(f"auto       {choice.describe()} ({errors})")
-    lines.append(f"stepping   {sim.integrator} Newmark, dt {sim.dt:g} s "
-                 f"(explicit limit {sim.stability_limit():.4g} s), {sim.steps} steps, "
-                 f"t = {sim.time:.4g} s")
-    lines.append(f"speed      {seconds_per_step * 1e6:.1f} us per step, {wall:.2f} s wall, "
-                 f"real-time factor {sim.time / max(wall, 1e-12):.1f}")
-    lines.append(f"strain     {sim.max_strain():.3%} largest spring strain")
+        errors = ', '.join(f'{k} {v:.2%}' for k, v in choice.load_errors.items())
+        lines.append(f'auto       {choice.describe()} ({errors})')
+    lines.append(f'stepping   {sim.integrator} Newmark, dt {sim.dt:g} s '
+                 f'(explicit limit {sim.stability_limit():.4g} s), {sim.steps} steps, '
+                 f't = {sim.time:.4g} s')
+    lines.append(f'speed      {seconds_per_step * 1e6:.1f} us per step, {wall:.2f} s wall, '
+                 f'real-time factor {sim.time / max(wall, 1e-12):.1f}')
+    lines.append(f'strain     {sim.max_strain():.3%} largest spring strain')
     if diverged:
-        lines.append(f"DIVERGED   {diverged}")
-    return "\n".join(lines)
+        lines.append(f'DIVERGED   {diverged}')
+    return '\n'.join(lines)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

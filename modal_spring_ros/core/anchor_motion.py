@@ -1,5 +1,8 @@
-"""Prescribed motion of a scene's fixed particles: sums of sines, optionally ramped in, that
-translate the clamp and turn it about axes through pivots.
+"""
+Prescribed motion of a scene's fixed particles.
+
+Sums of sines, optionally ramped in, that translate the clamp and turn it about axes through
+pivots.
 
 Every fixed particle moves with one rigid motion ``x = R(t) X + b(t)`` (a shaken, turning
 clamp). Translation terms add up to an offset ``p(t)``; rotation terms turn about an axis
@@ -19,19 +22,20 @@ import functools
 import math
 from typing import ClassVar
 
+from modal_spring_ros.core.rigid_frame import axis_rotation, cross_matrix, RigidFrame
 import numpy as np
-
-from modal_spring_ros.core.rigid_frame import RigidFrame, axis_rotation, cross_matrix
 
 
 def ramped_sine(t: float, amplitude: float, w: float, phase: float, ramp_s: float
                 ) -> tuple[float, float, float]:
-    """``ramp(t) * A sin(w t + phase)`` and its first and second time derivatives.
+    """
+    ``ramp(t) * A sin(w t + phase)`` and its first and second time derivatives.
 
     The ramp is the quintic smoothstep ``r = 10 x^3 - 15 x^4 + 6 x^5`` (``x = t / ramp_s``)
     over the first ``ramp_s`` seconds (none when 0), whose first and second derivatives vanish
     at both ends: the motion's velocity and acceleration are continuous, whatever the phase.
-    Python floats (called on every step)."""
+    Python floats (called on every step).
+    """
     s = amplitude * math.sin(w * t + phase)
     ds = amplitude * w * math.cos(w * t + phase)
     dds = -w * w * s
@@ -46,7 +50,8 @@ def ramped_sine(t: float, amplitude: float, w: float, phase: float, ramp_s: floa
 
 @dataclasses.dataclass(frozen=True)
 class SineComponent:
-    """``amplitude * sin(2 pi f t + phase)`` along ``axis`` (0 = x, 1 = y, 2 = z), m.
+    """
+    ``amplitude * sin(2 pi f t + phase)`` along ``axis`` (0 = x, 1 = y, 2 = z), m.
 
     ``ramp_s`` > 0 ramps it in over the first ``ramp_s`` seconds (see :func:`ramped_sine`): no
     step load, which would excite every mode at once.
@@ -61,8 +66,12 @@ class SineComponent:
 
 @dataclasses.dataclass(frozen=True)
 class RotationComponent:
-    """A turn by ``amplitude * sin(2 pi f t + phase)`` (rad) about world axis ``axis`` through
-    ``pivot`` (3,), ramped in over ``ramp_s`` seconds like a :class:`SineComponent`."""
+    """
+    A turn by ``amplitude * sin(2 pi f t + phase)`` (rad) about world axis ``axis``.
+
+    A turn by ``amplitude * sin(2 pi f t + phase)`` (rad) about world axis ``axis`` through
+    ``pivot`` (3,), ramped in over ``ramp_s`` seconds like a :class:`SineComponent`.
+    """
 
     axis: int
     amplitude: float
@@ -74,8 +83,12 @@ class RotationComponent:
 
 @dataclasses.dataclass(frozen=True)
 class AnchorMotion:
-    """The clamp's rigid motion: translation terms (summed) and rotation terms (composed in
-    the order listed, the translation added last)."""
+    """
+    The clamp's rigid motion.
+
+    Translation terms (summed) and rotation terms (composed in the order listed, the translation
+    added last).
+    """
 
     components: tuple[SineComponent, ...]
     rotations: tuple[RotationComponent, ...] = ()
@@ -83,7 +96,7 @@ class AnchorMotion:
     revision: ClassVar[int] = 0
 
     def restart(self) -> None:
-        """The run went back to t = 0 (a function of time has nothing to restart)."""
+        """Go back to t = 0 with the run (a function of time has nothing to restart)."""
 
     @property
     def is_static(self) -> bool:
@@ -91,7 +104,7 @@ class AnchorMotion:
 
     @property
     def rotates(self) -> bool:
-        """The clamp turns (the run needs the floating frame's inertial loads)."""
+        """Tell whether the clamp turns (the run needs the floating frame's inertial loads)."""
         return any(c.amplitude != 0.0 for c in self.rotations)
 
     @property
@@ -118,7 +131,7 @@ class AnchorMotion:
         return self._translation(t)[2]
 
     def frame(self, t: float) -> RigidFrame:
-        """The whole rigid motion ``x = R X + b`` at ``t``, with its rates."""
+        """Return the whole rigid motion ``x = R X + b`` at ``t``, with its rates."""
         frame = None
         for axis, amplitude, w, phase, ramp_s, pivot, e, ee in self._turns:
             angle, rate, acceleration = ramped_sine(t, amplitude, w, phase, ramp_s)
@@ -136,8 +149,12 @@ class AnchorMotion:
 
     @functools.cached_property
     def _turns(self) -> tuple[tuple, ...]:
-        """Per rotation term: axis, amplitude, angular frequency, phase, ramp time, pivot,
-        ``[e]x`` and ``[e]x^2`` of its axis."""
+        """
+        Per rotation term.
+
+        Axis, amplitude, angular frequency, phase, ramp time, pivot, ``[e]x`` and ``[e]x^2`` of its
+        axis.
+        """
         return tuple((c.axis, c.amplitude, 2.0 * math.pi * c.frequency_hz, c.phase, c.ramp_s,
                       np.array(c.pivot, dtype=float), cross_matrix(c.axis),
                       cross_matrix(c.axis) @ cross_matrix(c.axis)) for c in self.rotations)
@@ -150,10 +167,10 @@ class AnchorMotion:
         return out[0], out[1], out[2]
 
     def to_list(self) -> list[dict]:
-        translations = [{"axis": "xyz"[c.axis], "amplitude": c.amplitude,
-                         "frequency_hz": c.frequency_hz, "phase": c.phase, "ramp_s": c.ramp_s}
+        translations = [{'axis': 'xyz'[c.axis], 'amplitude': c.amplitude,
+                         'frequency_hz': c.frequency_hz, 'phase': c.phase, 'ramp_s': c.ramp_s}
                         for c in self.components]
-        turns = [{"rotation": "xyz"[c.axis], "amplitude_deg": math.degrees(c.amplitude),
-                  "frequency_hz": c.frequency_hz, "phase": c.phase, "ramp_s": c.ramp_s,
-                  "pivot": list(c.pivot)} for c in self.rotations]
+        turns = [{'rotation': 'xyz'[c.axis], 'amplitude_deg': math.degrees(c.amplitude),
+                  'frequency_hz': c.frequency_hz, 'phase': c.phase, 'ramp_s': c.ramp_s,
+                  'pivot': list(c.pivot)} for c in self.rotations]
         return translations + turns

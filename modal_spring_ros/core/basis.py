@@ -1,4 +1,5 @@
-"""Vibration modes at the rest shape: ``K phi = omega^2 M phi`` on the free DOF (paper eq. 2).
+"""
+Vibration modes at the rest shape: ``K phi = omega^2 M phi`` on the free DOF (paper eq. 2).
 
 Modes are mass-normalised (``Phi^T M Phi = I``, so the paper's eq. 15 becomes
 ``q = Phi^T M u``), sorted by frequency, with a deterministic sign.
@@ -14,17 +15,16 @@ A singular stiffness on the free DOF (a mechanism) is detected here and reported
 from __future__ import annotations
 
 import time
-import uuid
 from typing import Any, Callable
-
-import numpy as np
-import scipy.linalg
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
+import uuid
 
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.scene import SceneError
 from modal_spring_ros.core.worker import WorkerProcess
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 #: Most modes computed on scenes too large for the dense solver, unless asked otherwise.
 DEFAULT_MAX_MODES = 256
@@ -46,16 +46,16 @@ def _no_progress(_: str) -> None:
 
 
 class ModalBasis:
-    """The modes of a :class:`MassSpringModel`, computed up to what has been asked for.
+    """
+    The modes of a :class:`MassSpringModel`, computed up to what has been asked for.
 
     ``worker``: a :class:`~modal_spring_ros.core.worker.WorkerProcess` to run the sparse
     eigensolver in (results are identical), so that computing modes does not hold this
     process's interpreter lock; the node uses one to keep its stream going meanwhile.
 
-    Attributes:
-        omega: (m,) circular frequencies (rad/s) of the computed modes, ascending.
-        vectors: (n_free_dof, m) mass-normalised mode shapes.
-        complete: every mode of the scene has been computed.
+    :ivar omega: (m,) circular frequencies (rad/s) of the computed modes, ascending.
+    :ivar vectors: (n_free_dof, m) mass-normalised mode shapes.
+    :ivar complete: every mode of the scene has been computed.
     """
 
     def __init__(self, model: MassSpringModel, *, initial_modes: int = 32,
@@ -93,9 +93,9 @@ class ModalBasis:
             return False
         if count >= self.n_dof - 1:
             # ARPACK cannot return every mode; a scene this size asking for all is a dense job.
-            raise ValueError(f"{count} modes requested of a {self.n_dof}-DOF scene: computing "
-                             "(nearly) all modes of a large scene is not supported; narrow the "
-                             "band or raise modal.max_modes only as far as needed")
+            raise ValueError(f'{count} modes requested of a {self.n_dof}-DOF scene: computing '
+                             '(nearly) all modes of a large scene is not supported; narrow the '
+                             'band or raise modal.max_modes only as far as needed')
         self._compute_sparse(max(count, min(2 * self.count, self.n_dof - 2)))
         return True
 
@@ -109,9 +109,12 @@ class ModalBasis:
         return changed
 
     def solve_stiffness(self, rhs: np.ndarray) -> np.ndarray:
-        """``K0^-1 rhs`` (columns) with the rest stiffness of the free DOF, in this process: a
-        Cholesky factor on dense scenes, the kept sparse LU on large ones (with a worker,
-        :meth:`call_with_solve` solves there instead)."""
+        """
+        ``K0^-1 rhs`` (columns) with the rest stiffness of the free DOF, in this process.
+
+        A Cholesky factor on dense scenes, the kept sparse LU on large ones (with a worker,
+        :meth:`call_with_solve` solves there instead).
+        """
         rhs = np.asarray(rhs, dtype=float)
         if rhs.size == 0:
             return rhs.copy()
@@ -124,9 +127,12 @@ class ModalBasis:
         return self._solver.solve(rhs)
 
     def call_with_solve(self, function: Callable[..., Any], *args: Any) -> Any:
-        """``function(solve, *args)`` with ``solve(rhs) = K0^-1 rhs``: in the worker process
-        on a large scene that has one (so that the caller's interpreter stays free for the
-        stream; ``function`` must then be module-level), else here."""
+        """
+        ``function(solve, *args)`` with ``solve(rhs) = K0^-1 rhs``.
+
+        In the worker process on a large scene that has one (so that the caller's interpreter stays
+        free for the stream; ``function`` must then be module-level), else here.
+        """
         if self.dense or self.worker is None:
             return function(self.solve_stiffness, *args)
         if self._solver is None:
@@ -137,11 +143,11 @@ class ModalBasis:
         """Largest circular frequency of the scene (exact when complete, else a Lanczos value)."""
         if self.complete:
             return float(self.omega[-1])
-        if not hasattr(self, "_omega_max"):
+        if not hasattr(self, '_omega_max'):
             m = self.model.mass_dof
             scale = 1.0 / np.sqrt(m)
             a = sp.diags(scale) @ self.model.stiffness_free @ sp.diags(scale)
-            lam = spla.eigsh(a, k=1, which="LA", v0=np.ones(self.n_dof),
+            lam = spla.eigsh(a, k=1, which='LA', v0=np.ones(self.n_dof),
                              return_eigenvectors=False, tol=1e-6)
             self._omega_max = float(np.sqrt(max(lam[0], 0.0)))
         return self._omega_max
@@ -149,7 +155,7 @@ class ModalBasis:
     # -- solvers -------------------------------------------------------------------------------
     def _compute_dense(self) -> None:
         start = time.perf_counter()
-        self.progress(f"computing all {self.n_dof} modes (dense eigh)")
+        self.progress(f'computing all {self.n_dof} modes (dense eigh)')
         m = self.model.mass_dof
         inv_sqrt_m = 1.0 / np.sqrt(m)
         k = self.model.stiffness_free.toarray()
@@ -163,10 +169,10 @@ class ModalBasis:
     def _compute_sparse(self, count: int) -> None:
         start = time.perf_counter()
         if self._solver is None:
-            self.progress(f"factorising the {self.n_dof}-DOF stiffness (sparse LU)")
+            self.progress(f'factorising the {self.n_dof}-DOF stiffness (sparse LU)')
             self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof)
-        self.progress(f"computing the {count} lowest modes (shift-invert Lanczos, "
-                      f"{self.n_dof} DOF)" + (" in a worker process" if self.worker else ""))
+        self.progress(f'computing the {count} lowest modes (shift-invert Lanczos, '
+                      f'{self.n_dof} DOF)' + (' in a worker process' if self.worker else ''))
         if self.worker is None:
             lam, phi = self._solver.lowest(count)
         else:
@@ -174,18 +180,18 @@ class ModalBasis:
         self._check_zero_modes(lam, lam_scale=self._solver.lam_scale)
         self._store(lam, phi)
         self.solve_seconds += time.perf_counter() - start
-        self.progress(f"{count} modes ready: {self.frequencies_hz[0]:.4g} .. "
-                      f"{self.frequencies_hz[-1]:.4g} Hz "
-                      f"({time.perf_counter() - start:.2f} s)")
+        self.progress(f'{count} modes ready: {self.frequencies_hz[0]:.4g} .. '
+                      f'{self.frequencies_hz[-1]:.4g} Hz '
+                      f'({time.perf_counter() - start:.2f} s)')
 
     def _check_zero_modes(self, lam: np.ndarray, lam_scale: float) -> None:
         zero = int(np.sum(lam <= ZERO_MODE_RTOL * lam_scale))
         if zero:
-            more = "at least " if (not self.dense and zero == lam.size) else ""
+            more = 'at least ' if (not self.dense and zero == lam.size) else ''
             raise SceneError(
                 f"scene '{self.model.scene.name}': the stiffness is singular on the free DOF: "
-                f"{more}{zero} zero-stiffness mode(s) (a mechanism). Add shear (diagonal) "
-                f"springs, bending springs for out-of-plane motion, or fix more particles.")
+                f'{more}{zero} zero-stiffness mode(s) (a mechanism). Add shear (diagonal) '
+                f'springs, bending springs for out-of-plane motion, or fix more particles.')
 
     def _store(self, lam: np.ndarray, phi: np.ndarray) -> None:
         # Deterministic sign: the largest-magnitude component of each mode is positive.
@@ -197,9 +203,12 @@ class ModalBasis:
 
 
 class ShiftInvertModes:
-    """Lowest modes of ``K phi = lam M phi`` (sparse ``K``, lumped ``M``) by shift-invert
-    Lanczos, mass-normalised and ascending; the sparse LU of ``K - sigma M`` is made on the
-    first call and kept for the next ones."""
+    """
+    Lowest modes of ``K phi = lam M phi`` (sparse ``K``, lumped ``M``) by shift-invert Lanczos.
+
+    Mass-normalised and ascending; the sparse LU of ``K - sigma M`` is made on the first call and
+    kept for the next ones.
+    """
 
     def __init__(self, stiffness: sp.spmatrix, mass_dof: np.ndarray):
         self.k = stiffness.tocsc()
@@ -222,8 +231,11 @@ class ShiftInvertModes:
         return self._factor
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """``K^-1 rhs`` with the kept factor of ``K - sigma M`` and iterative refinement: each
-        step shrinks the error by about ``|sigma| / lambda_min``, under 1e-3 on the sheets."""
+        """
+        ``K^-1 rhs`` with the kept factor of ``K - sigma M`` and iterative refinement.
+
+        Each step shrinks the error by about ``|sigma| / lambda_min``, under 1e-3 on the sheets.
+        """
         factor = self._factorised()
         x = factor.solve(rhs)
         for _ in range(REFINEMENT_STEPS):
@@ -234,12 +246,12 @@ class ShiftInvertModes:
         n = self.mass_dof.size
         m = sp.diags(self.mass_dof).tocsc()
         op = spla.LinearOperator((n, n), matvec=self._factorised().solve, dtype=float)
-        lam, phi = spla.eigsh(self.k, k=count, M=m, sigma=self.sigma, OPinv=op, which="LM",
+        lam, phi = spla.eigsh(self.k, k=count, M=m, sigma=self.sigma, OPinv=op, which='LM',
                               v0=np.ones(n), tol=1e-12)
         order = np.argsort(lam)
         lam, phi = lam[order], phi[:, order]
         # Renormalise against M (ARPACK's scaling is close, not exact).
-        norms = np.sqrt(np.einsum("ij,i,ij->j", phi, self.mass_dof, phi))
+        norms = np.sqrt(np.einsum('ij,i,ij->j', phi, self.mass_dof, phi))
         return lam, phi / norms
 
 
@@ -248,7 +260,7 @@ _WORKER_SOLVERS: dict[str, ShiftInvertModes] = {}
 
 
 def _in_worker(solver: ShiftInvertModes) -> ShiftInvertModes:
-    """The worker's copy of ``solver`` (factorised by an earlier call, if any)."""
+    """Return the worker's copy of ``solver`` (factorised by an earlier call, if any)."""
     if solver.token not in _WORKER_SOLVERS:
         _WORKER_SOLVERS.clear()  # one at a time: no factor outlives its use
         _WORKER_SOLVERS[solver.token] = solver
@@ -257,12 +269,11 @@ def _in_worker(solver: ShiftInvertModes) -> ShiftInvertModes:
 
 def _lowest_modes_in_worker(solver: ShiftInvertModes, count: int
                             ) -> tuple[np.ndarray, np.ndarray]:
-    """Runs in a :class:`WorkerProcess`: ``solver.lowest(count)``."""
+    """Run in a :class:`WorkerProcess`: ``solver.lowest(count)``."""
     return _in_worker(solver).lowest(count)
 
 
 def _call_with_solve_in_worker(solver: ShiftInvertModes, function: Callable[..., Any],
                                args: tuple) -> Any:
-    """Runs in a :class:`WorkerProcess`: ``function(solve, *args)`` with the worker's
-    factor."""
+    """Run in a :class:`WorkerProcess`: ``function(solve, *args)`` with the worker's factor."""
     return function(_in_worker(solver).solve, *args)

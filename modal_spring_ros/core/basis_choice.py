@@ -1,4 +1,5 @@
-"""Which basis a band needs: rest modes while the motion stays small, their derivatives beyond.
+"""
+Which basis a band needs: rest modes while the motion stays small, their derivatives beyond.
 
 Rest modes miss the springs' second-order response. For a displacement ``u1`` of the kept
 modes, that response is the static solution of the quadratic term of the spring forces,
@@ -35,11 +36,10 @@ import dataclasses
 import math
 from typing import Callable
 
-import numpy as np
-
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.derivatives import AddedCoordinates, tangent_derivative
 from modal_spring_ros.core.model import MassSpringModel
+import numpy as np
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,14 +52,17 @@ class BasisChoice:
     small: bool                     # rest modes are within the budget: small deformation
 
     def describe(self) -> str:
-        errors = ", ".join(f"{k} {v:.2%}" for k, v in self.predicted.items())
-        return f"{self.kind} basis (predicted second-order error: {errors})"
+        errors = ', '.join(f'{k} {v:.2%}' for k, v in self.predicted.items())
+        return f'{self.kind} basis (predicted second-order error: {errors})'
 
 
 def response(model: MassSpringModel, phi: np.ndarray, omega: np.ndarray
              ) -> tuple[np.ndarray, float]:
-    """Amplitude of the kept modes' response to the scene's loads (in phase: an upper
-    bound), and the response-weighted amplification of the drive (1 without one)."""
+    """
+    Amplitude of the kept modes' response to the scene's loads (in phase: an upper bound).
+
+    And the response-weighted amplification of the drive (1 without one).
+    """
     damping = model.scene.damping.modal_coefficients(omega)
     w2 = omega ** 2
     q = np.zeros(omega.size)
@@ -78,9 +81,13 @@ def response(model: MassSpringModel, phi: np.ndarray, omega: np.ndarray
 
 
 def _drives(model: MassSpringModel):
-    """(load pattern per unit acceleration, acceleration amplitude, frequency) of each term of
-    the clamp's motion: a shake's inertial load; a turn's Euler and centrifugal loads about its
-    pivot and gravity turned through its angle."""
+    """
+    Return each term of the clamp's motion as a load.
+
+    (load pattern per unit acceleration, acceleration amplitude, frequency) of each term of the
+    clamp's motion: a shake's inertial load; a turn's Euler and centrifugal loads about its pivot
+    and gravity turned through its angle.
+    """
     d, mass = model.dimension, model.mass_dof
     motion = model.scene.anchor_motion
     for c in motion.components:
@@ -115,24 +122,27 @@ def _second_order(solve, model: MassSpringModel, u1: np.ndarray) -> np.ndarray:
 
 def choose_basis(model: MassSpringModel, basis: ModalBasis, keep: np.ndarray, budget: float,
                  added: Callable[[np.ndarray], AddedCoordinates]) -> BasisChoice:
-    """Rest modes if their predicted second-order error is within ``budget``, else the
-    derivatives basis when it predicts less (``added(keep)``: what the band adds)."""
+    """
+    Rest modes if their predicted second-order error is within ``budget``.
+
+    Else the derivatives basis when it predicts less (``added(keep)``: what the band adds).
+    """
     phi, omega = basis.vectors[:, keep], basis.omega[keep]
     mass = model.mass_dof
     q, amplification = response(model, phi, omega)
     u1 = phi @ q
     size = math.sqrt(float(u1 @ (mass * u1)))
     if size == 0.0:
-        return BasisChoice("rest", {"rest": 0.0}, amplification, True)
+        return BasisChoice('rest', {'rest': 0.0}, amplification, True)
     u2 = basis.call_with_solve(_second_order, model, u1)
 
     def missed(vectors: np.ndarray) -> float:
         rest = u2 - vectors @ (vectors.T @ (mass * u2))
         return amplification * math.sqrt(float(rest @ (mass * rest))) / size
 
-    predicted = {"rest": missed(phi)}
-    if predicted["rest"] <= budget:
-        return BasisChoice("rest", predicted, amplification, True)
-    predicted["derivatives"] = missed(np.column_stack([phi, added(keep).vectors]))
-    kind = "derivatives" if predicted["derivatives"] < predicted["rest"] else "rest"
+    predicted = {'rest': missed(phi)}
+    if predicted['rest'] <= budget:
+        return BasisChoice('rest', predicted, amplification, True)
+    predicted['derivatives'] = missed(np.column_stack([phi, added(keep).vectors]))
+    kind = 'derivatives' if predicted['derivatives'] < predicted['rest'] else 'rest'
     return BasisChoice(kind, predicted, amplification, False)

@@ -1,4 +1,5 @@
-"""A clamp that follows a stream of poses (a robot's gripper) instead of the scene's motion.
+"""
+A clamp that follows a stream of poses (a robot's gripper) instead of the scene's motion.
 
 Raw poses are never differentiated: the clamp tracks each new pose through a critically
 damped second-order filter of bandwidth ``follow_hz`` (``omega = 2 pi follow_hz``), applied to
@@ -22,9 +23,8 @@ from __future__ import annotations
 import math
 import threading
 
-import numpy as np
-
 from modal_spring_ros.core.rigid_frame import RigidFrame
+import numpy as np
 
 #: Default bandwidth of the filter the clamp follows poses through, Hz.
 DEFAULT_FOLLOW_HZ = 5.0
@@ -47,13 +47,13 @@ def rotation_vector(quaternion: np.ndarray) -> np.ndarray:
 
 
 def quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a b`` for quaternions ``(x, y, z, w)``."""
+    """Multiply quaternions ``(x, y, z, w)``: ``a b``."""
     av, aw, bv, bw = a[:3], a[3], b[:3], b[3]
     return np.append(aw * bv + bw * av + np.cross(av, bv), aw * bw - av @ bv)
 
 
 def rotation_matrix(vector: np.ndarray) -> np.ndarray:
-    """The rotation of a rotation vector (Rodrigues)."""
+    """Return the rotation of a rotation vector (Rodrigues)."""
     angle = float(np.linalg.norm(vector))
     if angle < 1e-12:
         k = np.zeros((3, 3))
@@ -67,8 +67,11 @@ def rotation_matrix(vector: np.ndarray) -> np.ndarray:
 
 
 class ClampFollower:
-    """The clamp's motion, following poses: what the engine asks of an anchor motion
-    (:meth:`frame`, :attr:`rotates`, ...), plus :meth:`follow` and :meth:`check`.
+    """
+    The clamp's motion, following poses.
+
+    What the engine asks of an anchor motion (:meth:`frame`, :attr:`rotates`, ...), plus
+    :meth:`follow` and :meth:`check`.
 
     :meth:`follow` is called by the thread that steps the simulation, between two steps.
     """
@@ -79,7 +82,7 @@ class ClampFollower:
 
     def __init__(self, follow_hz: float, axes: tuple[int, ...]):
         if not (math.isfinite(follow_hz) and follow_hz > 0.0):
-            raise ValueError(f"follow bandwidth ({follow_hz}) must be a positive number of Hz")
+            raise ValueError(f'follow bandwidth ({follow_hz}) must be a positive number of Hz')
         self.follow_hz = float(follow_hz)
         self.omega = 2.0 * math.pi * self.follow_hz
         self.rotates = len(axes) >= 2
@@ -99,7 +102,7 @@ class ClampFollower:
     def __getstate__(self) -> dict:
         """Picklable (a large scene's model goes to the worker process): without the lock."""
         state = dict(self.__dict__)
-        del state["_lock"]
+        del state['_lock']
         return state
 
     def __setstate__(self, state: dict) -> None:
@@ -108,7 +111,7 @@ class ClampFollower:
 
     @property
     def frequencies_hz(self) -> np.ndarray:
-        """The motion's content: from 0 up to the filter's bandwidth."""
+        """Return the motion's content: from 0 up to the filter's bandwidth."""
         return np.array([0.0, self.follow_hz])
 
     @property
@@ -120,26 +123,34 @@ class ClampFollower:
 
     # -- poses ---------------------------------------------------------------------------------
     def check(self, position, quaternion, max_jump_m: float) -> str | None:
-        """Why a pose is refused, or None: non-finite values, a quaternion that is not a unit
-        one, or a jump of more than ``max_jump_m`` from the last pose followed."""
+        """
+        Why a pose is refused, or None.
+
+        Non-finite values, a quaternion that is not a unit one, or a jump of more than
+        ``max_jump_m`` from the last pose followed.
+        """
         position = np.asarray(position, dtype=float)
         quaternion = np.asarray(quaternion, dtype=float)
         if not (np.isfinite(position).all() and np.isfinite(quaternion).all()):
-            return "non-finite position or orientation"
+            return 'non-finite position or orientation'
         norm = float(np.linalg.norm(quaternion))
         if abs(norm - 1.0) > QUATERNION_TOLERANCE:
-            return f"orientation is not a unit quaternion (norm {norm:.6g})"
+            return f'orientation is not a unit quaternion (norm {norm:.6g})'
         last = self._last_position
         if last is not None:
             jump = float(np.linalg.norm(position - last))
             if jump > max_jump_m:
-                return (f"position jumps {jump:.3g} m from the last pose followed (at most "
-                        f"anchor.max_jump_m = {max_jump_m:g} m)")
+                return (f'position jumps {jump:.3g} m from the last pose followed (at most '
+                        f'anchor.max_jump_m = {max_jump_m:g} m)')
         return None
 
     def follow(self, t: float, position, quaternion) -> None:
-        """Track the pose ``position``, ``quaternion`` (x, y, z, w) from simulation time ``t``
-        on (the first pose is the reference the others are taken relative to)."""
+        """
+        Track the pose ``position``.
+
+        ``quaternion`` (x, y, z, w) from simulation time ``t`` on (the first pose is the reference
+        the others are taken relative to).
+        """
         position = np.asarray(position, dtype=float)
         quaternion = np.asarray(quaternion, dtype=float) / np.linalg.norm(quaternion)
         with self._lock:
@@ -159,8 +170,11 @@ class ClampFollower:
             self.revision += 1
 
     def restart(self) -> None:
-        """Back at the reference pose, at rest, at t = 0 (the simulation was reset); the
-        target stays, so the clamp moves to the last pose again."""
+        """
+        Back at the reference pose, at rest, at t = 0 (the simulation was reset).
+
+        The target stays, so the clamp moves to the last pose again.
+        """
         with self._lock:
             self._t0 = 0.0
             self._x0 = np.zeros(6)

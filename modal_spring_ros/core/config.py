@@ -1,4 +1,5 @@
-"""What defines a run (the scene aside), and the rules its values must meet.
+"""
+What defines a run (the scene aside), and the rules its values must meet.
 
 :class:`SimulationConfig` is the one place those rules live. Front ends only map their own
 names onto its fields (``--dt`` on the command line, ``sim.dt`` in the node), so that an error
@@ -28,14 +29,14 @@ MIN_DIRECTIONS, MAX_DIRECTIONS = 1, 200
 DEFAULT_TRANSITION_S = 0.5
 #: How the spring forces are evaluated: every spring every step (the paper), every spring
 #: every N steps with a tangent between, or a weighted sample of the springs every step.
-FORCES = ("exact", "refreshed", "sampled")
+FORCES = ('exact', 'refreshed', 'sampled')
 #: Steps between exact evaluations of refreshed forces when neither it nor modal.auto says.
 DEFAULT_REFRESH = 10
 #: Scenes with at least this many springs get sampled forces from the automatic choice (on
 #: smaller ones training costs more than it saves).
 SAMPLE_MIN_SPRINGS = 20_000
 #: Where the clamp's motion comes from: the scene's anchor_motion, or a stream of poses.
-ANCHOR_SOURCES = ("scene", "topic")
+ANCHOR_SOURCES = ('scene', 'topic')
 #: Highest bandwidth a clamp follows poses with, Hz.
 MAX_FOLLOW_HZ = 100.0
 
@@ -48,9 +49,9 @@ class ConfigError(ValueError):
 class SimulationConfig:
     """Everything that defines a run (the scene itself aside)."""
 
-    method: str = "modal"
+    method: str = 'modal'
     band: FilterBand = FilterBand()
-    integrator: str = "explicit"
+    integrator: str = 'explicit'
     dt: float | None = None            # None: the scene's, else from the stability limit
     transition_s: float = DEFAULT_TRANSITION_S
     max_modes: int | None = None       # None: every mode (dense scenes) or DEFAULT_MAX_MODES
@@ -58,34 +59,38 @@ class SimulationConfig:
     auto: bool = False                 # choose the fewest modes (and dt) for ``tolerance``
     tolerance: float = DEFAULT_TOLERANCE
     force_refresh: int = 0             # steps between spring evaluations; 0: 1, or auto's
-    basis: str = "derivatives"         # modal: rest modes, or rest modes and their derivatives
+    basis: str = 'derivatives'         # modal: rest modes, or rest modes and their derivatives
     derivative_directions: int = DEFAULT_DIRECTIONS
-    forces: str = "exact"              # spring forces: exact, refreshed, or sampled (ECSW)
-    anchor: str = "scene"              # the clamp moves as the scene says, or follows poses
+    forces: str = 'exact'              # spring forces: exact, refreshed, or sampled (ECSW)
+    anchor: str = 'scene'              # the clamp moves as the scene says, or follows poses
     follow_hz: float = DEFAULT_FOLLOW_HZ  # bandwidth of the filter poses are followed through
 
-    def validate(self, names: Mapping[str, str] | None = None) -> "SimulationConfig":
-        """Check every rule; raise :class:`ConfigError` (or a ``BandError`` for the band)
-        naming the setting as ``names`` calls it (the field name by default). Returns self."""
+    def validate(self, names: Mapping[str, str] | None = None) -> 'SimulationConfig':
+        """
+        Check every rule.
+
+        Raise :class:`ConfigError` (or a ``BandError`` for the band) naming the setting as
+        ``names`` calls it (the field name by default). Returns self.
+        """
         names = names or {}
 
         def name(field: str) -> str:
             return names.get(field, field)
 
-        for field, choices in (("method", METHODS), ("integrator", INTEGRATORS),
-                               ("basis", BASES), ("forces", FORCES),
-                               ("anchor", ANCHOR_SOURCES)):
+        for field, choices in (('method', METHODS), ('integrator', INTEGRATORS),
+                               ('basis', BASES), ('forces', FORCES),
+                               ('anchor', ANCHOR_SOURCES)):
             value = getattr(self, field)
             if value not in choices:
                 raise ConfigError(f"{name(field)} '{value}' must be one of "
                                   f"{', '.join(choices)}")
         if self.dt is not None and not (math.isfinite(self.dt) and self.dt >= MIN_DT_S):
             raise ConfigError(f"{name('dt')} ({self.dt}) must be a finite number of seconds, "
-                              f"at least {MIN_DT_S:g} s (a smaller step does not advance "
-                              "time)")
+                              f'at least {MIN_DT_S:g} s (a smaller step does not advance '
+                              'time)')
         if not (math.isfinite(self.transition_s) and self.transition_s >= 0.0):
             raise ConfigError(f"{name('transition_s')} ({self.transition_s}) must be a finite "
-                              "number of seconds, not negative")
+                              'number of seconds, not negative')
         if self.max_modes is not None and self.max_modes < 1:
             raise ConfigError(f"{name('max_modes')} ({self.max_modes}) must be at least 1")
         if not (math.isfinite(self.strain_limit) and self.strain_limit > 0.0):
@@ -94,28 +99,31 @@ class SimulationConfig:
             raise ConfigError(f"{name('tolerance')} ({self.tolerance}) must be between 0 and 1")
         if not MIN_DIRECTIONS <= self.derivative_directions <= MAX_DIRECTIONS:
             raise ConfigError(f"{name('derivative_directions')} ({self.derivative_directions}) "
-                              f"must be from {MIN_DIRECTIONS} to {MAX_DIRECTIONS}")
+                              f'must be from {MIN_DIRECTIONS} to {MAX_DIRECTIONS}')
         if not (math.isfinite(self.follow_hz) and 0.0 < self.follow_hz <= MAX_FOLLOW_HZ):
             raise ConfigError(f"{name('follow_hz')} ({self.follow_hz}) must be a number of Hz "
-                              f"above 0 and at most {MAX_FOLLOW_HZ:g}")
-        if self.auto and self.method != "modal":
+                              f'above 0 and at most {MAX_FOLLOW_HZ:g}')
+        if self.auto and self.method != 'modal':
             raise ConfigError(f"{name('auto')} chooses modes: it needs {name('method')} modal")
         if self.force_refresh < 0:
             raise ConfigError(f"{name('force_refresh')} ({self.force_refresh}) must be at "
-                              "least 1 step (or 0: the default)")
+                              'least 1 step (or 0: the default)')
         self.band.validate()
         return self
 
     def to_dict(self) -> dict[str, Any]:
         out = dataclasses.asdict(self)
-        out["band"] = dataclasses.asdict(self.band)
+        out['band'] = dataclasses.asdict(self.band)
         return out
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> "SimulationConfig":
-        """A configuration as :meth:`to_dict` wrote it; one written before the basis was a
-        setting was a run of rest modes."""
+    def from_dict(cls, data: dict[str, Any]) -> 'SimulationConfig':
+        """
+        Return a configuration as :meth:`to_dict` wrote it.
+
+        One written before the basis was a setting was a run of rest modes.
+        """
         data = dict(data)
-        data.setdefault("basis", "rest")
-        band = data.pop("band", {}) or {}
+        data.setdefault('basis', 'rest')
+        band = data.pop('band', {}) or {}
         return cls(band=FilterBand(**band), **data)

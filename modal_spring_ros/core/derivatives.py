@@ -1,5 +1,8 @@
-"""Modal derivatives with static load vectors: the band's second-order response (Barbic and
-James 2005), added to the kept rest modes as a fixed basis per band.
+"""
+Modal derivatives with static load vectors.
+
+The band's second-order response (Barbic and James 2005), added to the kept rest modes as a fixed
+basis per band.
 
 Rest modes describe the motion only while the springs barely rotate. A sheet swaying in its
 first mode rotates its vertical springs and shortens; written in rest modes that sway stretches
@@ -35,11 +38,10 @@ from __future__ import annotations
 import dataclasses
 import time
 
-import numpy as np
-
 from modal_spring_ros.core.basis import ModalBasis, Progress
 from modal_spring_ros.core.frame_loads import frame_load_patterns
 from modal_spring_ros.core.model import MassSpringModel
+import numpy as np
 
 #: Default number of mass-PCA derivative directions added to a band.
 DEFAULT_DIRECTIONS = 15
@@ -71,9 +73,11 @@ class AddedCoordinates:
 
 
 def tangent_derivative(model: MassSpringModel, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``(dK/du along b) a`` at the rest shape, for free-DOF displacement fields ``a`` and
-    ``b`` given as columns (n_free_dof, P): the change of the springs' tangent stiffness
-    applied to ``a`` per unit displacement along ``b``.
+    """
+    ``(dK/du along b) a`` at the rest shape.
+
+    For free-DOF displacement fields ``a`` and ``b`` given as columns (n_free_dof, P): the change
+    of the springs' tangent stiffness applied to ``a`` per unit displacement along ``b``.
 
     One spring's tangent block is ``k [(1 - l/L) I + (l/L) n n^T]``; along the spring's
     difference ``beta`` of ``b`` (at rest ``L = l``, ``n = X / l``) its derivative is
@@ -89,8 +93,11 @@ def tangent_derivative(model: MassSpringModel, a: np.ndarray, b: np.ndarray) -> 
 
 def _per_spring(alpha: np.ndarray, beta: np.ndarray, unit: np.ndarray, lengths: np.ndarray,
                 stiffness: np.ndarray) -> np.ndarray:
-    """(d, E, P) per-spring vectors of the tangent derivative (see :func:`tangent_derivative`),
-    from the springs' differences ``alpha`` of ``a`` and ``beta`` of ``b``."""
+    """
+    (d, E, P) per-spring vectors of the tangent derivative (see :func:`tangent_derivative`).
+
+    From the springs' differences ``alpha`` of ``a`` and ``beta`` of ``b``.
+    """
     n = unit[:, :, None]
     n_beta = (n * beta).sum(axis=0)                 # (E, P)
     n_alpha = (n * alpha).sum(axis=0)
@@ -113,9 +120,12 @@ def _spring_geometry(model: MassSpringModel):
 
 def loads_in_band(model: MassSpringModel, low_hz: float = 0.0,
                   high_hz: float = np.inf) -> np.ndarray:
-    """Which loads vary only at frequencies within ``low_hz .. high_hz``, as a mask over
-    (gravity, base acceleration along x, y, z): gravity is constant (0 Hz), a base axis moves
-    at its anchor motion's frequencies. A load the scene does not have is never in band."""
+    """
+    Which loads vary only at frequencies within ``low_hz .. high_hz``.
+
+    As a mask over (gravity, base acceleration along x, y, z): gravity is constant (0 Hz), a base
+    axis moves at its anchor motion's frequencies. A load the scene does not have is never in band.
+    """
     mask = np.zeros(4, dtype=bool)
     mask[0] = bool(np.any(model.gravity_force != 0.0)) and low_hz <= 0.0
     drives: dict[int, list[float]] = {}
@@ -129,10 +139,13 @@ def loads_in_band(model: MassSpringModel, low_hz: float = 0.0,
 
 def static_load_vectors(model: MassSpringModel, low_hz: float = 0.0,
                         high_hz: float = np.inf) -> np.ndarray:
-    """(n_free_dof, s) loads whose static response is added: gravity, and the inertial load
-    ``M 1_axis`` of each axis the base moves along, each only when it is in band
-    (:func:`loads_in_band`): the quasi-static response to a load moves at the load's
-    frequencies, so a load outside the band would put them back in."""
+    """
+    (n_free_dof, s) loads whose static response is added.
+
+    Gravity, and the inertial load ``M 1_axis`` of each axis the base moves along, each only when
+    it is in band (:func:`loads_in_band`): the quasi-static response to a load moves at the load's
+    frequencies, so a load outside the band would put them back in.
+    """
     mask = loads_in_band(model, low_hz, high_hz)
     loads = [model.gravity_force] if mask[0] else []
     d = model.dimension
@@ -147,7 +160,7 @@ def static_load_vectors(model: MassSpringModel, low_hz: float = 0.0,
 
 
 def _turns_in_band(model: MassSpringModel, low_hz: float, high_hz: float) -> bool:
-    """The clamp turns only at frequencies within ``low_hz .. high_hz``."""
+    """Tell whether the clamp turns only at frequencies within ``low_hz .. high_hz``."""
     f = model.scene.anchor_motion.rotation_frequencies_hz
     return bool(f.size) and low_hz <= float(f.min()) and float(f.max()) <= high_hz
 
@@ -155,11 +168,13 @@ def _turns_in_band(model: MassSpringModel, low_hz: float, high_hz: float) -> boo
 def added_coordinates(basis: ModalBasis, keep: np.ndarray,
                       directions: int = DEFAULT_DIRECTIONS,
                       progress: Progress | None = None) -> AddedCoordinates:
-    """The coordinates a band keeping rest modes ``keep`` adds (see the module text).
+    """
+    Return the coordinates a band keeping rest modes ``keep`` adds (see the module text).
 
     Modes ``0 .. max(keep)`` must be computed. Empty when the band keeps every mode of the
     scene (nothing is left to add). On a large scene with a worker process it is computed
-    there (the pair solves use the sparse factor kept in it)."""
+    there (the pair solves use the sparse factor kept in it).
+    """
     start = time.perf_counter()
     keep = np.asarray(keep, dtype=np.int64)
     if basis.complete and keep.size == basis.count:  # every mode: nothing left to add
@@ -168,8 +183,8 @@ def added_coordinates(basis: ModalBasis, keep: np.ndarray,
     pair_modes = keep[:MAX_PAIR_MODES]
     if progress is not None and pair_modes.size:
         pairs = pair_modes.size * (pair_modes.size + 1) // 2
-        progress(f"modal derivatives: {pairs} pairs of {pair_modes.size} modes"
-                 + (" in a worker process" if basis.worker and not basis.dense else ""))
+        progress(f'modal derivatives: {pairs} pairs of {pair_modes.size} modes'
+                 + (' in a worker process' if basis.worker and not basis.dense else ''))
     # the band's span: from 0 Hz when it keeps the lowest mode, else from its lowest mode
     f = basis.frequencies_hz
     span = (0.0 if keep[0] == 0 else float(f[keep[0]]), float(f[keep[-1]]))
@@ -183,8 +198,12 @@ def added_coordinates(basis: ModalBasis, keep: np.ndarray,
 def _compute(solve, model: MassSpringModel, below: np.ndarray, phi: np.ndarray,
              omega: np.ndarray, span: tuple[float, float], directions: int
              ) -> tuple[np.ndarray, np.ndarray, int]:
-    """The added vectors, their ``omega^2`` and how many are derivative directions, given
-    ``solve(rhs) = K0^-1 rhs``, the modes ``below`` to project out, and the pair modes."""
+    """
+    Return the added vectors.
+
+    Their ``omega^2`` and how many are derivative directions, given ``solve(rhs) = K0^-1 rhs``, the
+    modes ``below`` to project out, and the pair modes.
+    """
     mass = model.mass_dof
 
     def project(x: np.ndarray) -> np.ndarray:
@@ -203,7 +222,7 @@ def _compute(solve, model: MassSpringModel, below: np.ndarray, phi: np.ndarray,
                                  stiffness)
         rhs = -(diff.T @ per_spring.reshape(d * lengths.size, -1))
         solved = solve(rhs) * weights[first:first + PAIR_CHUNK]
-        scale = max(scale, float(np.sqrt(np.einsum("ij,i,ij->j", solved, mass, solved).max())))
+        scale = max(scale, float(np.sqrt(np.einsum('ij,i,ij->j', solved, mass, solved).max())))
         blocks.append(project(solved))
     derivatives = _leading_directions(np.column_stack(blocks), mass, directions,
                                       REMAINDER_RTOL * scale) \
@@ -217,9 +236,12 @@ def _compute(solve, model: MassSpringModel, below: np.ndarray, phi: np.ndarray,
 
 def _leading_directions(x: np.ndarray, mass: np.ndarray, count: int, floor: float
                         ) -> np.ndarray:
-    """The ``count`` leading mass-PCA directions of the columns of ``x`` (mass-orthonormal),
-    of those whose singular value passes ``floor`` (below it, what is left after the
-    projection is round-off)."""
+    """
+    Return the ``count`` leading mass-PCA directions of the columns of ``x`` (mass-orthonormal).
+
+    Of those whose singular value passes ``floor`` (below it, what is left after the projection is
+    round-off).
+    """
     y = np.sqrt(mass)[:, None] * x
     value, vector = np.linalg.eigh(y.T @ y)           # the SVD's right side, from the Gram
     order = np.argsort(value)[::-1]
@@ -230,19 +252,26 @@ def _leading_directions(x: np.ndarray, mass: np.ndarray, count: int, floor: floa
 
 
 def _remainders(x: np.ndarray, mass: np.ndarray, project) -> np.ndarray:
-    """The parts of the columns of ``x`` outside the projected modes, each scaled to unit mass
-    norm; a column with (almost) nothing outside them is dropped."""
-    before = np.sqrt(np.einsum("ij,i,ij->j", x, mass, x))
+    """
+    Return the parts of the columns of ``x`` outside the projected modes, each of unit mass norm.
+
+    A column with (almost) nothing outside them is dropped.
+    """
+    before = np.sqrt(np.einsum('ij,i,ij->j', x, mass, x))
     x = project(x)
-    after = np.sqrt(np.einsum("ij,i,ij->j", x, mass, x))
+    after = np.sqrt(np.einsum('ij,i,ij->j', x, mass, x))
     keep = after > REMAINDER_RTOL * before
     return x[:, keep] / after[keep]
 
 
 def _orthonormal_diagonal(x: np.ndarray, mass: np.ndarray, model: MassSpringModel, project
                           ) -> tuple[np.ndarray, np.ndarray]:
-    """Mass-orthonormalise the columns of ``x`` (dropping dependent ones), then rotate them so
-    that ``K0`` is diagonal on them; returns the vectors and ``omega^2``, ascending."""
+    """
+    Mass-orthonormalise the columns of ``x`` (dropping dependent ones).
+
+    Then rotate them so that ``K0`` is diagonal on them; returns the vectors and ``omega^2``,
+    ascending.
+    """
     if x.shape[1] == 0:
         return x, np.empty(0)
     gram = x.T @ (mass[:, None] * x)

@@ -1,4 +1,5 @@
-"""Build a ready-to-step simulation from a scene and a :class:`SimulationConfig`.
+"""
+Build a ready-to-step simulation from a scene and a :class:`SimulationConfig`.
 
 The command-line tools, the ROS node, the re-simulation of bags and the benchmark all go
 through :func:`build_simulation`, so a run described by the same configuration is the same run
@@ -14,8 +15,8 @@ from modal_spring_ros.core.basis_choice import choose_basis
 from modal_spring_ros.core.clamp_follower import ClampFollower
 from modal_spring_ros.core.config import (AUTO_DT_SAFETY, DEFAULT_REFRESH, SAMPLE_MIN_SPRINGS,
                                           SimulationConfig)
-from modal_spring_ros.core.mode_selection import (SHARE, STABILITY_SAFETY, choose_modes,
-                                                  choose_refresh, choose_step)
+from modal_spring_ros.core.mode_selection import (choose_modes, choose_refresh, choose_step, SHARE,
+                                                  STABILITY_SAFETY)
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSimulation,
@@ -25,7 +26,8 @@ from modal_spring_ros.core.worker import WorkerProcess
 
 
 def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig) -> Simulation:
-    """A new simulation (at rest) of the same scene and basis with other settings.
+    """
+    Return a new simulation (at rest) of the same scene and basis with other settings.
 
     With ``config.auto`` (modal), the fewest modes meeting ``config.tolerance`` are kept and,
     unless ``config.dt`` is given, the step follows from them, and unless
@@ -38,10 +40,10 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
     """
     config.validate()
     dt = config.dt or model.scene.default_dt
-    if config.method == "modal":
+    if config.method == 'modal':
         choice = None
         forces = config.forces
-        refresh = config.force_refresh or (DEFAULT_REFRESH if forces == "refreshed" else 1)
+        refresh = config.force_refresh or (DEFAULT_REFRESH if forces == 'refreshed' else 1)
         kind = config.basis
         bank = AddedCoordinateBank(basis, config.derivative_directions, basis.progress)
         if config.auto:
@@ -53,10 +55,10 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
             kind = chosen.kind
             dt = config.dt or choose_step(choice, config.integrator, config.tolerance,
                                           model.scene.damping)
-            forces = ("sampled" if model.scene.n_springs >= SAMPLE_MIN_SPRINGS else
-                      "refreshed" if chosen.small else "exact")
+            forces = ('sampled' if model.scene.n_springs >= SAMPLE_MIN_SPRINGS else
+                      'refreshed' if chosen.small else 'exact')
             refresh = config.force_refresh or (
-                choose_refresh(choice.highest_hz, dt) if forces == "refreshed" else 1)
+                choose_refresh(choice.highest_hz, dt) if forces == 'refreshed' else 1)
         sim: Simulation = ModalSimulation(
             model, basis, config.band, dt=dt or 1e-3, integrator=config.integrator,
             transition_s=config.transition_s, max_modes=config.max_modes,
@@ -65,8 +67,8 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
             mode_choice=choice, basis_kind=kind,
             derivative_directions=config.derivative_directions, bank=bank,
             progress=basis.progress,
-            sample_tolerance=config.tolerance if forces == "sampled" else None)
-        if config.dt is None and config.integrator == "explicit":
+            sample_tolerance=config.tolerance if forces == 'sampled' else None)
+        if config.dt is None and config.integrator == 'explicit':
             # the step the scene or the mode choice suggests may be beyond the stability
             # limit of what the band adds: stay within it
             limit = sim.stability_limit()
@@ -84,18 +86,19 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
 def build_simulation(scene: Scene, config: SimulationConfig, *,
                      progress: Progress | None = None, allow_unstable: bool = False,
                      worker: WorkerProcess | None = None) -> Simulation:
-    """Scene + options -> a simulation at rest at t = 0 (``worker``: see :class:`ModalBasis`).
+    """
+    Scene + options -> a simulation at rest at t = 0 (``worker``: see :class:`ModalBasis`).
+
     With ``config.anchor`` ``topic`` the scene's clamp follows poses given to its
     :class:`~modal_spring_ros.core.clamp_follower.ClampFollower` instead of its own motion.
 
-    Raises:
-        SceneError: a mechanism (the stiffness is singular on the free DOF).
-        BandError: impossible filter band.
-        UnstableStepError: explicit stepping above ``2 / omega_max`` (unless allowed).
-        ConfigError: other bad options (method, integrator, dt, ...).
+    :raises SceneError: a mechanism (the stiffness is singular on the free DOF).
+    :raises BandError: impossible filter band.
+    :raises UnstableStepError: explicit stepping above ``2 / omega_max`` (unless allowed).
+    :raises ConfigError: other bad options (method, integrator, dt, ...).
     """
     config.validate()
-    if config.anchor == "topic":  # the clamp follows poses (from t = 0: at its rest pose)
+    if config.anchor == 'topic':  # the clamp follows poses (from t = 0: at its rest pose)
         scene = dataclasses.replace(scene, anchor_motion=ClampFollower(config.follow_hz,
                                                                        scene.axes))
     model = MassSpringModel(scene)

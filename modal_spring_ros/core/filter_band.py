@@ -1,4 +1,5 @@
-"""The filter: which vibration modes take part, by frequency (Hz) or by mode index.
+"""
+The filter: which vibration modes take part, by frequency (Hz) or by mode index.
 
 Band edges are inclusive and always name the pass band's (or, for ``bandstop``, the stop band's)
 edges:
@@ -24,8 +25,8 @@ import math
 
 import numpy as np
 
-FILTER_TYPES = ("allpass", "lowpass", "highpass", "bandpass", "bandstop")
-UNITS = ("hz", "index")
+FILTER_TYPES = ('allpass', 'lowpass', 'highpass', 'bandpass', 'bandstop')
+UNITS = ('hz', 'index')
 
 
 class BandError(ValueError):
@@ -34,30 +35,30 @@ class BandError(ValueError):
 
 @dataclasses.dataclass(frozen=True)
 class FilterBand:
-    kind: str = "allpass"
+    kind: str = 'allpass'
     low: float = 0.0
     high: float = math.inf
-    by: str = "hz"
+    by: str = 'hz'
 
     @property
     def uses_low(self) -> bool:
-        return self.kind in ("highpass", "bandpass", "bandstop")
+        return self.kind in ('highpass', 'bandpass', 'bandstop')
 
     @property
     def uses_high(self) -> bool:
-        return self.kind in ("lowpass", "bandpass", "bandstop")
+        return self.kind in ('lowpass', 'bandpass', 'bandstop')
 
     @property
     def bounded_above(self) -> bool:
-        """Keeps no mode above ``high`` (so only modes up to it must be computed)."""
-        return self.kind in ("lowpass", "bandpass")
+        """Keep no mode above ``high`` (so only modes up to it must be computed)."""
+        return self.kind in ('lowpass', 'bandpass')
 
     def field_names(self) -> tuple[str, str]:
-        if self.by == "index":
-            return "filter.low_mode", "filter.high_mode"
-        return "filter.low_hz", "filter.high_hz"
+        if self.by == 'index':
+            return 'filter.low_mode', 'filter.high_mode'
+        return 'filter.low_hz', 'filter.high_hz'
 
-    def validate(self, names: tuple[str, str] | None = None) -> "FilterBand":
+    def validate(self, names: tuple[str, str] | None = None) -> 'FilterBand':
         """Check the band on its own; returns self. ``names`` label the two edges in errors."""
         low_name, high_name = names or self.field_names()
         if self.kind not in FILTER_TYPES:
@@ -69,47 +70,47 @@ class FilterBand:
             if not used:
                 continue
             if not math.isfinite(value):
-                raise BandError(f"{name} ({value}) must be finite for {self.kind}")
+                raise BandError(f'{name} ({value}) must be finite for {self.kind}')
             if value < 0:
-                raise BandError(f"{name} ({value:g}) must not be negative")
-            if self.by == "index" and value != int(value):
-                raise BandError(f"{name} ({value:g}) must be a whole mode number")
-        if self.kind in ("bandpass", "bandstop") and not self.low < self.high:
-            if self.by == "index" and self.low == self.high and self.kind == "bandpass":
+                raise BandError(f'{name} ({value:g}) must not be negative')
+            if self.by == 'index' and value != int(value):
+                raise BandError(f'{name} ({value:g}) must be a whole mode number')
+        if self.kind in ('bandpass', 'bandstop') and not self.low < self.high:
+            if self.by == 'index' and self.low == self.high and self.kind == 'bandpass':
                 return self  # a single mode
-            raise BandError(f"{low_name} ({self.low:g}) must be below {high_name} "
-                            f"({self.high:g}) for {self.kind}")
+            raise BandError(f'{low_name} ({self.low:g}) must be below {high_name} '
+                            f'({self.high:g}) for {self.kind}')
         return self
 
     def keeps(self, frequencies_hz: np.ndarray) -> np.ndarray:
         """Boolean mask of the modes (given by their frequencies, ascending) this band keeps."""
         f = np.asarray(frequencies_hz, dtype=float)
-        x = np.arange(f.size, dtype=float) if self.by == "index" else f
-        if self.kind == "allpass":
+        x = np.arange(f.size, dtype=float) if self.by == 'index' else f
+        if self.kind == 'allpass':
             return np.ones(f.size, dtype=bool)
-        if self.kind == "lowpass":
+        if self.kind == 'lowpass':
             return x <= self.high
-        if self.kind == "highpass":
+        if self.kind == 'highpass':
             return x >= self.low
-        if self.kind == "bandpass":
+        if self.kind == 'bandpass':
             return (x >= self.low) & (x <= self.high)
         return (x < self.low) | (x > self.high)
 
     def describe(self) -> str:
-        unit = " Hz" if self.by == "hz" else ""
-        pre = "modes " if self.by == "index" else ""
-        if self.kind == "allpass":
-            return "allpass"
-        if self.kind == "lowpass":
-            return f"lowpass {pre}<= {self.high:g}{unit}"
-        if self.kind == "highpass":
-            return f"highpass {pre}>= {self.low:g}{unit}"
-        return f"{self.kind} {pre}{self.low:g}..{self.high:g}{unit}"
+        unit = ' Hz' if self.by == 'hz' else ''
+        pre = 'modes ' if self.by == 'index' else ''
+        if self.kind == 'allpass':
+            return 'allpass'
+        if self.kind == 'lowpass':
+            return f'lowpass {pre}<= {self.high:g}{unit}'
+        if self.kind == 'highpass':
+            return f'highpass {pre}>= {self.low:g}{unit}'
+        return f'{self.kind} {pre}{self.low:g}..{self.high:g}{unit}'
 
 
 def parse_mode_range(text: str) -> FilterBand:
     """``"FIRST:LAST"`` (inclusive, zero-based) as an index band-pass, e.g. ``"0:14"``."""
-    parts = text.split(":")
+    parts = text.split(':')
     if len(parts) != 2:
         raise BandError(f"--modes '{text}' must be FIRST:LAST, e.g. 0:14")
     try:
@@ -119,5 +120,5 @@ def parse_mode_range(text: str) -> FilterBand:
         raise BandError(f"--modes '{text}' must be two whole numbers FIRST:LAST") from None
     if first < 0 or last < first:
         raise BandError(f"--modes '{text}': need 0 <= FIRST <= LAST")
-    kind = "lowpass" if first == 0 else "bandpass"
-    return FilterBand(kind, float(first), float(last), "index").validate(("FIRST", "LAST"))
+    kind = 'lowpass' if first == 0 else 'bandpass'
+    return FilterBand(kind, float(first), float(last), 'index').validate(('FIRST', 'LAST'))

@@ -1,4 +1,5 @@
-"""Nonlinear spring forces (paper eq. 20) and gravity in generalized coordinates.
+"""
+Nonlinear spring forces (paper eq. 20) and gravity in generalized coordinates.
 
 For free-DOF displacement ``u = Phi q`` (``Phi`` = the retained modes, or the identity for the
 full physical run), measured from the rigidly moving base (see
@@ -19,10 +20,9 @@ is cheap (small scenes, few modes) and applied as ``D`` after ``Phi`` otherwise.
 """
 from __future__ import annotations
 
+from modal_spring_ros.core.frame_loads import FrameLoads
 import numpy as np
 import scipy.sparse as sp
-
-from modal_spring_ros.core.frame_loads import FrameLoads
 
 #: Largest dense ``G`` (entries) kept; beyond it ``G q`` is computed as ``D (Phi q)``.
 DENSE_G_LIMIT = 400_000
@@ -32,7 +32,8 @@ TANGENT_CHUNK = 4096
 
 def spring_difference_matrix(springs: np.ndarray, free_index: np.ndarray, dimension: int,
                              n_free: int) -> sp.csr_matrix:
-    """Sparse ``D`` with ``(D u)[a*E + e] = u_j[a] - u_i[a]`` over the free DOF (fixed: 0).
+    """
+    Sparse ``D`` with ``(D u)[a*E + e] = u_j[a] - u_i[a]`` over the free DOF (fixed: 0).
 
     Rows are component-major (all x components, then all y, ...), so that the per-spring
     arithmetic runs over contiguous rows of a ``(d, E)`` array.
@@ -52,15 +53,18 @@ def spring_difference_matrix(springs: np.ndarray, free_index: np.ndarray, dimens
 
 def _norms(delta: np.ndarray) -> np.ndarray:
     """Euclidean lengths of the columns of a (d, E) array."""
-    length = np.einsum("de,de->e", delta, delta)
+    length = np.einsum('de,de->e', delta, delta)
     return np.sqrt(length, out=length)
 
 
 def pull_springs(delta: np.ndarray, stiffness: np.ndarray, stiffness_length: np.ndarray,
                  inv_rest: np.ndarray) -> float:
-    """Turn the (d, E) spring vectors ``delta`` into the springs' force vectors in place (eq.
-    20: each pulls with ``k (L - l) / L (x_j - x_i) = (k - k l / L) delta``) and return the
-    largest strain ``|L / l - 1|`` (through the largest and smallest ``L / l``)."""
+    """
+    Turn the (d, E) spring vectors ``delta`` into the springs' force vectors in place (eq.
+
+    20: each pulls with ``k (L - l) / L (x_j - x_i) = (k - k l / L) delta``) and return the largest
+    strain ``|L / l - 1|`` (through the largest and smallest ``L / l``).
+    """
     length = _norms(delta)
     ratio = length * inv_rest
     strain = max(float(np.maximum.reduce(ratio)) - 1.0, 1.0 - float(np.minimum.reduce(ratio)))
@@ -71,15 +75,19 @@ def pull_springs(delta: np.ndarray, stiffness: np.ndarray, stiffness_length: np.
 
 
 class GeneralizedForces:
-    """``Q(q, t)``: total force on the free DOF projected on ``Phi`` (identity when None).
+    """
+    ``Q(q, t)``: total force on the free DOF projected on ``Phi`` (identity when None).
 
-    Attributes:
-        last_max_strain: largest ``|L - l| / l`` over all springs at the last evaluation.
+    :ivar last_max_strain: largest ``|L - l| / l`` over all springs at the last evaluation.
     """
 
     def __init__(self, model, basis: np.ndarray | None, load_mask: np.ndarray | None = None):
-        """``load_mask`` (m, 4), with a basis: which loads (gravity, base acceleration along
-        x, y, z) act on each coordinate (all when None)."""
+        """
+        ``load_mask`` (m, 4), with a basis.
+
+        Which loads (gravity, base acceleration along x, y, z) act on each coordinate (all when
+        None).
+        """
         s = model.scene
         d = model.dimension
         self.dimension = d
@@ -134,8 +142,12 @@ class GeneralizedForces:
         return f
 
     def spring_forces(self, q: np.ndarray) -> np.ndarray:
-        """Generalized nonlinear spring force ``-G^T f_spring`` (sets ``last_max_strain``;
-        see :func:`pull_springs`)."""
+        """
+        Generalized nonlinear spring force ``-G^T f_spring``.
+
+        Generalized nonlinear spring force ``-G^T f_spring`` (sets ``last_max_strain``; see
+        :func:`pull_springs`).
+        """
         delta = self.spring_force_vectors(q)
         f = self._gt @ delta.ravel()
         if self._phi is not None:
@@ -149,8 +161,11 @@ class GeneralizedForces:
         return delta
 
     def loads(self, t: float) -> np.ndarray:
-        """Generalized gravity and base-excitation load at time ``t`` (linear, exact); with a
-        turning clamp, the state-independent loads of its frame (:class:`FrameLoads`)."""
+        """
+        Generalized gravity and base-excitation load at time ``t`` (linear, exact).
+
+        With a turning clamp, the state-independent loads of its frame (:class:`FrameLoads`).
+        """
         if self.frame is not None:
             return self.frame.loads(t)
         if self._anchors_move:
@@ -163,7 +178,8 @@ class GeneralizedForces:
         return self._gravity.copy()
 
     def tangent(self, q: np.ndarray, chunk: int = TANGENT_CHUNK) -> np.ndarray:
-        """Tangent stiffness ``-dQ_spring/dq`` at ``q`` (dense, m x m; at rest ``Phi^T K Phi``).
+        """
+        Tangent stiffness ``-dQ_spring/dq`` at ``q`` (dense, m x m; at rest ``Phi^T K Phi``).
 
         Per spring the tangent of ``k (1 - l/L) delta`` is ``a I + b n n^T`` with
         ``a = k (1 - l/L)``, ``b = k l / L``, ``n = delta / L``; summed over the springs as
@@ -181,14 +197,15 @@ class GeneralizedForces:
         for start in range(0, n_springs, chunk):
             stop = min(start + chunk, n_springs)
             g = self._g_rows(start, stop)                      # (d, chunk, m)
-            h = np.einsum("dc,dcm->cm", unit[:, start:stop], g)
+            h = np.einsum('dc,dcm->cm', unit[:, start:stop], g)
             for c in range(d):
                 out += g[c].T @ (a[start:stop, None] * g[c])
             out += h.T @ (b[start:stop, None] * h)
         return 0.5 * (out + out.T)
 
     def strain_sensitivity(self, chunk: int = TANGENT_CHUNK) -> float:
-        """Most any spring's strain can change per unit change of ``q`` (Euclidean norm).
+        """
+        Most any spring's strain can change per unit change of ``q`` (Euclidean norm).
 
         Spring ``e``'s vector changes by ``G_e dq`` (``G_e``: its d rows of ``G``), so its
         length by at most ``|G_e dq| <= |G_e|_2 |dq|`` and its strain by that over ``l_e``;
@@ -208,7 +225,7 @@ class GeneralizedForces:
         for start in range(0, self._l.size, chunk):
             stop = min(start + chunk, self._l.size)
             g = self._g_rows(start, stop)                      # (d, chunk, m)
-            out[start:stop] = np.einsum("acm,bcm->cab", g, g)
+            out[start:stop] = np.einsum('acm,bcm->cab', g, g)
         return out
 
     def g_rows_of(self, springs: np.ndarray) -> np.ndarray:

@@ -1,4 +1,5 @@
-"""The inertial loads of a turning clamp's frame (the floating frame of reference).
+"""
+The inertial loads of a turning clamp's frame (the floating frame of reference).
 
 Written in the clamp's frame, ``x = R (X + u) + b`` (:mod:`~modal_spring_ros.core.rigid_frame`),
 the deformation ``u`` stays small while the body turns, and every particle of mass ``m`` feels
@@ -20,7 +21,8 @@ import numpy as np
 
 
 class FrameLoads:
-    """Generalized inertial loads of the clamp's frame on coordinates ``phi`` (n_free_dof, m).
+    """
+    Generalized inertial loads of the clamp's frame on coordinates ``phi`` (n_free_dof, m).
 
     :meth:`loads` is the part that does not depend on the state (gravity turned into the
     frame, the frame's translation, and the Euler and centrifugal loads of the rest shape);
@@ -53,8 +55,11 @@ class FrameLoads:
         return self._unit @ turned - self._rest @ frame.angular_acceleration.ravel()
 
     def coupling(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        """Generalized load of the displacement and velocity ``q``, ``v`` at ``t``:
-        ``-Phi^T M (A Phi q + 2 W Phi v)``."""
+        """
+        Generalized load of the displacement and velocity ``q``, ``v`` at ``t``.
+
+        ``-Phi^T M (A Phi q + 2 W Phi v)``.
+        """
         frame = self.model.frame(t)
         z = np.multiply.outer(frame.angular_acceleration.ravel(), q)
         z += np.multiply.outer(2.0 * frame.angular_velocity.ravel(), v)
@@ -62,9 +67,12 @@ class FrameLoads:
 
 
 def frame_load_patterns(model) -> list[np.ndarray]:
-    """The load patterns of a turning clamp's frame (per free DOF):
-    ``M 1_a`` (gravity and the frame's translation, turned) and ``M (e_i X_j)`` (the
-    centrifugal and Euler loads of the rest shape), for every axis ``a``, ``i``, ``j``."""
+    """
+    Return the load patterns of a turning clamp's frame (per free DOF).
+
+    ``M 1_a`` (gravity and the frame's translation, turned) and ``M (e_i X_j)`` (the centrifugal
+    and Euler loads of the rest shape), for every axis ``a``, ``i``, ``j``.
+    """
     d = model.dimension
     mass = model.scene.mass[model.free_particles]
     rest = model.rest[model.free_particles]

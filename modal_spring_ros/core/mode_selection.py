@@ -1,4 +1,5 @@
-"""Model no more than a scene needs: the fewest modes (and the step) that meet a tolerance.
+"""
+Model no more than a scene needs: the fewest modes (and the step) that meet a tolerance.
 
 The loads of a scene are gravity and the base excitation of its anchor motion (an inertial
 load ``-M 1_axis`` per moving axis). For a load ``f`` the static response is
@@ -36,14 +37,13 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import numpy as np
-import scipy.sparse.linalg as spla
-
 from modal_spring_ros.core.basis import DEFAULT_MAX_MODES, ModalBasis
 from modal_spring_ros.core.basis_choice import BasisChoice
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.frame_loads import frame_load_patterns
 from modal_spring_ros.core.model import MassSpringModel
+import numpy as np
+import scipy.sparse.linalg as spla
 
 DEFAULT_TOLERANCE = 0.01
 DEFAULT_MARGIN = 2.0
@@ -71,17 +71,21 @@ class ModeChoice:
     basis: BasisChoice | None = None  # the basis chosen for them, when it was chosen
 
     def describe(self) -> str:
-        text = (f"{self.count} modes up to {self.highest_hz:.4g} Hz, predicted error "
-                f"{self.predicted_error:.2%}")
-        return text if self.basis is None else f"{text}, {self.basis.describe()}"
+        text = (f'{self.count} modes up to {self.highest_hz:.4g} Hz, predicted error '
+                f'{self.predicted_error:.2%}')
+        return text if self.basis is None else f'{text}, {self.basis.describe()}'
 
 
 def scene_loads(model: MassSpringModel) -> dict[str, np.ndarray]:
-    """Gravity, the unit base-excitation load per axis the base moves along, and a turning
-    clamp's frame load patterns."""
+    """
+    Gravity.
+
+    The unit base-excitation load per axis the base moves along, and a turning clamp's frame load
+    patterns.
+    """
     loads = {}
     if np.any(model.gravity_force != 0.0):
-        loads["gravity"] = model.gravity_force
+        loads['gravity'] = model.gravity_force
     motion = model.scene.anchor_motion
     for axis in sorted({c.axis for c in motion.components if c.amplitude != 0.0}):
         if axis in model.axes:
@@ -91,7 +95,7 @@ def scene_loads(model: MassSpringModel) -> dict[str, np.ndarray]:
             loads[f"base {'xyz'[axis]}"] = pattern
     if model.rotates:  # a turning clamp: gravity turns, and centrifugal and Euler loads
         for k, pattern in enumerate(frame_load_patterns(model)):
-            loads[f"turning clamp {k}"] = pattern
+            loads[f'turning clamp {k}'] = pattern
     return loads
 
 
@@ -132,12 +136,13 @@ class TruncationEstimator:
 def choose_modes(model: MassSpringModel, basis: ModalBasis, band: FilterBand = FilterBand(),
                  tolerance: float = DEFAULT_TOLERANCE, margin: float = DEFAULT_MARGIN,
                  max_modes: int = DEFAULT_MAX_MODES) -> ModeChoice:
-    """The fewest lowest modes (within ``band``) meeting ``tolerance`` for every load.
+    """
+    Return the fewest lowest modes (within ``band``) meeting ``tolerance`` for every load.
 
     Computes modes only as far as needed (in growing batches on large scenes).
     """
     if not 0.0 < tolerance < 1.0:
-        raise ValueError(f"modal.tolerance ({tolerance}) must be between 0 and 1")
+        raise ValueError(f'modal.tolerance ({tolerance}) must be between 0 and 1')
     band.validate()
     estimator = TruncationEstimator(model)
     excitation = model.scene.anchor_motion.frequencies_hz
@@ -155,7 +160,7 @@ def choose_modes(model: MassSpringModel, basis: ModalBasis, band: FilterBand = F
                 return _choice(estimator, basis, modes, errors, f_exc)
         if basis.complete or basis.count >= limit:
             if not kept.size:
-                raise ValueError(f"filter band {band.describe()} keeps no mode")
+                raise ValueError(f'filter band {band.describe()} keeps no mode')
             return _choice(estimator, basis, kept, estimator.errors(basis, kept), f_exc)
         basis.ensure_count(min(max(2 * basis.count, 16), limit))
 
@@ -168,8 +173,12 @@ def _choice(estimator, basis, modes, errors, f_exc) -> ModeChoice:
 
 def choose_step(choice: ModeChoice, integrator: str, tolerance: float = DEFAULT_TOLERANCE,
                 damping=None) -> float:
-    """Largest step that is stable for the kept modes and accurate within its share of
-    ``tolerance`` (``damping``: the scene's Damping, for the modes' decay time)."""
+    """
+    Largest step that is stable for the kept modes and accurate.
+
+    Largest step that is stable for the kept modes and accurate within its share of ``tolerance``
+    (``damping``: the scene's Damping, for the modes' decay time).
+    """
     budget = SHARE * tolerance
     w = choice.omega_eff
     decay = damping.modal_coefficients(np.array([w]))[0] / 2.0 if damping is not None else 0.0
@@ -177,13 +186,16 @@ def choose_step(choice: ModeChoice, integrator: str, tolerance: float = DEFAULT_
     dt = math.sqrt(48.0 * budget / (w ** 3 * tau))
     if choice.excitation_hz > 0:
         dt = min(dt, math.sqrt(12.0 * budget) / (2 * math.pi * choice.excitation_hz))
-    if integrator == "explicit":
+    if integrator == 'explicit':
         dt = min(dt, STABILITY_SAFETY * 2.0 / choice.omega_max)
     return dt
 
 
 def choose_refresh(highest_hz: float, dt: float) -> int:
-    """Steps between exact evaluations of the spring forces, for kept modes up to
-    ``highest_hz`` stepped at ``dt``."""
+    """
+    Step between exact evaluations of the spring forces.
+
+    For kept modes up to ``highest_hz`` stepped at ``dt``.
+    """
     interval_s = REFRESH_PERIODS / highest_hz if highest_hz > 0 else math.inf
     return int(min(MAX_REFRESH, max(1, math.floor(interval_s / dt + 1e-9))))

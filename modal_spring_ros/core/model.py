@@ -1,4 +1,5 @@
-"""The mass-spring model of a scene: DOF layout, nonlinear spring forces (paper eq. 20), energy.
+"""
+The mass-spring model of a scene: DOF layout, nonlinear spring forces (paper eq. 20), energy.
 
 :class:`MassSpringModel` precomputes everything that does not change while stepping (index
 arrays, the sparse spring-to-particle scatter matrix, lumped masses, the rest stiffness), so
@@ -12,13 +13,12 @@ from __future__ import annotations
 
 import functools
 
-import numpy as np
-import scipy.sparse as sp
-
 from modal_spring_ros.core.forces import GeneralizedForces, spring_difference_matrix
 from modal_spring_ros.core.rigid_frame import RigidFrame
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.core.stiffness import assemble_stiffness, reduce_to_free
+import numpy as np
+import scipy.sparse as sp
 
 
 class MassSpringModel:
@@ -57,8 +57,12 @@ class MassSpringModel:
 
     @functools.cached_property
     def spring_difference(self) -> sp.csr_matrix:
-        """Sparse ``D``: per spring and axis, ``u_j - u_i`` of a free-DOF displacement ``u``
-        (component-major rows: every spring's x, then every y, ...)."""
+        """
+        Sparse ``D``.
+
+        Per spring and axis, ``u_j - u_i`` of a free-DOF displacement ``u`` (component-major rows:
+        every spring's x, then every y, ...).
+        """
         s = self.scene
         free_index = np.full(s.n_particles, -1)
         free_index[self.free_particles] = np.arange(self.free_particles.size)
@@ -68,13 +72,17 @@ class MassSpringModel:
     # -- positions ---------------------------------------------------------------------------
     @property
     def rotates(self) -> bool:
-        """The clamp turns: displacements live in its (floating) frame."""
+        """Tell whether the clamp turns: displacements live in its (floating) frame."""
         return self.scene.anchor_motion.rotates
 
     def frame(self, t: float) -> RigidFrame:
-        """The clamp's rigid motion at ``t`` on the scene's axes (the last one is kept: the
-        same time is asked for by the forces, the positions and the energy; a clamp following
-        poses changes its revision when it gets a new one)."""
+        """
+        Return the clamp's rigid motion at ``t`` on the scene's axes.
+
+        The clamp's rigid motion at ``t`` on the scene's axes (the last one is kept: the same time
+        is asked for by the forces, the positions and the energy; a clamp following poses changes
+        its revision when it gets a new one).
+        """
         motion = self.scene.anchor_motion
         key = (t, motion.revision)
         cached = self._frame
@@ -85,17 +93,25 @@ class MassSpringModel:
         return frame
 
     def restart_clamp(self) -> None:
-        """The run went back to t = 0: so does a clamp with a state of its own."""
+        """Go back to t = 0 with the run: so does a clamp with a state of its own."""
         self.scene.anchor_motion.restart()
 
     def anchor_offset(self, t: float) -> np.ndarray:
-        """(d,) rigid offset of the base (every fixed particle) at time ``t`` (a clamp that
-        only translates)."""
+        """
+        Return the (d,) rigid offset of the base (every fixed particle) at time ``t``.
+
+        (d,) rigid offset of the base (every fixed particle) at time ``t`` (a clamp that only
+        translates).
+        """
         return self.scene.anchor_motion.offset(t)[self.axes]
 
     def positions(self, u: np.ndarray, t: float) -> np.ndarray:
-        """(n, d) positions for displacement ``u`` in the clamp's frame at ``t``
-        (``x = R (X + u) + b``; ``X + u + p`` when the clamp only translates)."""
+        """
+        Return the (n, d) positions for displacement ``u`` in the clamp's frame at ``t``.
+
+        (n, d) positions for displacement ``u`` in the clamp's frame at ``t`` (``x = R (X + u) +
+        b``; ``X + u + p`` when the clamp only translates).
+        """
         if self.rotates:
             y = self.rest.copy()
             y.reshape(-1)[self.free_dof] += u
@@ -105,8 +121,12 @@ class MassSpringModel:
         return x
 
     def world_velocity(self, u: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        """Free-DOF velocity in the world (flat) from displacement ``u`` and velocity ``v``
-        in the clamp's frame: ``R v + R' (X + u) + b'``."""
+        """
+        Return the free-DOF velocity in the world (flat).
+
+        Free-DOF velocity in the world (flat) from displacement ``u`` and velocity ``v`` in the
+        clamp's frame: ``R v + R' (X + u) + b'``.
+        """
         frame = self.frame(t)
         d = self.dimension
         y = self.rest[self.free_particles] + u.reshape(-1, d)
@@ -121,7 +141,7 @@ class MassSpringModel:
     # -- forces --------------------------------------------------------------------------------
     def spring_vectors(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         delta = x[self._j] - x[self._i]
-        length = np.sqrt(np.einsum("ed,ed->e", delta, delta))
+        length = np.sqrt(np.einsum('ed,ed->e', delta, delta))
         return delta, length
 
     @functools.cached_property
@@ -139,7 +159,8 @@ class MassSpringModel:
         return float(np.max(np.abs(length - self._l) * self._inv_l))
 
     def energy(self, x: np.ndarray, v: np.ndarray) -> dict[str, float]:
-        """Kinetic, spring and gravity energy of the free particles.
+        """
+        Kinetic, spring and gravity energy of the free particles.
 
         ``x``: (n, d) positions; ``v``: free-DOF velocity in the inertial frame (relative
         velocity plus the base velocity).
@@ -149,5 +170,5 @@ class MassSpringModel:
         spring = 0.5 * float(np.dot(self._k, (length - self._l) ** 2))
         xf = x[self.free_particles].ravel()
         gravity = -float(np.dot(self.gravity_force, xf))
-        return {"kinetic": kinetic, "spring": spring, "gravity": gravity,
-                "total": kinetic + spring + gravity}
+        return {'kinetic': kinetic, 'spring': spring, 'gravity': gravity,
+                'total': kinetic + spring + gravity}

@@ -1,4 +1,5 @@
-"""A person pulling one particle toward a point for a while (RViz's "Publish Point").
+"""
+A person pulling one particle toward a point for a while (RViz's "Publish Point").
 
 The particle is pulled by a spring of ``stiffness`` toward ``target`` (world coordinates on the
 scene's axes), its force capped at ``max_force`` so that a click far away cannot tear the
@@ -27,8 +28,11 @@ class Pull:
     until: float           # simulation time the pull ends, s
 
     def force(self, position: np.ndarray, t: float) -> np.ndarray | None:
-        """(d,) world force on the particle at ``position`` at time ``t``, or None once the
-        pull is over."""
+        """
+        (d,) world force on the particle at ``position`` at time ``t``.
+
+        Or None once the pull is over.
+        """
         if t > self.until:
             return None
         f = self.stiffness * (self.target - position)
@@ -39,31 +43,32 @@ class Pull:
 
 
 def nearest_free_particle(model, positions: np.ndarray, point: np.ndarray) -> int:
-    """Scene index of the free particle nearest to ``point`` (3,), given the (n, 3) current
-    positions."""
+    """Return the scene index of the free particle nearest to ``point`` (3,) at ``positions``."""
     free = model.free_particles
-    distance = np.einsum("nd,nd->n", positions[free] - point, positions[free] - point)
+    distance = np.einsum('nd,nd->n', positions[free] - point, positions[free] - point)
     return int(free[int(np.argmin(distance))])
 
 
 def make_pull(model, particle: int, point, stiffness: float, max_force: float, now: float,
               hold_s: float) -> Pull:
-    """A pull of scene particle ``particle`` toward ``point`` (3,) from ``now`` for
-    ``hold_s`` seconds.
+    """
+    Return a pull of scene particle ``particle`` toward ``point`` (3,).
 
-    Raises:
-        PullError: the particle is fixed or out of range, or a value is not finite and
-            non-negative.
+    A pull of scene particle ``particle`` toward ``point`` (3,) from ``now`` for ``hold_s``
+    seconds.
+
+    :raises PullError: the particle is fixed or out of range, or a value is not finite and
+        non-negative.
     """
     point = np.asarray(point, dtype=float)
-    for name, value in (("stiffness", stiffness), ("max_force", max_force),
-                        ("hold_s", hold_s)):
+    for name, value in (('stiffness', stiffness), ('max_force', max_force),
+                        ('hold_s', hold_s)):
         if not (math.isfinite(value) and value >= 0.0):
-            raise PullError(f"pull {name} ({value}) must be finite and not negative")
+            raise PullError(f'pull {name} ({value}) must be finite and not negative')
     if point.shape != (3,) or not np.isfinite(point).all():
-        raise PullError("pull point must be three finite coordinates")
+        raise PullError('pull point must be three finite coordinates')
     slots = np.flatnonzero(model.free_particles == particle)
     if not slots.size:
-        raise PullError(f"particle {particle} is fixed or does not exist: it cannot be pulled")
+        raise PullError(f'particle {particle} is fixed or does not exist: it cannot be pulled')
     return Pull(int(particle), int(slots[0]), point[model.axes].copy(), float(stiffness),
                 float(max_force), float(now + hold_s))

@@ -1,4 +1,5 @@
-"""Reduced force evaluation: the nonlinear spring forces every N steps, a tangent in between.
+"""
+Reduced force evaluation: the nonlinear spring forces every N steps, a tangent in between.
 
 The paper's method (fig. 5) evaluates every spring of the scene on every step, so a modal step
 costs about as much as a full physical one on a large scene; the modal gain is only the longer
@@ -28,9 +29,8 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from modal_spring_ros.core.forces import GeneralizedForces
+import numpy as np
 
 #: iterations of the static solve (modified Newton with the rest stiffness)
 STATIC_ITERATIONS = 200
@@ -39,7 +39,8 @@ STATIC_RTOL = 1e-10
 
 def static_equilibrium(forces: GeneralizedForces, omega2: np.ndarray
                        ) -> tuple[np.ndarray, bool]:
-    """Modal coordinates of the equilibrium under gravity, and whether it was found.
+    """
+    Modal coordinates of the equilibrium under gravity, and whether it was found.
 
     Modified Newton with the rest stiffness ``diag(omega^2)`` as the fixed tangent: in the
     small-deformation regime it contracts by about the strain per iteration. Returns
@@ -60,25 +61,25 @@ def static_equilibrium(forces: GeneralizedForces, omega2: np.ndarray
 
 
 class RefreshedForces:
-    """Generalized forces with the springs evaluated every ``interval`` steps of ``dt``.
+    """
+    Generalized forces with the springs evaluated every ``interval`` steps of ``dt``.
 
     Called like :class:`~modal_spring_ros.core.forces.GeneralizedForces`:
     ``forces(q, t)``. A call at a time ``interval`` steps or more after the last evaluation
     (or before it: a restart) evaluates the springs exactly.
 
-    Attributes:
-        static_found: the static equilibrium was found (else ``K_s`` is the rest stiffness).
-        refresh_error: relative difference between the continued and the exact spring force
-            at the last refresh; ``max_refresh_error`` the largest since :meth:`restart`.
-        last_max_strain: largest spring strain at the last call: exact when the springs were
-            evaluated, else an upper bound (never below the true value).
-        strain_limit: a step whose strain bound passes it evaluates the springs exactly.
+    :ivar static_found: the static equilibrium was found (else ``K_s`` is the rest stiffness).
+    :ivar refresh_error: relative difference between the continued and the exact spring force
+        at the last refresh; ``max_refresh_error`` the largest since :meth:`restart`.
+    :ivar last_max_strain: largest spring strain at the last call: exact when the springs were
+        evaluated, else an upper bound (never below the true value).
+    :ivar strain_limit: a step whose strain bound passes it evaluates the springs exactly.
     """
 
     def __init__(self, exact: GeneralizedForces, omega2: np.ndarray, interval: int, dt: float,
                  strain_limit: float = math.inf):
         if interval < 1:
-            raise ValueError(f"force refresh interval ({interval}) must be at least 1 step")
+            raise ValueError(f'force refresh interval ({interval}) must be at least 1 step')
         self.exact = exact
         self.interval = int(interval)
         self.strain_limit = strain_limit
@@ -99,8 +100,11 @@ class RefreshedForces:
         self.last_max_strain = self._strain_at_refresh = 0.0
 
     def __call__(self, q: np.ndarray, t: float) -> np.ndarray:
-        """Generalized force at ``q``, ``t``; sets ``last_max_strain``: exact on an evaluation,
-        else an upper bound of the largest spring strain."""
+        """
+        Generalized force at ``q``, ``t``; sets ``last_max_strain``.
+
+        Exact on an evaluation, else an upper bound of the largest spring strain.
+        """
         force = None
         if not (t - self._t >= self._due or t < self._t):
             dq = q - self._q
@@ -122,5 +126,5 @@ class RefreshedForces:
         return force
 
     def _continued(self, dq: np.ndarray) -> np.ndarray:
-        """The last exact spring force continued along the static tangent by ``dq``."""
+        """Return the last exact spring force continued along the static tangent by ``dq``."""
         return self._spring - self.tangent @ dq

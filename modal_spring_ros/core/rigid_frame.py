@@ -1,4 +1,5 @@
-"""A rigid motion of space and its time derivatives: where a moving clamp carries its body.
+"""
+A rigid motion of space and its time derivatives: where a moving clamp carries its body.
 
 A point at rest at ``X`` is carried to ``x = R X + b``. With the velocity and acceleration of
 both parts, this is what a floating frame of reference needs: the body's own deformation is
@@ -34,7 +35,8 @@ def axis_rotation(axis: int, angle: float) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class RigidFrame:
-    """``x = R X + b`` at one instant, with the first and second time derivatives of both.
+    """
+    ``x = R X + b`` at one instant, with the first and second time derivatives of both.
 
     Arrays are 3 x 3 (``rotation`` and its rates) and (3,) (``translation`` and its rates).
     """
@@ -47,28 +49,34 @@ class RigidFrame:
     acceleration: np.ndarray
 
     @classmethod
-    def identity(cls) -> "RigidFrame":
+    def identity(cls) -> 'RigidFrame':
         zero = np.zeros((3, 3))
         return cls(np.eye(3), zero, zero, np.zeros(3), np.zeros(3), np.zeros(3))
 
     @classmethod
     def turn(cls, rotation: np.ndarray, rate: np.ndarray, acceleration: np.ndarray,
-             pivot: np.ndarray) -> "RigidFrame":
-        """A rotation ``Q`` about an axis through ``pivot``, ``x -> Q (x - c) + c``, with
-        ``Q'`` and ``Q''``."""
+             pivot: np.ndarray) -> 'RigidFrame':
+        """
+        Return a rotation ``Q`` about an axis through ``pivot``.
+
+        ``x -> Q (x - c) + c``, with ``Q'`` and ``Q''``.
+        """
         return cls(rotation, rate, acceleration, pivot - rotation @ pivot, -(rate @ pivot),
                    -(acceleration @ pivot))
 
     def translated(self, offset: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray
-                   ) -> "RigidFrame":
-        """This motion followed by a translation (``x -> x + offset``)."""
+                   ) -> 'RigidFrame':
+        """Return this motion followed by a translation (``x -> x + offset``)."""
         return RigidFrame(self.rotation, self.rotation_rate, self.rotation_acceleration,
                           self.translation + offset, self.velocity + velocity,
                           self.acceleration + acceleration)
 
-    def then(self, other: "RigidFrame") -> "RigidFrame":
-        """This motion followed by ``other`` (``x -> Q x + c`` with rates), differentiated by
-        the product rule."""
+    def then(self, other: 'RigidFrame') -> 'RigidFrame':
+        """
+        Return this motion followed by ``other`` (``x -> Q x + c`` with rates).
+
+        Differentiated by the product rule.
+        """
         q, dq, ddq = other.rotation, other.rotation_rate, other.rotation_acceleration
         r, dr, ddr = self.rotation, self.rotation_rate, self.rotation_acceleration
         b, db, ddb = self.translation, self.velocity, self.acceleration
@@ -81,10 +89,13 @@ class RigidFrame:
             acceleration=ddq @ b + 2.0 * dq @ db + q @ ddb + other.acceleration)
 
     def restricted(self, index: tuple[np.ndarray, np.ndarray], axes: list[int]
-                   ) -> "RigidFrame":
-        """The same motion on the scene's axes only (``index = np.ix_(axes, axes)``; a 2D
-        scene turns about its normal, so the in-plane block is the whole rotation of the
-        plane)."""
+                   ) -> 'RigidFrame':
+        """
+        Return the same motion on the scene's axes only.
+
+        The same motion on the scene's axes only (``index = np.ix_(axes, axes)``; a 2D scene turns
+        about its normal, so the in-plane block is the whole rotation of the plane).
+        """
         return RigidFrame(self.rotation[index], self.rotation_rate[index],
                           self.rotation_acceleration[index], self.translation[axes],
                           self.velocity[axes], self.acceleration[axes])
@@ -96,8 +107,11 @@ class RigidFrame:
 
     @functools.cached_property
     def angular_acceleration(self) -> np.ndarray:
-        """``A = R^T R'' = [alpha]x + [omega]x^2`` in the frame: the Euler and centrifugal
-        accelerations of a point of the frame are ``A r``."""
+        """
+        Return ``A = R^T R'' = [alpha]x + [omega]x^2`` in the frame.
+
+        The Euler and centrifugal accelerations of a point of the frame are ``A r``.
+        """
         return self.rotation.T @ self.rotation_acceleration
 
     def carry(self, points: np.ndarray) -> np.ndarray:

@@ -1,5 +1,7 @@
-"""Generalized forces with the springs sampled (ECSW): a step whose cost does not depend on the
-number of springs.
+"""
+Generalized forces with the springs sampled (ECSW).
+
+A step whose cost does not depend on the number of springs.
 
 :class:`SampledForces` is called like
 :class:`~modal_spring_ros.core.forces.GeneralizedForces`: ``forces(q, t)``. The spring force is
@@ -24,11 +26,10 @@ import os
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
-
 from modal_spring_ros.core.forces import GeneralizedForces, pull_springs
 from modal_spring_ros.core.integrators import DiagonalOperators, integrator
 from modal_spring_ros.core.spring_sampling import DEFAULT_TOLERANCE, SpringSample, train
+import numpy as np
 
 #: calls between two checks of the sampled force against the exact one
 DEFAULT_CHECK_EVERY = 200
@@ -45,16 +46,20 @@ RUN_SNAPSHOTS = 80
 RANDOM_SHARE = 0.5
 RANDOM_SPREAD = 1.5
 #: environment variable naming the cache folder ("" disables the cache)
-CACHE_ENV = "MODAL_SPRING_ROS_CACHE"
+CACHE_ENV = 'MODAL_SPRING_ROS_CACHE'
 
 
 def training_snapshots(exact: GeneralizedForces, omega2: np.ndarray, damping: np.ndarray,
                        dt: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """(training, held-out) snapshots of the coordinates: a short exact run from rest (the
-    scene released under its loads), alternately, and random states around it."""
+    """
+    (training, held-out) snapshots of the coordinates.
+
+    A short exact run from rest (the scene released under its loads), alternately, and random
+    states around it.
+    """
     ops = DiagonalOperators(1.0, damping, omega2, dt)
-    stepper = integrator("explicit" if dt < 2.0 / math.sqrt(max(omega2.max(), 1e-300))
-                         else "average")
+    stepper = integrator('explicit' if dt < 2.0 / math.sqrt(max(omega2.max(), 1e-300))
+                         else 'average')
     steps = max(min(int(round(TRAINING_RUN_S / dt)), TRAINING_STEPS), RUN_SNAPSHOTS)
     every = max(steps // RUN_SNAPSHOTS, 1)
     q = v = np.zeros(omega2.size)
@@ -76,7 +81,7 @@ def training_snapshots(exact: GeneralizedForces, omega2: np.ndarray, damping: np
 
 
 def sample_key(exact: GeneralizedForces, phi: np.ndarray, tolerance: float) -> str:
-    """A hash of what a sample depends on: the springs, the coordinates, the tolerance."""
+    """Return a hash of what a sample depends on: the springs, the coordinates, the tolerance."""
     h = hashlib.sha256()
     for array in (exact.stiffness, exact.stiffness_length, exact.rest_deltas, phi):
         h.update(np.ascontiguousarray(array).tobytes())
@@ -87,26 +92,26 @@ def sample_key(exact: GeneralizedForces, phi: np.ndarray, tolerance: float) -> s
 def cache_folder() -> Path | None:
     """Where samples are kept: ``$MODAL_SPRING_ROS_CACHE``, else the user's cache folder."""
     value = os.environ.get(CACHE_ENV)
-    if value == "":
+    if value == '':
         return None
     if value:
         return Path(value)
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "modal_spring_ros" / "samples"
+    base = os.environ.get('XDG_CACHE_HOME') or os.path.join(os.path.expanduser('~'), '.cache')
+    return Path(base) / 'modal_spring_ros' / 'samples'
 
 
 def cached_sample(exact: GeneralizedForces, phi: np.ndarray, omega2: np.ndarray,
                   damping: np.ndarray, dt: float, tolerance: float = DEFAULT_TOLERANCE,
                   progress: Callable[[str], None] | None = None) -> SpringSample:
-    """The sample for these coordinates: from the cache, else trained (and cached)."""
+    """Return the sample for these coordinates: from the cache, else trained (and cached)."""
     folder = cache_folder()
-    path = folder / f"{sample_key(exact, phi, tolerance)}.npz" if folder else None
+    path = folder / f'{sample_key(exact, phi, tolerance)}.npz' if folder else None
     if path is not None and path.is_file():
         try:
             with np.load(path) as data:
-                return SpringSample(data["springs"], data["weights"],
-                                    float(data["training_error"]),
-                                    float(data["held_out_error"]), 0.0)
+                return SpringSample(data['springs'], data['weights'],
+                                    float(data['training_error']),
+                                    float(data['held_out_error']), 0.0)
         except (OSError, KeyError, ValueError):
             pass  # a damaged cache entry is trained again
     snapshots, held_out = training_snapshots(exact, omega2, damping, dt)
@@ -114,7 +119,7 @@ def cached_sample(exact: GeneralizedForces, phi: np.ndarray, omega2: np.ndarray,
     if path is not None:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_suffix(".tmp.npz")
+            tmp = path.with_suffix('.tmp.npz')
             np.savez(tmp, springs=sample.springs, weights=sample.weights,
                      training_error=sample.training_error,
                      held_out_error=sample.held_out_error)
@@ -181,11 +186,11 @@ class SampledForces:
     def describe(self) -> str:
         sample = self.sample
         if self.fell_back:
-            return (f"exact (the {sample.count}-spring sample fell back: error "
-                    f"{max(self.max_sample_error, sample.held_out_error):.2%} beyond "
-                    f"{self.tolerance:.2%})")
-        return (f"sampled: {sample.count} of {self.exact.n_springs} springs, held-out error "
-                f"{sample.held_out_error:.2%}, run-time {self.max_sample_error:.2%}")
+            return (f'exact (the {sample.count}-spring sample fell back: error '
+                    f'{max(self.max_sample_error, sample.held_out_error):.2%} beyond '
+                    f'{self.tolerance:.2%})')
+        return (f'sampled: {sample.count} of {self.exact.n_springs} springs, held-out error '
+                f'{sample.held_out_error:.2%}, run-time {self.max_sample_error:.2%}')
 
     def __call__(self, q: np.ndarray, t: float) -> np.ndarray:
         force = self.spring_forces(q)

@@ -1,4 +1,5 @@
-"""Scene data: particles, springs, fixed particles, loads and damping of a validated scene.
+"""
+Scene data: particles, springs, fixed particles, loads and damping of a validated scene.
 
 A :class:`Scene` is what every other part of the engine works from. It is built and checked by
 :mod:`modal_spring_ros.scenes` (YAML schema, lattices, built-in scenes); this module only holds
@@ -10,10 +11,9 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+from modal_spring_ros.core.anchor_motion import AnchorMotion
 import numpy as np
 import yaml
-
-from modal_spring_ros.core.anchor_motion import AnchorMotion
 
 
 class SceneError(ValueError):
@@ -22,7 +22,8 @@ class SceneError(ValueError):
 
 @dataclasses.dataclass(frozen=True)
 class Damping:
-    """Damping of a scene: the paper's modal ratio ``h`` and/or Rayleigh ``alpha M + beta K``.
+    """
+    Damping of a scene: the paper's modal ratio ``h`` and/or Rayleigh ``alpha M + beta K``.
 
     Modal damping of mode ``i`` is ``C_i = 2 h omega_i + alpha + beta omega_i**2`` (with
     mass-normalised modes).
@@ -44,25 +45,25 @@ class Damping:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Scene:
-    """A validated mass-spring scene. Arrays are read-only.
+    """
+    A validated mass-spring scene. Arrays are read-only.
 
-    Attributes:
-        name: scene name (file stem for scene files).
-        dimension: 1 (motion along ``axis`` only, the paper's chain), 2 (motion in the x-y
-            plane, z stays at rest) or 3.
-        axes: the world axes that move (0 = x, 1 = y, 2 = z), ``dimension`` of them.
-        rest_positions: (n, 3) particle positions at rest (springs at their rest length).
-        mass: (n,) particle masses, kg.
-        springs: (E, 2) particle index pairs, i < j.
-        stiffness: (E,) spring stiffness, N/m.
-        rest_length: (E,) spring rest length, m (distance at rest).
-        fixed: (n,) bool, particles that follow the prescribed anchor motion.
-        gravity: (3,) gravitational acceleration, m/s^2.
-        damping: the scene's damping.
-        anchor_motion: prescribed motion of the fixed particles.
-        default_dt: suggested time step, s (None: chosen from the modes).
-        default_duration: suggested run length, s.
-        description: free text.
+    :ivar name: scene name (file stem for scene files).
+    :ivar dimension: 1 (motion along ``axis`` only, the paper's chain), 2 (motion in the x-y
+        plane, z stays at rest) or 3.
+    :ivar axes: the world axes that move (0 = x, 1 = y, 2 = z), ``dimension`` of them.
+    :ivar rest_positions: (n, 3) particle positions at rest (springs at their rest length).
+    :ivar mass: (n,) particle masses, kg.
+    :ivar springs: (E, 2) particle index pairs, i < j.
+    :ivar stiffness: (E,) spring stiffness, N/m.
+    :ivar rest_length: (E,) spring rest length, m (distance at rest).
+    :ivar fixed: (n,) bool, particles that follow the prescribed anchor motion.
+    :ivar gravity: (3,) gravitational acceleration, m/s^2.
+    :ivar damping: the scene's damping.
+    :ivar anchor_motion: prescribed motion of the fixed particles.
+    :ivar default_dt: suggested time step, s (None: chosen from the modes).
+    :ivar default_duration: suggested run length, s.
+    :ivar description: free text.
     """
 
     name: str
@@ -79,7 +80,7 @@ class Scene:
     anchor_motion: AnchorMotion = AnchorMotion(())
     default_dt: float | None = None
     default_duration: float = 5.0
-    description: str = ""
+    description: str = ''
 
     @property
     def n_particles(self) -> int:
@@ -94,7 +95,8 @@ class Scene:
         return int((~self.fixed).sum()) * self.dimension
 
     def surface_triangles(self) -> np.ndarray:
-        """(T, 3) particle triangles of the scene's surface, empty when it has none.
+        """
+        (T, 3) particle triangles of the scene's surface, empty when it has none.
 
         A 2D lattice sheet is a surface (two triangles per cell, taken from its diagonal
         springs' cells); scenes without that structure return an empty array.
@@ -102,32 +104,35 @@ class Scene:
         return _lattice_triangles(self)
 
     def to_dict(self) -> dict[str, Any]:
-        """The full, explicit definition (what
-        :func:`modal_spring_ros.scenes.schema.scene_from_dict` loads)."""
+        """
+        Return the full.
+
+        Explicit definition (what :func:`modal_spring_ros.scenes.schema.scene_from_dict` loads).
+        """
         return {
-            "name": self.name,
-            "description": self.description,
-            "dimension": self.dimension,
-            **({"axis": "xyz"[self.axes[0]]} if self.dimension == 1 else {}),
-            "particles": {
-                "positions": self.rest_positions.tolist(),
-                "mass": self.mass.tolist(),
+            'name': self.name,
+            'description': self.description,
+            'dimension': self.dimension,
+            **({'axis': 'xyz'[self.axes[0]]} if self.dimension == 1 else {}),
+            'particles': {
+                'positions': self.rest_positions.tolist(),
+                'mass': self.mass.tolist(),
             },
-            "springs": {
-                "pairs": self.springs.tolist(),
-                "stiffness": self.stiffness.tolist(),
+            'springs': {
+                'pairs': self.springs.tolist(),
+                'stiffness': self.stiffness.tolist(),
             },
-            "fixed": {"indices": np.flatnonzero(self.fixed).tolist()},
-            "gravity": self.gravity.tolist(),
-            "damping": {
-                "ratio": self.damping.ratio,
-                "rayleigh": {
-                    "alpha": self.damping.rayleigh_alpha,
-                    "beta": self.damping.rayleigh_beta,
+            'fixed': {'indices': np.flatnonzero(self.fixed).tolist()},
+            'gravity': self.gravity.tolist(),
+            'damping': {
+                'ratio': self.damping.ratio,
+                'rayleigh': {
+                    'alpha': self.damping.rayleigh_alpha,
+                    'beta': self.damping.rayleigh_beta,
                 },
             },
-            "anchor_motion": self.anchor_motion.to_list(),
-            "simulation": {"dt": self.default_dt, "duration": self.default_duration},
+            'anchor_motion': self.anchor_motion.to_list(),
+            'simulation': {'dt': self.default_dt, 'duration': self.default_duration},
         }
 
     def to_yaml(self) -> str:

@@ -1,5 +1,7 @@
-"""Energy-conserving sampling and weighting of the springs (ECSW; Farhat et al. 2014, the
-cubature of An, Kim and James 2008).
+"""
+Energy-conserving sampling and weighting of the springs (ECSW; Farhat et al.
+
+2014, the cubature of An, Kim and James 2008).
 
 The generalized spring force is a sum over the springs, ``Q(q) = sum_e Q_e(q)`` with
 ``Q_e = -G_e^T f_e``. It is approximated by a weighted sum over a small sample of them,
@@ -59,7 +61,7 @@ def _g_times(forces, r: np.ndarray) -> np.ndarray:
 def _columns(forces, per_spring: np.ndarray, springs: np.ndarray) -> np.ndarray:
     """(S * m, k) contributions ``Q_e(q_s)`` of ``springs``, stacked over the snapshots."""
     g = forces.g_rows_of(springs)                                  # (d, k, m)
-    q_e = -np.einsum("dkm,sdk->smk", g, per_spring[:, :, springs])
+    q_e = -np.einsum('dkm,sdk->smk', g, per_spring[:, :, springs])
     return q_e.reshape(-1, springs.size)
 
 
@@ -78,9 +80,13 @@ def relative_error(forces, sample: SpringSample, snapshots: np.ndarray) -> float
 def train(forces, snapshots: np.ndarray, held_out: np.ndarray,
           tolerance: float = DEFAULT_TOLERANCE,
           progress: Callable[[str], None] | None = None) -> SpringSample:
-    """The springs and non-negative weights that reproduce the spring force of ``forces`` (a
+    """
+    Find the springs and non-negative weights that reproduce the spring force.
+
+    The springs and non-negative weights that reproduce the spring force of ``forces`` (a
     :class:`~modal_spring_ros.core.forces.GeneralizedForces`) on ``snapshots`` (S, m) within
-    ``tolerance`` (relative, each snapshot), checked on ``held_out``."""
+    ``tolerance`` (relative, each snapshot), checked on ``held_out``.
+    """
     start = time.perf_counter()
     per_spring = np.stack([forces.spring_force_vectors(q) for q in snapshots])   # (S, d, E)
     totals = np.stack([forces.spring_forces(q) for q in snapshots])             # (S, m)
@@ -90,7 +96,7 @@ def train(forces, snapshots: np.ndarray, held_out: np.ndarray,
     n_springs = per_spring.shape[2]
     # each column's norm: sum_s f_e(q_s)^T (G_e G_e^T) f_e(q_s), from the d x d Gram per spring
     gram = forces.spring_grams()                                                # (E, d, d)
-    norms = np.sqrt(np.maximum(np.einsum("sde,edf,sfe->e", per_spring, gram, per_spring),
+    norms = np.sqrt(np.maximum(np.einsum('sde,edf,sfe->e', per_spring, gram, per_spring),
                                1e-300))
     chosen = np.empty(0, dtype=np.int64)        # the sample: springs of non-zero weight
     weights = np.empty(0)
@@ -100,7 +106,7 @@ def train(forces, snapshots: np.ndarray, held_out: np.ndarray,
         # correlation of each spring's column with the residual, over its norm:
         # -sum_s f_e(q_s) . (G r_s)_e / |A_e|
         g_r = _g_times(forces, residual.reshape(len(snapshots), -1).T)        # (S, d, E)
-        correlation = -np.einsum("sde,sde->e", per_spring, g_r) / norms
+        correlation = -np.einsum('sde,sde->e', per_spring, g_r) / norms
         correlation[chosen] = -np.inf
         pool = min(POOL, n_springs - chosen.size)
         best = np.argpartition(-correlation, pool - 1)[:pool] if pool > 0 else chosen[:0]
@@ -115,8 +121,8 @@ def train(forces, snapshots: np.ndarray, held_out: np.ndarray,
         residual = b - columns[:, keep] @ weights
         error = float(np.max(np.linalg.norm(residual.reshape(len(snapshots), -1), axis=1)))
         if progress is not None:
-            progress(f"sampling springs: {chosen.size} of {n_springs}, training error "
-                     f"{error:.2%}")
+            progress(f'sampling springs: {chosen.size} of {n_springs}, training error '
+                     f'{error:.2%}')
         if error <= tolerance:
             break
     keep = weights > 0.0                     # a spring whose weight fell to zero is not sampled

@@ -1,4 +1,5 @@
-"""Linear stiffness of a mass-spring network at its rest shape (paper eqs. 3-13), assembled sparse.
+"""
+Linear stiffness of a mass-spring network at its rest shape (paper eqs. 3-13), assembled sparse.
 
 A spring of stiffness ``k`` acts along its own axis with ``k [[1, -1], [-1, 1]]`` (eq. 6);
 rotated into world axes by ``T`` (eq. 9) its element matrix is ``T^T Kbar T`` (eq. 13), whose
@@ -13,7 +14,11 @@ import scipy.sparse as sp
 
 
 def rotation_matrix_2d(theta: float) -> np.ndarray:
-    """The paper's ``T`` (eq. 9) for a 2D spring at angle ``theta``: world -> spring axes."""
+    """
+    Return the paper's ``T`` (eq.
+
+    9) for a 2D spring at angle ``theta``: world -> spring axes.
+    """
     c, s = np.cos(theta), np.sin(theta)
     r = np.array([[c, s], [-s, c]])
     t = np.zeros((4, 4))
@@ -23,14 +28,14 @@ def rotation_matrix_2d(theta: float) -> np.ndarray:
 
 
 def local_stiffness_2d(k: float) -> np.ndarray:
-    """The paper's ``Kbar`` (eq. 6): a spring's stiffness in its own axes."""
+    """Return the paper's ``Kbar`` (eq. 6): a spring's stiffness in its own axes."""
     kbar = np.zeros((4, 4))
     kbar[np.ix_([0, 2], [0, 2])] = k * np.array([[1.0, -1.0], [-1.0, 1.0]])
     return kbar
 
 
 def element_stiffness(k: float, direction: np.ndarray) -> np.ndarray:
-    """The ``2d x 2d`` element matrix of one spring with unit ``direction`` (any d)."""
+    """Return the ``2d x 2d`` element matrix of one spring with unit ``direction`` (any d)."""
     u = np.asarray(direction, dtype=float)
     block = k * np.outer(u, u)
     return np.block([[block, -block], [-block, block]])
@@ -38,7 +43,8 @@ def element_stiffness(k: float, direction: np.ndarray) -> np.ndarray:
 
 def assemble_stiffness(rest_positions: np.ndarray, springs: np.ndarray, stiffness: np.ndarray,
                        dimension: int) -> sp.csr_matrix:
-    """Global ``(n d) x (n d)`` stiffness at rest; DOF ``p * d + axis``. Vectorised COO build.
+    """
+    Global ``(n d) x (n d)`` stiffness at rest; DOF ``p * d + axis``. Vectorised COO build.
 
     ``rest_positions`` holds the ``dimension`` moving coordinates of each particle.
     """

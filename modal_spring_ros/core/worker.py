@@ -1,4 +1,5 @@
-"""A child process that runs long numerical calls, so that the caller's interpreter stays free.
+"""
+A child process that runs long numerical calls, so that the caller's interpreter stays free.
 
 scipy's Lanczos eigensolver holds the interpreter lock for tens to hundreds of milliseconds at
 a time (its restarts and the final Ritz vectors run without releasing it). In a process that
@@ -13,9 +14,9 @@ the whole process group from a terminal, and the parent decides when the child e
 from __future__ import annotations
 
 import multiprocessing as mp
+from multiprocessing.connection import Connection
 import signal
 import threading
-from multiprocessing.connection import Connection
 from typing import Any, Callable
 
 #: How often a waiting call asks whether it was cancelled, s.
@@ -23,13 +24,20 @@ POLL_S = 0.1
 
 
 class WorkerError(RuntimeError):
-    """A call got no answer: the worker was closed or the call cancelled, or the child died
-    (killed, out of memory, ...)."""
+    """
+    A call got no answer.
+
+    The worker was closed or the call cancelled, or the child died (killed, out of memory, ...).
+    """
 
 
 def _serve(conn: Connection) -> None:
-    """Child's main loop: answer ``(function, args)`` with ``(True, result)`` or
-    ``(False, exception)`` until the pipe closes."""
+    """
+    Child's main loop.
+
+    Answer ``(function, args)`` with ``(True, result)`` or ``(False, exception)`` until the pipe
+    closes.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     while True:
         try:
@@ -52,7 +60,8 @@ def _end(process: mp.process.BaseProcess) -> None:
 
 
 class WorkerProcess:
-    """Calls module-level functions in a child process, one call at a time.
+    """
+    Calls module-level functions in a child process, one call at a time.
 
     Thread-safe: concurrent callers are served one after the other. ``cancelled``, when
     given, is asked every :data:`POLL_S` while a call runs; once it answers True the child is
@@ -61,7 +70,7 @@ class WorkerProcess:
     call in progress raises :class:`WorkerError` in its caller.
     """
 
-    def __init__(self, name: str = "modal_spring_worker",
+    def __init__(self, name: str = 'modal_spring_worker',
                  cancelled: Callable[[], bool] | None = None):
         self.name = name
         self.cancelled = cancelled
@@ -74,7 +83,7 @@ class WorkerProcess:
         """``function(*args)`` evaluated in the child; its exception is raised here."""
         with self._lock:
             if self._closed:
-                raise WorkerError(f"{self.name} is closed")
+                raise WorkerError(f'{self.name} is closed')
             if self._process is None or not self._process.is_alive():
                 self._start()
             process, conn = self._process, self._conn
@@ -82,15 +91,15 @@ class WorkerProcess:
                 conn.send((function, args))
                 while not conn.poll(POLL_S):
                     if self.cancelled is not None and self.cancelled():
-                        raise WorkerError(f"{self.name}: call cancelled")
+                        raise WorkerError(f'{self.name}: call cancelled')
                 ok, value = conn.recv()
             except (EOFError, OSError):
                 process.join(timeout=1.0)
                 self._forget(process)
                 code = process.exitcode
-                cause = "closed" if self._closed else f"exit code {code}" + (
-                    ", killed: out of memory?" if code is not None and code < 0 else "")
-                raise WorkerError(f"{self.name} ended during the call ({cause})") from None
+                cause = 'closed' if self._closed else f'exit code {code}' + (
+                    ', killed: out of memory?' if code is not None and code < 0 else '')
+                raise WorkerError(f'{self.name} ended during the call ({cause})') from None
             except BaseException:  # cancelled or interrupted: its answer would come unasked
                 _end(process)
                 self._forget(process)
@@ -112,14 +121,14 @@ class WorkerProcess:
         if self._process is process:
             self._process = self._conn = None
 
-    def __enter__(self) -> "WorkerProcess":
+    def __enter__(self) -> 'WorkerProcess':
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
 
     def _start(self) -> None:
-        ctx = mp.get_context("spawn")
+        ctx = mp.get_context('spawn')
         parent, child = ctx.Pipe()
         process = ctx.Process(target=_serve, args=(child,), name=self.name, daemon=True)
         process.start()

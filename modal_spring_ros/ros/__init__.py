@@ -1,3 +1,6 @@
-"""The ROS layer: the node (wiring), its parameters, diagnostics, simulation thread, outputs,
-the recorder and the re-simulation of recorded node runs. Imports every lower layer.
+"""
+The ROS layer.
+
+The node (wiring), its parameters, diagnostics, simulation thread, outputs, the recorder and the
+re-simulation of recorded node runs. Imports every lower layer.
 """

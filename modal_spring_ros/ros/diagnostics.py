@@ -1,5 +1,7 @@
-"""The node's ``/diagnostics``: a simulation status and a stream report in, a
-``diagnostic_msgs/DiagnosticArray`` out.
+"""
+The node's ``/diagnostics``.
+
+A simulation status and a stream report in, a ``diagnostic_msgs/DiagnosticArray`` out.
 
 :func:`diagnostic_array` is a pure function of plain values, so what the node reports in each
 situation is tested without DDS, and reporting cannot fail on the state of a simulation that
@@ -11,9 +13,8 @@ import dataclasses
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from std_msgs.msg import Header
-
 from modal_spring_ros.core.simulations import SimulationStatus
+from std_msgs.msg import Header
 
 #: Achieved real-time factor below this share of the requested one is reported.
 REALTIME_TOLERANCE = 0.9
@@ -38,87 +39,94 @@ class StreamReport:
     paused: bool = False
     strain_warning: float = 0.1
     divergences: int = 0
-    last_divergence: str = ""
+    last_divergence: str = ''
     diverged_recently: bool = False
-    error: str = ""                    # a failure reported now (ERROR)
-    anchor: str = ""                   # what the clamp follows (anchor.source topic)
+    error: str = ''                    # a failure reported now (ERROR)
+    anchor: str = ''                   # what the clamp follows (anchor.source topic)
     anchor_stale: bool = False         # no pose for a while: the clamp holds the last
 
 
 def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[int, str]:
-    """The status level and its one-line message: the most severe condition wins."""
-    level, message = DiagnosticStatus.OK, "streaming"
+    """Return the status level and its one-line message: the most severe condition wins."""
+    level, message = DiagnosticStatus.OK, 'streaming'
     if stream.paused:
-        message = "paused"
+        message = 'paused'
     elif (stream.window_valid and stream.requested_rtf > 0
           and stream.achieved_rtf < REALTIME_TOLERANCE * stream.requested_rtf):
         level = DiagnosticStatus.WARN
-        message = (f"cannot keep real time: achieved real-time factor "
-                   f"{stream.achieved_rtf:.2f} of {stream.requested_rtf:g}")
+        message = (f'cannot keep real time: achieved real-time factor '
+                   f'{stream.achieved_rtf:.2f} of {stream.requested_rtf:g}')
     if not stream.paused:
         if stream.longest_gap_s > STALL_PERIODS * stream.publish_period_s:
             level = DiagnosticStatus.WARN
-            message = (f"stream stalled for {stream.longest_gap_s:.2f} s"
-                       + (" while computing modes for a band change"
-                          if stream.computing_modes else ""))
+            message = (f'stream stalled for {stream.longest_gap_s:.2f} s'
+                       + (' while computing modes for a band change'
+                          if stream.computing_modes else ''))
         if stream.window_valid and stream.frames_in_window == 0 and stream.window_s > 0:
             level = DiagnosticStatus.WARN
-            message = f"no frame published in the last {stream.window_s:.1f} s"
+            message = f'no frame published in the last {stream.window_s:.1f} s'
     if status.forces_fell_back:
         level = DiagnosticStatus.WARN
-        message = f"spring sample off: {status.forces}"
+        message = f'spring sample off: {status.forces}'
     if stream.anchor_stale:
         level = DiagnosticStatus.WARN
-        message = f"anchor pose: {stream.anchor}"
-    if status.max_strain > stream.strain_warning and status.basis.startswith("rest"):
+        message = f'anchor pose: {stream.anchor}'
+    if status.max_strain > stream.strain_warning and status.basis.startswith('rest'):
         # the rest modes' regime; the derivative basis follows the sway's rotation beyond it
         level = DiagnosticStatus.WARN
-        message = (f"large deformation: spring strain {status.max_strain:.1%} beyond the "
-                   f"small-deformation regime of the modal basis")
+        message = (f'large deformation: spring strain {status.max_strain:.1%} beyond the '
+                   f'small-deformation regime of the modal basis')
     if stream.error or stream.diverged_recently:
         level = DiagnosticStatus.ERROR
-        message = stream.error or f"{stream.last_divergence}; recovered: back to the rest state"
+        message = stream.error or f'{stream.last_divergence}; recovered: back to the rest state'
     return level, message
 
 
 def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, str]:
     """Every figure the node reports, as key -> text."""
     return {
-        "method": status.method,
-        "band": status.band,
-        "basis": status.basis,
-        "basis precompute (s)": f"{status.basis_seconds:.3g}",
-        "modes stepped": str(status.modes),
-        "coordinates stepped": str(status.coordinates),
-        "modes computed": str(status.modes_computed),
-        "automatic mode choice": status.mode_choice,
-        "integrator": status.integrator,
-        "dt (s)": f"{status.dt:g}",
-        "spring forces": status.forces,
-        "force refresh (steps)": str(status.force_refresh),
-        "force refresh error": ("exact every step" if status.refresh_error is None
-                                else f"{status.refresh_error:.2e}"),
-        "stability limit (s)": f"{status.stability_limit:.4g}",
-        "step time (us)": f"{stream.step_us:.1f}",
-        "requested real-time factor": f"{stream.requested_rtf:g}",
-        "achieved real-time factor": f"{stream.achieved_rtf:.3f}",
-        "simulation time (s)": f"{status.time:.3f}",
-        "frames published": str(stream.frames),
-        "largest spring strain": f"{status.max_strain:.5f}",
-        "divergence": stream.last_divergence or "none",
-        "divergences": str(stream.divergences),
-        "paused": str(stream.paused).lower(),
-        "longest gap between frames (s)": f"{stream.longest_gap_s:.3f}",
-        "computing modes": str(stream.computing_modes).lower(),
-        **({"anchor pose": stream.anchor} if stream.anchor else {}),
+        'method': status.method,
+        'band': status.band,
+        'basis': status.basis,
+        'basis precompute (s)': f'{status.basis_seconds:.3g}',
+        'modes stepped': str(status.modes),
+        'coordinates stepped': str(status.coordinates),
+        'modes computed': str(status.modes_computed),
+        'automatic mode choice': status.mode_choice,
+        'integrator': status.integrator,
+        'dt (s)': f'{status.dt:g}',
+        'spring forces': status.forces,
+        'force refresh (steps)': str(status.force_refresh),
+        'force refresh error': ('exact every step' if status.refresh_error is None
+                                else f'{status.refresh_error:.2e}'),
+        'stability limit (s)': f'{status.stability_limit:.4g}',
+        'step time (us)': f'{stream.step_us:.1f}',
+        'requested real-time factor': f'{stream.requested_rtf:g}',
+        'achieved real-time factor': f'{stream.achieved_rtf:.3f}',
+        'simulation time (s)': f'{status.time:.3f}',
+        'frames published': str(stream.frames),
+        'largest spring strain': f'{status.max_strain:.5f}',
+        'divergence': stream.last_divergence or 'none',
+        'divergences': str(stream.divergences),
+        'paused': str(stream.paused).lower(),
+        'longest gap between frames (s)': f'{stream.longest_gap_s:.3f}',
+        'computing modes': str(stream.computing_modes).lower(),
+        **({'anchor pose': stream.anchor} if stream.anchor else {}),
     }
 
 
-def diagnostic_array(status: SimulationStatus, stream: StreamReport, *, name: str,
+def diagnostic_array(status: SimulationStatus, stream: StreamReport, *, node: str,
                      hardware_id: str, stamp: Time) -> DiagnosticArray:
-    """One ``DiagnosticArray`` with the simulation's status."""
+    """
+    Return one ``DiagnosticArray`` with the simulation's status.
+
+    Named ``<node name>: simulation`` as diagnostic_updater names a node's task (the name without
+    its namespace); the ``node`` value holds the fully qualified name ``node``, which tells nodes
+    in different namespaces apart.
+    """
     level, message = level_and_message(status, stream)
-    values = status_values(status, stream)
+    values = {'node': node, **status_values(status, stream)}
+    name = f"{node.rsplit('/', 1)[-1]}: simulation"
     entry = DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id,
                              values=[KeyValue(key=k, value=v) for k, v in values.items()])
     return DiagnosticArray(header=Header(stamp=stamp), status=[entry])

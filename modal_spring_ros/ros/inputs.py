@@ -1,4 +1,5 @@
-"""What the node takes in besides parameters: the clamp's pose and a person's clicks.
+"""
+What the node takes in besides parameters: the clamp's pose and a person's clicks.
 
 ``anchor_pose`` (``geometry_msgs/PoseStamped``, with ``anchor.source`` topic): the clamp
 follows each accepted pose through its filter
@@ -18,15 +19,14 @@ import threading
 import time
 from typing import Any, Callable
 
-import numpy as np
 from geometry_msgs.msg import PointStamped, PoseStamped
-
 from modal_spring_ros.core.pull import make_pull, nearest_free_particle
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.requests import FollowPose, PullPoint, Request
+import numpy as np
 
-ANCHOR_TOPIC = "anchor_pose"
-CLICK_TOPIC = "/clicked_point"
+ANCHOR_TOPIC = 'anchor_pose'
+CLICK_TOPIC = '/clicked_point'
 #: no pose for this long: the clamp holds the last one, and /diagnostics says so, s
 POSE_TIMEOUT_S = 0.5
 #: refusals are logged at most this often, s
@@ -40,10 +40,10 @@ def pose_arrays(message: PoseStamped) -> tuple[np.ndarray, np.ndarray]:
 
 
 def apply_pose(sim: Simulation, message: PoseStamped) -> str:
-    """The running clamp follows ``message`` from the simulation's time on."""
+    """Make the running clamp follow ``message`` from the simulation's time on."""
     position, quaternion = pose_arrays(message)
     sim.model.scene.anchor_motion.follow(sim.time, position, quaternion)
-    return "following the pose"
+    return 'following the pose'
 
 
 def apply_click(sim: Simulation, message: PointStamped, stiffness: float, max_force: float,
@@ -53,7 +53,7 @@ def apply_click(sim: Simulation, message: PointStamped, stiffness: float, max_fo
     particle = nearest_free_particle(sim.model, sim.positions(), point)
     sim.start_pull(make_pull(sim.model, particle, point, stiffness, max_force, sim.time,
                              hold_s))
-    return f"pulling particle {particle}"
+    return f'pulling particle {particle}'
 
 
 class NodeInputs:
@@ -76,25 +76,25 @@ class NodeInputs:
                                  callback_group=callback_group)
 
     def anchor_status(self) -> tuple[str, bool]:
-        """What the clamp follows, and whether that is stale (no pose for a while)."""
+        """Return what the clamp follows, and whether that is stale (no pose for a while)."""
         if self._follower is None:
-            return "", False
+            return '', False
         if not self._last_pose:
-            return f"waiting for the first pose on {ANCHOR_TOPIC}", False
+            return f'waiting for the first pose on {ANCHOR_TOPIC}', False
         age = time.monotonic() - self._last_pose
-        refused = f"; {self.refused} refused" if self.refused else ""
+        refused = f'; {self.refused} refused' if self.refused else ''
         if age > POSE_TIMEOUT_S:
-            return f"no pose for {age:.1f} s: holding the last{refused}", True
-        return f"following {ANCHOR_TOPIC} (last pose {age:.2f} s ago){refused}", False
+            return f'no pose for {age:.1f} s: holding the last{refused}', True
+        return f'following {ANCHOR_TOPIC} (last pose {age:.2f} s ago){refused}', False
 
     def _refuse(self, what: str, why: str) -> None:
         with self._lock:
             self.refused += 1
-        self._node.get_logger().warning(f"{what} refused: {why}",
+        self._node.get_logger().warning(f'{what} refused: {why}',
                                         throttle_duration_sec=WARN_PERIOD_S)
 
     def _frame_problem(self, frame_id: str) -> str | None:
-        expected = self._values()["frame_id"]
+        expected = self._values()['frame_id']
         if frame_id != expected:
             return f"frame_id '{frame_id}' is not the node's frame_id '{expected}'"
         return None
@@ -104,7 +104,7 @@ class NodeInputs:
         if problem is None:
             position, quaternion = pose_arrays(message)
             problem = self._follower.check(position, quaternion,
-                                           self._values()["anchor.max_jump_m"])
+                                           self._values()['anchor.max_jump_m'])
         if problem is not None:
             self._refuse(ANCHOR_TOPIC, problem)
             return
@@ -115,11 +115,11 @@ class NodeInputs:
         problem = self._frame_problem(message.header.frame_id)
         p = message.point
         if problem is None and not all(math.isfinite(v) for v in (p.x, p.y, p.z)):
-            problem = "non-finite point"
+            problem = 'non-finite point'
         if problem is not None:
             self._refuse(CLICK_TOPIC, problem)
             return
         v = self._values()
-        self._submit(PullPoint(message=message, stiffness=v["interaction.stiffness"],
-                               max_force=v["interaction.max_force_n"],
-                               hold_s=v["interaction.hold_s"]))
+        self._submit(PullPoint(message=message, stiffness=v['interaction.stiffness'],
+                               max_force=v['interaction.max_force_n'],
+                               hold_s=v['interaction.hold_s']))

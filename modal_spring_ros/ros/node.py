@@ -1,4 +1,5 @@
-"""``modal_spring_node``: steps the modal simulation and streams it as ``sensor_msgs/PointCloud2``.
+"""
+``modal_spring_node``: steps the modal simulation and streams it as ``sensor_msgs/PointCloud2``.
 
 Wiring only. The simulation thread (:mod:`~modal_spring_ros.ros.simulation_thread`) steps at a
 fixed ``sim.dt`` and publishes on its own period through the node's outputs
@@ -19,12 +20,6 @@ from __future__ import annotations
 
 import threading
 
-from rcl_interfaces.msg import SetParametersResult
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-from std_srvs.srv import SetBool, Trigger
-
 from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.scene import SceneError
@@ -32,13 +27,18 @@ from modal_spring_ros.core.worker import WorkerError, WorkerProcess
 from modal_spring_ros.ros.inputs import NodeInputs
 from modal_spring_ros.ros.outputs import NodeOutputs
 from modal_spring_ros.ros.parameter_changes import ChangePlanner
-from modal_spring_ros.ros.parameters import (FREQUENCIES, FREQUENCIES_DESCRIPTOR, PARAMETERS,
-                                             config_from_parameters)
+from modal_spring_ros.ros.parameters import (config_from_parameters, FREQUENCIES,
+                                             FREQUENCIES_DESCRIPTOR, PARAMETERS)
 from modal_spring_ros.ros.requests import Pause, Request, Reset
 from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
 from modal_spring_ros.scenes.resources import load_scene
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from std_srvs.srv import SetBool, Trigger
 
-NODE_NAME = "modal_spring"
+NODE_NAME = 'modal_spring'
 #: longest a service waits for the simulation thread to apply its request, s
 SERVICE_TIMEOUT_S = 5.0
 
@@ -56,12 +56,12 @@ class ModalSpringNode(Node):
         # Sparse mode computations (large scenes) run in a worker process, so that they never
         # hold this process's interpreter lock while the stream runs; shutting down (Ctrl-C)
         # cancels them.
-        self._worker = WorkerProcess("modal_spring_modes",
+        self._worker = WorkerProcess('modal_spring_modes',
                                      cancelled=lambda: not self.context.ok())
         try:
-            sim = build_simulation(load_scene(self._values["scene"]), config,
+            sim = build_simulation(load_scene(self._values['scene']), config,
                                    progress=log.info, worker=self._worker)
-            sim.check_stable("sim.dt")
+            sim.check_stable('sim.dt')
         except BaseException:
             self._worker.close()
             raise
@@ -79,46 +79,46 @@ class ModalSpringNode(Node):
             rebuild=lambda: rebuild(sim.model, sim.basis, config_from_parameters(self._values)),
             computing_modes=lambda: self._computing, running=self.context.ok,
             anchor_status=lambda: self._inputs.anchor_status())
-        follower = scene.anchor_motion if self._values["anchor.source"] == "topic" else None
+        follower = scene.anchor_motion if self._values['anchor.source'] == 'topic' else None
         self._inputs = NodeInputs(self, follower, lambda: self._values, self._thread.submit,
                                   MutuallyExclusiveCallbackGroup())
         services = MutuallyExclusiveCallbackGroup()
-        self.create_service(Trigger, "~/reset", self._on_reset, callback_group=services)
-        self.create_service(SetBool, "~/pause", self._on_pause, callback_group=services)
+        self.create_service(Trigger, '~/reset', self._on_reset, callback_group=services)
+        self.create_service(SetBool, '~/pause', self._on_pause, callback_group=services)
         status = sim.status()
-        log.info(f"scene {scene.name}: {scene.n_particles} particles, {status.modes_computed} "
-                 f"modes computed; {status.method}, {status.band}, {status.coordinates} "
+        log.info(f'scene {scene.name}: {scene.n_particles} particles, {status.modes_computed} '
+                 f'modes computed; {status.method}, {status.band}, {status.coordinates} '
                  f"{'modes' if status.method == 'modal' else 'DOF'} stepped; dt {sim.dt:g} s")
         self._thread.start()
 
     @property
     def sim(self):
-        """The running simulation (owned by the simulation thread: read, never change)."""
+        """Return the running simulation (owned by the simulation thread: read, never change)."""
         return self._thread.sim
 
     def _open_capture(self, sim) -> RunBagWriter | None:
-        path = self._values["record.bag"]
+        path = self._values['record.bag']
         if not path:
             return None
         bag = RunBagWriter(path, sim.model.scene, None, dt=sim.dt, frame_every=0, duration=0.0,
-                           frame_id=self._values["frame_id"], source="modal_spring_node",
+                           frame_id=self._values['frame_id'], source='modal_spring_node',
                            parameters=dict(self._values), node=self.get_fully_qualified_name())
-        self.get_logger().info(f"writing every frame to {path}")
+        self.get_logger().info(f'writing every frame to {path}')
         return bag
 
     def _stream_settings(self) -> StreamSettings:
         v = self._values
-        return StreamSettings(v["publish_rate_hz"], v["mesh_rate_hz"], v["realtime_factor"],
-                              v["sim.strain_warning"])
+        return StreamSettings(v['publish_rate_hz'], v['mesh_rate_hz'], v['realtime_factor'],
+                              v['sim.strain_warning'])
 
     # -- parameters ----------------------------------------------------------------------------
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         if any(p.name == FREQUENCIES for p in params):
-            if getattr(self._own_update, "active", False):
+            if getattr(self._own_update, 'active', False):
                 return SetParametersResult(successful=True)
             return SetParametersResult(
-                successful=False, reason=f"{FREQUENCIES} is read-only: the node reports the "
-                "frequencies of the modes it has computed")
+                successful=False, reason=f'{FREQUENCIES} is read-only: the node reports the '
+                'frequencies of the modes it has computed')
         incoming = {p.name: p.value for p in params if p.name in PARAMETERS}
         if not incoming:
             return SetParametersResult(successful=True)
@@ -127,12 +127,12 @@ class ModalSpringNode(Node):
             try:
                 change = self._planner.plan(self._values, incoming, self._thread.sim)
             except (ValueError, SceneError, WorkerError) as exc:
-                self.get_logger().warning(f"parameter change rejected: {exc}")
+                self.get_logger().warning(f'parameter change rejected: {exc}')
                 return SetParametersResult(successful=False, reason=str(exc))
             finally:
                 self._computing = False
             self._publish_frequencies()
-            if change.values["publish_clock"]:
+            if change.values['publish_clock']:
                 self._outputs.enable_clock()
             self._values = change.values
             if change.request is not None:
@@ -154,7 +154,7 @@ class ModalSpringNode(Node):
     def _answer(self, request: Request, response):
         self._thread.submit(request)
         response.success = request.wait(SERVICE_TIMEOUT_S)
-        response.message = request.message or "not applied in time: the simulation is busy"
+        response.message = request.message or 'not applied in time: the simulation is busy'
         return response
 
     def _on_reset(self, _request, response):

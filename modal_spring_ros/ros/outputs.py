@@ -1,4 +1,5 @@
-"""What the node publishes: clouds, mesh markers, the clock, diagnostics, and its own capture.
+"""
+What the node publishes: clouds, mesh markers, the clock, diagnostics, and its own capture.
 
 :class:`NodeOutputs` is the simulation thread's
 :class:`~modal_spring_ros.ros.simulation_thread.Outputs` for a live node: it turns a frame into
@@ -10,9 +11,15 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point
+from modal_spring_ros.bags.capture import RunBagWriter
+from modal_spring_ros.bags.pointcloud import distance_from_rest, to_pointcloud2
+from modal_spring_ros.bags.stamps import to_time_msg
+from modal_spring_ros.core.scene import Scene
+from modal_spring_ros.core.simulations import Simulation, SimulationStatus
+from modal_spring_ros.ros.diagnostics import diagnostic_array, StreamReport
+import numpy as np
 from rclpy.node import Node
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rosgraph_msgs.msg import Clock
@@ -20,29 +27,22 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker
 
-from modal_spring_ros.bags.capture import RunBagWriter
-from modal_spring_ros.bags.pointcloud import distance_from_rest, to_pointcloud2
-from modal_spring_ros.bags.stamps import to_time_msg
-from modal_spring_ros.core.scene import Scene
-from modal_spring_ros.core.simulations import Simulation, SimulationStatus
-from modal_spring_ros.ros.diagnostics import StreamReport, diagnostic_array
-
 #: Topics (relative, so that namespaces and remapping apply); diagnostics and clock are global.
-POINTS_TOPIC = "points"
-MESH_TOPIC = "mesh"
-DIAGNOSTICS_TOPIC = "/diagnostics"
-CLOCK_TOPIC = "/clock"
+POINTS_TOPIC = 'points'
+MESH_TOPIC = 'mesh'
+DIAGNOSTICS_TOPIC = '/diagnostics'
+CLOCK_TOPIC = '/clock'
 #: depth of the publishers' history (keep last)
 QUEUE_DEPTH = 10
 
 
 def mesh_marker(positions: np.ndarray, rest: np.ndarray, triangles: np.ndarray,
                 header: Header) -> Marker:
-    """A TRIANGLE_LIST of the surface, coloured blue (at rest) to red (most displaced)."""
+    """Return a TRIANGLE_LIST of the surface, coloured blue (at rest) to red (most displaced)."""
     corners = positions[triangles.ravel()]
     disp = distance_from_rest(corners, rest[triangles.ravel()])
     level = np.clip(disp / max(float(disp.max()), 1e-12), 0.0, 1.0)
-    m = Marker(header=header, ns="modal_spring", id=0, type=Marker.TRIANGLE_LIST,
+    m = Marker(header=header, ns='modal_spring', id=0, type=Marker.TRIANGLE_LIST,
                action=Marker.ADD)
     m.pose.orientation.w = 1.0
     m.scale.x = m.scale.y = m.scale.z = 1.0
@@ -73,7 +73,7 @@ class NodeOutputs:
                                                   QUEUE_DEPTH)
         self._clock = None  # /clock only when publish_clock asks for it
         self._announced = False
-        if values()["publish_clock"]:
+        if values()['publish_clock']:
             self.enable_clock()
 
     def enable_clock(self) -> None:
@@ -84,20 +84,20 @@ class NodeOutputs:
     def frame(self, sim: Simulation, positions: np.ndarray, mesh: bool) -> None:
         values = self._values()
         rest = self._scene.rest_positions
-        stamp = (to_time_msg(sim.time) if values["stamp"] == "sim"
+        stamp = (to_time_msg(sim.time) if values['stamp'] == 'sim'
                  else self._node.get_clock().now().to_msg())
-        header = Header(stamp=stamp, frame_id=values["frame_id"])
+        header = Header(stamp=stamp, frame_id=values['frame_id'])
         self._points.publish(to_pointcloud2(positions, rest, header))
         if self._bag is not None:
             self._bag.frame(sim.time, positions)
-        if values["publish_clock"] and self._clock is not None:
+        if values['publish_clock'] and self._clock is not None:
             self._clock.publish(Clock(clock=to_time_msg(sim.time)))
         if not self._announced:
             self._announced = True
             status = sim.status()
             self._node.get_logger().info(
-                f"streaming {self._scene.name} ({self._scene.n_particles} particles; "
-                f"{status.method}, {status.band}) on "
+                f'streaming {self._scene.name} ({self._scene.n_particles} particles; '
+                f'{status.method}, {status.band}) on '
                 f"{self._points.topic_name} at {values['publish_rate_hz']:g} Hz, frame "
                 f"'{values['frame_id']}'")
         if mesh and self._triangles.size and self._mesh.get_subscription_count() > 0:
@@ -107,7 +107,7 @@ class NodeOutputs:
         if self._bag is not None:
             self._bag.writer.flush_if_due()  # frames stop while paused: close their chunk
         self._diagnostics.publish(diagnostic_array(
-            status, report, name=f"{self._node.get_fully_qualified_name()}: simulation",
+            status, report, node=self._node.get_fully_qualified_name(),
             hardware_id=self._scene.name, stamp=self._node.get_clock().now().to_msg()))
 
     def changed(self, sim: Simulation, changed: dict) -> None:
@@ -115,13 +115,13 @@ class NodeOutputs:
             self._bag.parameter_event(sim.time, changed)
 
     def received(self, sim: Simulation, message) -> None:
-        """An input (pose, clicked point) took effect at ``sim.time``: the capture keeps it."""
+        """Keep an input (pose, clicked point) that took effect at ``sim.time`` in the capture."""
         if self._bag is not None:
-            self._bag.input(sim.time, message)
+            self._bag.record_input(sim.time, message)
 
     def log(self, level: str, message: str) -> None:
         logger = self._node.get_logger()
-        {"error": logger.error, "warning": logger.warning, "info": logger.info}[level](message)
+        {'error': logger.error, 'warning': logger.warning, 'info': logger.info}[level](message)
 
     def close(self) -> None:
         """Finalise the capture, if any."""

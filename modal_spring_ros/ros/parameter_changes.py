@@ -1,5 +1,7 @@
-"""Turn a parameter request into a state change: validate it, do its slow part, and say which
-request the simulation thread must apply.
+"""
+Turn a parameter request into a state change.
+
+Validate it, do its slow part, and say which request the simulation thread must apply.
 
 This runs in the executor (the parameter services' thread). Everything that can fail or take
 long happens here, before the request is queued: checking the band and the step, computing the
@@ -15,15 +17,18 @@ from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.factory import rebuild
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.simulations import Simulation
-from modal_spring_ros.ros.parameters import (BAND_PARAMETERS, REBUILD_PARAMETERS,
-                                             config_from_parameters)
+from modal_spring_ros.ros.parameters import (BAND_PARAMETERS, config_from_parameters,
+                                             REBUILD_PARAMETERS)
 from modal_spring_ros.ros.requests import ChangeBand, ReplaceSimulation, Request
 
 
 @dataclasses.dataclass(frozen=True)
 class PlannedChange:
-    """The parameter values once the request is accepted, and the request to apply (if the
-    running simulation changes at all)."""
+    """
+    The parameter values once the request is accepted.
+
+    And the request to apply (if the running simulation changes at all).
+    """
 
     values: dict[str, Any]
     request: Request | None
@@ -38,10 +43,12 @@ class ChangePlanner:
 
     def plan(self, values: dict[str, Any], incoming: dict[str, Any],
              running: Simulation) -> PlannedChange:
-        """Validate ``incoming`` on top of ``values`` against the ``running`` simulation and
-        prepare the change (the new simulation, or the operators of a band switch).
+        """
+        Validate ``incoming`` on top of ``values`` and prepare the change.
 
-        Raises:
+        Validate ``incoming`` on top of ``values`` against the ``running`` simulation and prepare
+        the change (the new simulation, or the operators of a band switch).
+
             ValueError (ConfigError, BandError, UnstableStepError), SceneError, WorkerError:
             the change is refused; nothing has changed.
         """
@@ -51,10 +58,10 @@ class ChangePlanner:
         delta = {name: new_values[name] for name in changed}
         if changed & REBUILD_PARAMETERS:
             sim = rebuild(self.model, self.basis, config)
-            sim.check_stable("sim.dt")
+            sim.check_stable('sim.dt')
             return PlannedChange(new_values, ReplaceSimulation(simulation=sim, changed=delta))
         if changed & BAND_PARAMETERS:
-            running.prepare_switch(config.band, config.transition_s, "sim.dt")
+            running.prepare_switch(config.band, config.transition_s, 'sim.dt')
             return PlannedChange(new_values, ChangeBand(band=config.band,
                                                         transition_s=config.transition_s,
                                                         changed=delta))

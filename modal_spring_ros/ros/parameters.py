@@ -1,4 +1,7 @@
-"""The node's parameters: their table (defaults, descriptors, ranges), and how they map onto a
+"""
+The node's parameters.
+
+Their table (defaults, descriptors, ranges), and how they map onto a
 :class:`~modal_spring_ros.core.config.SimulationConfig`.
 
 The rules a run's settings must meet live in the configuration; this module only names them as
@@ -10,24 +13,23 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
-
 from modal_spring_ros.core.clamp_follower import DEFAULT_FOLLOW_HZ
-from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TRANSITION_S,
-                                          FORCES, MAX_DIRECTIONS, MAX_FOLLOW_HZ,
-                                          MIN_DIRECTIONS, SimulationConfig)
+from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TRANSITION_S, FORCES,
+                                          MAX_DIRECTIONS, MAX_FOLLOW_HZ, MIN_DIRECTIONS,
+                                          SimulationConfig)
 from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
-from modal_spring_ros.core.filter_band import FILTER_TYPES, UNITS, BandError, FilterBand
+from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand, UNITS
 from modal_spring_ros.core.integrators import INTEGRATORS
 from modal_spring_ros.core.mode_selection import DEFAULT_TOLERANCE
 from modal_spring_ros.core.simulations import DEFAULT_MAX_MODES, DEFAULT_STRAIN_LIMIT, METHODS
 from modal_spring_ros.core.simulations.coordinates import BASES
 from modal_spring_ros.scenes.resources import DEFAULT_SCENE
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 
 #: the one parameter the node sets itself (refused from anyone else)
-FREQUENCIES = "modal.frequencies_hz"
+FREQUENCIES = 'modal.frequencies_hz'
 #: header stamps of the points and mesh
-STAMPS = ("sim", "wall")
+STAMPS = ('sim', 'wall')
 #: smallest non-zero real-time factor: below it the stream would stand still
 MIN_REALTIME_FACTOR = 1e-3
 
@@ -35,7 +37,7 @@ MIN_REALTIME_FACTOR = 1e-3
 def _descriptor(description: str, type_: int, *, read_only: bool = False,
                 float_range: tuple[float, float] | None = None,
                 int_range: tuple[int, int] | None = None,
-                constraints: str = "") -> ParameterDescriptor:
+                constraints: str = '') -> ParameterDescriptor:
     d = ParameterDescriptor(description=description, type=type_, read_only=read_only,
                             additional_constraints=constraints)
     if float_range is not None:
@@ -52,180 +54,183 @@ _D, _S, _I, _B = (ParameterType.PARAMETER_DOUBLE, ParameterType.PARAMETER_STRING
 #: name -> (default, descriptor). Band edges carry no descriptor range: the configuration
 #: checks them (finite, non-negative, low < high) and says so by name.
 PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
-    "scene": (DEFAULT_SCENE, _descriptor(
-        "Built-in scene name or path of a scene YAML file", _S, read_only=True)),
-    "method": ("modal", _descriptor(
-        "modal: step only the modes the filter keeps; full: every DOF in physical coordinates",
-        _S, constraints="one of " + ", ".join(METHODS))),
-    "filter.type": ("allpass", _descriptor(
-        "Which modes take part", _S, constraints="one of " + ", ".join(FILTER_TYPES))),
-    "filter.by": ("hz", _descriptor(
-        "Band edges in Hz (filter.low_hz/high_hz) or as zero-based mode numbers "
-        "(filter.low_mode/high_mode)", _S, constraints="hz or index")),
-    "filter.low_hz": (0.0, _descriptor(
-        "Lower band edge, Hz (highpass, bandpass, bandstop)", _D,
-        constraints="finite, >= 0, below filter.high_hz")),
-    "filter.high_hz": (1000.0, _descriptor(
-        "Upper band edge, Hz (lowpass, bandpass, bandstop)", _D,
-        constraints="finite, >= 0, above filter.low_hz")),
-    "filter.low_mode": (0, _descriptor(
-        "Lower band edge as a mode number (filter.by = index)", _I, int_range=(0, 1_000_000))),
-    "filter.high_mode": (14, _descriptor(
-        "Upper band edge as a mode number (filter.by = index)", _I, int_range=(0, 1_000_000))),
-    "filter.transition_s": (DEFAULT_TRANSITION_S, _descriptor(
-        "Fade time of modes leaving or entering the band, s", _D, float_range=(0.0, 60.0))),
-    "integrator": ("explicit", _descriptor(
+    'scene': (DEFAULT_SCENE, _descriptor(
+        'Built-in scene name or path of a scene YAML file', _S, read_only=True)),
+    'method': ('modal', _descriptor(
+        'modal: step only the modes the filter keeps; full: every DOF in physical coordinates',
+        _S, constraints='one of ' + ', '.join(METHODS))),
+    'filter.type': ('allpass', _descriptor(
+        'Which modes take part', _S, constraints='one of ' + ', '.join(FILTER_TYPES))),
+    'filter.by': ('hz', _descriptor(
+        'Band edges in Hz (filter.low_hz/high_hz) or as zero-based mode numbers '
+        '(filter.low_mode/high_mode)', _S, constraints='hz or index')),
+    'filter.low_hz': (0.0, _descriptor(
+        'Lower band edge, Hz (highpass, bandpass, bandstop)', _D,
+        constraints='finite, >= 0, below filter.high_hz')),
+    'filter.high_hz': (1000.0, _descriptor(
+        'Upper band edge, Hz (lowpass, bandpass, bandstop)', _D,
+        constraints='finite, >= 0, above filter.low_hz')),
+    'filter.low_mode': (0, _descriptor(
+        'Lower band edge as a mode number (filter.by = index)', _I, int_range=(0, 1_000_000))),
+    'filter.high_mode': (14, _descriptor(
+        'Upper band edge as a mode number (filter.by = index)', _I, int_range=(0, 1_000_000))),
+    'filter.transition_s': (DEFAULT_TRANSITION_S, _descriptor(
+        'Fade time of modes leaving or entering the band, s', _D, float_range=(0.0, 60.0))),
+    'integrator': ('explicit', _descriptor(
         "Newmark member: explicit (beta 0, the paper's) or average (beta 1/4, implicit)", _S,
-        constraints="one of " + ", ".join(INTEGRATORS))),
-    "sim.dt": (0.0, _descriptor(
+        constraints='one of ' + ', '.join(INTEGRATORS))),
+    'sim.dt': (0.0, _descriptor(
         "Simulation step, s; 0 = the scene's, else half the explicit stability limit", _D,
-        float_range=(0.0, 1.0), constraints="0, or at least 1e-8")),
-    "sim.strain_limit": (DEFAULT_STRAIN_LIMIT, _descriptor(
-        "Spring strain treated as divergence", _D, read_only=True, float_range=(0.001, 100.0))),
-    "sim.strain_warning": (DEFAULT_STRAIN_WARNING, _descriptor(
-        "Spring strain above which the small-deformation basis is reported as strained (WARN)",
+        float_range=(0.0, 1.0), constraints='0, or at least 1e-8')),
+    'sim.strain_limit': (DEFAULT_STRAIN_LIMIT, _descriptor(
+        'Spring strain treated as divergence', _D, read_only=True, float_range=(0.001, 100.0))),
+    'sim.strain_warning': (DEFAULT_STRAIN_WARNING, _descriptor(
+        'Spring strain above which the small-deformation basis is reported as strained (WARN)',
         _D, float_range=(0.0, 100.0))),
-    "publish_rate_hz": (60.0, _descriptor(
-        "Rate of points (and clock) messages, Hz", _D, float_range=(0.1, 1000.0))),
-    "mesh_rate_hz": (10.0, _descriptor(
-        "Rate of mesh markers, Hz (only while someone subscribes)", _D,
+    'publish_rate_hz': (60.0, _descriptor(
+        'Rate of points (and clock) messages, Hz', _D, float_range=(0.1, 1000.0))),
+    'mesh_rate_hz': (10.0, _descriptor(
+        'Rate of mesh markers, Hz (only while someone subscribes)', _D,
         float_range=(0.0, 1000.0))),
-    "realtime_factor": (1.0, _descriptor(
-        "Simulated seconds per wall second; 0 = as fast as possible (as many steps as fit "
-        "between two frames)", _D, float_range=(0.0, 1000.0),
-        constraints=f"0, or at least {MIN_REALTIME_FACTOR:g}")),
-    "frame_id": ("world", _descriptor("header.frame_id of points and mesh", _S)),
-    "stamp": ("sim", _descriptor(
-        "header.stamp of points and mesh: sim (simulation time, as /clock) or wall (the "
+    'realtime_factor': (1.0, _descriptor(
+        'Simulated seconds per wall second; 0 = as fast as possible (as many steps as fit '
+        'between two frames)', _D, float_range=(0.0, 1000.0),
+        constraints=f'0, or at least {MIN_REALTIME_FACTOR:g}')),
+    'frame_id': ('world', _descriptor('header.frame_id of points and mesh', _S)),
+    'stamp': ('sim', _descriptor(
+        'header.stamp of points and mesh: sim (simulation time, as /clock) or wall (the '
         "node's clock when publishing, for latency measurement or wall-time TF)", _S,
-        constraints="sim or wall")),
-    "publish_clock": (False, _descriptor("Publish simulation time on /clock", _B)),
-    "anchor.source": ("scene", _descriptor(
+        constraints='sim or wall')),
+    'publish_clock': (False, _descriptor('Publish simulation time on /clock', _B)),
+    'anchor.source': ('scene', _descriptor(
         "scene: the clamp moves as the scene's anchor_motion says; topic: it follows "
-        "geometry_msgs/PoseStamped on anchor_pose, relative to the first pose received", _S,
-        read_only=True, constraints="scene or topic")),
-    "anchor.follow_hz": (DEFAULT_FOLLOW_HZ, _descriptor(
-        "Bandwidth of the critically damped filter the clamp follows poses through, Hz", _D,
+        'geometry_msgs/PoseStamped on anchor_pose, relative to the first pose received', _S,
+        read_only=True, constraints='scene or topic')),
+    'anchor.follow_hz': (DEFAULT_FOLLOW_HZ, _descriptor(
+        'Bandwidth of the critically damped filter the clamp follows poses through, Hz', _D,
         read_only=True, float_range=(0.1, MAX_FOLLOW_HZ))),
-    "anchor.max_jump_m": (0.5, _descriptor(
-        "A pose further than this from the last one followed is refused, m", _D,
+    'anchor.max_jump_m': (0.5, _descriptor(
+        'A pose further than this from the last one followed is refused, m', _D,
         float_range=(0.0, 1000.0))),
-    "interaction.stiffness": (50.0, _descriptor(
-        "Stiffness of the spring a /clicked_point pulls the nearest particle with, N/m", _D,
+    'interaction.stiffness': (50.0, _descriptor(
+        'Stiffness of the spring a /clicked_point pulls the nearest particle with, N/m', _D,
         float_range=(0.0, 1e6))),
-    "interaction.hold_s": (2.0, _descriptor(
-        "How long a /clicked_point pulls, s of simulation time", _D,
+    'interaction.hold_s': (2.0, _descriptor(
+        'How long a /clicked_point pulls, s of simulation time', _D,
         float_range=(0.0, 3600.0))),
-    "interaction.max_force_n": (5.0, _descriptor(
-        "Largest force a /clicked_point pulls with, N", _D, float_range=(0.0, 1e6))),
-    "modal.auto": (False, _descriptor(
+    'interaction.max_force_n': (5.0, _descriptor(
+        'Largest force a /clicked_point pulls with, N', _D, float_range=(0.0, 1e6))),
+    'modal.auto': (False, _descriptor(
         "Keep the fewest modes (within the band) that meet modal.tolerance for the scene's "
-        "loads (gravity, anchor motion), the step they allow unless sim.dt is set, and the "
-        "basis (rest or derivatives, by predicted error and cost, in place of modal.basis)",
+        'loads (gravity, anchor motion), the step they allow unless sim.dt is set, and the '
+        'basis (rest or derivatives, by predicted error and cost, in place of modal.basis)',
         _B)),
-    "modal.tolerance": (DEFAULT_TOLERANCE, _descriptor(
-        "Predicted relative error the automatic mode choice must meet", _D,
+    'modal.tolerance': (DEFAULT_TOLERANCE, _descriptor(
+        'Predicted relative error the automatic mode choice must meet', _D,
         float_range=(1e-6, 0.5))),
-    "modal.forces": ("exact", _descriptor(
-        "Spring forces: exact (every spring every step, the paper), refreshed (every spring "
-        "every modal.force_refresh steps, a tangent between) or sampled (a weighted sample of "
-        "the springs within modal.tolerance, trained once per band and cached); modal.auto "
-        "chooses in its place", _S, constraints="one of " + ", ".join(FORCES))),
-    "modal.force_refresh": (0, _descriptor(
-        "Steps between exact evaluations of the nonlinear spring forces (1 = every step, as "
-        "the paper; N > 1 continues them along the static tangent in between); 0 = every "
-        "step, or what modal.auto chooses", _I, int_range=(0, 10_000))),
-    "modal.basis": ("derivatives", _descriptor(
+    'modal.forces': ('exact', _descriptor(
+        'Spring forces: exact (every spring every step, the paper), refreshed (every spring '
+        'every modal.force_refresh steps, a tangent between) or sampled (a weighted sample of '
+        'the springs within modal.tolerance, trained once per band and cached); modal.auto '
+        'chooses in its place', _S, constraints='one of ' + ', '.join(FORCES))),
+    'modal.force_refresh': (0, _descriptor(
+        'Steps between exact evaluations of the nonlinear spring forces (1 = every step, as '
+        'the paper; N > 1 continues them along the static tangent in between); 0 = every '
+        'step, or what modal.auto chooses', _I, int_range=(0, 10_000))),
+    'modal.basis': ('derivatives', _descriptor(
         "Coordinates of the modal method: rest (the paper's rest modes of the band) or "
         "derivatives (the band's rest modes plus their modal derivatives and static load "
-        "vectors: right beyond small deformation)", _S, constraints="rest or derivatives")),
-    "modal.derivative_directions": (DEFAULT_DIRECTIONS, _descriptor(
-        "Modal-derivative directions a band adds (modal.basis = derivatives)", _I,
+        'vectors: right beyond small deformation)', _S, constraints='rest or derivatives')),
+    'modal.derivative_directions': (DEFAULT_DIRECTIONS, _descriptor(
+        'Modal-derivative directions a band adds (modal.basis = derivatives)', _I,
         int_range=(MIN_DIRECTIONS, MAX_DIRECTIONS))),
-    "record.bag": ("", _descriptor(
-        "If set, a new bag folder that every published frame is written to directly (no DDS), "
-        "with the scene, the parameters and every change: re-simulates exactly", _S,
+    'record.bag': ('', _descriptor(
+        'If set, a new bag folder that every published frame is written to directly (no DDS), '
+        'with the scene, the parameters and every change: re-simulates exactly', _S,
         read_only=True)),
-    "modal.max_modes": (DEFAULT_MAX_MODES, _descriptor(
-        "Most modes computed on scenes too large for a dense eigensolver", _I, read_only=True,
+    'modal.max_modes': (DEFAULT_MAX_MODES, _descriptor(
+        'Most modes computed on scenes too large for a dense eigensolver', _I, read_only=True,
         int_range=(1, 100_000))),
 }
 
 #: The frequencies of the computed modes. Set by the node alone (more modes are computed when
 #: a band needs them); a request from outside is refused in the node's on-set callback.
 FREQUENCIES_DESCRIPTOR = _descriptor(
-    "Frequencies of the computed modes, Hz (ascending); read-only: the node updates it when "
-    "a band needs more modes", ParameterType.PARAMETER_DOUBLE_ARRAY)
+    'Frequencies of the computed modes, Hz (ascending); read-only: the node updates it when '
+    'a band needs more modes', ParameterType.PARAMETER_DOUBLE_ARRAY)
 
 #: parameters whose change rebuilds the simulation (state and time carried over); the other
 #: ``filter.*`` parameters change the band of the running one
-REBUILD_PARAMETERS = frozenset({"method", "integrator", "sim.dt", "modal.auto",
-                                "modal.tolerance", "modal.force_refresh", "modal.basis",
-                                "modal.forces",
-                                "modal.derivative_directions"})
+REBUILD_PARAMETERS = frozenset({'method', 'integrator', 'sim.dt', 'modal.auto',
+                                'modal.tolerance', 'modal.force_refresh', 'modal.basis',
+                                'modal.forces',
+                                'modal.derivative_directions'})
 #: parameters of the band
-BAND_PARAMETERS = frozenset({"filter.type", "filter.by", "filter.low_hz", "filter.high_hz",
-                             "filter.low_mode", "filter.high_mode", "filter.transition_s"})
+BAND_PARAMETERS = frozenset({'filter.type', 'filter.by', 'filter.low_hz', 'filter.high_hz',
+                             'filter.low_mode', 'filter.high_mode', 'filter.transition_s'})
 #: string parameters with a fixed set of values
-CHOICES = {"method": tuple(METHODS), "filter.type": FILTER_TYPES, "filter.by": UNITS,
-           "integrator": tuple(INTEGRATORS), "stamp": STAMPS, "modal.basis": BASES,
-           "modal.forces": FORCES}
+CHOICES = {'method': tuple(METHODS), 'filter.type': FILTER_TYPES, 'filter.by': UNITS,
+           'integrator': tuple(INTEGRATORS), 'stamp': STAMPS, 'modal.basis': BASES,
+           'modal.forces': FORCES}
 #: configuration field -> parameter name, so that configuration errors name the parameter
-CONFIG_NAMES = {"method": "method", "auto": "modal.auto", "integrator": "integrator",
-                "dt": "sim.dt", "transition_s": "filter.transition_s",
-                "max_modes": "modal.max_modes", "strain_limit": "sim.strain_limit",
-                "tolerance": "modal.tolerance", "force_refresh": "modal.force_refresh",
-                "basis": "modal.basis", "derivative_directions": "modal.derivative_directions",
-                "anchor": "anchor.source", "follow_hz": "anchor.follow_hz",
-                "forces": "modal.forces"}
+CONFIG_NAMES = {'method': 'method', 'auto': 'modal.auto', 'integrator': 'integrator',
+                'dt': 'sim.dt', 'transition_s': 'filter.transition_s',
+                'max_modes': 'modal.max_modes', 'strain_limit': 'sim.strain_limit',
+                'tolerance': 'modal.tolerance', 'force_refresh': 'modal.force_refresh',
+                'basis': 'modal.basis', 'derivative_directions': 'modal.derivative_directions',
+                'anchor': 'anchor.source', 'follow_hz': 'anchor.follow_hz',
+                'forces': 'modal.forces'}
 
 
 def band_from_parameters(values: dict[str, Any]) -> FilterBand:
-    """The band described by the ``filter.*`` parameters."""
-    if values["filter.by"] == "index":
-        return FilterBand(values["filter.type"], float(values["filter.low_mode"]),
-                          float(values["filter.high_mode"]), "index")
-    return FilterBand(values["filter.type"], float(values["filter.low_hz"]),
-                      float(values["filter.high_hz"]), "hz")
+    """Return the band described by the ``filter.*`` parameters."""
+    if values['filter.by'] == 'index':
+        return FilterBand(values['filter.type'], float(values['filter.low_mode']),
+                          float(values['filter.high_mode']), 'index')
+    return FilterBand(values['filter.type'], float(values['filter.low_hz']),
+                      float(values['filter.high_hz']), 'hz')
 
 
 def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
-    """The run the parameters describe, validated (errors name the parameter).
+    """
+    Return the run the parameters describe, validated (errors name the parameter).
 
-    Raises:
         ConfigError, BandError: a value out of range.
     """
     check_stream(values)
     return SimulationConfig(
-        method=values["method"], band=band_from_parameters(values),
-        integrator=values["integrator"], dt=values["sim.dt"] or None,
-        transition_s=values["filter.transition_s"], max_modes=values["modal.max_modes"],
-        strain_limit=values["sim.strain_limit"], auto=values.get("modal.auto", False),
-        tolerance=values.get("modal.tolerance", DEFAULT_TOLERANCE),
-        force_refresh=values.get("modal.force_refresh", 0),
-        basis=values.get("modal.basis", "rest"),
-        derivative_directions=values.get("modal.derivative_directions", DEFAULT_DIRECTIONS),
-        forces=values.get("modal.forces", "exact"),
-        anchor=values.get("anchor.source", "scene"),
-        follow_hz=values.get("anchor.follow_hz", DEFAULT_FOLLOW_HZ),
+        method=values['method'], band=band_from_parameters(values),
+        integrator=values['integrator'], dt=values['sim.dt'] or None,
+        transition_s=values['filter.transition_s'], max_modes=values['modal.max_modes'],
+        strain_limit=values['sim.strain_limit'], auto=values.get('modal.auto', False),
+        tolerance=values.get('modal.tolerance', DEFAULT_TOLERANCE),
+        force_refresh=values.get('modal.force_refresh', 0),
+        basis=values.get('modal.basis', 'rest'),
+        derivative_directions=values.get('modal.derivative_directions', DEFAULT_DIRECTIONS),
+        forces=values.get('modal.forces', 'exact'),
+        anchor=values.get('anchor.source', 'scene'),
+        follow_hz=values.get('anchor.follow_hz', DEFAULT_FOLLOW_HZ),
     ).validate(CONFIG_NAMES)
 
 
 def check_stream(values: dict[str, Any]) -> None:
-    """The rules of the stream itself and of the string choices; raises ValueError naming the
-    parameter."""
+    """
+    Return the rules of the stream itself and of the string choices.
+
+    Raises ValueError naming the parameter.
+    """
     for name, allowed in CHOICES.items():
         if values[name] not in allowed:
             raise ValueError(f"{name} '{values[name]}' must be one of {', '.join(allowed)}")
-    for name in ("filter.low_hz", "filter.high_hz"):
+    for name in ('filter.low_hz', 'filter.high_hz'):
         v = float(values[name])
         if not math.isfinite(v):
-            raise BandError(f"{name} ({v}) must be finite")
+            raise BandError(f'{name} ({v}) must be finite')
         if v < 0:
-            raise BandError(f"{name} ({v:g}) must not be negative")
-    if not values["frame_id"]:
-        raise ValueError("frame_id must not be empty")
-    rtf = values["realtime_factor"]
+            raise BandError(f'{name} ({v:g}) must not be negative')
+    if not values['frame_id']:
+        raise ValueError('frame_id must not be empty')
+    rtf = values['realtime_factor']
     if 0.0 < rtf < MIN_REALTIME_FACTOR:
-        raise ValueError(f"realtime_factor ({rtf:g}) must be 0 (as fast as possible) or at "
-                         f"least {MIN_REALTIME_FACTOR:g}: slower, the stream stands still")
+        raise ValueError(f'realtime_factor ({rtf:g}) must be 0 (as fast as possible) or at '
+                         f'least {MIN_REALTIME_FACTOR:g}: slower, the stream stands still')

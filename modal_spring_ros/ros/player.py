@@ -1,50 +1,52 @@
-"""Playing a bag back on its topics, as ``ros2 bag play`` does: raw CDR, recorded timing,
-recorded QoS (the player of ``modal_spring_replay``)."""
+"""
+Playing a bag back on its topics, as ``ros2 bag play`` does.
+
+Raw CDR, recorded timing, recorded QoS (the player of ``modal_spring_replay``).
+"""
 from __future__ import annotations
 
 import signal
 import time
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
-
 from modal_spring_ros.bags.qos import playback_profile, profiles_from_yaml
 from modal_spring_ros.bags.reader import BagReader, message_class
 from modal_spring_ros.bags.writer import BagError
+import rclpy
+from rclpy.executors import ExternalShutdownException
 
 
 def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool = False,
          wait_for_subscribers: bool = False, ros_args: list[str] | None = None) -> int:
-    """Publish the bag's messages (``topics``, or all) with their recorded timing scaled by
-    ``rate`` and the QoS their publishers offered; returns how many were published. Stops on
-    SIGINT or SIGTERM.
-
-    Raises:
-        BagError: a topic is not in the bag, or no message could be played.
     """
+    Publish the bag's messages (``topics``, or all) with their recorded timing and QoS.
 
+    The timing is scaled by ``rate``, the QoS is what their publishers offered; returns how many
+    were published. Stops on SIGINT or SIGTERM.
+
+    :raises BagError: a topic is not in the bag, or no message could be played.
+    """
     topics = topics or sorted(bag.topics)
     missing = [t for t in topics if t not in bag.topics]
     if missing:
         raise BagError(f"{bag.path}: no topic {', '.join(missing)} "
                        f"(topics: {', '.join(sorted(bag.topics))})")
-    installed = [t for t in topics if _installed(bag.topics[t].type)]
+    installed = [t for t in topics if _installed(bag.topics[t].type_name)]
     if not installed:
-        raise BagError(f"{bag.path}: no topic of an installed message type (types: "
-                       f"{', '.join(sorted({bag.topics[t].type for t in topics}))})")
+        raise BagError(f'{bag.path}: no topic of an installed message type (types: '
+                       f"{', '.join(sorted({bag.topics[t].type_name for t in topics}))})")
     bag.check(installed)  # every message decodes and no cloud is damaged, before playing
     signal.signal(signal.SIGTERM, lambda *_: None)  # rclpy shuts down first, then this
     count = 0
     rclpy.init(args=ros_args)
-    node = rclpy.create_node("modal_spring_replay")
+    node = rclpy.create_node('modal_spring_replay')
     try:
         publishers = {}
         for t in topics:
             info = bag.topics[t]
             try:
-                cls = message_class(info.type)
+                cls = message_class(info.type_name)
             except BagError as exc:
-                node.get_logger().warning(f"skipping {t}: {exc}")
+                node.get_logger().warning(f'skipping {t}: {exc}')
                 continue
             qos = playback_profile(profiles_from_yaml(info.offered_qos_profiles))
             publishers[t] = node.create_publisher(cls, t, qos)
@@ -71,7 +73,7 @@ def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool
                 break
         time.sleep(0.2)  # let the last messages leave
         if count == 0:
-            raise BagError(f"{bag.path}: no message could be played (no message on "
+            raise BagError(f'{bag.path}: no message could be played (no message on '
                            f"{', '.join(topics)}, or none of an installed type)")
         return count
     except (KeyboardInterrupt, ExternalShutdownException):

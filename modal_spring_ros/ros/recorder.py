@@ -1,5 +1,7 @@
-"""Recording topics into a rosbag2 MCAP bag, as ``ros2 bag record`` does (the recorder of
-``modal_spring_record``).
+"""
+Recording topics into a rosbag2 MCAP bag.
+
+As ``ros2 bag record`` does (the recorder of ``modal_spring_record``).
 
 Messages are stored exactly as they come off the wire (raw CDR from the subscription), with
 the receive time as log time and the header stamp as publish time. Each topic is subscribed
@@ -15,44 +17,44 @@ from __future__ import annotations
 import struct
 import time
 
-import rclpy
-from rcl_interfaces.srv import GetParameters, ListParameters
-from rclpy.parameter import parameter_value_to_python
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
 from modal_spring_ros.bags.message_definitions import msg_text
 from modal_spring_ros.bags.qos import profiles_to_yaml
 from modal_spring_ros.bags.reader import message_class
 from modal_spring_ros.bags.writer import BagError, BagWriter
 from modal_spring_ros.ros.outputs import DIAGNOSTICS_TOPIC, MESH_TOPIC, POINTS_TOPIC
+from rcl_interfaces.srv import GetParameters, ListParameters
+import rclpy
+from rclpy.parameter import parameter_value_to_python
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-DEFAULT_TOPICS = [POINTS_TOPIC, MESH_TOPIC, DIAGNOSTICS_TOPIC, "/parameter_events"]
+DEFAULT_TOPICS = [POINTS_TOPIC, MESH_TOPIC, DIAGNOSTICS_TOPIC, '/parameter_events']
 #: first field types whose stamp is the message's publish time
-_STAMPED_FIRST_FIELDS = ("std_msgs/Header header", "builtin_interfaces/Time stamp")
+_STAMPED_FIRST_FIELDS = ('std_msgs/Header header', 'builtin_interfaces/Time stamp')
 
 
 def header_first(type_name: str) -> bool:
-    """Does the message start with a Header or a Time (so its CDR bytes 4..12 are a stamp)?"""
+    """Tell whether the message starts with a Header or a Time (CDR bytes 4..12 a stamp)."""
     try:
         text = msg_text(type_name)
     except LookupError:
         return False
     for line in text.splitlines():
-        line = line.split("#", 1)[0].strip()
+        line = line.split('#', 1)[0].strip()
         if line:
             return line.startswith(_STAMPED_FIRST_FIELDS)
     return False
 
 
 def stamp_ns(data: bytes) -> int | None:
-    """The leading stamp of a little-endian CDR message (after the 4-byte encapsulation)."""
+    """Return the leading stamp of a little-endian CDR message (after the 4-byte encapsulation)."""
     if len(data) < 12 or data[1] != 0x01:  # CDR_LE
         return None
-    sec, nanosec = struct.unpack_from("<iI", data, 4)
+    sec, nanosec = struct.unpack_from('<iI', data, 4)
     return sec * 1_000_000_000 + nanosec
 
 
 class Recorder:
+
     def __init__(self, node, writer: BagWriter, topics: list[str], target: str):
         self.node = node
         self.writer = writer
@@ -72,7 +74,7 @@ class Recorder:
             try:
                 cls = message_class(type_name)
             except BagError as exc:
-                self.node.get_logger().warning(f"not recording {topic}: {exc}")
+                self.node.get_logger().warning(f'not recording {topic}: {exc}')
                 self.subscribed[topic] = None
                 continue
             offered = [info.qos_profile for info in
@@ -82,7 +84,7 @@ class Recorder:
             self.subscribed[topic] = self.node.create_subscription(
                 cls, topic, lambda data, t=topic: self.on_message(t, data),
                 request_qos(offered), raw=True)
-            self.node.get_logger().info(f"recording {topic} ({type_name})")
+            self.node.get_logger().info(f'recording {topic} ({type_name})')
 
     def on_message(self, topic: str, data: bytes) -> None:
         received = time.time_ns()
@@ -91,7 +93,7 @@ class Recorder:
 
 
 def request_qos(offered):
-    """A subscription QoS that connects to every publisher (as rosbag2 adapts it)."""
+    """Return a subscription QoS that connects to every publisher (as rosbag2 adapts it)."""
     qos = QoSProfile(depth=100)
     if offered and all(p.reliability == ReliabilityPolicy.RELIABLE for p in offered):
         qos.reliability = ReliabilityPolicy.RELIABLE
@@ -104,8 +106,8 @@ def request_qos(offered):
 
 def snapshot_parameters(node, target: str, timeout: float) -> dict | None:
     """All parameters of node ``target`` (None when it does not answer within ``timeout``)."""
-    list_client = node.create_client(ListParameters, f"{target}/list_parameters")
-    get_client = node.create_client(GetParameters, f"{target}/get_parameters")
+    list_client = node.create_client(ListParameters, f'{target}/list_parameters')
+    get_client = node.create_client(GetParameters, f'{target}/get_parameters')
     if not (list_client.wait_for_service(timeout_sec=timeout)
             and get_client.wait_for_service(timeout_sec=timeout)):
         return None

@@ -1,4 +1,5 @@
-"""Typed state changes handed from the executor's threads to the simulation thread.
+"""
+Typed state changes handed from the executor's threads to the simulation thread.
 
 Every change of the running simulation (a band, a new simulation for other settings, a reset,
 a pause) is one request. The executor's callbacks do the slow, failing part (validation,
@@ -22,7 +23,7 @@ class Request:
     """A state change, answered once the simulation thread has applied (or refused) it."""
 
     applied: bool = dataclasses.field(default=False, init=False)
-    message: str = dataclasses.field(default="", init=False)
+    message: str = dataclasses.field(default='', init=False)
     _done: threading.Event = dataclasses.field(default_factory=threading.Event, init=False,
                                                repr=False)
 
@@ -31,7 +32,7 @@ class Request:
         self._done.set()
 
     def wait(self, timeout: float) -> bool:
-        """True when the request was applied within ``timeout`` seconds."""
+        """Return True when the request was applied within ``timeout`` seconds."""
         return self._done.wait(timeout) and self.applied
 
     @property

@@ -1,4 +1,5 @@
-"""Re-run the simulation a bag recorded and write its frames to a new bag.
+"""
+Re-run the simulation a bag recorded and write its frames to a new bag.
 
 A bag written by ``modal_spring_sim --bag`` describes its run completely (scene, settings,
 frame spacing), and so does the node's own capture (``record.bag``: parameters at the start,
@@ -14,10 +15,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from geometry_msgs.msg import PointStamped, PoseStamped
-from rclpy.parameter import parameter_value_to_python
-from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import PointCloud2
-
 from modal_spring_ros.bags.capture import INPUT_TOPICS, POINTS_TOPIC, RunBagWriter
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.stamps import to_seconds
@@ -27,17 +24,23 @@ from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.simulations import DivergenceError
 from modal_spring_ros.ros.inputs import apply_click, apply_pose
-from modal_spring_ros.ros.parameters import REBUILD_PARAMETERS, config_from_parameters
+from modal_spring_ros.ros.parameters import config_from_parameters, REBUILD_PARAMETERS
 from modal_spring_ros.scenes.schema import scene_from_yaml
+from rclpy.parameter import parameter_value_to_python
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import PointCloud2
 
 
 def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, int, dict]]:
-    """(log time ns, stamp ns, {name: value}) of the parameter events of ``node`` in the bag.
-    In the node's own capture the stamp is the simulation time the change took effect at."""
-    if "/parameter_events" not in bag.topics:
+    """
+    (log time ns, stamp ns, {name: value}) of the parameter events of ``node`` in the bag.
+
+    In the node's own capture the stamp is the simulation time the change took effect at.
+    """
+    if '/parameter_events' not in bag.topics:
         return []
     out = []
-    for m in bag.messages(["/parameter_events"]):
+    for m in bag.messages(['/parameter_events']):
         event = bag.decode(m)
         if event.node != node:
             continue
@@ -50,8 +53,12 @@ def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, int, dict]]:
 
 
 def recorded_inputs(bag: BagReader) -> list[tuple[int, int, object]]:
-    """(log time ns, stamp ns, message) of the inputs a node's capture kept (poses the clamp
-    followed, clicked points), each stamped with the simulation time it took effect at."""
+    """
+    Return the inputs a node's capture kept, as (log time ns, stamp ns, message).
+
+    Inputs are poses the clamp followed and clicked points, each stamped with the simulation time
+    it took effect at.
+    """
     topics = [t for t in INPUT_TOPICS.values() if t in bag.topics]
     if not topics:
         return []
@@ -64,45 +71,44 @@ def recorded_inputs(bag: BagReader) -> list[tuple[int, int, object]]:
 
 
 def frame_times(bag: BagReader, topic: str) -> list[tuple[int, float]]:
-    """(log time ns, header stamp s) of every frame, in log order."""
-
+    """Return (log time ns, header stamp s) of every frame, in log order."""
     return [(m.log_time_ns, to_seconds(deserialize_message(m.data, PointCloud2).header.stamp))
             for m in bag.messages([topic])]
 
 
 def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOPIC) -> int:
-    """Re-run ``bag_path``'s simulation into the new bag ``output``; returns the frame count.
+    """
+    Re-run ``bag_path``'s simulation into the new bag ``output``; returns the frame count.
 
-    Raises:
-        BagError: the bag does not describe a run, or the output cannot be written.
+    :raises BagError: the bag does not describe a run, or the output cannot be written.
     """
     bag = BagReader(bag_path)
     rec = bag.run_record()
-    if "scene_yaml" not in rec or not ("config" in rec or "parameters" in rec):
-        raise BagError(f"{bag_path}: no run description (scene and settings); it was not "
-                       "recorded by modal_spring_ros")
+    if 'scene_yaml' not in rec or not ('config' in rec or 'parameters' in rec):
+        raise BagError(f'{bag_path}: no run description (scene and settings); it was not '
+                       'recorded by modal_spring_ros')
     if topic not in bag.topics:
-        raise BagError(f"{bag_path}: no topic {topic}")
-    scene = scene_from_yaml(rec["scene_yaml"], source=f"{bag_path} (scene)")
+        raise BagError(f'{bag_path}: no topic {topic}')
+    scene = scene_from_yaml(rec['scene_yaml'], source=f'{bag_path} (scene)')
     changes: list[tuple[int, int, dict]] = []
-    if "config" in rec:
-        config = SimulationConfig.from_dict(rec["config"])
+    if 'config' in rec:
+        config = SimulationConfig.from_dict(rec['config'])
         values = None
     else:
-        values = dict(rec["parameters"])
+        values = dict(rec['parameters'])
         # recorded before the basis was a parameter: the rest modes were the only basis
-        values.setdefault("modal.basis", "rest")
-        values.setdefault("modal.derivative_directions", DEFAULT_DIRECTIONS)
+        values.setdefault('modal.basis', 'rest')
+        values.setdefault('modal.derivative_directions', DEFAULT_DIRECTIONS)
         config = config_from_parameters(values)
-        changes = parameter_changes(bag, rec.get("node", "/modal_spring"))
+        changes = parameter_changes(bag, rec.get('node', '/modal_spring'))
     sim = build_simulation(scene, config, allow_unstable=True)
     frames = frame_times(bag, topic)
     writer = RunBagWriter(output, scene, config, dt=sim.dt,
-                          frame_every=int(rec.get("frame_every", 0)),
-                          duration=float(rec.get("duration", 0.0)),
-                          frame_id=rec.get("frame_id", "world"),
-                          source="modal_spring_replay --resimulate")
-    exact = rec.get("event_clock") == "sim"   # events stamped with simulation time
+                          frame_every=int(rec.get('frame_every', 0)),
+                          duration=float(rec.get('duration', 0.0)),
+                          frame_id=rec.get('frame_id', 'world'),
+                          source='modal_spring_replay --resimulate')
+    exact = rec.get('event_clock') == 'sim'   # events stamped with simulation time
     pending = sorted(changes + (recorded_inputs(bag) if values is not None else []),
                      key=lambda event: event[0])
     try:
@@ -115,8 +121,8 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
                 if isinstance(change, PoseStamped):
                     apply_pose(sim, change)
                 elif isinstance(change, PointStamped):
-                    apply_click(sim, change, values["interaction.stiffness"],
-                                values["interaction.max_force_n"], values["interaction.hold_s"])
+                    apply_click(sim, change, values['interaction.stiffness'],
+                                values['interaction.max_force_n'], values['interaction.hold_s'])
                 else:
                     sim, values = _apply(sim, values, change)
             if stamp < sim.time - 0.5 * sim.dt:   # the recording was reset

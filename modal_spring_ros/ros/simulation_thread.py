@@ -1,5 +1,8 @@
-"""The node's simulation thread: steps at a fixed ``dt``, publishes on its own period, applies
-state changes between steps, and survives anything a step or a change can raise.
+"""
+The node's simulation thread.
+
+Steps at a fixed ``dt``, publishes on its own period, applies state changes between steps, and
+survives anything a step or a change can raise.
 
 It is the only thread that changes the running simulation. Requests
 (:mod:`modal_spring_ros.ros.requests`) are applied one at a time between two steps, in the order
@@ -16,13 +19,12 @@ import threading
 import time
 from typing import Callable, Protocol
 
-import numpy as np
-
 from modal_spring_ros.core.simulations import DivergenceError, Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import StreamReport
 from modal_spring_ros.ros.inputs import apply_click, apply_pose
 from modal_spring_ros.ros.requests import (ChangeBand, FollowPose, Pause, PullPoint,
                                            ReplaceSimulation, Request, Reset)
+import numpy as np
 
 #: wall time between two diagnostics messages, s
 DIAGNOSTICS_PERIOD_S = 1.0
@@ -76,12 +78,16 @@ class SimulationThread:
                  rebuild: Callable[[], Simulation],
                  computing_modes: Callable[[], bool] = lambda: False,
                  running: Callable[[], bool] = lambda: True,
-                 anchor_status: Callable[[], tuple[str, bool]] = lambda: ("", False)):
-        """``rebuild``: a fresh simulation of the current settings at rest (the last resort of
-        recovery); ``computing_modes``: whether a request is computing modes right now;
-        ``running``: False once the node is shutting down (its publishers are then gone, and
-        the thread ends instead of reporting them as failures); ``anchor_status``: what the
-        clamp follows, and whether no pose came for a while."""
+                 anchor_status: Callable[[], tuple[str, bool]] = lambda: ('', False)):
+        """
+        ``rebuild``.
+
+        A fresh simulation of the current settings at rest (the last resort of recovery);
+        ``computing_modes``: whether a request is computing modes right now; ``running``: False
+        once the node is shutting down (its publishers are then gone, and the thread ends instead
+        of reporting them as failures); ``anchor_status``: what the clamp follows, and whether no
+        pose came for a while.
+        """
         self._running = running
         self._anchor_status = anchor_status
         self.sim = sim
@@ -96,11 +102,11 @@ class SimulationThread:
         self._frames = 0
         self._last_frame = 0.0
         self._divergences = 0
-        self._last_divergence = ""
+        self._last_divergence = ''
         self._diverged_recently = False
         self._last_status = sim.status()
         self._anchor = (time.monotonic(), sim.time)
-        self._thread = threading.Thread(target=self._run, name="modal_spring_sim", daemon=True)
+        self._thread = threading.Thread(target=self._run, name='modal_spring_sim', daemon=True)
 
     # -- from other threads --------------------------------------------------------------------
     def start(self) -> None:
@@ -115,7 +121,7 @@ class SimulationThread:
         self._stop.set()
         if self._thread.is_alive() and self._thread is not threading.current_thread():
             self._thread.join(timeout)
-        self._fail_pending("the node is shutting down")
+        self._fail_pending('the node is shutting down')
 
     @property
     def alive(self) -> bool:
@@ -132,7 +138,7 @@ class SimulationThread:
             except Exception as exc:  # supervised: report, recover, go on
                 if not self._active():
                     return
-                self._recover(f"simulation thread failed: {exc!r}")
+                self._recover(f'simulation thread failed: {exc!r}')
 
     def _loop(self) -> None:
         next_publish = next_mesh = time.monotonic()
@@ -153,7 +159,7 @@ class SimulationThread:
                     if self.sim.time + self.sim.dt < target:  # could not keep up: drop debt
                         self._reanchor(window_valid=True)
                 else:  # as fast as possible: as many steps as fit until the frame is due
-                    self._step_until(float("inf"), next_publish)
+                    self._step_until(float('inf'), next_publish)
             now = time.monotonic()
             if self.sim.time != published_time and not self.paused:
                 mesh = now >= next_mesh and settings.mesh_rate_hz > 0
@@ -171,8 +177,11 @@ class SimulationThread:
                 self._stop.wait(max(0.0, next_publish - time.monotonic()))
 
     def _step_until(self, target: float, deadline: float) -> None:
-        """Step until the simulation reaches ``target`` (to half a step) or the wall clock
-        passes ``deadline``; at least one step when the target is ahead."""
+        """
+        Step until the simulation reaches ``target`` or the wall clock passes ``deadline``.
+
+        The target is reached to half a step; at least one step is taken when the target is ahead.
+        """
         w = self._window
         sim = self.sim
         while sim.time + 0.5 * sim.dt < target:
@@ -188,9 +197,12 @@ class SimulationThread:
                 return
 
     def _apply_requests(self) -> bool:
-        """Apply every queued request, in order; True when one was applied. A band change
-        directly followed by another is not built: the later one takes its changed
-        parameters over (so a capture records them) and both are answered."""
+        """
+        Apply every queued request, in order; True when one was applied.
+
+        A band change directly followed by another is not built: the later one takes its changed
+        parameters over (so a capture records them) and both are answered.
+        """
         batch: list[Request] = []
         while True:
             try:
@@ -202,14 +214,14 @@ class SimulationThread:
             following = batch[k + 1] if k + 1 < len(batch) else None
             if isinstance(request, ChangeBand) and isinstance(following, ChangeBand):
                 following.changed = {**request.changed, **following.changed}
-                request.finish(True, f"band {request.band.describe()}, superseded by "
-                                     f"{following.band.describe()}")
+                request.finish(True, f'band {request.band.describe()}, superseded by '
+                                     f'{following.band.describe()}')
                 continue
             try:
                 message = self._apply(request)
             except Exception as exc:  # refused: the run is as it was before the request
-                request.finish(False, f"could not apply: {exc}")
-                self._report_error(f"could not apply {type(request).__name__}: {exc!r}")
+                request.finish(False, f'could not apply: {exc}')
+                self._report_error(f'could not apply {type(request).__name__}: {exc!r}')
                 continue
             request.finish(True, message)
             applied = True
@@ -237,24 +249,24 @@ class SimulationThread:
     def _change_band(self, request: ChangeBand) -> str:
         self.sim.set_band(request.band, request.transition_s)
         self._outputs.changed(self.sim, request.changed)
-        return f"band {request.band.describe()}"
+        return f'band {request.band.describe()}'
 
     def _replace(self, request: ReplaceSimulation) -> str:
         request.simulation.take_over(self.sim)
         self.sim = request.simulation
         self._outputs.changed(self.sim, request.changed)
         self._reanchor(window_valid=False)
-        return f"{self.sim.method} run continues"
+        return f'{self.sim.method} run continues'
 
     def _reset(self, request: Reset) -> str:
         self.sim.reset()
         self._reanchor(window_valid=False)
-        return "back to the rest state at t = 0"
+        return 'back to the rest state at t = 0'
 
     def _pause(self, request: Pause) -> str:
         self.paused = request.paused
         self._reanchor(window_valid=False)
-        return "paused" if request.paused else "running"
+        return 'paused' if request.paused else 'running'
 
     def _fail_pending(self, why: str) -> None:
         while True:
@@ -267,7 +279,7 @@ class SimulationThread:
     def _publish_frame(self, mesh: bool) -> None:
         positions = self.sim.positions()
         if not np.isfinite(positions).all():  # defensive: the engine never returns these
-            self._on_divergence(DivergenceError("non-finite positions", self.sim.time,
+            self._on_divergence(DivergenceError('non-finite positions', self.sim.time,
                                                 self.sim.steps))
             return
         self._outputs.frame(self.sim, positions, mesh)
@@ -280,7 +292,7 @@ class SimulationThread:
         w.frames += 1
         w.computing_modes |= self._computing_modes()
 
-    def _report(self, settings: StreamSettings, error: str = "") -> StreamReport:
+    def _report(self, settings: StreamSettings, error: str = '') -> StreamReport:
         w = self._window
         now = time.monotonic()
         span = now - w.wall
@@ -299,14 +311,14 @@ class SimulationThread:
             anchor=anchor, anchor_stale=stale)
 
     def _status(self) -> SimulationStatus:
-        """The simulation's status, or the last one read when it cannot give one."""
+        """Return the simulation's status, or the last one read when it cannot give one."""
         try:
             self._last_status = self.sim.status()
         except Exception:  # reported by whoever called; the last good status stands in
             pass
         return self._last_status
 
-    def _publish_diagnostics(self, settings: StreamSettings, error: str = "") -> None:
+    def _publish_diagnostics(self, settings: StreamSettings, error: str = '') -> None:
         self._outputs.diagnostics(self._status(), self._report(settings, error))
         self._start_window(valid=True)
         if not error:
@@ -328,24 +340,24 @@ class SimulationThread:
         self._divergences += 1
         self._last_divergence = str(exc)
         self._diverged_recently = True
-        self._outputs.log("error", f"{exc}; back to the rest state")
+        self._outputs.log('error', f'{exc}; back to the rest state')
         self._publish_diagnostics(self._settings(),
-                                  error=f"{exc}; recovered: back to the rest state")
+                                  error=f'{exc}; recovered: back to the rest state')
         self._to_rest()
 
     def _report_error(self, message: str) -> None:
         """Log and publish ERROR; never raises (it is what failures end in)."""
         try:
-            self._outputs.log("error", message)
+            self._outputs.log('error', message)
             self._outputs.diagnostics(self._last_status, self._report(self._settings(), message))
         except Exception as exc:  # publishing itself failed (shutting down): log only
             try:
-                self._outputs.log("error", f"{message} (not reported: {exc!r})")
+                self._outputs.log('error', f'{message} (not reported: {exc!r})')
             except Exception:
                 pass
 
     def _recover(self, message: str) -> None:
-        self._report_error(f"{message}; recovered: back to the rest state")
+        self._report_error(f'{message}; recovered: back to the rest state')
         if not self._to_rest():
             self._stop.wait(RECOVERY_RETRY_S)
 
@@ -354,11 +366,11 @@ class SimulationThread:
         try:
             self.sim.reset()
         except Exception as exc:
-            self._report_error(f"reset failed: {exc!r}; rebuilding the simulation")
+            self._report_error(f'reset failed: {exc!r}; rebuilding the simulation')
             try:
                 self.sim = self._rebuild()
             except Exception as again:
-                self._report_error(f"rebuilding the simulation failed: {again!r}")
+                self._report_error(f'rebuilding the simulation failed: {again!r}')
                 return False
         self._reanchor(window_valid=False)
         return True

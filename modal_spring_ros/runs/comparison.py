@@ -1,4 +1,5 @@
-"""Compare two runs of the same scene frame by frame (``.npz`` runs or bags, in any mix).
+"""
+Compare two runs of the same scene frame by frame (``.npz`` runs or bags, in any mix).
 
 Frames are aligned by stamp. Per frame: RMS and largest position difference, relative L2
 error of A against B's displacement, and, where the scene is known, each run's mechanical
@@ -10,10 +11,9 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-import numpy as np
-
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.scenes.schema import scene_from_yaml
+import numpy as np
 
 
 class RunError(ValueError):
@@ -31,7 +31,7 @@ class RunData:
     positions: np.ndarray      # (F, n, 3)
     scene: Scene | None
     band_hz: tuple[float, float] | None  # frequency span of the kept modes, when known
-    label: str = ""
+    label: str = ''
 
     @property
     def rest(self) -> np.ndarray:
@@ -39,42 +39,42 @@ class RunData:
 
 
 def load_npz_run(path: str | Path) -> RunData:
-    """A ``modal_spring_sim`` ``.npz`` run as arrays. Raises RunError."""
+    """Return a ``modal_spring_sim`` ``.npz`` run as arrays. Raises RunError."""
     path = Path(path)
     try:
         data = np.load(path)
-        scene = scene_from_yaml(str(data["scene_yaml"]), source=f"{path} (scene)") \
-            if "scene_yaml" in data else None
+        scene = scene_from_yaml(str(data['scene_yaml']), source=f'{path} (scene)') \
+            if 'scene_yaml' in data else None
         band = None
-        if data["frequencies_hz"].size and data["kept_modes"].size:
-            kept = data["frequencies_hz"][data["kept_modes"]]
+        if data['frequencies_hz'].size and data['kept_modes'].size:
+            kept = data['frequencies_hz'][data['kept_modes']]
             band = (float(kept.min()), float(kept.max()))
-        run = RunData(path.name, data["t"], data["positions"], scene, band,
+        run = RunData(path.name, data['t'], data['positions'], scene, band,
                       f"{data['method']} {data['band']}")
     except (OSError, KeyError, ValueError) as exc:
-        raise RunError(f"{path}: not a modal_spring_sim .npz run: {exc}") from None
+        raise RunError(f'{path}: not a modal_spring_sim .npz run: {exc}') from None
     if not np.isfinite(run.positions).all():
-        raise RunError(f"{path}: damaged: its positions hold non-finite values")
+        raise RunError(f'{path}: damaged: its positions hold non-finite values')
     return run
 
 
 def check_same_scene(a: RunData, b: RunData) -> None:
     if a.positions.shape[1] != b.positions.shape[1]:
-        raise ComparisonError(f"different scenes: {a.name} has {a.positions.shape[1]} "
-                              f"particles, {b.name} has {b.positions.shape[1]}")
+        raise ComparisonError(f'different scenes: {a.name} has {a.positions.shape[1]} '
+                              f'particles, {b.name} has {b.positions.shape[1]}')
     if a.scene is not None and b.scene is not None and not np.allclose(
             a.scene.rest_positions, b.scene.rest_positions, atol=1e-9):
-        raise ComparisonError(f"different scenes: {a.name} and {b.name} have other rest "
-                              "shapes")
+        raise ComparisonError(f'different scenes: {a.name} and {b.name} have other rest '
+                              'shapes')
 
 
 def align(a: RunData, b: RunData) -> tuple[np.ndarray, np.ndarray]:
-    """Indices of the frames of A and B with equal stamps (to the microsecond)."""
+    """Return the indices of the frames of A and B with equal stamps (to the microsecond)."""
     ka = np.round(a.t * 1e6).astype(np.int64)
     kb = np.round(b.t * 1e6).astype(np.int64)
     common, ia, ib = np.intersect1d(ka, kb, return_indices=True)
     if common.size == 0:
-        raise ComparisonError(f"{a.name} and {b.name} share no frame stamps")
+        raise ComparisonError(f'{a.name} and {b.name} share no frame stamps')
     return ia, ib
 
 
@@ -95,8 +95,12 @@ def energy(run: RunData) -> np.ndarray | None:
 
 
 def deformation(run: RunData) -> np.ndarray:
-    """(F, n, 3) displacement from rest relative to the moving base (the fixed particles'
-    common offset), i.e. what the filter shapes; plain displacement when the scene is unknown."""
+    """
+    Return the (F, n, 3) displacement from rest relative to the moving base.
+
+    (F, n, 3) displacement from rest relative to the moving base (the fixed particles' common
+    offset), i.e. what the filter shapes; plain displacement when the scene is unknown.
+    """
     u = run.positions - run.rest
     if run.scene is not None:
         u = u - u[:, run.scene.fixed].mean(axis=1, keepdims=True)
@@ -123,23 +127,23 @@ def compare(a: RunData, b: RunData) -> dict:
     ref = np.linalg.norm((xb - b.rest).reshape(len(ib), -1), axis=1)
     rel = np.linalg.norm((xa - xb).reshape(len(ia), -1), axis=1) / np.maximum(ref, 1e-300)
     ea, eb = energy(a), energy(b)
-    frames = [{"t": float(a.t[p]), "rms_m": float(r), "max_m": float(m), "rel_l2": float(e),
-               **({"energy_a_J": float(ea[p])} if ea is not None else {}),
-               **({"energy_b_J": float(eb[q])} if eb is not None else {})}
+    frames = [{'t': float(a.t[p]), 'rms_m': float(r), 'max_m': float(m), 'rel_l2': float(e),
+               **({'energy_a_J': float(ea[p])} if ea is not None else {}),
+               **({'energy_b_J': float(eb[q])} if eb is not None else {})}
               for p, q, r, m, e in zip(ia, ib, rms, worst, rel)]
     fa, pa = spectrum(a)
     fb, pb = spectrum(b)
     return {
-        "a": {"name": a.name, "label": a.label, "frames": int(a.t.size), "band_hz": a.band_hz},
-        "b": {"name": b.name, "label": b.label, "frames": int(b.t.size), "band_hz": b.band_hz},
-        "common_frames": int(len(ia)),
-        "rms_m": float(np.sqrt((rms ** 2).mean())),
-        "max_m": float(worst.max()),
-        "rel_l2_mean": float(rel[1:].mean()) if len(rel) > 1 else float(rel.mean()),
-        "rel_l2_max": float(rel[1:].max()) if len(rel) > 1 else float(rel.max()),
-        "per_frame": frames,
-        "spectrum_a": {"hz": fa.tolist(), "power": pa.tolist()},
-        "spectrum_b": {"hz": fb.tolist(), "power": pb.tolist()},
+        'a': {'name': a.name, 'label': a.label, 'frames': int(a.t.size), 'band_hz': a.band_hz},
+        'b': {'name': b.name, 'label': b.label, 'frames': int(b.t.size), 'band_hz': b.band_hz},
+        'common_frames': int(len(ia)),
+        'rms_m': float(np.sqrt((rms ** 2).mean())),
+        'max_m': float(worst.max()),
+        'rel_l2_mean': float(rel[1:].mean()) if len(rel) > 1 else float(rel.mean()),
+        'rel_l2_max': float(rel[1:].max()) if len(rel) > 1 else float(rel.max()),
+        'per_frame': frames,
+        'spectrum_a': {'hz': fa.tolist(), 'power': pa.tolist()},
+        'spectrum_b': {'hz': fb.tolist(), 'power': pb.tolist()},
     }
 
 
@@ -148,23 +152,23 @@ def plot(result: dict, path: str | Path) -> None:
     from matplotlib.figure import Figure  # no pyplot: no display, no global figure state
     fig = Figure(figsize=(8, 7))
     top, bottom = fig.subplots(2, 1)
-    t = [f["t"] for f in result["per_frame"]]
-    top.plot(t, [f["rel_l2"] for f in result["per_frame"]], label="relative L2 error")
-    top.plot(t, [f["max_m"] for f in result["per_frame"]], label="largest difference (m)")
-    top.set_yscale("log")
-    top.set_xlabel("time (s)")
+    t = [f['t'] for f in result['per_frame']]
+    top.plot(t, [f['rel_l2'] for f in result['per_frame']], label='relative L2 error')
+    top.plot(t, [f['max_m'] for f in result['per_frame']], label='largest difference (m)')
+    top.set_yscale('log')
+    top.set_xlabel('time (s)')
     top.set_title(f"{result['a']['name']} against {result['b']['name']}")
     top.legend()
-    for key, side in (("spectrum_a", "a"), ("spectrum_b", "b")):
+    for key, side in (('spectrum_a', 'a'), ('spectrum_b', 'b')):
         spec = result[key]
-        bottom.semilogy(spec["hz"][1:], np.maximum(spec["power"][1:], 1e-30),
+        bottom.semilogy(spec['hz'][1:], np.maximum(spec['power'][1:], 1e-30),
                         label=f"{result[side]['name']} {result[side]['label']}")
-        band = result[side]["band_hz"]
+        band = result[side]['band_hz']
         if band:
-            bottom.axvspan(band[0], band[1], alpha=0.15, color="C0" if side == "a" else "C1",
+            bottom.axvspan(band[0], band[1], alpha=0.15, color='C0' if side == 'a' else 'C1',
                            label=f"kept modes of {result[side]['name']}")
-    bottom.set_xlabel("frequency (Hz)")
-    bottom.set_ylabel("deformation power (m^2), relative to the base")
+    bottom.set_xlabel('frequency (Hz)')
+    bottom.set_ylabel('deformation power (m^2), relative to the base')
     bottom.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

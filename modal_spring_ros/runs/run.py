@@ -1,4 +1,5 @@
-"""A recorded run as arrays, and its ``.npz`` file: everything needed to re-check it independently.
+"""
+A recorded run as arrays, and its ``.npz`` file: everything needed to re-check it independently.
 
 Fields (``F`` frames, ``n`` particles, ``E`` springs):
 ``t`` (F,), ``positions`` (F, n, 3) float64, ``rest_positions`` (n, 3), ``springs`` (E, 2) int,
@@ -11,14 +12,13 @@ Fields (``F`` frames, ``n`` particles, ``E`` springs):
 from __future__ import annotations
 
 import dataclasses
-import time
 from pathlib import Path
+import time
 from typing import Callable
-
-import numpy as np
 
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.core.simulations import DivergenceError, Simulation
+import numpy as np
 
 #: least wall time between two progress reports of :func:`record`, s (a short run reports none)
 PROGRESS_INTERVAL_S = 1.0
@@ -35,12 +35,12 @@ class Run:
     method: str
     integrator: str
     band: str
-    diverged: str = ""
+    diverged: str = ''
 
     def save_npz(self, path: str | Path) -> None:
         s = self.scene
         path = Path(path)
-        with open(path, "wb") as fh:  # np.savez would append ".npz" to other names
+        with open(path, 'wb') as fh:  # np.savez would append ".npz" to other names
             np.savez_compressed(
                 fh, t=self.t, positions=self.positions.astype(np.float64),
                 rest_positions=s.rest_positions, springs=s.springs, stiffness=s.stiffness,
@@ -56,17 +56,20 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
            on_progress: Callable[[float], None] | None = None,
            on_frame: Callable[[float, np.ndarray], None] | None = None,
            progress_interval_s: float = PROGRESS_INTERVAL_S) -> Run:
-    """Step ``sim`` for ``duration`` seconds, keeping a frame (t = 0 included) every
-    ``frame_every`` steps. Stops at a divergence and records its message (no bad frame).
-    ``on_frame(t, positions)`` sees every frame as it is made (e.g. to stream it to a bag).
-    ``on_progress(fraction done)`` is called at whole percents, at most once per
-    ``progress_interval_s`` of wall time."""
+    """
+    Step ``sim`` for ``duration`` seconds.
+
+    Keeping a frame (t = 0 included) every ``frame_every`` steps. Stops at a divergence and records
+    its message (no bad frame). ``on_frame(t, positions)`` sees every frame as it is made (e.g. to
+    stream it to a bag). ``on_progress(fraction done)`` is called at whole percents, at most once
+    per ``progress_interval_s`` of wall time.
+    """
     steps = int(round(duration / sim.dt))
     frames = [sim.positions()]
     times = [sim.time]
     if on_frame:
         on_frame(times[0], frames[0])
-    diverged = ""
+    diverged = ''
     check_every = max(1, steps // 100)
     last_report = time.monotonic()
     for k in range(1, steps + 1):

@@ -7,7 +7,8 @@ import numpy as np
 
 
 def lattice_springs(counts: tuple[int, ...], kinds) -> np.ndarray:
-    """Spring pairs of a regular lattice with ``counts`` particles per axis (x fastest).
+    """
+    Spring pairs of a regular lattice with ``counts`` particles per axis (x fastest).
 
     ``kinds``: any of ``edges`` (axis neighbours), ``diagonals`` (both diagonals of every
     face cell) and ``body_diagonals`` (the four diagonals of every 3D cell).
@@ -19,13 +20,13 @@ def lattice_springs(counts: tuple[int, ...], kinds) -> np.ndarray:
     for kind in kinds:
         for off in itertools.product((-1, 0, 1), repeat=dims):
             nz = sum(1 for o in off if o != 0)
-            if kind == "edges" and nz == 1 and max(off) == 1:
+            if kind == 'edges' and nz == 1 and max(off) == 1:
                 offsets.append(off)
-            elif kind == "diagonals" and nz == 2:
+            elif kind == 'diagonals' and nz == 2:
                 # one representative of each +/- pair: first non-zero component positive
                 if next(o for o in off if o != 0) == 1:
                     offsets.append(off)
-            elif kind == "body_diagonals" and nz == 3 and off[0] == 1:
+            elif kind == 'body_diagonals' and nz == 3 and off[0] == 1:
                 offsets.append(off)
     pairs = []
     for off in dict.fromkeys(offsets):

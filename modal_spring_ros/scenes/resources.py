@@ -1,4 +1,5 @@
-"""Where the package's data lives, and the built-in scenes: names, lookup, loading.
+"""
+Where the package's data lives, and the built-in scenes: names, lookup, loading.
 
 The package's data folder is the repository itself in a source checkout or editable install,
 ``<prefix>/share/modal_spring_ros`` when installed (found through the ament index on a ROS
@@ -6,58 +7,80 @@ install, else under the Python prefix of a pip install).
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
+import sys
 
-from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-
+from ament_index_python.packages import (get_package_prefix, get_package_share_directory,
+                                         PackageNotFoundError)
 from modal_spring_ros.core.scene import Scene, SceneError
 from modal_spring_ros.scenes.schema import scene_from_yaml
 from modal_spring_ros.scenes.yaml_reading import read_scene_text
 
-PACKAGE_NAME = "modal_spring_ros"
+PACKAGE_NAME = 'modal_spring_ros'
 
 
 def share_directory() -> Path:
-    """The package's data folder (``config/`` lives there).
+    """
+    Return the package's data folder (``config/`` lives there).
 
     A source checkout or editable install uses the repository itself; an installed package uses
     ``<prefix>/share/modal_spring_ros`` (found with ament_index on a ROS install, or under the
     Python prefix for a pip install into a venv).
     """
     source = Path(__file__).resolve().parents[2]  # the repository, in a source checkout
-    if (source / "config" / "scenes").is_dir():
+    if (source / 'config' / 'scenes').is_dir():
         return source
     try:
         return Path(get_package_share_directory(PACKAGE_NAME))
     except (PackageNotFoundError, LookupError, OSError):  # no ament index: the Python prefix
-        return Path(sys.prefix) / "share" / PACKAGE_NAME
+        return Path(sys.prefix) / 'share' / PACKAGE_NAME
+
+
+def executable(name: str) -> Path:
+    """
+    Return the path of the package's console script ``name``.
+
+    Found as ``ros2 run`` finds it, ``<prefix>/lib/modal_spring_ros/<name>`` with the prefix from
+    the ament index (a colcon workspace or a ROS install), else beside this interpreter (a venv).
+
+    :raises FileNotFoundError: the script is in neither place.
+    """
+    places = []
+    try:
+        places.append(Path(get_package_prefix(PACKAGE_NAME)) / 'lib' / PACKAGE_NAME / name)
+    except (PackageNotFoundError, LookupError, OSError):  # no ament index
+        pass
+    places.append(Path(sys.executable).parent / name)
+    for path in places:
+        if path.is_file():
+            return path
+    raise FileNotFoundError(f"{name} is not installed (looked in {', '.join(map(str, places))})")
 
 
 def builtin_scene_dir() -> Path:
     """Folder holding the built-in scene files."""
-    return share_directory() / "config" / "scenes"
+    return share_directory() / 'config' / 'scenes'
 
 
 #: The scene used when none is named.
-DEFAULT_SCENE = "sheet_10x10"
+DEFAULT_SCENE = 'sheet_10x10'
 
 
 def builtin_scene_names() -> list[str]:
     """Names of the scenes shipped with the package."""
-    return sorted(p.stem for p in builtin_scene_dir().glob("*.yaml"))
+    return sorted(p.stem for p in builtin_scene_dir().glob('*.yaml'))
 
 
 def load_scene(name_or_path: str | Path) -> Scene:
-    """Load a built-in scene by name, or a scene file by path.
+    """
+    Load a built-in scene by name, or a scene file by path.
 
-    Raises:
-        SceneError: unknown name, unreadable file, invalid YAML or an invalid scene.
+    :raises SceneError: unknown name, unreadable file, invalid YAML or an invalid scene.
     """
     text = str(name_or_path)
     path = Path(text)
-    if not (text.endswith((".yaml", ".yml")) or path.exists()):
-        candidate = builtin_scene_dir() / f"{text}.yaml"
+    if not (text.endswith(('.yaml', '.yml')) or path.exists()):
+        candidate = builtin_scene_dir() / f'{text}.yaml'
         if not candidate.exists():
             raise SceneError(
                 f"unknown scene '{text}': not a file, and not a built-in scene "

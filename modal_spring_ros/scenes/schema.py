@@ -1,4 +1,5 @@
-"""The scene file schema: a scene's YAML (or the mapping it parses to) checked into a Scene.
+"""
+The scene file schema: a scene's YAML (or the mapping it parses to) checked into a Scene.
 
 A scene file is YAML in SI units. Particles and springs are given either explicitly or by a
 lattice generator; see ``docs/scenes.md`` for the full format. Every problem found on
@@ -10,23 +11,25 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
-import numpy as np
-
 from modal_spring_ros.core.anchor_motion import AnchorMotion, RotationComponent, SineComponent
 from modal_spring_ros.core.scene import Damping, Scene
 from modal_spring_ros.scenes.fields import AXES, FieldReader, short
 from modal_spring_ros.scenes.lattice import lattice_springs
-from modal_spring_ros.scenes.limits import BYTES_PER_PARTICLE, LIMITS, MAX_STEPS, available_memory
+from modal_spring_ros.scenes.limits import available_memory, BYTES_PER_PARTICLE, LIMITS, MAX_STEPS
 from modal_spring_ros.scenes.yaml_reading import load_yaml
+import numpy as np
 
 
-def scene_from_yaml(text: str, source: str = "<scene>", default_name: str = "scene") -> Scene:
-    """Parse (within the bounds of :mod:`~modal_spring_ros.scenes.yaml_reading`) and validate
-    a scene from YAML text."""
+def scene_from_yaml(text: str, source: str = '<scene>', default_name: str = 'scene') -> Scene:
+    """
+    Parse and validate a scene from YAML text.
+
+    Parsing stays within the bounds of :mod:`~modal_spring_ros.scenes.yaml_reading`.
+    """
     return scene_from_dict(load_yaml(text, source), source=source, default_name=default_name)
 
 
-def scene_from_dict(data: Any, source: str = "<scene>", default_name: str = "scene") -> Scene:
+def scene_from_dict(data: Any, source: str = '<scene>', default_name: str = 'scene') -> Scene:
     """Validate a scene given as a mapping (the parsed YAML)."""
     return _SceneParser(source).parse(data, default_name)
 
@@ -34,66 +37,66 @@ def scene_from_dict(data: Any, source: str = "<scene>", default_name: str = "sce
 class _SceneParser(FieldReader):
     # -- the scene ----------------------------------------------------------------------------
     def parse(self, data: Any, default_name: str) -> Scene:
-        data = self.mapping(data, "scene")
-        known = {"name", "description", "dimension", "axis", "particles", "springs", "fixed",
-                 "gravity",
-                 "damping", "anchor_motion", "simulation"}
+        data = self.mapping(data, 'scene')
+        known = {'name', 'description', 'dimension', 'axis', 'particles', 'springs', 'fixed',
+                 'gravity',
+                 'damping', 'anchor_motion', 'simulation'}
         unknown = sorted(set(data) - known, key=str)
         if unknown:
             raise self.fail(unknown[0], f"unknown key (known keys: {', '.join(sorted(known))})")
-        name = str(data.get("name", default_name))
-        dimension = data.get("dimension", 2)
+        name = str(data.get('name', default_name))
+        dimension = data.get('dimension', 2)
         if isinstance(dimension, bool) or not isinstance(dimension, int) \
                 or dimension not in (1, 2, 3):
-            raise self.fail("dimension", f"must be 1, 2 or 3, got {short(dimension)}")
+            raise self.fail('dimension', f'must be 1, 2 or 3, got {short(dimension)}')
         if dimension == 1:
-            axes = (self.axis(data.get("axis", "x"), "axis", (0, 1, 2)),)
-        elif "axis" in data:
-            raise self.fail("axis", "only a 1D scene (dimension: 1) has an axis")
+            axes = (self.axis(data.get('axis', 'x'), 'axis', (0, 1, 2)),)
+        elif 'axis' in data:
+            raise self.fail('axis', 'only a 1D scene (dimension: 1) has an axis')
         else:
             axes = tuple(range(dimension))
 
-        particles = self.mapping(self.required(data, "particles", "scene"), "particles")
+        particles = self.mapping(self.required(data, 'particles', 'scene'), 'particles')
         positions, lattice = self.positions(particles, dimension)
         if lattice is not None and dimension == 1 and axes[0] != 0:
             positions[:, [0, axes[0]]] = positions[:, [axes[0], 0]]
         n = positions.shape[0]
-        mass = self.per_item(self.required(particles, "mass", "particles"), n,
-                             "particles.mass", "particles", LIMITS["mass"])
+        mass = self.per_item(self.required(particles, 'mass', 'particles'), n,
+                             'particles.mass', 'particles', LIMITS['mass'])
 
-        springs_spec = self.mapping(self.required(data, "springs", "scene"), "springs")
+        springs_spec = self.mapping(self.required(data, 'springs', 'scene'), 'springs')
         pairs = self.pairs(springs_spec, n, lattice)
-        stiffness = self.per_item(self.required(springs_spec, "stiffness", "springs"),
-                                  len(pairs), "springs.stiffness", "springs",
-                                  LIMITS["stiffness"])
+        stiffness = self.per_item(self.required(springs_spec, 'stiffness', 'springs'),
+                                  len(pairs), 'springs.stiffness', 'springs',
+                                  LIMITS['stiffness'])
         rest_length = self.check_springs(pairs, positions)
-        fixed = self.fixed(data.get("fixed"), positions)
+        fixed = self.fixed(data.get('fixed'), positions)
         self.check_connected(pairs, n)
 
-        gravity = self.vector3(data.get("gravity", [0.0, 0.0, 0.0]), "gravity",
-                               LIMITS["gravity"])
+        gravity = self.vector3(data.get('gravity', [0.0, 0.0, 0.0]), 'gravity',
+                               LIMITS['gravity'])
         still = [a for a in range(3) if a not in axes]
         if np.any(gravity[still] != 0.0):
-            raise self.fail("gravity", f"a {dimension}D scene moves along "
+            raise self.fail('gravity', f'a {dimension}D scene moves along '
                             f"{', '.join('xyz'[a] for a in axes)} only: gravity must be 0 along "
                             f"{', '.join('xyz'[a] for a in still)}")
         if np.any(positions[:, still] != positions[0, still]):
-            raise self.fail("particles", f"a {dimension}D scene must have equal "
+            raise self.fail('particles', f'a {dimension}D scene must have equal '
                             f"{', '.join('xyz'[a] for a in still)} for every particle")
 
-        damping = self.damping(data.get("damping", {}))
-        anchor_motion = self.anchor_motion(data.get("anchor_motion", []), axes)
-        sim = self.mapping(data.get("simulation", {}) or {}, "simulation")
-        dt = sim.get("dt")
-        default_dt = None if dt is None else self.number(dt, "simulation.dt", positive=True,
-                                                         limit=LIMITS["dt"])
-        duration = self.number(sim.get("duration", 5.0), "simulation.duration", positive=True,
-                               limit=LIMITS["duration"])
+        damping = self.damping(data.get('damping', {}))
+        anchor_motion = self.anchor_motion(data.get('anchor_motion', []), axes)
+        sim = self.mapping(data.get('simulation', {}) or {}, 'simulation')
+        dt = sim.get('dt')
+        default_dt = None if dt is None else self.number(dt, 'simulation.dt', positive=True,
+                                                         limit=LIMITS['dt'])
+        duration = self.number(sim.get('duration', 5.0), 'simulation.duration', positive=True,
+                               limit=LIMITS['duration'])
         if default_dt is not None and duration / default_dt > MAX_STEPS:
-            raise self.fail("simulation.dt", f"{default_dt:g} s makes "
-                            f"{duration / default_dt:.3g} steps of the {duration:g} s run (at "
-                            f"most {MAX_STEPS:.0e}): a step this small does not advance "
-                            "the simulation in any useful time")
+            raise self.fail('simulation.dt', f'{default_dt:g} s makes '
+                            f'{duration / default_dt:.3g} steps of the {duration:g} s run (at '
+                            f'most {MAX_STEPS:.0e}): a step this small does not advance '
+                            'the simulation in any useful time')
 
         def frozen(a: np.ndarray) -> np.ndarray:
             a.setflags(write=False)
@@ -114,46 +117,46 @@ class _SceneParser(FieldReader):
             anchor_motion=anchor_motion,
             default_dt=default_dt,
             default_duration=duration,
-            description=str(data.get("description", "")),
+            description=str(data.get('description', '')),
         )
 
     def positions(self, particles: Mapping[str, Any], dimension: int
                   ) -> tuple[np.ndarray, tuple[int, ...] | None]:
         """Particle positions, and the lattice counts when a lattice generated them."""
-        has_lattice = "lattice" in particles
-        has_positions = "positions" in particles
+        has_lattice = 'lattice' in particles
+        has_positions = 'positions' in particles
         if has_lattice == has_positions:
-            raise self.fail("particles", "give exactly one of 'positions' or 'lattice'")
+            raise self.fail('particles', "give exactly one of 'positions' or 'lattice'")
         if has_positions:
-            raw = particles["positions"]
+            raw = particles['positions']
             if not isinstance(raw, (list, tuple)) or not raw:
-                raise self.fail("particles.positions", "must be a non-empty list of points")
-            self.check_size(len(raw), "particles.positions")
-            pos = np.array([self.vector3(p, f"particles.positions[{i}]", LIMITS["position"])
+                raise self.fail('particles.positions', 'must be a non-empty list of points')
+            self.check_size(len(raw), 'particles.positions')
+            pos = np.array([self.vector3(p, f'particles.positions[{i}]', LIMITS['position'])
                             for i, p in enumerate(raw)])
             return pos, None
-        lat = self.mapping(particles["lattice"], "particles.lattice")
-        counts = lat.get("counts")
+        lat = self.mapping(particles['lattice'], 'particles.lattice')
+        counts = lat.get('counts')
         if (not isinstance(counts, (list, tuple)) or len(counts) != dimension
                 or not all(isinstance(c, int) and not isinstance(c, bool) and c >= 1
                            for c in counts)):
-            raise self.fail("particles.lattice.counts",
-                            f"must be {dimension} positive integers, got {short(counts)}")
-        self.check_size(math.prod(counts), "particles.lattice.counts")
-        spacing = lat.get("spacing", 1.0)
+            raise self.fail('particles.lattice.counts',
+                            f'must be {dimension} positive integers, got {short(counts)}')
+        self.check_size(math.prod(counts), 'particles.lattice.counts')
+        spacing = lat.get('spacing', 1.0)
         if isinstance(spacing, (list, tuple)):
-            sp = [self.number(s, f"particles.lattice.spacing[{i}]", positive=True,
-                              limit=LIMITS["position"])
+            sp = [self.number(s, f'particles.lattice.spacing[{i}]', positive=True,
+                              limit=LIMITS['position'])
                   for i, s in enumerate(spacing)]
             if len(sp) != dimension:
-                raise self.fail("particles.lattice.spacing",
-                                f"must have {dimension} values, got {len(sp)}")
+                raise self.fail('particles.lattice.spacing',
+                                f'must have {dimension} values, got {len(sp)}')
         else:
-            sp = [self.number(spacing, "particles.lattice.spacing", positive=True,
-                              limit=LIMITS["position"])] * dimension
-        origin = self.vector3(lat.get("origin", [0.0, 0.0, 0.0]), "particles.lattice.origin",
-                              LIMITS["position"])
-        grids = np.meshgrid(*[np.arange(c) * s for c, s in zip(counts, sp)], indexing="ij")
+            sp = [self.number(spacing, 'particles.lattice.spacing', positive=True,
+                              limit=LIMITS['position'])] * dimension
+        origin = self.vector3(lat.get('origin', [0.0, 0.0, 0.0]), 'particles.lattice.origin',
+                              LIMITS['position'])
+        grids = np.meshgrid(*[np.arange(c) * s for c, s in zip(counts, sp)], indexing='ij')
         # Scene order: x fastest, then y, then z (row by row).
         coords = [g.transpose().ravel() for g in grids]
         pos = np.zeros((coords[0].size, 3))
@@ -163,46 +166,46 @@ class _SceneParser(FieldReader):
 
     def pairs(self, springs: Mapping[str, Any], n: int,
               lattice: tuple[int, ...] | None) -> np.ndarray:
-        has_pairs = "pairs" in springs
-        has_connect = "connect" in springs
+        has_pairs = 'pairs' in springs
+        has_connect = 'connect' in springs
         if has_pairs == has_connect:
-            raise self.fail("springs", "give exactly one of 'pairs' or 'connect'")
+            raise self.fail('springs', "give exactly one of 'pairs' or 'connect'")
         if has_connect:
             if lattice is None:
-                raise self.fail("springs.connect", "needs particles.lattice")
-            kinds = springs["connect"]
+                raise self.fail('springs.connect', 'needs particles.lattice')
+            kinds = springs['connect']
             if isinstance(kinds, str):
                 kinds = [kinds]
             if not isinstance(kinds, (list, tuple)) or not kinds:
-                raise self.fail("springs.connect", f"must be a kind or a list of kinds, got "
-                                f"{short(kinds)}")
-            allowed = ("edges", "diagonals", "body_diagonals")
+                raise self.fail('springs.connect', f'must be a kind or a list of kinds, got '
+                                f'{short(kinds)}')
+            allowed = ('edges', 'diagonals', 'body_diagonals')
             for i, kind in enumerate(kinds):
                 if not isinstance(kind, str) or kind not in allowed:
-                    raise self.fail(f"springs.connect[{i}]",
+                    raise self.fail(f'springs.connect[{i}]',
                                     f"unknown {short(kind)} (one of {', '.join(allowed)})")
             return lattice_springs(lattice, kinds)
-        raw = springs["pairs"]
+        raw = springs['pairs']
         if not isinstance(raw, (list, tuple)) or not raw:
-            raise self.fail("springs.pairs", "must be a non-empty list of [i, j] pairs")
+            raise self.fail('springs.pairs', 'must be a non-empty list of [i, j] pairs')
         out = np.empty((len(raw), 2), dtype=np.int64)
         for e, pair in enumerate(raw):
             if (not isinstance(pair, (list, tuple)) or len(pair) != 2
                     or not all(isinstance(v, int) and not isinstance(v, bool) for v in pair)):
-                raise self.fail(f"springs.pairs[{e}]", f"must be two integers, got {pair!r}")
+                raise self.fail(f'springs.pairs[{e}]', f'must be two integers, got {pair!r}')
             for v in pair:
                 if not 0 <= v < n:
-                    raise self.fail(f"springs.pairs[{e}]",
-                                    f"particle index {v} out of range (0..{n - 1})")
+                    raise self.fail(f'springs.pairs[{e}]',
+                                    f'particle index {v} out of range (0..{n - 1})')
             if pair[0] == pair[1]:
-                raise self.fail(f"springs.pairs[{e}]",
-                                f"connects particle {pair[0]} to itself")
+                raise self.fail(f'springs.pairs[{e}]',
+                                f'connects particle {pair[0]} to itself')
             out[e] = sorted(pair)
         seen: dict[tuple[int, int], int] = {}
         for e, (i, j) in enumerate(out.tolist()):
             if (i, j) in seen:
-                raise self.fail(f"springs.pairs[{e}]",
-                                f"duplicate spring {i}-{j} (same as springs.pairs[{seen[i, j]}])")
+                raise self.fail(f'springs.pairs[{e}]',
+                                f'duplicate spring {i}-{j} (same as springs.pairs[{seen[i, j]}])')
             seen[i, j] = e
         return out
 
@@ -213,43 +216,43 @@ class _SceneParser(FieldReader):
         if short.size:
             e = int(short[0])
             i, j = pairs[e]
-            raise self.fail(f"springs.pairs[{e}]",
-                            f"zero-length spring: particles {i} and {j} are at the same position")
+            raise self.fail(f'springs.pairs[{e}]',
+                            f'zero-length spring: particles {i} and {j} are at the same position')
         return lengths
 
     def fixed(self, spec: Any, positions: np.ndarray) -> np.ndarray:
         n = positions.shape[0]
         if spec is None:
-            raise self.fail("fixed", "missing: at least one particle must be fixed, otherwise "
-                            "the stiffness has rigid-body zero modes")
-        spec = self.mapping(spec, "fixed")
+            raise self.fail('fixed', 'missing: at least one particle must be fixed, otherwise '
+                            'the stiffness has rigid-body zero modes')
+        spec = self.mapping(spec, 'fixed')
         fixed = np.zeros(n, dtype=bool)
-        if "indices" in spec:
-            idx = spec["indices"]
+        if 'indices' in spec:
+            idx = spec['indices']
             if not isinstance(idx, (list, tuple)):
-                raise self.fail("fixed.indices", "must be a list of particle indices")
+                raise self.fail('fixed.indices', 'must be a list of particle indices')
             for k, v in enumerate(idx):
                 if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < n:
-                    raise self.fail(f"fixed.indices[{k}]",
-                                    f"particle index {v!r} out of range (0..{n - 1})")
+                    raise self.fail(f'fixed.indices[{k}]',
+                                    f'particle index {v!r} out of range (0..{n - 1})')
                 fixed[v] = True
-        if "face" in spec:
-            face = spec["face"]
-            if not isinstance(face, str) or len(face) != 2 or face[0] not in "+-" \
+        if 'face' in spec:
+            face = spec['face']
+            if not isinstance(face, str) or len(face) != 2 or face[0] not in '+-' \
                     or face[1] not in AXES:
-                raise self.fail("fixed.face", f"must be one of +x -x +y -y +z -z, got {face!r}")
+                raise self.fail('fixed.face', f'must be one of +x -x +y -y +z -z, got {face!r}')
             coord = positions[:, AXES[face[1]]]
-            edge = coord.max() if face[0] == "+" else coord.min()
+            edge = coord.max() if face[0] == '+' else coord.min()
             tol = 1e-9 * max(1.0, float(np.ptp(positions)))
             fixed |= np.abs(coord - edge) <= tol
-        unknown = sorted(set(spec) - {"indices", "face"}, key=str)
+        unknown = sorted(set(spec) - {'indices', 'face'}, key=str)
         if unknown:
-            raise self.fail(f"fixed.{unknown[0]}", "unknown key (use 'indices' or 'face')")
+            raise self.fail(f'fixed.{unknown[0]}', "unknown key (use 'indices' or 'face')")
         if not fixed.any():
-            raise self.fail("fixed", "no particle is fixed: at least one must be, otherwise the "
-                            "stiffness has rigid-body zero modes")
+            raise self.fail('fixed', 'no particle is fixed: at least one must be, otherwise the '
+                            'stiffness has rigid-body zero modes')
         if fixed.all():
-            raise self.fail("fixed", "every particle is fixed: nothing can move")
+            raise self.fail('fixed', 'every particle is fixed: nothing can move')
         return fixed
 
     def check_size(self, particles: int, field: str) -> None:
@@ -257,87 +260,87 @@ class _SceneParser(FieldReader):
         need = particles * BYTES_PER_PARTICLE
         have = available_memory()
         if need > have:
-            raise self.fail(field, f"{particles:,} particles need about {need / 2**30:.3g} GiB "
-                            f"to build and run, and {have / 2**30:.3g} GiB are available")
+            raise self.fail(field, f'{particles:,} particles need about {need / 2**30:.3g} GiB '
+                            f'to build and run, and {have / 2**30:.3g} GiB are available')
 
     def check_connected(self, pairs: np.ndarray, n: int) -> None:
         degree = np.bincount(pairs.ravel(), minlength=n)
         lonely = np.flatnonzero(degree == 0)
         if lonely.size:
-            listed = ", ".join(str(i) for i in lonely[:10]) + (" ..." if lonely.size > 10 else "")
-            raise self.fail("springs", f"{lonely.size} particle(s) no spring reaches: {listed}")
+            listed = ', '.join(str(i) for i in lonely[:10]) + (' ...' if lonely.size > 10 else '')
+            raise self.fail('springs', f'{lonely.size} particle(s) no spring reaches: {listed}')
 
     def damping(self, spec: Any) -> Damping:
-        spec = self.mapping(spec or {}, "damping")
-        unknown = sorted(set(spec) - {"ratio", "rayleigh"}, key=str)
+        spec = self.mapping(spec or {}, 'damping')
+        unknown = sorted(set(spec) - {'ratio', 'rayleigh'}, key=str)
         if unknown:
-            raise self.fail(f"damping.{unknown[0]}", "unknown key (use 'ratio' or 'rayleigh')")
-        ratio = self.number(spec.get("ratio", 0.0), "damping.ratio", non_negative=True,
-                            limit=LIMITS["damping.ratio"])
-        ray = self.mapping(spec.get("rayleigh", {}) or {}, "damping.rayleigh")
-        alpha = self.number(ray.get("alpha", 0.0), "damping.rayleigh.alpha", non_negative=True,
-                            limit=LIMITS["damping.alpha"])
-        beta = self.number(ray.get("beta", 0.0), "damping.rayleigh.beta", non_negative=True,
-                           limit=LIMITS["damping.beta"])
+            raise self.fail(f'damping.{unknown[0]}', "unknown key (use 'ratio' or 'rayleigh')")
+        ratio = self.number(spec.get('ratio', 0.0), 'damping.ratio', non_negative=True,
+                            limit=LIMITS['damping.ratio'])
+        ray = self.mapping(spec.get('rayleigh', {}) or {}, 'damping.rayleigh')
+        alpha = self.number(ray.get('alpha', 0.0), 'damping.rayleigh.alpha', non_negative=True,
+                            limit=LIMITS['damping.alpha'])
+        beta = self.number(ray.get('beta', 0.0), 'damping.rayleigh.beta', non_negative=True,
+                           limit=LIMITS['damping.beta'])
         return Damping(ratio, alpha, beta)
 
     def anchor_motion(self, spec: Any, axes: tuple[int, ...]) -> AnchorMotion:
-        """Translation terms (``axis``) and rotation terms (``rotation``), in order."""
+        """Read translation terms (``axis``) and rotation terms (``rotation``), in order."""
         if spec is None:
             return AnchorMotion(())
         if not isinstance(spec, (list, tuple)):
-            raise self.fail("anchor_motion", "must be a list of sine components")
+            raise self.fail('anchor_motion', 'must be a list of sine components')
         moves, turns = [], []
         for k, item in enumerate(spec):
-            field = f"anchor_motion[{k}]"
+            field = f'anchor_motion[{k}]'
             item = self.mapping(item, field)
-            if "rotation" in item:
+            if 'rotation' in item:
                 turns.append(self.rotation(item, field, axes))
                 continue
             self.known_keys(item, field, _TRANSLATION_KEYS)
             moves.append(SineComponent(
-                axis=self.axis(item.get("axis"), f"{field}.axis", axes),
-                amplitude=self.number(item.get("amplitude"), f"{field}.amplitude",
-                                      limit=LIMITS["amplitude"]),
+                axis=self.axis(item.get('axis'), f'{field}.axis', axes),
+                amplitude=self.number(item.get('amplitude'), f'{field}.amplitude',
+                                      limit=LIMITS['amplitude']),
                 **self.sine_timing(item, field)))
         return AnchorMotion(tuple(moves), tuple(turns))
 
     def rotation(self, item: Mapping[str, Any], field: str, axes: tuple[int, ...]
                  ) -> RotationComponent:
-        """A turn about an axis through a pivot; a 2D scene turns only about its normal."""
+        """Return a turn about an axis through a pivot; a 2D scene turns only about its normal."""
         self.known_keys(item, field, _ROTATION_KEYS)
         if len(axes) == 1:
-            raise self.fail(f"{field}.rotation", "a 1D scene cannot turn (it moves along "
+            raise self.fail(f'{field}.rotation', 'a 1D scene cannot turn (it moves along '
                             f"{'xyz'[axes[0]]} only)")
         normal = tuple(a for a in range(3) if a not in axes) if len(axes) == 2 else (0, 1, 2)
-        value = item["rotation"]
+        value = item['rotation']
         if not isinstance(value, str) or value not in AXES:
-            raise self.fail(f"{field}.rotation", f"must be one of x, y, z, got {short(value)}")
+            raise self.fail(f'{field}.rotation', f'must be one of x, y, z, got {short(value)}')
         if AXES[value] not in normal:
-            raise self.fail(f"{field}.rotation", f"a turn about {value} leaves the "
+            raise self.fail(f'{field}.rotation', f'a turn about {value} leaves the '
                             f"{''.join('xyz'[a] for a in axes)} plane of this 2D scene: turn "
                             f"about {'xyz'[normal[0]]}")
-        if "pivot" not in item:
-            raise self.fail(f"{field}.pivot", "missing: the point the axis goes through, "
-                            "[x, y, z]")
-        pivot = self.vector3(item["pivot"], f"{field}.pivot", LIMITS["position"])
-        degrees = self.number(self.required(item, "amplitude_deg", field),
-                              f"{field}.amplitude_deg", limit=LIMITS["amplitude_deg"])
+        if 'pivot' not in item:
+            raise self.fail(f'{field}.pivot', 'missing: the point the axis goes through, '
+                            '[x, y, z]')
+        pivot = self.vector3(item['pivot'], f'{field}.pivot', LIMITS['position'])
+        degrees = self.number(self.required(item, 'amplitude_deg', field),
+                              f'{field}.amplitude_deg', limit=LIMITS['amplitude_deg'])
         return RotationComponent(axis=AXES[value], amplitude=math.radians(degrees),
                                  pivot=tuple(float(p) for p in pivot),
                                  **self.sine_timing(item, field))
 
     def sine_timing(self, item: Mapping[str, Any], field: str) -> dict[str, float]:
-        """A sine term's frequency, phase and ramp."""
+        """Return a sine term's frequency, phase and ramp."""
         return {
-            "frequency_hz": self.number(item.get("frequency_hz"), f"{field}.frequency_hz",
-                                        non_negative=True, limit=LIMITS["frequency_hz"]),
-            "phase": self.number(item.get("phase", 0.0), f"{field}.phase",
-                                 limit=LIMITS["phase"]),
-            "ramp_s": self.number(item.get("ramp_s", 0.0), f"{field}.ramp_s",
-                                  non_negative=True, limit=LIMITS["ramp_s"]),
+            'frequency_hz': self.number(item.get('frequency_hz'), f'{field}.frequency_hz',
+                                        non_negative=True, limit=LIMITS['frequency_hz']),
+            'phase': self.number(item.get('phase', 0.0), f'{field}.phase',
+                                 limit=LIMITS['phase']),
+            'ramp_s': self.number(item.get('ramp_s', 0.0), f'{field}.ramp_s',
+                                  non_negative=True, limit=LIMITS['ramp_s']),
         }
 
 
-_TRANSLATION_KEYS = ("axis", "amplitude", "frequency_hz", "phase", "ramp_s")
-_ROTATION_KEYS = ("rotation", "amplitude_deg", "frequency_hz", "phase", "ramp_s", "pivot")
+_TRANSLATION_KEYS = ('axis', 'amplitude', 'frequency_hz', 'phase', 'ramp_s')
+_ROTATION_KEYS = ('rotation', 'amplitude_deg', 'frequency_hz', 'phase', 'ramp_s', 'pivot')

@@ -1,4 +1,5 @@
-"""Reading a scene's YAML within bounds, so that no file can hang or exhaust the loader.
+"""
+Reading a scene's YAML within bounds, so that no file can hang or exhaust the loader.
 
 A scene file is read only if it is a regular file, and at most :data:`MAX_BYTES` of it (so
 ``/dev/zero``, a FIFO with no writer or a huge file are refused at once). Before anything is
@@ -10,13 +11,12 @@ one line with the line and column.
 from __future__ import annotations
 
 import os
-import stat
 from pathlib import Path
+import stat
 from typing import Any
 
-import yaml
-
 from modal_spring_ros.core.scene import SceneError
+import yaml
 
 #: Largest scene file read, bytes (explicit positions of 100k particles take about 3 MB).
 MAX_BYTES = 16 * 1024 * 1024
@@ -27,60 +27,64 @@ MAX_NODES = 5_000_000
 
 
 def read_scene_text(path: Path) -> str:
-    """The text of a scene file: a regular file of at most :data:`MAX_BYTES`, UTF-8.
+    """
+    Return the text of a scene file: a regular file of at most :data:`MAX_BYTES`, UTF-8.
 
-    Raises:
-        SceneError: not a regular file, too large, unreadable or not UTF-8.
+    :raises SceneError: not a regular file, too large, unreadable or not UTF-8.
     """
     try:
         info = os.stat(path)
     except OSError as exc:
-        raise SceneError(f"{path}: cannot read scene file: {exc.strerror or exc}") from None
+        raise SceneError(f'{path}: cannot read scene file: {exc.strerror or exc}') from None
     if not stat.S_ISREG(info.st_mode):
-        kind = "a folder" if stat.S_ISDIR(info.st_mode) else "not a regular file"
-        raise SceneError(f"{path}: cannot read scene file: {kind}")
+        kind = 'a folder' if stat.S_ISDIR(info.st_mode) else 'not a regular file'
+        raise SceneError(f'{path}: cannot read scene file: {kind}')
     if info.st_size > MAX_BYTES:
-        raise SceneError(f"{path}: scene file of {info.st_size} bytes is larger than the "
-                         f"{MAX_BYTES // (1024 * 1024)} MiB a scene may have")
+        raise SceneError(f'{path}: scene file of {info.st_size} bytes is larger than the '
+                         f'{MAX_BYTES // (1024 * 1024)} MiB a scene may have')
     try:
-        with open(path, "rb") as fh:
+        with open(path, 'rb') as fh:
             raw = fh.read(MAX_BYTES + 1)
     except OSError as exc:
-        raise SceneError(f"{path}: cannot read scene file: {exc.strerror or exc}") from None
+        raise SceneError(f'{path}: cannot read scene file: {exc.strerror or exc}') from None
     if len(raw) > MAX_BYTES:  # grew while being read
-        raise SceneError(f"{path}: scene file larger than the "
-                         f"{MAX_BYTES // (1024 * 1024)} MiB a scene may have")
+        raise SceneError(f'{path}: scene file larger than the '
+                         f'{MAX_BYTES // (1024 * 1024)} MiB a scene may have')
     try:
-        return raw.decode("utf-8")
+        return raw.decode('utf-8')
     except UnicodeDecodeError as exc:
-        raise SceneError(f"{path}: scene file is not UTF-8 text (byte {exc.start})") from None
+        raise SceneError(f'{path}: scene file is not UTF-8 text (byte {exc.start})') from None
 
 
 def load_yaml(text: str, source: str) -> Any:
-    """``yaml.safe_load`` of ``text`` once its structure is within bounds.
+    """
+    ``yaml.safe_load`` of ``text`` once its structure is within bounds.
 
-    Raises:
-        SceneError: too large, nested too deep, aliases expanding too far, or invalid YAML
-            (one line, with line and column).
+    :raises SceneError: too large, nested too deep, aliases expanding too far, or invalid YAML
+        (one line, with line and column).
     """
     if len(text) > MAX_BYTES:
-        raise SceneError(f"{source}: scene text larger than the "
-                         f"{MAX_BYTES // (1024 * 1024)} MiB a scene may have")
+        raise SceneError(f'{source}: scene text larger than the '
+                         f'{MAX_BYTES // (1024 * 1024)} MiB a scene may have')
     try:
         _check_structure(text, source)
         return yaml.safe_load(text)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = " ".join(str(exc.problem or exc.context or "syntax error").split())
-        raise SceneError(f"{source}: invalid YAML{where}: {problem}") from None
+        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
+        problem = ' '.join(str(exc.problem or exc.context or 'syntax error').split())
+        raise SceneError(f'{source}: invalid YAML{where}: {problem}') from None
     except yaml.YAMLError as exc:
         raise SceneError(f"{source}: invalid YAML: {' '.join(str(exc).split())}") from None
 
 
 def _check_structure(text: str, source: str) -> None:
-    """One pass over the events: depth, and the size every node expands to (an alias counts
-    the size of what it names, so nested aliases multiply as they would when built)."""
+    """
+    One pass over the events.
+
+    Depth, and the size every node expands to (an alias counts the size of what it names, so nested
+    aliases multiply as they would when built).
+    """
     sizes: dict[str, int] = {}        # anchor -> expanded size of its node
     open_nodes: list[list] = []       # per open collection: [anchor, size so far]
     total = 0
@@ -94,8 +98,8 @@ def _check_structure(text: str, source: str) -> None:
         elif isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
             open_nodes.append([event.anchor, 1])
             if len(open_nodes) > MAX_DEPTH:
-                raise SceneError(f"{source}: nested deeper than {MAX_DEPTH} levels (a scene "
-                                 "needs 4)")
+                raise SceneError(f'{source}: nested deeper than {MAX_DEPTH} levels (a scene '
+                                 'needs 4)')
             continue
         elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
             anchor, size = open_nodes.pop()
@@ -108,5 +112,5 @@ def _check_structure(text: str, source: str) -> None:
         else:
             total += size
         if total + sum(n[1] for n in open_nodes[-1:]) > MAX_NODES or size > MAX_NODES:
-            raise SceneError(f"{source}: aliases expand to more than {MAX_NODES:,} values "
-                             "(a scene needs a few per particle)")
+            raise SceneError(f'{source}: aliases expand to more than {MAX_NODES:,} values '
+                             '(a scene needs a few per particle)')

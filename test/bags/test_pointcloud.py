@@ -1,29 +1,28 @@
 """The published cloud's layout and values, and the particle positions it is built from."""
 from __future__ import annotations
 
-import numpy as np
-import pytest
-from std_msgs.msg import Header
-
 from modal_spring_ros.bags.pointcloud import (distance_from_rest, from_pointcloud2, to_pointcloud2,
                                               xyz)
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
+from std_msgs.msg import Header
 
 
 def test_cloud_layout_and_values_round_trip():
     rng = np.random.default_rng(3)
     rest = rng.normal(size=(50, 3))
     positions = rest + rng.normal(scale=0.01, size=(50, 3))
-    msg = to_pointcloud2(positions, rest, Header(frame_id="world"))
+    msg = to_pointcloud2(positions, rest, Header(frame_id='world'))
     assert (msg.height, msg.width, msg.point_step, msg.row_step) == (1, 50, 16, 800)
     assert [(f.name, f.offset, f.datatype, f.count) for f in msg.fields] == [
-        ("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1), ("displacement", 12, 7, 1)]
+        ('x', 0, 7, 1), ('y', 4, 7, 1), ('z', 8, 7, 1), ('displacement', 12, 7, 1)]
     assert msg.is_dense and not msg.is_bigendian and len(msg.data) == 800
     cloud = from_pointcloud2(msg)
     np.testing.assert_array_equal(xyz(msg), positions.astype(np.float32).astype(np.float64))
     expected = np.array([np.sqrt(sum((p - r) ** 2)) for p, r in zip(positions, rest)])
-    np.testing.assert_allclose(cloud["displacement"], expected, rtol=1e-6)
+    np.testing.assert_allclose(cloud['displacement'], expected, rtol=1e-6)
 
 
 def test_distance_from_rest_is_the_euclidean_distance():
@@ -33,9 +32,9 @@ def test_distance_from_rest_is_the_euclidean_distance():
                                rtol=1e-15)
 
 
-@pytest.mark.parametrize("change, message", [
-    (lambda m: m.fields.reverse(), "unexpected PointCloud2 layout"),
-    (lambda m: setattr(m, "is_bigendian", True), "big-endian"),
+@pytest.mark.parametrize('change, message', [
+    (lambda m: m.fields.reverse(), 'unexpected PointCloud2 layout'),
+    (lambda m: setattr(m, 'is_bigendian', True), 'big-endian'),
 ])
 def test_other_layouts_are_refused_by_name(change, message):
     msg = to_pointcloud2(np.ones((2, 3)), np.zeros((2, 3)), Header())
@@ -46,7 +45,7 @@ def test_other_layouts_are_refused_by_name(change, message):
 
 
 def test_positions_put_each_free_particle_at_rest_plus_base_plus_displacement():
-    model = MassSpringModel(load_scene("sheet_10x10"))
+    model = MassSpringModel(load_scene('sheet_10x10'))
     d = model.dimension
     u = np.arange(model.n_free_dof, dtype=float) * 1e-4
     t = 0.37

@@ -4,98 +4,97 @@ from __future__ import annotations
 import subprocess
 import sys
 
-import numpy as np
-import pytest
-
 from modal_spring_ros.cli.modal_spring_sim import main
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
 
 
 def test_run_writes_every_documented_field(tmp_path, capsys):
-    out = tmp_path / "run.npz"
-    assert main(["--modes", "0:14", "--duration", "0.1", "--output", str(out), "--quiet"]) == 0
+    out = tmp_path / 'run.npz'
+    assert main(['--modes', '0:14', '--duration', '0.1', '--output', str(out), '--quiet']) == 0
     text = capsys.readouterr().out
-    assert "15 stepped of 180 computed" in text and "lowpass modes <= 14" in text
+    assert '15 stepped of 180 computed' in text and 'lowpass modes <= 14' in text
     run = np.load(out)
-    scene = load_scene("sheet_10x10")
-    assert run["t"].shape == (201,) and run["t"][-1] == pytest.approx(0.1)
-    assert run["positions"].shape == (201, 100, 3) and run["positions"].dtype == np.float64
-    np.testing.assert_array_equal(run["rest_positions"], scene.rest_positions)
-    np.testing.assert_array_equal(run["springs"], scene.springs)
-    for key in ("stiffness", "rest_length", "mass", "fixed", "gravity"):
+    scene = load_scene('sheet_10x10')
+    assert run['t'].shape == (201,) and run['t'][-1] == pytest.approx(0.1)
+    assert run['positions'].shape == (201, 100, 3) and run['positions'].dtype == np.float64
+    np.testing.assert_array_equal(run['rest_positions'], scene.rest_positions)
+    np.testing.assert_array_equal(run['springs'], scene.springs)
+    for key in ('stiffness', 'rest_length', 'mass', 'fixed', 'gravity'):
         np.testing.assert_array_equal(run[key], getattr(scene, key))
-    assert float(run["damping_ratio"]) == 0.02
-    assert float(run["rayleigh_alpha"]) == 0.0 and float(run["rayleigh_beta"]) == 0.0
-    assert run["frequencies_hz"].shape == (180,) and np.all(np.diff(run["frequencies_hz"]) >= 0)
-    assert run["kept_modes"].tolist() == list(range(15))
-    assert float(run["dt"]) == 5e-4
-    assert np.isfinite(run["positions"]).all()
-    np.testing.assert_array_equal(run["positions"][0], scene.rest_positions)
+    assert float(run['damping_ratio']) == 0.02
+    assert float(run['rayleigh_alpha']) == 0.0 and float(run['rayleigh_beta']) == 0.0
+    assert run['frequencies_hz'].shape == (180,) and np.all(np.diff(run['frequencies_hz']) >= 0)
+    assert run['kept_modes'].tolist() == list(range(15))
+    assert float(run['dt']) == 5e-4
+    assert np.isfinite(run['positions']).all()
+    np.testing.assert_array_equal(run['positions'][0], scene.rest_positions)
 
 
 def test_same_options_give_bit_identical_runs(tmp_path):
-    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    a, b = tmp_path / 'a.npz', tmp_path / 'b.npz'
     for out in (a, b):
-        main(["--filter", "bandpass", "--low-hz", "8", "--high-hz", "40", "--duration", "0.2",
-              "--output", str(out), "--quiet"])
-    assert np.array_equal(np.load(a)["positions"], np.load(b)["positions"])
+        main(['--filter', 'bandpass', '--low-hz', '8', '--high-hz', '40', '--duration', '0.2',
+              '--output', str(out), '--quiet'])
+    assert np.array_equal(np.load(a)['positions'], np.load(b)['positions'])
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--filter", "bandpass", "--low-hz", "5", "--high-hz", "2"],
-     "--low-hz (5) must be below --high-hz (2) for bandpass"),
-    (["--filter", "lowpass"], "--filter lowpass needs --high-hz"),
-    (["--filter", "lowpass", "--high-hz", "1"], "keeps no mode"),
-    (["--modes", "9:3"], "--modes '9:3': need 0 <= FIRST <= LAST"),
-    (["--scene", "no_such_scene"], "unknown scene 'no_such_scene'"),
-    (["--dt", "0.01", "--method", "full"], "explicit stability limit"),
-    (["--dt", "-1"], "--dt (-1.0) must be a finite number of seconds, at least 1e-08 s"),
-    (["--output", "/nonexistent/dir/run.npz"], "folder /nonexistent/dir does not exist"),
+@pytest.mark.parametrize('argv, message', [
+    (['--filter', 'bandpass', '--low-hz', '5', '--high-hz', '2'],
+     '--low-hz (5) must be below --high-hz (2) for bandpass'),
+    (['--filter', 'lowpass'], '--filter lowpass needs --high-hz'),
+    (['--filter', 'lowpass', '--high-hz', '1'], 'keeps no mode'),
+    (['--modes', '9:3'], "--modes '9:3': need 0 <= FIRST <= LAST"),
+    (['--scene', 'no_such_scene'], "unknown scene 'no_such_scene'"),
+    (['--dt', '0.01', '--method', 'full'], 'explicit stability limit'),
+    (['--dt', '-1'], '--dt (-1.0) must be a finite number of seconds, at least 1e-08 s'),
+    (['--output', '/nonexistent/dir/run.npz'], 'folder /nonexistent/dir does not exist'),
 ])
 def test_bad_options_exit_2_with_a_clear_message(argv, message, capsys):
     with pytest.raises(SystemExit) as exc:
-        main(argv + ["--duration", "0.01", "--quiet"])
+        main(argv + ['--duration', '0.01', '--quiet'])
     assert exc.value.code == 2
     err = capsys.readouterr().err
-    assert err.startswith("modal_spring_sim: error: ") and message in err
-    assert "Traceback" not in err
+    assert err.startswith('modal_spring_sim: error: ') and message in err
+    assert 'Traceback' not in err
 
 
 def test_divergence_is_reported_with_exit_1(tmp_path, capsys):
-    out = tmp_path / "div.npz"
-    code = main(["--method", "full", "--dt", "0.003", "--allow-unstable", "--duration", "2",
-                 "--output", str(out), "--quiet"])
+    out = tmp_path / 'div.npz'
+    code = main(['--method', 'full', '--dt', '0.003', '--allow-unstable', '--duration', '2',
+                 '--output', str(out), '--quiet'])
     assert code == 1
-    assert "DIVERGED" in capsys.readouterr().out
+    assert 'DIVERGED' in capsys.readouterr().out
     run = np.load(out)
-    assert "strain" in str(run["diverged"]) and np.isfinite(run["positions"]).all()
+    assert 'strain' in str(run['diverged']) and np.isfinite(run['positions']).all()
 
 
 def test_console_script_runs_as_a_user_would(tmp_path):
-    out = tmp_path / "cli.npz"
-    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_sim",
-                           "--scene",
-                           "chain_2", "--duration", "0.5", "--output", str(out)],
+    out = tmp_path / 'cli.npz'
+    proc = subprocess.run([sys.executable, '-m', 'modal_spring_ros.cli.modal_spring_sim',
+                           '--scene',
+                           'chain_2', '--duration', '0.5', '--output', str(out)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
-    assert "chain_2" in proc.stdout and out.exists()
+    assert 'chain_2' in proc.stdout and out.exists()
 
 
 def test_auto_option_reports_its_choice(capsys):
-    assert main(["--auto", "--tolerance", "0.05", "--duration", "0.05", "--quiet"]) == 0
+    assert main(['--auto', '--tolerance', '0.05', '--duration', '0.05', '--quiet']) == 0
     out = capsys.readouterr().out
-    assert "auto       5 modes up to 20.44 Hz, predicted error 3.26%" in out
+    assert 'auto       5 modes up to 20.44 Hz, predicted error 3.26%' in out
     with pytest.raises(SystemExit):
-        main(["--auto", "--method", "full", "--duration", "0.01", "--quiet"])
-    assert "--auto chooses modes" in capsys.readouterr().err
+        main(['--auto', '--method', 'full', '--duration', '0.01', '--quiet'])
+    assert '--auto chooses modes' in capsys.readouterr().err
 
 
 def test_progress_comes_at_whole_percents_and_no_more_often_than_asked():
-    model = MassSpringModel(load_scene("chain_2"))
+    model = MassSpringModel(load_scene('chain_2'))
     basis = ModalBasis(model)
 
     def run(**kw):
@@ -109,9 +108,9 @@ def test_progress_comes_at_whole_percents_and_no_more_often_than_asked():
 
 
 def test_a_short_run_prints_no_progress_lines(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "modal_spring_ros.cli.modal_spring_sim",
-                           "--scene",
-                           "chain_2", "--duration", "0.05", "--output", str(tmp_path / "o.npz")],
+    proc = subprocess.run([sys.executable, '-m', 'modal_spring_ros.cli.modal_spring_sim',
+                           '--scene',
+                           'chain_2', '--duration', '0.05', '--output', str(tmp_path / 'o.npz')],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
-    assert "%" not in proc.stderr
+    assert '%' not in proc.stderr

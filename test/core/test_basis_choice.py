@@ -1,10 +1,12 @@
-"""modal.auto's choice of basis: rest modes while the motion stays small, their derivatives
-beyond, by the predicted second-order error, checked against the full run."""
+"""
+modal.auto's choice of basis.
+
+Rest modes while the motion stays small, their derivatives beyond, by the predicted second-order
+error, checked against the full run.
+"""
 from __future__ import annotations
 
 import math
-
-import numpy as np
 
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.basis_choice import choose_basis
@@ -15,6 +17,7 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
 
 BUDGET = 0.007   # the share of a 1 % tolerance the mode choice gives each error
 
@@ -35,31 +38,35 @@ def error_over_run(sim, duration: float, substeps: int = 1) -> float:
 
 def test_the_predicted_error_of_rest_modes_matches_the_measured_one():
     """The paper's failure: 15 rest modes on the resonance scene, measured over 6 s."""
-    model = MassSpringModel(load_scene("sheet_10x10_resonance"))
+    model = MassSpringModel(load_scene('sheet_10x10_resonance'))
     basis = ModalBasis(model)
     keep = np.arange(15)
     choice = choose_basis(model, basis, keep, BUDGET, lambda k: added_coordinates(basis, k))
-    rest = ModalSimulation(model, basis, FilterBand("lowpass", 0, 14, "index"), dt=5e-4)
+    rest = ModalSimulation(model, basis, FilterBand('lowpass', 0, 14, 'index'), dt=5e-4)
     measured = error_over_run(rest, 6.0)
-    assert choice.kind == "derivatives" and not choice.small
-    assert 0.5 < choice.predicted["rest"] / measured < 2.0, (choice.predicted, measured)
-    assert choice.predicted["derivatives"] < 0.1 * choice.predicted["rest"]
+    assert choice.kind == 'derivatives' and not choice.small
+    assert 0.5 < choice.predicted['rest'] / measured < 2.0, (choice.predicted, measured)
+    assert choice.predicted['derivatives'] < 0.1 * choice.predicted['rest']
     assert 20 < choice.amplification < 30           # driven at resonance, h = 0.02: 1 / 2h
 
 
 def test_small_deformation_keeps_the_cheaper_rest_modes():
-    for name in ("sheet_10x10", "sheet_10x10_swing"):
+    for name in ('sheet_10x10', 'sheet_10x10_swing'):
         sim = build_simulation(load_scene(name), SimulationConfig(auto=True))
         choice = sim.mode_choice.basis
-        assert choice.kind == "rest" and choice.small, (name, choice)
-        assert set(choice.predicted) == {"rest"}      # no derivative was computed
-        assert sim.basis_kind == "rest" and sim.coordinates == sim.modes
+        assert choice.kind == 'rest' and choice.small, (name, choice)
+        assert set(choice.predicted) == {'rest'}      # no derivative was computed
+        assert sim.basis_kind == 'rest' and sim.coordinates == sim.modes
 
 
 def test_auto_on_the_failure_scene_meets_its_tolerance():
-    """The automatic choice takes the derivatives basis and evaluates the springs on every
-    step (a tangent continued from the rest shape does not hold there)."""
-    sim = build_simulation(load_scene("sheet_10x10_resonance"), SimulationConfig(auto=True))
-    assert sim.basis_kind == "derivatives" and sim.force_refresh == 1
-    assert "derivatives basis" in sim.status().mode_choice
+    """
+    The automatic choice takes the derivatives basis and exact springs.
+
+    The automatic choice takes the derivatives basis and evaluates the springs on every step (a
+    tangent continued from the rest shape does not hold there).
+    """
+    sim = build_simulation(load_scene('sheet_10x10_resonance'), SimulationConfig(auto=True))
+    assert sim.basis_kind == 'derivatives' and sim.force_refresh == 1
+    assert 'derivatives basis' in sim.status().mode_choice
     assert error_over_run(sim, 6.0, substeps=4) < 0.01

@@ -4,9 +4,8 @@ from __future__ import annotations
 import math
 import pickle
 
-import numpy as np
-
 from modal_spring_ros.core.clamp_follower import ClampFollower
+import numpy as np
 
 Q0 = np.array([0.0, 0.0, 0.0, 1.0])
 
@@ -43,9 +42,9 @@ def test_a_new_pose_changes_nothing_at_the_instant_it_comes():
     before = follower.frame(0.37)
     follower.follow(0.37, [-0.1, 0.0, 0.02], turn_z(-0.2))
     after = follower.frame(0.37)
-    for name in ("rotation", "translation"):
+    for name in ('rotation', 'translation'):
         np.testing.assert_allclose(getattr(after, name), getattr(before, name), atol=1e-12)
-    for name in ("rotation_rate", "velocity"):    # rates of the turn by central differences
+    for name in ('rotation_rate', 'velocity'):    # rates of the turn by central differences
         np.testing.assert_allclose(getattr(after, name), getattr(before, name), atol=1e-4)
     h = 1e-5                                     # the rates are the derivatives of the motion
     for t in (0.4, 0.6):
@@ -58,10 +57,10 @@ def test_a_new_pose_changes_nothing_at_the_instant_it_comes():
 def test_bad_poses_are_named_and_a_2d_scene_follows_only_its_plane():
     follower = ClampFollower(5.0, (0, 1))
     follower.follow(0.0, [0.0, 0.0, 0.0], Q0)
-    assert follower.check([math.nan, 0, 0], Q0, 1.0) == "non-finite position or orientation"
-    assert follower.check([0, 0, 0], 2 * Q0, 1.0).startswith("orientation is not a unit "
-                                                             "quaternion (norm 2")
-    assert follower.check([3.0, 0, 0], Q0, 1.0).startswith("position jumps 3 m")
+    assert follower.check([math.nan, 0, 0], Q0, 1.0) == 'non-finite position or orientation'
+    assert follower.check([0, 0, 0], 2 * Q0, 1.0).startswith('orientation is not a unit '
+                                                             'quaternion (norm 2')
+    assert follower.check([3.0, 0, 0], Q0, 1.0).startswith('position jumps 3 m')
     assert follower.check([0.5, 0, 0], Q0, 1.0) is None
     tilt = np.array([math.sin(0.2), 0.0, 0.0, math.cos(0.2)])   # about x: out of the plane
     follower.follow(0.0, [0.0, 0.0, 0.3], tilt)

@@ -1,15 +1,14 @@
-"""Modal derivatives with static load vectors: right beyond small deformation.
+"""
+Modal derivatives with static load vectors: right beyond small deformation.
 
 Each figure is measured against the full nonlinear run in the test itself (relative L2 error
-of the displacement from the moving base), on the scenes where rest modes fail."""
+of the displacement from the moving base), on the scenes where rest modes fail.
+"""
 from __future__ import annotations
 
 import math
 
-import numpy as np
-import pytest
 from helpers import max_step_motion, power_above
-
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.derivatives import (added_coordinates, static_load_vectors,
                                                tangent_derivative)
@@ -19,21 +18,27 @@ from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
 from modal_spring_ros.core.worker import WorkerProcess
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
 
-LOWPASS_0_14 = FilterBand("lowpass", 0, 14, "index")
+LOWPASS_0_14 = FilterBand('lowpass', 0, 14, 'index')
 WINDOW_S = 0.25
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def resonance():
-    model = MassSpringModel(load_scene("sheet_10x10_resonance"))
+    model = MassSpringModel(load_scene('sheet_10x10_resonance'))
     return model, ModalBasis(model)
 
 
 def errors_against_full(model, basis, sims: dict, duration: float, dt: float,
                         full_dt: float | None = None) -> dict:
-    """Per simulation: (largest windowed error, error over the run) against the full run
-    (stepped at ``full_dt``, a whole fraction of ``dt``, when that is smaller)."""
+    """
+    Per simulation.
+
+    (largest windowed error, error over the run) against the full run (stepped at ``full_dt``, a
+    whole fraction of ``dt``, when that is smaller).
+    """
     substeps = int(round(dt / full_dt)) if full_dt else 1
     full = FullSimulation(model, basis, dt=dt / substeps)
     window = int(round(WINDOW_S / dt))
@@ -91,27 +96,27 @@ def test_the_resonance_scene_stays_right_where_rest_modes_drift(resonance):
     """The paper's fig. 10 failure: rest modes 0..14 drift to 46 % error in a window."""
     model, basis = resonance
     sims = {kind: ModalSimulation(model, basis, LOWPASS_0_14, dt=5e-4, basis_kind=kind)
-            for kind in ("rest", "derivatives")}
+            for kind in ('rest', 'derivatives')}
     errors = errors_against_full(model, basis, sims, 6.0, 5e-4)
-    worst, overall = errors["derivatives"]
+    worst, overall = errors['derivatives']
     assert worst < 0.02 and overall < 0.01, errors
-    assert errors["rest"][0] > 0.3 and errors["rest"][1] > 0.2, errors
+    assert errors['rest'][0] > 0.3 and errors['rest'][1] > 0.2, errors
 
 
 def test_small_deformation_gets_more_accurate_too():
-    model = MassSpringModel(load_scene("sheet_10x10"))
+    model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
     sims = {kind: ModalSimulation(model, basis, LOWPASS_0_14, dt=5e-4, basis_kind=kind)
-            for kind in ("rest", "derivatives")}
+            for kind in ('rest', 'derivatives')}
     errors = errors_against_full(model, basis, sims, 5.0, 5e-4)
-    assert errors["derivatives"][1] < 0.003, errors
-    assert errors["rest"][1] > 3 * errors["derivatives"][1], errors
+    assert errors['derivatives'][1] < 0.003, errors
+    assert errors['rest'][1] > 3 * errors['derivatives'][1], errors
 
 
 def test_a_band_pass_puts_nothing_back_into_the_modes_it_removes(resonance):
     model, basis = resonance
-    sim = ModalSimulation(model, basis, FilterBand("bandpass", 2, 48, "index"), dt=5e-4,
-                          basis_kind="derivatives")
+    sim = ModalSimulation(model, basis, FilterBand('bandpass', 2, 48, 'index'), dt=5e-4,
+                          basis_kind='derivatives')
     removed = basis.vectors[:, :2]
     mass = model.mass_dof
     inside = total = 0.0
@@ -126,20 +131,20 @@ def test_a_band_pass_puts_nothing_back_into_the_modes_it_removes(resonance):
 
 @pytest.mark.slow
 def test_the_32x32_resonance_scene_stays_within_one_and_a_half_percent():
-    model = MassSpringModel(load_scene("sheet_32x32_resonance"))
+    model = MassSpringModel(load_scene('sheet_32x32_resonance'))
     basis = ModalBasis(model)
     full_dt = 0.5 * 2.0 / basis.omega_max_estimate()     # the full run's half limit
     sim = ModalSimulation(model, basis, LOWPASS_0_14, dt=2 * full_dt,
-                          basis_kind="derivatives")
-    (_, overall), = errors_against_full(model, basis, {"d": sim}, 6.0, 2 * full_dt,
+                          basis_kind='derivatives')
+    (_, overall), = errors_against_full(model, basis, {'d': sim}, 6.0, 2 * full_dt,
                                         full_dt).values()
     assert overall < 0.015
 
 
 def test_a_large_scene_computes_the_same_coordinates_in_the_worker():
-    model = MassSpringModel(load_scene("sheet_10x10_resonance"))
+    model = MassSpringModel(load_scene('sheet_10x10_resonance'))
     dense = added_coordinates(ModalBasis(model), np.arange(15))
-    with WorkerProcess("test_derivatives") as worker:
+    with WorkerProcess('test_derivatives') as worker:
         sparse_basis = ModalBasis(model, dense_limit=0, worker=worker, initial_modes=32)
         sparse = added_coordinates(sparse_basis, np.arange(15))
     assert sparse.count == dense.count
@@ -150,16 +155,16 @@ def test_a_large_scene_computes_the_same_coordinates_in_the_worker():
 
 
 def test_a_band_change_fades_the_added_coordinates_without_a_jump():
-    model = MassSpringModel(load_scene("sheet_10x10"))
+    model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
-    sim = ModalSimulation(model, basis, FilterBand("lowpass", 0, 20, "index"), dt=5e-4,
-                          basis_kind="derivatives")
+    sim = ModalSimulation(model, basis, FilterBand('lowpass', 0, 20, 'index'), dt=5e-4,
+                          basis_kind='derivatives')
     sim.step(4000)                                         # 2 s: swaying steadily
 
     ordinary = max_step_motion(sim, 2000)
     first = set(sim.stepped_modes.tolist())
-    for band in (FilterBand("lowpass", high=14, by="index"),
-                 FilterBand("bandpass", 2, 30, by="index"), FilterBand("lowpass", 0, 20, "index")):
+    for band in (FilterBand('lowpass', high=14, by='index'),
+                 FilterBand('bandpass', 2, 30, by='index'), FilterBand('lowpass', 0, 20, 'index')):
         sim.set_band(band)
         assert sim.fading
         assert max_step_motion(sim, 2700) <= ordinary           # the fade and what follows it
@@ -169,9 +174,13 @@ def test_a_band_change_fades_the_added_coordinates_without_a_jump():
 
 
 def test_static_loads_outside_the_band_are_left_out():
-    """sheet_10x10 sways at 0.7 Hz in x and shakes at 8 Hz in y: a low-pass below 8 Hz adds
-    the static response to gravity and the sway, not to the shake (it would move at 8 Hz)."""
-    model = MassSpringModel(load_scene("sheet_10x10"))
+    """
+    sheet_10x10 sways at 0.7 Hz in x and shakes at 8 Hz in y.
+
+    A low-pass below 8 Hz adds the static response to gravity and the sway, not to the shake (it
+    would move at 8 Hz).
+    """
+    model = MassSpringModel(load_scene('sheet_10x10'))
     mass, d = model.mass_dof, model.dimension
     every = static_load_vectors(model)
     assert every.shape[1] == 3
@@ -185,30 +194,38 @@ def test_static_loads_outside_the_band_are_left_out():
 
 
 def test_a_low_pass_with_derivatives_does_not_pass_a_load_above_it():
-    """sheet_10x10 shakes at 8 Hz in y: a low-pass below it (mode 0, 4.7 Hz) must not let the
-    added coordinates carry that shake, although they overlap its load."""
-    model = MassSpringModel(load_scene("sheet_10x10"))
+    """
+    sheet_10x10 shakes at 8 Hz in y.
+
+    A low-pass below it (mode 0, 4.7 Hz) must not let the added coordinates carry that shake,
+    although they overlap its load.
+    """
+    model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
     shake = {}
-    for kind in ("rest", "derivatives", "every mode"):
-        band = FilterBand() if kind == "every mode" else FilterBand("lowpass", 0, 7.0)
+    for kind in ('rest', 'derivatives', 'every mode'):
+        band = FilterBand() if kind == 'every mode' else FilterBand('lowpass', 0, 7.0)
         sim = ModalSimulation(model, basis, band, dt=5e-4,
-                              basis_kind="rest" if kind == "rest" else "derivatives")
+                              basis_kind='rest' if kind == 'rest' else 'derivatives')
         sim.step(2000)
         steps = 8000                                   # 4 s: 0.25 Hz bins
         shake[kind] = power_above(sim, 7.5, steps, below_hz=8.5)
-    assert shake["every mode"] > 0.5                   # the shake is really there
-    assert shake["derivatives"] < 1e-5 * shake["every mode"], shake
-    assert shake["rest"] < 1e-5 * shake["every mode"], shake
+    assert shake['every mode'] > 0.5                   # the shake is really there
+    assert shake['derivatives'] < 1e-5 * shake['every mode'], shake
+    assert shake['rest'] < 1e-5 * shake['every mode'], shake
 
 
 def test_refreshed_forces_work_on_the_derivative_basis():
-    """modal.force_refresh: the springs every N steps, the static tangent in between, on the
-    band's modes and the coordinates they add."""
-    model = MassSpringModel(load_scene("sheet_10x10"))
+    """
+    modal.force_refresh.
+
+    The springs every N steps, the static tangent in between, on the band's modes and the
+    coordinates they add.
+    """
+    model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
     sims = {n: ModalSimulation(model, basis, LOWPASS_0_14, dt=5e-4, force_refresh=n,
-                               basis_kind="derivatives") for n in (1, 10)}
+                               basis_kind='derivatives') for n in (1, 10)}
     assert sims[10].refresh_error is not None and sims[1].refresh_error is None
     errors = errors_against_full(model, basis, sims, 3.0, 5e-4)
     assert errors[1][1] < 0.003 and errors[10][1] < 0.005, errors
@@ -216,17 +233,20 @@ def test_refreshed_forces_work_on_the_derivative_basis():
 
 
 def test_band_changes_faster_than_the_fade_keep_the_displacement_and_the_run_stable():
-    """Bands changed every 20 ms with a 0.2 s fade: two bands' added coordinates fade over each
-    other and describe much the same motion (they are not mass-orthogonal to each other).
-    A change keeps every coordinate's state as it was (projecting the state onto the new set
-    mixed the overlapping ones into each other, moved the sheet at every change and, in a
-    storm of changes, made the run diverge)."""
-    model = MassSpringModel(load_scene("sheet_10x10"))
+    """
+    Bands changed every 20 ms with a 0.2 s fade.
+
+    Two bands' added coordinates fade over each other and describe much the same motion (they are
+    not mass-orthogonal to each other). A change keeps every coordinate's state as it was
+    (projecting the state onto the new set mixed the overlapping ones into each other, moved the
+    sheet at every change and, in a storm of changes, made the run diverge).
+    """
+    model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
-    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4, basis_kind="derivatives",
+    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4, basis_kind='derivatives',
                           transition_s=0.2)
-    bands = [FilterBand("lowpass", 0, 12, "hz"), FilterBand("bandpass", 5, 40, "hz"),
-             FilterBand("lowpass", 0, 20, "index")]
+    bands = [FilterBand('lowpass', 0, 12, 'hz'), FilterBand('bandpass', 5, 40, 'hz'),
+             FilterBand('lowpass', 0, 20, 'index')]
     sim.step(400)
     for k in range(60):
         before = sim.displacement()

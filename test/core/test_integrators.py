@@ -3,14 +3,13 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-import pytest
 from helpers import oscillator
-
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.simulations import DivergenceError, FullSimulation, ModalSimulation
+import numpy as np
+import pytest
 
 
 def _oscillator_run(dt: float, duration: float, integrator: str, amplitude: float = 0.01):
@@ -26,7 +25,7 @@ def _oscillator_run(dt: float, duration: float, integrator: str, amplitude: floa
     return np.arange(steps + 1) * dt, xs
 
 
-@pytest.mark.parametrize("integrator", ["explicit", "average"])
+@pytest.mark.parametrize('integrator', ['explicit', 'average'])
 def test_single_oscillator_matches_the_analytic_solution(integrator):
     omega = math.sqrt(400.0 / 0.25)                 # 40 rad/s
     t, x = _oscillator_run(1e-4, 2.0, integrator)
@@ -37,7 +36,7 @@ def test_single_oscillator_matches_the_analytic_solution(integrator):
     assert np.abs(x).max() == pytest.approx(0.01, rel=1e-4)
 
 
-@pytest.mark.parametrize("integrator", ["explicit", "average"])
+@pytest.mark.parametrize('integrator', ['explicit', 'average'])
 def test_measured_convergence_order_is_two(integrator):
     omega = 40.0
     errors = []
@@ -66,8 +65,8 @@ def test_modal_with_all_modes_equals_the_full_physical_run(sheet_10x10):
 
 def test_average_acceleration_modal_equals_full_too(sheet_10x10):
     model, basis = sheet_10x10
-    modal = ModalSimulation(model, basis, FilterBand(), dt=2e-3, integrator="average")
-    full = FullSimulation(model, dt=2e-3, integrator="average", basis=basis)
+    modal = ModalSimulation(model, basis, FilterBand(), dt=2e-3, integrator='average')
+    full = FullSimulation(model, dt=2e-3, integrator='average', basis=basis)
     modal.step(250)
     full.step(250)
     u = full.displacement()
@@ -78,13 +77,13 @@ def test_undamped_energy_is_conserved_below_the_stability_limit(sheet_undamped_s
     model, basis = sheet_undamped_still
     sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4)
     assert sim.dt < 0.5 * sim.stability_limit()
-    e0 = sim.energy()["total"]
+    e0 = sim.energy()['total']
     drift, peak_kinetic = 0.0, 0.0
     for _ in range(2000):                        # 2000 x 10 steps = 10 s
         sim.step(10)
         e = sim.energy()
-        drift = max(drift, abs(e["total"] - e0))
-        peak_kinetic = max(peak_kinetic, e["kinetic"])
+        drift = max(drift, abs(e['total'] - e0))
+        peak_kinetic = max(peak_kinetic, e['kinetic'])
     assert peak_kinetic > 0.005                  # the sheet dropped and swings (~8.5 mJ)
     assert drift < 1e-3 * peak_kinetic
 
@@ -95,7 +94,7 @@ def test_explicit_step_above_the_limit_diverges_and_is_reported(sheet_undamped_s
     sim = FullSimulation(model, dt=1.05 * limit, basis=basis)
     with pytest.raises(DivergenceError) as err:
         sim.step(2000)
-    assert "strain" in err.value.reason or "non-finite" in err.value.reason
+    assert 'strain' in err.value.reason or 'non-finite' in err.value.reason
     assert sim.diverged is err.value
     # the state kept is the last good one: finite, and strain within the limit
     assert np.isfinite(sim.positions()).all()
@@ -111,23 +110,26 @@ def test_modal_lowpass_is_stable_where_the_full_explicit_run_diverges(sheet_unda
     dt = 1.5 * 2.0 / basis.omega[-1]
     with pytest.raises(DivergenceError):
         FullSimulation(model, dt=dt, basis=basis).step(3000)
-    modal = ModalSimulation(model, basis, FilterBand("lowpass", high=14, by="index"), dt=dt)
+    modal = ModalSimulation(model, basis, FilterBand('lowpass', high=14, by='index'), dt=dt)
     modal.step(3000)
     assert modal.max_strain() < 0.05
 
 
-@pytest.mark.parametrize("times", [10, 100, 300])
-@pytest.mark.parametrize("method", ["full", "modal"])
+@pytest.mark.parametrize('times', [10, 100, 300])
+@pytest.mark.parametrize('method', ['full', 'modal'])
 def test_average_acceleration_is_stable_far_beyond_the_explicit_limit(sheet_10x10, method,
                                                                       times):
-    """From a state with every mode excited (the stability benchmark's start), where the
-    iteration's first guess decides whether it converges at all."""
+    """
+    From a state with every mode excited (the stability benchmark's start).
+
+    Where the iteration's first guess decides whether it converges at all.
+    """
     model, basis = sheet_10x10
     dt = times * 2.0 / basis.omega[-1]
-    if method == "full":
-        sim = FullSimulation(model, dt=dt, integrator="average", basis=basis)
+    if method == 'full':
+        sim = FullSimulation(model, dt=dt, integrator='average', basis=basis)
     else:
-        sim = ModalSimulation(model, basis, FilterBand(), dt=dt, integrator="average")
+        sim = ModalSimulation(model, basis, FilterBand(), dt=dt, integrator='average')
     u0 = basis.vectors @ np.random.default_rng(7).normal(scale=1e-4, size=basis.count)
     sim.set_state(u0, np.zeros_like(u0))
     iterations = []
@@ -140,8 +142,8 @@ def test_average_acceleration_is_stable_far_beyond_the_explicit_limit(sheet_10x1
 
 def test_runs_are_bit_identical(sheet_10x10):
     model, basis = sheet_10x10
-    a = ModalSimulation(model, basis, FilterBand("bandpass", 2, 48, "index"), dt=5e-4)
-    b = ModalSimulation(model, ModalBasis(model), FilterBand("bandpass", 2, 48, "index"),
+    a = ModalSimulation(model, basis, FilterBand('bandpass', 2, 48, 'index'), dt=5e-4)
+    b = ModalSimulation(model, ModalBasis(model), FilterBand('bandpass', 2, 48, 'index'),
                         dt=5e-4)
     a.step(500)
     b.step(500)

@@ -1,9 +1,6 @@
 """Reduced force evaluation: tangent stiffness, static equilibrium, springs every N steps."""
 from __future__ import annotations
 
-import numpy as np
-import pytest
-
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
@@ -14,19 +11,21 @@ from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.refreshed_forces import RefreshedForces, static_equilibrium
 from modal_spring_ros.core.simulations import DivergenceError, ModalSimulation
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
 
-LOWPASS_16 = FilterBand("lowpass", 0, 15, "index")
+LOWPASS_16 = FilterBand('lowpass', 0, 15, 'index')
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def cantilever():
-    model = MassSpringModel(load_scene("cantilever_3d"))
+    model = MassSpringModel(load_scene('cantilever_3d'))
     return model, ModalBasis(model, initial_modes=12)
 
 
-@pytest.mark.parametrize("scene", ["sheet_10x10", "cantilever_3d"])
+@pytest.mark.parametrize('scene', ['sheet_10x10', 'cantilever_3d'])
 def test_tangent_at_rest_is_the_modal_stiffness(scene, sheet_10x10, cantilever):
-    model, basis = sheet_10x10 if scene == "sheet_10x10" else cantilever
+    model, basis = sheet_10x10 if scene == 'sheet_10x10' else cantilever
     phi = basis.vectors[:, :12]
     tangent = GeneralizedForces(model, phi).tangent(np.zeros(12))
     omega2 = basis.omega[:12] ** 2
@@ -67,7 +66,7 @@ def test_springs_are_evaluated_every_n_steps(sheet_10x10, monkeypatch):
     sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, force_refresh=8)
     calls = []
     original = GeneralizedForces.spring_forces
-    monkeypatch.setattr(GeneralizedForces, "spring_forces",
+    monkeypatch.setattr(GeneralizedForces, 'spring_forces',
                         lambda self, q: calls.append(1) or original(self, q))
     sim.step(80)
     assert len(calls) == 10
@@ -76,8 +75,11 @@ def test_springs_are_evaluated_every_n_steps(sheet_10x10, monkeypatch):
 
 
 def test_refreshed_run_follows_the_every_step_run(sheet_10x10):
-    """The paper's method (every step) against springs every 8 steps, 2 s of the default
-    scene (gravity drop, anchor sway and shake): the same run within 0.1 %."""
+    """
+    The paper's method (every step) against springs every 8 steps.
+
+    2 s of the default scene (gravity drop, anchor sway and shake): the same run within 0.1 %.
+    """
     model, basis = sheet_10x10
 
     def run(refresh):
@@ -99,13 +101,13 @@ def test_refreshed_undamped_energy_stays_bounded(sheet_undamped_still):
     """Holding the nonlinear part between refreshes must not pump energy into the modes."""
     model, basis = sheet_undamped_still
     sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, force_refresh=10)
-    e0 = sim.energy()["total"]
+    e0 = sim.energy()['total']
     drift, peak_kinetic, at_10s = 0.0, 0.0, None
     for k in range(3000):                        # 3000 x 10 steps = 30 s
         sim.step(10)
         e = sim.energy()
-        drift = max(drift, abs(e["total"] - e0))
-        peak_kinetic = max(peak_kinetic, e["kinetic"])
+        drift = max(drift, abs(e['total'] - e0))
+        peak_kinetic = max(peak_kinetic, e['kinetic'])
         if k == 999:
             at_10s = drift / peak_kinetic
     assert peak_kinetic > 0.005
@@ -127,7 +129,7 @@ def test_band_change_with_refreshed_forces_is_smooth(sheet_10x10):
     sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, force_refresh=8)
     sim.step(500)
     before = sim.positions()
-    sim.set_band(FilterBand("lowpass", 0, 5, "index"), transition_s=0.2)
+    sim.set_band(FilterBand('lowpass', 0, 5, 'index'), transition_s=0.2)
     sim.step(1)
     assert np.abs(sim.positions() - before).max() < 1e-3
     sim.step(400)
@@ -135,14 +137,14 @@ def test_band_change_with_refreshed_forces_is_smooth(sheet_10x10):
 
 
 def test_auto_chooses_the_refresh_and_an_explicit_value_wins():
-    auto = build_simulation(load_scene("sheet_10x10"), SimulationConfig(auto=True))
+    auto = build_simulation(load_scene('sheet_10x10'), SimulationConfig(auto=True))
     assert auto.force_refresh == choose_refresh(auto.mode_choice.highest_hz, auto.dt) > 1
-    fixed = build_simulation(load_scene("sheet_10x10"),
+    fixed = build_simulation(load_scene('sheet_10x10'),
                              SimulationConfig(auto=True, force_refresh=3))
     assert fixed.force_refresh == 3
-    assert build_simulation(load_scene("sheet_10x10"), SimulationConfig()).force_refresh == 1
-    with pytest.raises(ValueError, match="force_refresh"):
-        build_simulation(load_scene("sheet_10x10"), SimulationConfig(force_refresh=-2))
+    assert build_simulation(load_scene('sheet_10x10'), SimulationConfig()).force_refresh == 1
+    with pytest.raises(ValueError, match='force_refresh'):
+        build_simulation(load_scene('sheet_10x10'), SimulationConfig(force_refresh=-2))
 
 
 def test_choose_refresh_holds_half_a_period_of_the_highest_mode():
@@ -151,9 +153,9 @@ def test_choose_refresh_holds_half_a_period_of_the_highest_mode():
     assert choose_refresh(0.01, 1e-3) == 200     # capped
 
 
-@pytest.mark.parametrize("scene", ["sheet_10x10", "cantilever_3d"])
+@pytest.mark.parametrize('scene', ['sheet_10x10', 'cantilever_3d'])
 def test_strain_sensitivity_bounds_every_springs_strain_change(scene, sheet_10x10, cantilever):
-    model, basis = sheet_10x10 if scene == "sheet_10x10" else cantilever
+    model, basis = sheet_10x10 if scene == 'sheet_10x10' else cantilever
     forces = GeneralizedForces(model, basis.vectors[:, :12])
     gain = forces.strain_sensitivity()
 
@@ -182,11 +184,14 @@ def test_strain_sensitivity_bounds_every_springs_strain_change(scene, sheet_10x1
 
 
 def test_refreshed_forces_detect_divergence_on_the_step_it_happens():
-    """Between refreshes the strain bound stands in for the exact strain: the step where the
-    strain first passes the limit is reported, as with every spring evaluated every step, and
-    no accepted state is above the limit."""
-    band = FilterBand("lowpass", 0, 14, "index")
-    free = build_simulation(load_scene("sheet_10x10"), SimulationConfig(band=band))
+    """
+    Between refreshes the strain bound stands in for the exact strain.
+
+    The step where the strain first passes the limit is reported, as with every spring evaluated
+    every step, and no accepted state is above the limit.
+    """
+    band = FilterBand('lowpass', 0, 14, 'index')
+    free = build_simulation(load_scene('sheet_10x10'), SimulationConfig(band=band))
     history = []
     for _ in range(200):                      # released from rest under gravity: overshoot
         free.step()
@@ -197,10 +202,10 @@ def test_refreshed_forces_detect_divergence_on_the_step_it_happens():
     assert 10 < first < 190
     reported = {}
     for refresh in (1, 25):
-        sim = build_simulation(load_scene("sheet_10x10"), SimulationConfig(
+        sim = build_simulation(load_scene('sheet_10x10'), SimulationConfig(
             band=band, force_refresh=refresh, strain_limit=limit))
         assert first % 25 != 0                # the crossing falls between two refreshes
-        with pytest.raises(DivergenceError, match="spring strain .* exceeds the limit"):
+        with pytest.raises(DivergenceError, match='spring strain .* exceeds the limit'):
             for _ in range(200):
                 sim.step()
                 assert sim.max_strain() <= limit

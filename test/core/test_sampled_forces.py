@@ -1,23 +1,26 @@
-"""Sampled spring forces (ECSW): a few springs with non-negative weights stand in for all of
-them, checked against the exact forces in the test itself."""
+"""
+Sampled spring forces (ECSW).
+
+A few springs with non-negative weights stand in for all of them, checked against the exact forces
+in the test itself.
+"""
 from __future__ import annotations
 
 import math
 import time
 
-import numpy as np
-import pytest
 from helpers import variant
-
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.sampled_forces import SampledForces, cache_folder
+from modal_spring_ros.core.sampled_forces import cache_folder, SampledForces
 from modal_spring_ros.core.simulations import ModalSimulation
 from modal_spring_ros.core.spring_sampling import SpringSample
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
 
-LOWPASS_32 = FilterBand("lowpass", 0, 31, "index")
+LOWPASS_32 = FilterBand('lowpass', 0, 31, 'index')
 
 
 def relative_l2(a_sim, b_sim, steps: int) -> float:
@@ -32,72 +35,78 @@ def relative_l2(a_sim, b_sim, steps: int) -> float:
     return math.sqrt(num / den)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def sheet_100x100():
-    model = MassSpringModel(load_scene("sheet_100x100"))
+    model = MassSpringModel(load_scene('sheet_100x100'))
     return model, ModalBasis(model)
 
 
 def test_sheet_100x100_samples_few_springs_and_follows_the_exact_forces(sheet_100x100):
     model, basis = sheet_100x100
     start = time.perf_counter()
-    sampled = ModalSimulation(model, basis, LOWPASS_32, dt=2e-3, basis_kind="rest",
+    sampled = ModalSimulation(model, basis, LOWPASS_32, dt=2e-3, basis_kind='rest',
                               sample_tolerance=0.01)
-    print(f"training {time.perf_counter() - start:.1f} s: {sampled.describe_forces()}")
+    print(f'training {time.perf_counter() - start:.1f} s: {sampled.describe_forces()}')
     forces = sampled._forces
     assert isinstance(forces, SampledForces) and not forces.fell_back
     assert forces.sample.count <= 0.02 * model.scene.n_springs
     assert forces.sample.held_out_error < 0.01
     assert np.all(forces.sample.weights > 0.0)
-    exact = ModalSimulation(model, basis, LOWPASS_32, dt=2e-3, basis_kind="rest")
+    exact = ModalSimulation(model, basis, LOWPASS_32, dt=2e-3, basis_kind='rest')
     assert relative_l2(sampled, exact, 2500) < 0.005             # 5 s
     assert not forces.fell_back and forces.max_sample_error < 0.01
 
 
 def test_non_negative_weights_keep_an_undamped_run_s_energy(sheet_100x100):
-    """Released from rest under gravity with no damping, 30 s: the energy stays within 1 % of
-    the peak kinetic energy, and does not grow."""
-    still = variant("sheet_100x100", anchor_motion=[], damping={"ratio": 0.0})
+    """
+    Released from rest under gravity with no damping, 30 s.
+
+    The energy stays within 1 % of the peak kinetic energy, and does not grow.
+    """
+    still = variant('sheet_100x100', anchor_motion=[], damping={'ratio': 0.0})
     model = MassSpringModel(still)
     basis = ModalBasis(model)
-    sim = ModalSimulation(model, basis, LOWPASS_32, dt=2e-3, basis_kind="rest",
+    sim = ModalSimulation(model, basis, LOWPASS_32, dt=2e-3, basis_kind='rest',
                           sample_tolerance=0.01)
-    e0 = sim.energy()["total"]
+    e0 = sim.energy()['total']
     totals, kinetic = [], []
     for _ in range(300):
         sim.step(50)
         e = sim.energy()
-        totals.append(e["total"])
-        kinetic.append(e["kinetic"])
+        totals.append(e['total'])
+        kinetic.append(e['kinetic'])
     drift = np.abs(np.array(totals) - e0) / max(kinetic)
     assert drift.max() < 0.01
     assert drift[150:].max() < 1.5 * drift[:150].max()               # bounded, not growing
 
 
 def test_sampled_forces_hold_in_large_deformation():
-    """The resonance scene with the derivatives basis: within 1 % of the exact-force run on the
-    same basis over 6 s."""
-    model = MassSpringModel(load_scene("sheet_10x10_resonance"))
+    """
+    The resonance scene with the derivatives basis.
+
+    Within 1 % of the exact-force run on the same basis over 6 s.
+    """
+    model = MassSpringModel(load_scene('sheet_10x10_resonance'))
     basis = ModalBasis(model)
-    band = FilterBand("lowpass", 0, 14, "index")
-    sampled = ModalSimulation(model, basis, band, dt=5e-4, basis_kind="derivatives",
+    band = FilterBand('lowpass', 0, 14, 'index')
+    sampled = ModalSimulation(model, basis, band, dt=5e-4, basis_kind='derivatives',
                               sample_tolerance=0.01)
-    exact = ModalSimulation(model, basis, band, dt=5e-4, basis_kind="derivatives")
+    exact = ModalSimulation(model, basis, band, dt=5e-4, basis_kind='derivatives')
     assert relative_l2(sampled, exact, 12000) < 0.01
     assert not sampled.forces_fell_back
 
 
 def test_a_sample_is_cached_and_a_damaged_entry_is_trained_again(sheet_10x10):
     model, basis = sheet_10x10
-    band = FilterBand("lowpass", 0, 14, "index")
+    band = FilterBand('lowpass', 0, 14, 'index')
     first = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
-    entries = sorted(cache_folder().glob("*.npz"))
+    entries = sorted(cache_folder().glob('*.npz'))
     assert entries
     again = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
     np.testing.assert_array_equal(again._forces.sample.springs, first._forces.sample.springs)
     assert again._forces.sample.seconds == 0.0                     # loaded, not trained
     newest = max(entries, key=lambda p: p.stat().st_mtime)
-    newest.write_bytes(b"not a sample")
+    newest.write_bytes(b'not a sample')
     retrained = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
     assert retrained._forces.sample.seconds > 0.0
     np.testing.assert_array_equal(retrained._forces.sample.springs,
@@ -106,7 +115,7 @@ def test_a_sample_is_cached_and_a_damaged_entry_is_trained_again(sheet_10x10):
 
 def test_a_sample_beyond_its_tolerance_falls_back_to_exact_forces(sheet_10x10):
     model, basis = sheet_10x10
-    band = FilterBand("lowpass", 0, 14, "index")
+    band = FilterBand('lowpass', 0, 14, 'index')
     sim = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
     forces = sim._forces
     crude = SpringSample(forces.sample.springs[:3], forces.sample.weights[:3], 0.5, 0.001, 0.0)
@@ -117,4 +126,4 @@ def test_a_sample_beyond_its_tolerance_falls_back_to_exact_forces(sheet_10x10):
     bad.spring_forces(q)                            # the first call is checked
     assert bad.fell_back and bad.sample_error > 0.02
     np.testing.assert_allclose(bad.spring_forces(q), forces.exact.spring_forces(q))
-    assert bad.describe().startswith("exact (the 3-spring sample fell back")
+    assert bad.describe().startswith('exact (the 3-spring sample fell back')

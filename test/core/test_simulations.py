@@ -1,52 +1,55 @@
-"""The simulation contract: registries, what every method offers, the configuration's rules,
-and state changes that leave no half-built state (a reset during a band fade)."""
+"""
+The simulation contract.
+
+Registries, what every method offers, the configuration's rules, and state changes that leave no
+half-built state (a reset during a band fade).
+"""
 from __future__ import annotations
 
 import threading
 
-import numpy as np
-import pytest
-
 from modal_spring_ros.core.config import ConfigError, SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import BandError, FilterBand
-from modal_spring_ros.core.integrators import INTEGRATORS, integrator
-from modal_spring_ros.core.simulations import (METHODS, MIN_DT_S, FullSimulation, ModalSimulation,
+from modal_spring_ros.core.integrators import integrator, INTEGRATORS
+from modal_spring_ros.core.simulations import (FullSimulation, METHODS, MIN_DT_S, ModalSimulation,
                                                SimulationStatus, UnstableStepError)
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def sheet():
-    return load_scene("sheet_10x10")
+    return load_scene('sheet_10x10')
 
 
 def test_registries_map_names_to_classes():
-    assert METHODS == {"modal": ModalSimulation, "full": FullSimulation}
-    assert sorted(INTEGRATORS) == ["average", "explicit"]
+    assert METHODS == {'modal': ModalSimulation, 'full': FullSimulation}
+    assert sorted(INTEGRATORS) == ['average', 'explicit']
     for name, cls in INTEGRATORS.items():
         assert cls.name == name and isinstance(integrator(name), cls)
     with pytest.raises(ValueError, match="integrator 'rk4' must be one of explicit, average"):
-        integrator("rk4")
+        integrator('rk4')
 
 
-@pytest.mark.parametrize("method", sorted(METHODS))
+@pytest.mark.parametrize('method', sorted(METHODS))
 def test_every_method_offers_the_contract(sheet, method):
-    band = FilterBand("lowpass", 0.0, 20.0)
-    sim = build_simulation(sheet, SimulationConfig(method=method, band=band, basis="rest"))
+    band = FilterBand('lowpass', 0.0, 20.0)
+    sim = build_simulation(sheet, SimulationConfig(method=method, band=band, basis='rest'))
     status = sim.status()
     assert isinstance(status, SimulationStatus)
-    assert status.method == method and status.integrator == "explicit"
+    assert status.method == method and status.integrator == 'explicit'
     assert status.time == 0.0 and status.steps == 0 and status.max_strain == 0.0
     assert sim.band == band and sim.force_refresh == 1 and sim.refresh_error is None
     assert sim.mode_choice is None and not sim.fading and not sim.truncated
     f = sim.basis.frequencies_hz[sim.kept_modes]
-    if method == "modal":
+    if method == 'modal':
         assert f.max() <= 20.0 and status.coordinates == sim.kept_modes.size == 4
-        assert status.band == "lowpass <= 20 Hz" and status.basis == "rest: 4 modes"
+        assert status.band == 'lowpass <= 20 Hz' and status.basis == 'rest: 4 modes'
     else:  # every mode takes part; the band waits for a switch to modal
         assert sim.kept_modes.size == 180 and status.coordinates == 180
-        assert status.band == "full" and status.basis == "physical: every free DOF"
+        assert status.band == 'full' and status.basis == 'physical: every free DOF'
     sim.step(10)
     again = sim.with_dt(sim.dt / 2)
     assert type(again) is type(sim) and again.dt == sim.dt / 2 and again.time == 0.0
@@ -61,11 +64,15 @@ def test_with_dt_keeps_the_automatic_choice(sheet):
 
 
 def test_a_reset_during_a_band_fade_settles_the_band_and_rests(sheet):
-    """One reset while a band change is still fading used to raise (shapes (0,) and (180,))
-    and leave the run half-changed, killing the node's stream."""
-    sim = build_simulation(sheet, SimulationConfig(basis="rest"))
+    """
+    One reset while a band change is still fading keeps the run whole.
+
+    One reset while a band change is still fading used to raise (shapes (0,) and (180,)) and leave
+    the run half-changed, killing the node's stream.
+    """
+    sim = build_simulation(sheet, SimulationConfig(basis='rest'))
     sim.step(20)
-    sim.set_band(FilterBand("lowpass", 0, 20, "hz"), 0.5)
+    sim.set_band(FilterBand('lowpass', 0, 20, 'hz'), 0.5)
     sim.step()
     assert sim.fading and sim.stepped_modes.size == 180
     sim.reset()
@@ -73,28 +80,32 @@ def test_a_reset_during_a_band_fade_settles_the_band_and_rests(sheet):
     assert sim.stepped_modes.tolist() == sim.kept_modes.tolist() == [0, 1, 2, 3]
     np.testing.assert_array_equal(sim.displacement(), 0.0)
     sim.step(200)  # and it runs on, like a fresh run of that band
-    fresh = build_simulation(sheet, SimulationConfig(band=FilterBand("lowpass", 0, 20, "hz"),
-                                                     basis="rest"))
+    fresh = build_simulation(sheet, SimulationConfig(band=FilterBand('lowpass', 0, 20, 'hz'),
+                                                     basis='rest'))
     fresh.step(200)
     np.testing.assert_allclose(sim.positions(), fresh.positions(), rtol=0, atol=1e-12)
 
 
 def test_a_failed_band_change_leaves_the_run_as_it_was(sheet):
-    sim = build_simulation(sheet, SimulationConfig(band=FilterBand("lowpass", 0, 20, "hz")))
+    sim = build_simulation(sheet, SimulationConfig(band=FilterBand('lowpass', 0, 20, 'hz')))
     sim.step(30)
     before = (sim.positions(), sim.kept_modes.copy(), sim.band)
-    with pytest.raises(BandError, match="keeps no mode"):
-        sim.set_band(FilterBand("lowpass", 0, 1, "hz"))
+    with pytest.raises(BandError, match='keeps no mode'):
+        sim.set_band(FilterBand('lowpass', 0, 1, 'hz'))
     np.testing.assert_array_equal(sim.positions(), before[0])
     assert sim.kept_modes.tolist() == before[1].tolist() and sim.band == before[2]
 
 
 def test_preparing_switches_from_another_thread_while_stepping_and_fading(sheet):
-    """The active set is read as one snapshot: a thread preparing switches while the run
-    steps, switches and resets never sees a half-changed set."""
+    """
+    The active set is read as one snapshot.
+
+    A thread preparing switches while the run steps, switches and resets never sees a half-changed
+    set.
+    """
     sim = build_simulation(sheet, SimulationConfig(transition_s=0.01))
-    bands = [FilterBand("lowpass", 0, 20, "hz"), FilterBand("bandpass", 5, 40, "hz"),
-             FilterBand("highpass", 10, 0, "hz"), FilterBand()]
+    bands = [FilterBand('lowpass', 0, 20, 'hz'), FilterBand('bandpass', 5, 40, 'hz'),
+             FilterBand('highpass', 10, 0, 'hz'), FilterBand()]
     errors, stop = [], threading.Event()
 
     def prepare():
@@ -121,20 +132,20 @@ def test_preparing_switches_from_another_thread_while_stepping_and_fading(sheet)
     assert np.isfinite(sim.positions()).all()
 
 
-@pytest.mark.parametrize("changes, message", [
-    (dict(method="fem"), "method 'fem' must be one of modal, full"),
-    (dict(integrator="rk4"), "integrator 'rk4' must be one of explicit, average"),
-    (dict(dt=1e-300), f"dt (1e-300) must be a finite number of seconds, at least {MIN_DT_S:g}"),
-    (dict(dt=float("nan")), "dt (nan) must be a finite number"),
-    (dict(transition_s=-1.0), "transition_s (-1.0) must be a finite number of seconds"),
-    (dict(max_modes=0), "max_modes (0) must be at least 1"),
-    (dict(tolerance=1.5), "tolerance (1.5) must be between 0 and 1"),
-    (dict(force_refresh=-2), "force_refresh (-2) must be at least 1 step"),
-    (dict(auto=True, method="full"), "auto chooses modes: it needs method modal"),
-    (dict(forces="fast"), "forces 'fast' must be one of exact, refreshed, sampled"),
-    (dict(anchor="joystick"), "anchor 'joystick' must be one of scene, topic"),
-    (dict(follow_hz=0.0), "follow_hz (0.0) must be a number of Hz above 0 and at most 100"),
-    (dict(follow_hz=float("inf")), "follow_hz (inf) must be a number of Hz"),
+@pytest.mark.parametrize('changes, message', [
+    ({'method': 'fem'}, "method 'fem' must be one of modal, full"),
+    ({'integrator': 'rk4'}, "integrator 'rk4' must be one of explicit, average"),
+    ({'dt': 1e-300}, f'dt (1e-300) must be a finite number of seconds, at least {MIN_DT_S:g}'),
+    ({'dt': float('nan')}, 'dt (nan) must be a finite number'),
+    ({'transition_s': -1.0}, 'transition_s (-1.0) must be a finite number of seconds'),
+    ({'max_modes': 0}, 'max_modes (0) must be at least 1'),
+    ({'tolerance': 1.5}, 'tolerance (1.5) must be between 0 and 1'),
+    ({'force_refresh': -2}, 'force_refresh (-2) must be at least 1 step'),
+    ({'auto': True, 'method': 'full'}, 'auto chooses modes: it needs method modal'),
+    ({'forces': 'fast'}, "forces 'fast' must be one of exact, refreshed, sampled"),
+    ({'anchor': 'joystick'}, "anchor 'joystick' must be one of scene, topic"),
+    ({'follow_hz': 0.0}, 'follow_hz (0.0) must be a number of Hz above 0 and at most 100'),
+    ({'follow_hz': float('inf')}, 'follow_hz (inf) must be a number of Hz'),
 ])
 def test_the_configuration_names_what_is_wrong(changes, message):
     with pytest.raises(ConfigError) as info:
@@ -144,24 +155,24 @@ def test_the_configuration_names_what_is_wrong(changes, message):
 
 def test_front_ends_name_the_setting_as_their_users_write_it():
     bad = SimulationConfig(dt=1e-300)
-    with pytest.raises(ConfigError, match=r"^sim\.dt \(1e-300\)"):
-        bad.validate({"dt": "sim.dt"})
-    with pytest.raises(ConfigError, match=r"^--dt \(1e-300\)"):
-        bad.validate({"dt": "--dt"})
+    with pytest.raises(ConfigError, match=r'^sim\.dt \(1e-300\)'):
+        bad.validate({'dt': 'sim.dt'})
+    with pytest.raises(ConfigError, match=r'^--dt \(1e-300\)'):
+        bad.validate({'dt': '--dt'})
 
 
 def test_a_step_that_cannot_advance_time_is_refused(sheet):
     sim = build_simulation(sheet, SimulationConfig())
-    with pytest.raises(ValueError, match="does not advance time"):
+    with pytest.raises(ValueError, match='does not advance time'):
         sim.with_dt(1e-300)
 
 
 def test_an_unstable_band_is_refused_before_it_is_applied(sheet):
-    sim = build_simulation(sheet, SimulationConfig(band=FilterBand("lowpass", 0, 20, "hz"),
+    sim = build_simulation(sheet, SimulationConfig(band=FilterBand('lowpass', 0, 20, 'hz'),
                                                    dt=0.004))
-    with pytest.raises(UnstableStepError, match=r"sim\.dt \(0\.004 s\) is at or above"):
-        sim.prepare_switch(FilterBand(), dt_name="sim.dt")
+    with pytest.raises(UnstableStepError, match=r'sim\.dt \(0\.004 s\) is at or above'):
+        sim.prepare_switch(FilterBand(), dt_name='sim.dt')
     assert sim.kept_modes.size == 4
-    full = build_simulation(sheet, SimulationConfig(method="full"))
-    with pytest.raises(BandError, match="keeps no mode"):
-        full.prepare_switch(FilterBand("lowpass", 0, 1, "hz"))
+    full = build_simulation(sheet, SimulationConfig(method='full'))
+    with pytest.raises(BandError, match='keeps no mode'):
+        full.prepare_switch(FilterBand('lowpass', 0, 1, 'hz'))

@@ -3,25 +3,24 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-import pytest
-
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.stiffness import (assemble_stiffness, element_stiffness,
                                              local_stiffness_2d, rotation_matrix_2d)
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
 
 
 def test_chain_2_reduced_stiffness_is_the_papers_matrix():
-    scene = load_scene("chain_2")
+    scene = load_scene('chain_2')
     k1, k2 = scene.stiffness
     model = MassSpringModel(scene)
     assert np.array_equal(model.stiffness_free.toarray(), [[k1 + k2, -k2], [-k2, k2]])
 
 
 def test_chain_2_frequencies_match_the_closed_form():
-    scene = load_scene("chain_2")
+    scene = load_scene('chain_2')
     k1, k2 = scene.stiffness
     m1, m2 = scene.mass[1], scene.mass[2]
     # det(K - w^2 M) = 0:  m1 m2 w^4 - (m1 k2 + m2 (k1 + k2)) w^2 + k1 k2 = 0
@@ -35,7 +34,7 @@ def test_chain_2_frequencies_match_the_closed_form():
     np.testing.assert_allclose(phi.T @ np.diag([m1, m2]) @ phi, np.eye(2), atol=1e-12)
 
 
-@pytest.mark.parametrize("theta", [0.0, 0.3, math.pi / 4, 2.0, -1.1])
+@pytest.mark.parametrize('theta', [0.0, 0.3, math.pi / 4, 2.0, -1.1])
 def test_element_matrix_is_T_transpose_Kbar_T(theta):
     k = 37.5
     expected = rotation_matrix_2d(theta).T @ local_stiffness_2d(k) @ rotation_matrix_2d(theta)
@@ -49,7 +48,7 @@ def test_element_matrix_is_T_transpose_Kbar_T(theta):
 
 def test_rest_stiffness_is_the_force_jacobian_at_rest():
     """-df/du at the rest shape equals K (checks eq. 20 against eqs. 6-13)."""
-    scene = load_scene("sheet_10x10")
+    scene = load_scene('sheet_10x10')
     model = MassSpringModel(scene)
     n = model.n_free_dof
     f0 = model.free_force(np.zeros(n), 0.0)
@@ -64,7 +63,7 @@ def test_rest_stiffness_is_the_force_jacobian_at_rest():
 
 
 def test_sparse_modes_agree_with_dense_modes():
-    model = MassSpringModel(load_scene("sheet_10x10"))
+    model = MassSpringModel(load_scene('sheet_10x10'))
     dense = ModalBasis(model)
     sparse = ModalBasis(model, dense_limit=0, initial_modes=20)
     assert not sparse.dense and sparse.count == 20
@@ -79,7 +78,7 @@ def test_sparse_modes_agree_with_dense_modes():
 
 
 def test_large_scene_never_goes_dense_and_gets_only_the_modes_asked_for():
-    model = MassSpringModel(load_scene("sheet_100x100"))
+    model = MassSpringModel(load_scene('sheet_100x100'))
     basis = ModalBasis(model, initial_modes=8)
     assert not basis.dense and basis.count == 8
     assert basis.vectors.shape == (19800, 8)

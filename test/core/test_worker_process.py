@@ -6,13 +6,12 @@ import signal
 import threading
 import time
 
-import numpy as np
-import pytest
-
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.worker import WorkerError, WorkerProcess
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
 
 
 def _raise_value_error(text: str) -> None:
@@ -25,15 +24,15 @@ def test_calls_run_in_one_reused_child_and_its_errors_are_raised_here():
         assert child != os.getpid()
         assert worker.call(os.getpid) == child           # the same child, kept
         assert worker.call(divmod, 17, 5) == (3, 2)
-        with pytest.raises(ValueError, match="named problem"):
-            worker.call(_raise_value_error, "named problem")
+        with pytest.raises(ValueError, match='named problem'):
+            worker.call(_raise_value_error, 'named problem')
         assert worker.call(os.getpid) == child           # an error does not end it
 
 
 def test_a_child_that_dies_is_reported_and_replaced():
     with WorkerProcess() as worker:
         child = worker.call(os.getpid)
-        with pytest.raises(WorkerError, match="exit code -9"):
+        with pytest.raises(WorkerError, match='exit code -9'):
             worker.call(os.kill, child, signal.SIGKILL)
         assert worker.call(os.getpid) not in (child, os.getpid())
 
@@ -54,13 +53,13 @@ def test_close_ends_a_call_in_progress_and_refuses_new_ones():
     time.sleep(0.5)
     worker.close()
     caller.join(timeout=10.0)
-    assert not caller.is_alive() and errors and "closed" in errors[0]
-    with pytest.raises(WorkerError, match="closed"):
+    assert not caller.is_alive() and errors and 'closed' in errors[0]
+    with pytest.raises(WorkerError, match='closed'):
         worker.call(os.getpid)
 
 
 def test_modes_computed_in_the_worker_are_bit_identical_and_grow_the_same_way():
-    model = MassSpringModel(load_scene("sheet_32x32"))
+    model = MassSpringModel(load_scene('sheet_32x32'))
     here = ModalBasis(model, initial_modes=12)
     with WorkerProcess() as worker:
         there = ModalBasis(model, initial_modes=12, worker=worker)
@@ -78,7 +77,7 @@ def test_a_cancelled_call_ends_its_child_and_the_next_call_gets_a_new_one():
     with WorkerProcess(cancelled=cancel.is_set) as worker:
         child = worker.call(os.getpid)
         threading.Timer(0.3, cancel.set).start()
-        with pytest.raises(WorkerError, match="cancelled"):
+        with pytest.raises(WorkerError, match='cancelled'):
             worker.call(time.sleep, 60.0)
         cancel.clear()
         assert worker.call(os.getpid) not in (child, os.getpid())

@@ -1,18 +1,22 @@
-"""The architecture as the layout shows it: layers that import only downward, no import cycle,
-a numerical core free of ROS, MCAP and plotting, and modules of a readable size."""
+"""
+The architecture as the layout shows it.
+
+Layers that import only downward, no import cycle, a numerical core free of ROS, MCAP and plotting,
+and modules of a readable size.
+"""
 from __future__ import annotations
 
 import ast
-import re
 import json
+import re
 import subprocess
 import sys
 
 from helpers import REPO
 
-PACKAGE = "modal_spring_ros"
+PACKAGE = 'modal_spring_ros'
 #: the layers, lowest first: a module may import from its own layer and the ones before it
-LAYERS = ["core", "scenes", "runs", "bags", "ros", "bench", "cli"]
+LAYERS = ['core', 'scenes', 'runs', 'bags', 'ros', 'bench', 'cli']
 MAX_MODULE_LINES = 400
 MAX_NODE_LINES = 250
 
@@ -20,11 +24,11 @@ MAX_NODE_LINES = 250
 def _modules() -> dict[str, object]:
     """Dotted name -> path of every module of the package."""
     out = {}
-    for path in sorted((REPO / PACKAGE).rglob("*.py")):
-        parts = list(path.relative_to(REPO).with_suffix("").parts)
-        if parts[-1] == "__init__":
+    for path in sorted((REPO / PACKAGE).rglob('*.py')):
+        parts = list(path.relative_to(REPO).with_suffix('').parts)
+        if parts[-1] == '__init__':
             parts.pop()
-        out[".".join(parts)] = path
+        out['.'.join(parts)] = path
     return out
 
 
@@ -34,14 +38,14 @@ def _imports(path) -> set[str]:
     modules = _modules()
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module \
-                and node.module.split(".")[0] == PACKAGE:
+                and node.module.split('.')[0] == PACKAGE:
             for alias in node.names:  # "from pkg.sub import module" imports that module
-                full = f"{node.module}.{alias.name}"
+                full = f'{node.module}.{alias.name}'
                 found.add(full if full in modules else node.module)
         elif isinstance(node, ast.Import):
-            found.update(a.name for a in node.names if a.name.split(".")[0] == PACKAGE)
+            found.update(a.name for a in node.names if a.name.split('.')[0] == PACKAGE)
         elif isinstance(node, ast.ImportFrom) and node.level > 0:
-            raise AssertionError(f"{path}: relative import; the package uses absolute ones")
+            raise AssertionError(f'{path}: relative import; the package uses absolute ones')
     return found
 
 
@@ -50,19 +54,19 @@ def _graph() -> dict[str, set[str]]:
 
 
 def _layer(module: str) -> int:
-    parts = module.split(".")
+    parts = module.split('.')
     return LAYERS.index(parts[1]) if len(parts) > 1 else -1  # the package root is below all
 
 
 def test_every_module_is_in_a_layer():
-    stray = [m for m in _modules() if m != PACKAGE and m.split(".")[1] not in LAYERS]
-    assert not stray, f"modules outside the layers {LAYERS}: {stray}"
+    stray = [m for m in _modules() if m != PACKAGE and m.split('.')[1] not in LAYERS]
+    assert not stray, f'modules outside the layers {LAYERS}: {stray}'
 
 
 def test_imports_go_only_downward():
-    upward = [f"{m} -> {d}" for m, deps in _graph().items() for d in deps
+    upward = [f'{m} -> {d}' for m, deps in _graph().items() for d in deps
               if _layer(d) > _layer(m)]
-    assert not upward, "imports from a lower layer to a higher one:\n" + "\n".join(upward)
+    assert not upward, 'imports from a lower layer to a higher one:\n' + '\n'.join(upward)
 
 
 def test_no_import_cycle():
@@ -74,7 +78,7 @@ def test_no_import_cycle():
         state[module] = 1
         for dep in sorted(graph.get(module, ())):
             if state.get(dep) == 1:
-                cycles.append(" -> ".join(path[path.index(dep):] + [dep]))
+                cycles.append(' -> '.join(path[path.index(dep):] + [dep]))
             elif dep not in state:
                 visit(dep, path + [dep])
         state[module] = 2
@@ -82,24 +86,24 @@ def test_no_import_cycle():
     for module in sorted(graph):
         if module not in state:
             visit(module, [module])
-    assert not cycles, "import cycles:\n" + "\n".join(cycles)
+    assert not cycles, 'import cycles:\n' + '\n'.join(cycles)
 
 
 def test_the_checks_see_a_violation():
     """The graph really is read: the node imports the core, the core imports no layer above."""
     graph = _graph()
-    assert "modal_spring_ros.core.factory" in graph["modal_spring_ros.ros.node"]
-    assert _layer("modal_spring_ros.ros.node") > _layer("modal_spring_ros.core.factory")
+    assert 'modal_spring_ros.core.factory' in graph['modal_spring_ros.ros.node']
+    assert _layer('modal_spring_ros.ros.node') > _layer('modal_spring_ros.core.factory')
 
 
 def test_the_core_imports_no_ros_mcap_or_matplotlib():
     """In a fresh interpreter, importing every core module loads none of them."""
-    core = [m for m in _modules() if m.startswith(f"{PACKAGE}.core")]
-    code = ("import json, sys\n"
-            + "".join(f"import {m}\n" for m in core)
-            + "print(json.dumps(sorted(m for m in sys.modules "
+    core = [m for m in _modules() if m.startswith(f'{PACKAGE}.core')]
+    code = ('import json, sys\n'
+            + ''.join(f'import {m}\n' for m in core)
+            + 'print(json.dumps(sorted(m for m in sys.modules '
               "if m.split('.')[0] in ('rclpy', 'mcap', 'mcap_ros2', 'matplotlib'))))")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                           timeout=120, cwd=REPO)
     assert proc.returncode == 0, proc.stderr
     assert len(core) > 15
@@ -109,13 +113,13 @@ def test_the_core_imports_no_ros_mcap_or_matplotlib():
 def test_modules_stay_readable():
     sizes = {m: len(p.read_text().splitlines()) for m, p in _modules().items()}
     big = {m: n for m, n in sizes.items() if n > MAX_MODULE_LINES}
-    assert not big, f"modules over {MAX_MODULE_LINES} lines: {big}"
-    assert sizes[f"{PACKAGE}.ros.node"] < MAX_NODE_LINES
+    assert not big, f'modules over {MAX_MODULE_LINES} lines: {big}'
+    assert sizes[f'{PACKAGE}.ros.node'] < MAX_NODE_LINES
 
 
 def test_one_module_per_console_script_named_after_it():
-    scripts = re.findall(r'"(\w+) = (modal_spring_ros\.[\w.]+):main"',
-                         (REPO / "setup.py").read_text())
+    scripts = re.findall(r"'(\w+) = (modal_spring_ros\.[\w.]+):main'",
+                         (REPO / 'setup.py').read_text())
     assert len(scripts) == 7
     for name, module in scripts:
-        assert module == f"{PACKAGE}.cli.{name}", (name, module)
+        assert module == f'{PACKAGE}.cli.{name}', (name, module)

@@ -3,27 +3,26 @@ from __future__ import annotations
 
 import dataclasses
 
-import pytest
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
-
 from modal_spring_ros.core.simulations import SimulationStatus
-from modal_spring_ros.ros.diagnostics import StreamReport, diagnostic_array
+from modal_spring_ros.ros.diagnostics import diagnostic_array, StreamReport
+import pytest
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 
 STATUS = SimulationStatus(
-    method="modal", band="lowpass <= 20 Hz", basis="rest: 4 modes", basis_seconds=0.012,
+    method='modal', band='lowpass <= 20 Hz', basis='rest: 4 modes', basis_seconds=0.012,
     modes=4, coordinates=4, modes_computed=180,
-    mode_choice="off", integrator="explicit", dt=5e-4, force_refresh=1, refresh_error=None,
+    mode_choice='off', integrator='explicit', dt=5e-4, force_refresh=1, refresh_error=None,
     stability_limit=0.0123, time=2.5, steps=5000, max_strain=0.01, fading=False)
 STREAM = StreamReport(window_s=1.0, achieved_rtf=1.0, requested_rtf=1.0, step_us=31.4,
                       frames=600, frames_in_window=60, longest_gap_s=0.02, strain_warning=0.1)
 
 
 def _entry(status=STATUS, stream=STREAM):
-    array = diagnostic_array(status, stream, name="modal_spring: simulation",
-                             hardware_id="sheet_10x10", stamp=Time(sec=3, nanosec=5))
+    array = diagnostic_array(status, stream, node='/robot/modal_spring',
+                             hardware_id='sheet_10x10', stamp=Time(sec=3, nanosec=5))
     assert len(array.status) == 1 and array.header.stamp == Time(sec=3, nanosec=5)
     entry = array.status[0]
     return entry, {kv.key: kv.value for kv in entry.values}
@@ -31,35 +30,38 @@ def _entry(status=STATUS, stream=STREAM):
 
 def test_a_steady_stream_is_ok_with_every_figure():
     entry, values = _entry()
-    assert (entry.level, entry.message) == (OK, "streaming")
-    assert entry.name == "modal_spring: simulation" and entry.hardware_id == "sheet_10x10"
-    assert values["band"] == "lowpass <= 20 Hz" and values["modes stepped"] == "4"
-    assert values["modes computed"] == "180" and values["dt (s)"] == "0.0005"
-    assert values["force refresh error"] == "exact every step"
-    assert values["stability limit (s)"] == "0.0123" and values["step time (us)"] == "31.4"
-    assert values["simulation time (s)"] == "2.500" and values["frames published"] == "600"
-    assert values["paused"] == "false" and values["divergence"] == "none"
+    assert (entry.level, entry.message) == (OK, 'streaming')
+    # named as diagnostic_updater names a node's task; the namespace is in a value of its own
+    assert entry.name == 'modal_spring: simulation' and entry.hardware_id == 'sheet_10x10'
+    assert values['node'] == '/robot/modal_spring'
+    assert values['band'] == 'lowpass <= 20 Hz' and values['modes stepped'] == '4'
+    assert values['modes computed'] == '180' and values['dt (s)'] == '0.0005'
+    assert values['force refresh error'] == 'exact every step'
+    assert values['stability limit (s)'] == '0.0123' and values['step time (us)'] == '31.4'
+    assert values['simulation time (s)'] == '2.500' and values['frames published'] == '600'
+    assert values['paused'] == 'false' and values['divergence'] == 'none'
 
 
 def test_refreshed_forces_report_their_error():
     _, values = _entry(dataclasses.replace(STATUS, force_refresh=10, refresh_error=3.2e-4))
-    assert values["force refresh (steps)"] == "10"
-    assert values["force refresh error"] == "3.20e-04"
+    assert values['force refresh (steps)'] == '10'
+    assert values['force refresh error'] == '3.20e-04'
 
 
-@pytest.mark.parametrize("changes, level, message", [
-    (dict(paused=True, frames_in_window=0, achieved_rtf=0.0), OK, "paused"),
-    (dict(achieved_rtf=0.5), WARN, "cannot keep real time: achieved real-time factor 0.50 of 1"),
-    (dict(achieved_rtf=0.5, window_valid=False), OK, "streaming"),  # a reset in the window
-    (dict(requested_rtf=0.0, achieved_rtf=12.0), OK, "streaming"),  # as fast as possible
-    (dict(longest_gap_s=0.5), WARN, "stream stalled for 0.50 s"),
-    (dict(longest_gap_s=0.5, computing_modes=True), WARN,
-     "stream stalled for 0.50 s while computing modes for a band change"),
-    (dict(frames_in_window=0), WARN, "no frame published in the last 1.0 s"),
-    (dict(error="simulation thread failed: IndexError('x')"), ERROR,
+@pytest.mark.parametrize('changes, level, message', [
+    ({'paused': True, 'frames_in_window': 0, 'achieved_rtf': 0.0}, OK, 'paused'),
+    ({'achieved_rtf': 0.5}, WARN, 'cannot keep real time: achieved real-time factor 0.50 of 1'),
+    ({'achieved_rtf': 0.5, 'window_valid': False}, OK, 'streaming'),  # a reset in the window
+    ({'requested_rtf': 0.0, 'achieved_rtf': 12.0}, OK, 'streaming'),  # as fast as possible
+    ({'longest_gap_s': 0.5}, WARN, 'stream stalled for 0.50 s'),
+    ({'longest_gap_s': 0.5, 'computing_modes': True}, WARN,
+     'stream stalled for 0.50 s while computing modes for a band change'),
+    ({'frames_in_window': 0}, WARN, 'no frame published in the last 1.0 s'),
+    ({'error': "simulation thread failed: IndexError('x')"}, ERROR,
      "simulation thread failed: IndexError('x')"),
-    (dict(diverged_recently=True, divergences=1, last_divergence="diverged at t = 1 s"), ERROR,
-     "diverged at t = 1 s; recovered: back to the rest state"),
+    ({'diverged_recently': True, 'divergences': 1, 'last_divergence': 'diverged at t = 1 s'},
+     ERROR,
+     'diverged at t = 1 s; recovered: back to the rest state'),
 ])
 def test_each_condition_has_its_level_and_message(changes, level, message):
     entry, _ = _entry(stream=dataclasses.replace(STREAM, **changes))
@@ -68,34 +70,34 @@ def test_each_condition_has_its_level_and_message(changes, level, message):
 
 def test_large_deformation_warns_and_an_error_outranks_it():
     strained = dataclasses.replace(STATUS, max_strain=0.25)
-    derived = dataclasses.replace(strained, basis="derivatives: 4 modes + 15 + 2")
+    derived = dataclasses.replace(strained, basis='derivatives: 4 modes + 15 + 2')
     assert _entry(status=derived)[0].level == OK        # the basis made for it: no warning
     entry, values = _entry(status=strained)
-    assert entry.level == WARN and entry.message.startswith("large deformation: spring strain "
-                                                            "25.0%")
-    assert values["largest spring strain"] == "0.25000"
-    entry, _ = _entry(strained, dataclasses.replace(STREAM, error="reset failed"))
-    assert (entry.level, entry.message) == (ERROR, "reset failed")
+    assert entry.level == WARN and entry.message.startswith('large deformation: spring strain '
+                                                            '25.0%')
+    assert values['largest spring strain'] == '0.25000'
+    entry, _ = _entry(strained, dataclasses.replace(STREAM, error='reset failed'))
+    assert (entry.level, entry.message) == (ERROR, 'reset failed')
 
 
 def test_sampled_springs_are_described_and_a_fallback_warns():
-    sampled = dataclasses.replace(STATUS, forces="sampled: 204 of 39402 springs, held-out "
-                                  "error 0.37%, run-time 0.21%")
+    sampled = dataclasses.replace(STATUS, forces='sampled: 204 of 39402 springs, held-out '
+                                  'error 0.37%, run-time 0.21%')
     entry, values = _entry(status=sampled)
-    assert entry.level == OK and values["spring forces"].startswith("sampled: 204 of 39402")
-    fell = dataclasses.replace(STATUS, forces="exact (the 3-spring sample fell back: error "
-                               "4.10% beyond 1.00%)", forces_fell_back=True)
+    assert entry.level == OK and values['spring forces'].startswith('sampled: 204 of 39402')
+    fell = dataclasses.replace(STATUS, forces='exact (the 3-spring sample fell back: error '
+                               '4.10% beyond 1.00%)', forces_fell_back=True)
     entry, _ = _entry(status=fell)
     assert entry.level == WARN
-    assert entry.message == ("spring sample off: exact (the 3-spring sample fell back: error "
-                             "4.10% beyond 1.00%)")
+    assert entry.message == ('spring sample off: exact (the 3-spring sample fell back: error '
+                             '4.10% beyond 1.00%)')
 
 
 def test_a_silent_pose_stream_warns_that_the_clamp_holds_the_last_pose():
-    stale = dataclasses.replace(STREAM, anchor="no pose for 1.3 s: holding the last",
+    stale = dataclasses.replace(STREAM, anchor='no pose for 1.3 s: holding the last',
                                 anchor_stale=True)
     entry, values = _entry(stream=stale)
-    assert (entry.level, entry.message) == (WARN, "anchor pose: no pose for 1.3 s: holding "
-                                                  "the last")
-    assert values["anchor pose"] == "no pose for 1.3 s: holding the last"
-    assert "anchor pose" not in _entry()[1]               # the scene's own motion: not shown
+    assert (entry.level, entry.message) == (WARN, 'anchor pose: no pose for 1.3 s: holding '
+                                                  'the last')
+    assert values['anchor pose'] == 'no pose for 1.3 s: holding the last'
+    assert 'anchor pose' not in _entry()[1]               # the scene's own motion: not shown

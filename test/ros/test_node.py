@@ -4,31 +4,30 @@ from __future__ import annotations
 import math
 import time
 
-import numpy as np
-import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from ros_harness import Client, NodeProcess, wait_for
-from sensor_msgs.msg import PointCloud2, PointField
-from std_srvs.srv import SetBool, Trigger
-
 from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
+from ros_harness import Client, NodeProcess, wait_for
+from sensor_msgs.msg import PointCloud2, PointField
+from std_srvs.srv import SetBool, Trigger
 
 pytestmark = pytest.mark.ros
 
-NODE = "modal_spring"
+NODE = 'modal_spring'
 RATE = 60.0
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def running():
     node = NodeProcess()
     client = Client()
-    points = client.collect(PointCloud2, "/points", qos=200)
-    diagnostics = client.collect(DiagnosticArray, "/diagnostics")
+    points = client.collect(PointCloud2, '/points', qos=200)
+    diagnostics = client.collect(DiagnosticArray, '/diagnostics')
     assert wait_for(lambda: len(points) > 5, 30), node.proc.stderr
     yield node, client, points, diagnostics
     client.close()
@@ -55,8 +54,12 @@ def frames_between(points, start: float, end: float) -> np.ndarray:
 
 
 def hf_power(frames: np.ndarray, cutoff_hz: float) -> float:
-    """Mean-square deformation above ``cutoff_hz`` (m^2). The deformation is measured from the
-    moving base (the top row, particle 99), whose prescribed shake no filter removes."""
+    """
+    Mean-square deformation above ``cutoff_hz`` (m^2).
+
+    The deformation is measured from the moving base (the top row, particle 99), whose prescribed
+    shake no filter removes.
+    """
     frames = frames - frames[:, 99:100, :]
     u = frames.reshape(frames.shape[0], -1)
     u = u - u.mean(axis=0)
@@ -73,13 +76,13 @@ def test_points_stream_layout_rate_and_values(running):
     window = [(t, m) for t, m in points if t >= start]
     assert 0.85 * 3 * RATE <= len(window) <= 1.1 * 3 * RATE
     msg = window[-1][1]
-    assert msg.header.frame_id == "world" and msg.height == 1 and msg.width == 100
+    assert msg.header.frame_id == 'world' and msg.height == 1 and msg.width == 100
     assert [(f.name, f.offset, f.datatype) for f in msg.fields[:4]] == [
-        ("x", 0, PointField.FLOAT32), ("y", 4, PointField.FLOAT32),
-        ("z", 8, PointField.FLOAT32), ("displacement", 12, PointField.FLOAT32)]
+        ('x', 0, PointField.FLOAT32), ('y', 4, PointField.FLOAT32),
+        ('z', 8, PointField.FLOAT32), ('displacement', 12, PointField.FLOAT32)]
     assert msg.point_step == 16 and msg.row_step == 1600 and not msg.is_bigendian
     for _, m in window:
-        assert np.isfinite(np.frombuffer(bytes(m.data), dtype="<f4")).all()
+        assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
     stamps = np.array([stamp(m) for _, m in window])
     assert np.all(np.diff(stamps) > 0)
     # simulation time runs at the requested real-time factor (1)
@@ -91,25 +94,25 @@ def test_points_match_the_headless_engine(running):
     _, _, points, _ = running
     msg = points[-1][1]
     t = stamp(msg)
-    sim = build_simulation(load_scene("sheet_10x10"), SimulationConfig())
+    sim = build_simulation(load_scene('sheet_10x10'), SimulationConfig())
     sim.step(int(round(t / sim.dt)))
     assert sim.time == pytest.approx(t, abs=1e-9)
     np.testing.assert_allclose(xyz(msg), sim.positions(), atol=2e-6)
-    cloud = np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 4)
+    cloud = np.frombuffer(bytes(msg.data), dtype='<f4').reshape(-1, 4)
     expected = np.linalg.norm(sim.positions() - sim.model.scene.rest_positions, axis=1)
     np.testing.assert_allclose(cloud[:, 3], expected, atol=2e-6)
 
 
 def test_frequencies_are_published_as_a_read_only_parameter(running):
     _, client, _, _ = running
-    (freqs,) = client.get_parameters(NODE, "modal.frequencies_hz")
+    (freqs,) = client.get_parameters(NODE, 'modal.frequencies_hz')
     assert len(freqs) == 180 and freqs[0] == pytest.approx(4.736, rel=1e-3)
     (result,) = client.set_parameters(NODE, modal__frequencies_hz=[1.0])
-    assert not result.successful and "read-only" in result.reason
+    assert not result.successful and 'read-only' in result.reason
 
 
-@pytest.mark.parametrize("kind, low, high", [("lowpass", 0.0, 7.0),
-                                             ("bandstop", 8.0, 60.0)])
+@pytest.mark.parametrize('kind, low, high', [('lowpass', 0.0, 7.0),
+                                             ('bandstop', 8.0, 60.0)])
 def test_band_change_is_accepted_reported_and_removes_high_frequencies(running, kind, low,
                                                                        high):
     _, client, points, diagnostics = running
@@ -124,38 +127,38 @@ def test_band_change_is_accepted_reported_and_removes_high_frequencies(running, 
     # reported by the next diagnostics (about 1 s); how long the request itself took is the
     # machine's business (a busy one computes the band's coordinates more slowly)
     assert wait_for(lambda: (s := latest_status(diagnostics, changed)) is not None
-                    and status_values(s)["band"] == band, 5.0)
+                    and status_values(s)['band'] == band, 5.0)
     time.sleep(1.0)                 # fade (0.5 s) settles
     after = time.monotonic()
     time.sleep(3.0)
     hf_after = hf_power(frames_between(points, after, time.monotonic()), 7.5)
     assert hf_after < 0.3 * hf_before, (hf_before, hf_after)
-    (back,) = client.set_parameters(NODE, filter__type="allpass")
+    (back,) = client.set_parameters(NODE, filter__type='allpass')
     assert back.successful
 
 
-@pytest.mark.parametrize("values, reason", [
-    (dict(filter__type="bandpass", filter__low_hz=5.0, filter__high_hz=2.0),
-     "filter.low_hz (5) must be below filter.high_hz (2) for bandpass"),
-    (dict(filter__low_hz=-1.0), "filter.low_hz (-1) must not be negative"),
-    (dict(filter__high_hz=math.nan), "filter.high_hz (nan) must be finite"),
-    (dict(filter__type="lowpass", filter__high_hz=1.0), "keeps no mode"),
-    (dict(filter__type="notch"), "filter.type 'notch' must be one of allpass"),
-    (dict(method="fem"), "method 'fem' must be one of modal, full"),
-    (dict(sim__dt=0.01), "sim.dt (0.01 s) is at or above the explicit stability limit"),
-    (dict(publish_rate_hz=0.0), "publish_rate_hz"),
-    (dict(scene="chain_2"), "read-only"),
-    (dict(modal__force_refresh=-1), "modal.force_refresh"),
+@pytest.mark.parametrize('values, reason', [
+    ({'filter__type': 'bandpass', 'filter__low_hz': 5.0, 'filter__high_hz': 2.0},
+     'filter.low_hz (5) must be below filter.high_hz (2) for bandpass'),
+    ({'filter__low_hz': -1.0}, 'filter.low_hz (-1) must not be negative'),
+    ({'filter__high_hz': math.nan}, 'filter.high_hz (nan) must be finite'),
+    ({'filter__type': 'lowpass', 'filter__high_hz': 1.0}, 'keeps no mode'),
+    ({'filter__type': 'notch'}, "filter.type 'notch' must be one of allpass"),
+    ({'method': 'fem'}, "method 'fem' must be one of modal, full"),
+    ({'sim__dt': 0.01}, 'sim.dt (0.01 s) is at or above the explicit stability limit'),
+    ({'publish_rate_hz': 0.0}, 'publish_rate_hz'),
+    ({'scene': 'chain_2'}, 'read-only'),
+    ({'modal__force_refresh': -1}, 'modal.force_refresh'),
     # values that would freeze the stream without a word: t + dt == t
-    (dict(sim__dt=1e-300), "sim.dt (1e-300) must be a finite number of seconds, at least 1e-08"),
-    (dict(realtime_factor=1e-300), "realtime_factor (1e-300) must be 0 (as fast as possible)"),
-    (dict(modal__frequencies_hz=[1.0]), "modal.frequencies_hz is read-only"),
+    ({'sim__dt': 1e-300}, 'sim.dt (1e-300) must be a finite number of seconds, at least 1e-08'),
+    ({'realtime_factor': 1e-300}, 'realtime_factor (1e-300) must be 0 (as fast as possible)'),
+    ({'modal__frequencies_hz': [1.0]}, 'modal.frequencies_hz is read-only'),
 ])
 def test_bad_values_are_rejected_with_their_reason_and_change_nothing(running, values, reason):
     _, client, _, _ = running
-    names = ["filter.type", "filter.low_hz", "filter.high_hz", "method", "sim.dt",
-             "publish_rate_hz", "scene", "modal.force_refresh", "realtime_factor",
-             "modal.frequencies_hz"]
+    names = ['filter.type', 'filter.low_hz', 'filter.high_hz', 'method', 'sim.dt',
+             'publish_rate_hz', 'scene', 'modal.force_refresh', 'realtime_factor',
+             'modal.frequencies_hz']
     before = client.get_parameters(NODE, *names)
     (result,) = client.set_parameters(NODE, atomically=True, **values)
     assert not result.successful
@@ -165,13 +168,13 @@ def test_bad_values_are_rejected_with_their_reason_and_change_nothing(running, v
 
 def test_pause_stops_the_stream_and_resume_restarts_it(running):
     _, client, points, _ = running
-    res = client.call(SetBool, f"/{NODE}/pause", SetBool.Request(data=True))
-    assert res.success and res.message == "paused"
+    res = client.call(SetBool, f'/{NODE}/pause', SetBool.Request(data=True))
+    assert res.success and res.message == 'paused'
     time.sleep(0.2)
     start = time.monotonic()
     time.sleep(1.0)
     assert not [t for t, _ in points if t > start]
-    res = client.call(SetBool, f"/{NODE}/pause", SetBool.Request(data=False))
+    res = client.call(SetBool, f'/{NODE}/pause', SetBool.Request(data=False))
     assert res.success
     assert wait_for(lambda: any(t > start + 1.0 for t, _ in points), 2.0)
 
@@ -179,28 +182,28 @@ def test_pause_stops_the_stream_and_resume_restarts_it(running):
 def test_reset_returns_to_the_rest_state(running):
     _, client, points, _ = running
     assert stamp(points[-1][1]) > 5.0
-    res = client.call(Trigger, f"/{NODE}/reset", Trigger.Request())
+    res = client.call(Trigger, f'/{NODE}/reset', Trigger.Request())
     assert res.success
     called = time.monotonic()
     assert wait_for(lambda: any(t > called for t, _ in points), 2.0)
     first = next(m for t, m in points if t > called)
     assert stamp(first) < 0.2
-    scene_rest = load_scene("sheet_10x10").rest_positions
+    scene_rest = load_scene('sheet_10x10').rest_positions
     assert np.abs(xyz(first) - scene_rest).max() < 5e-3
 
 
 def test_method_switch_carries_the_state_over(running):
     _, client, points, diagnostics = running
     time.sleep(1.0)  # a clean window, away from the previous test's reset
-    (result,) = client.set_parameters(NODE, method="full")
+    (result,) = client.set_parameters(NODE, method='full')
     assert result.successful
     changed = time.monotonic()
     assert wait_for(lambda: (s := latest_status(diagnostics, changed)) is not None
-                    and status_values(s)["method"] == "full", 5.0)
+                    and status_values(s)['method'] == 'full', 5.0)
     window = [m for t, m in points if t > changed - 0.4]
     steps = [np.abs(xyz(b) - xyz(a)).max() for a, b in zip(window, window[1:])]
     assert max(steps) < 5e-3                  # no jump at the switch
-    (result,) = client.set_parameters(NODE, method="modal")
+    (result,) = client.set_parameters(NODE, method='modal')
     assert result.successful
 
 
@@ -211,14 +214,14 @@ def test_force_refresh_is_set_at_runtime_and_reported(running):
     assert result.successful
     changed = time.monotonic()
     assert wait_for(lambda: (s := latest_status(diagnostics, changed)) is not None
-                    and status_values(s)["force refresh (steps)"] == "4", 5.0)
+                    and status_values(s)['force refresh (steps)'] == '4', 5.0)
     assert wait_for(lambda: (s := latest_status(diagnostics, time.monotonic() - 0.5))
-                    is not None and status_values(s)["force refresh error"] != "0.00e+00", 5.0)
+                    is not None and status_values(s)['force refresh error'] != '0.00e+00', 5.0)
     window = [m for t, m in points if t > changed - 0.4]
     steps = [np.abs(xyz(b) - xyz(a)).max() for a, b in zip(window, window[1:])]
     assert max(steps) < 5e-3                  # the state carries over: no jump
     (result,) = client.set_parameters(NODE, modal__force_refresh=0)
     assert result.successful
     assert wait_for(lambda: (s := latest_status(diagnostics, time.monotonic() - 0.2))
-                    is not None and status_values(s)["force refresh error"]
-                    == "exact every step", 5.0)
+                    is not None and status_values(s)['force refresh error']
+                    == 'exact every step', 5.0)

@@ -1,31 +1,34 @@
-"""The node driven from ROS: a clamp following a pose stream, and a clicked point pulling the
-sheet, over real DDS (the node in its own process, as a user runs it)."""
+"""
+The node driven from ROS.
+
+A clamp following a pose stream, and a clicked point pulling the sheet, over real DDS (the node in
+its own process, as a user runs it).
+"""
 from __future__ import annotations
 
 import math
 import threading
 import time
 
-import numpy as np
-import pytest
-import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PointStamped, PoseStamped
 from helpers import variant
-from ros_harness import node_with_client, wait_for
-from sensor_msgs.msg import PointCloud2
-
 from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.ros.resimulate import resimulate
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
+from ros_harness import node_with_client, wait_for
+from sensor_msgs.msg import PointCloud2
+import yaml
 
 pytestmark = pytest.mark.ros
 
 PIVOT = (0.45, 0.0, 0.0)      # the centre of sheet_10x10's top row
 
 
-def pose(angle_deg: float, position=PIVOT, frame_id: str = "world",
+def pose(angle_deg: float, position=PIVOT, frame_id: str = 'world',
          quaternion=None) -> PoseStamped:
     m = PoseStamped()
     m.header.frame_id = frame_id
@@ -74,15 +77,19 @@ def latest(points: list) -> np.ndarray:
 
 
 def test_a_pose_stream_turns_the_clamp_and_the_stream_stays_finite():
-    """The pose turns 30 degrees over a second; once the filter has settled the cloud's top
-    row is the rest row turned by 30 degrees about the pose's position, to 1 mm."""
-    scene = load_scene("sheet_10x10")
+    """
+    The pose turns 30 degrees over a second.
+
+    Once the filter has settled the cloud's top row is the rest row turned by 30 degrees about the
+    pose's position, to 1 mm.
+    """
+    scene = load_scene('sheet_10x10')
     fixed = top_row(scene)
-    with node_with_client("anchor.source:=topic", "publish_rate_hz:=30.0",
-                          namespace="follow") as (node, client):
-        points = client.collect(PointCloud2, "/follow/points", qos=200)
+    with node_with_client('anchor.source:=topic', 'publish_rate_hz:=30.0',
+                          namespace='follow') as (node, client):
+        points = client.collect(PointCloud2, '/follow/points', qos=200)
         assert wait_for(lambda: len(points) > 5, 30)
-        stream = PoseStream(client, "/follow/anchor_pose",
+        stream = PoseStream(client, '/follow/anchor_pose',
                             lambda t: 30.0 * min(max(t - 0.5, 0.0), 1.0))
         try:
             assert wait_for(lambda: np.abs(latest(points)[fixed] - turned(
@@ -97,17 +104,17 @@ def test_a_pose_stream_turns_the_clamp_and_the_stream_stays_finite():
 
 
 def test_bad_poses_are_refused_change_nothing_and_silence_is_reported():
-    scene = load_scene("sheet_10x10")
+    scene = load_scene('sheet_10x10')
     fixed = top_row(scene)
-    with node_with_client("anchor.source:=topic", "anchor.max_jump_m:=0.2",
-                          namespace="badpose") as (node, client):
-        points = client.collect(PointCloud2, "/badpose/points", qos=500)
-        diags = client.collect(DiagnosticArray, "/diagnostics")
-        pub = client.node.create_publisher(PoseStamped, "/badpose/anchor_pose", 10)
+    with node_with_client('anchor.source:=topic', 'anchor.max_jump_m:=0.2',
+                          namespace='badpose') as (node, client):
+        points = client.collect(PointCloud2, '/badpose/points', qos=500)
+        diags = client.collect(DiagnosticArray, '/diagnostics')
+        pub = client.node.create_publisher(PoseStamped, '/badpose/anchor_pose', 10)
         assert wait_for(lambda: len(points) > 5 and pub.get_subscription_count() > 0, 30)
         pub.publish(pose(0.0))                                       # the reference
         time.sleep(0.3)
-        bad = [pose(20.0, frame_id="map"),                           # another frame
+        bad = [pose(20.0, frame_id='map'),                           # another frame
                pose(20.0, position=(math.nan, 0.0, 0.0)),             # not finite
                pose(0.0, quaternion=(0.0, 0.0, 0.0, 2.0)),            # not a unit quaternion
                pose(0.0, position=(5.0, 0.0, 0.0)),                   # a 4.5 m jump
@@ -132,27 +139,27 @@ def test_bad_poses_are_refused_change_nothing_and_silence_is_reported():
                     return s, {kv.key: kv.value for kv in s.values}
             return None, {}
         # no valid pose for more than 0.5 s: the clamp holds the last, and diagnostics say so
-        assert wait_for(lambda: "holding the last" in anchor("/badpose/")[1].get(
-            "anchor pose", ""), 10)
-        status, values = anchor("/badpose/")
-        assert status.level == DiagnosticStatus.WARN and "anchor pose" in status.message
-        refused = int(values["anchor pose"].split("; ")[1].split()[0])
+        assert wait_for(lambda: 'holding the last' in anchor('/badpose/')[1].get(
+            'anchor pose', ''), 10)
+        status, values = anchor('/badpose/')
+        assert status.level == DiagnosticStatus.WARN and 'anchor pose' in status.message
+        refused = int(values['anchor pose'].split('; ')[1].split()[0])
         assert 5 <= refused <= 100        # each kind at least once (a busy DDS may drop some)
 
 
 def test_a_clicked_point_pulls_the_nearest_particle_toward_it(tmp_path):
-    scene_file = tmp_path / "still.yaml"
-    scene_file.write_text(yaml.safe_dump(variant("sheet_10x10", anchor_motion=[]).to_dict()))
-    with node_with_client(f"scene:={scene_file}", "interaction.max_force_n:=5.0",
-                          namespace="click") as (node, client):
-        points = client.collect(PointCloud2, "/click/points", qos=500)
-        pub = client.node.create_publisher(PointStamped, "/clicked_point", 10)
+    scene_file = tmp_path / 'still.yaml'
+    scene_file.write_text(yaml.safe_dump(variant('sheet_10x10', anchor_motion=[]).to_dict()))
+    with node_with_client(f'scene:={scene_file}', 'interaction.max_force_n:=5.0',
+                          namespace='click') as (node, client):
+        points = client.collect(PointCloud2, '/click/points', qos=500)
+        pub = client.node.create_publisher(PointStamped, '/clicked_point', 10)
         assert wait_for(lambda: len(points) > 5 and pub.get_subscription_count() > 0, 30)
         time.sleep(1.0)                                   # settled in the sag
         before = latest(points)
         corner = int(np.argmax(before[:, 0] - before[:, 1]))   # the bottom right particle
         click = PointStamped()
-        click.header.frame_id = "world"
+        click.header.frame_id = 'world'
         click.point.x, click.point.y = before[corner, 0] + 0.5, before[corner, 1]
         pub.publish(click)
         assert wait_for(lambda: latest(points)[corner, 0] - before[corner, 0] > 0.01, 10)
@@ -162,26 +169,26 @@ def test_a_clicked_point_pulls_the_nearest_particle_toward_it(tmp_path):
 
 
 def test_the_capture_of_a_driven_run_resimulates_frame_for_frame(tmp_path):
-    out = tmp_path / "driven"
-    with node_with_client("anchor.source:=topic", f"record.bag:={out}",
-                          "publish_rate_hz:=30.0", namespace="driven") as (node, client):
-        points = client.collect(PointCloud2, "/driven/points")
+    out = tmp_path / 'driven'
+    with node_with_client('anchor.source:=topic', f'record.bag:={out}',
+                          'publish_rate_hz:=30.0', namespace='driven') as (node, client):
+        points = client.collect(PointCloud2, '/driven/points')
         assert wait_for(lambda: len(points) > 5, 30)
-        stream = PoseStream(client, "/driven/anchor_pose",
+        stream = PoseStream(client, '/driven/anchor_pose',
                             lambda t: 25.0 * math.sin(2 * math.pi * 0.7 * t))
-        pub = client.node.create_publisher(PointStamped, "/clicked_point", 10)
+        pub = client.node.create_publisher(PointStamped, '/clicked_point', 10)
         assert wait_for(lambda: stream.publisher.get_subscription_count() > 0
                         and pub.get_subscription_count() > 0, 20)
         time.sleep(1.0)
         click = PointStamped()
-        click.header.frame_id = "world"
+        click.header.frame_id = 'world'
         click.point.x, click.point.y = 1.2, -0.9
         pub.publish(click)
         time.sleep(1.5)
         stream.stop()
     bag = BagReader(out)
-    assert bag.topics["/anchor_pose"].count > 10 and bag.topics["/clicked_point"].count == 1
-    again = tmp_path / "again"
+    assert bag.topics['/anchor_pose'].count > 10 and bag.topics['/clicked_point'].count == 1
+    again = tmp_path / 'again'
     n = resimulate(out, again)
     t_rec, x_rec = bag.points()
     t_new, x_new = BagReader(again).points()

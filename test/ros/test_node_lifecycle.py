@@ -1,6 +1,8 @@
-"""The node's life cycle over real DDS: clean ends on signals, and a band-change stress test.
+"""
+The node's life cycle over real DDS: clean ends on signals, and a band-change stress test.
 
-Each test starts its own node in its own namespace (so only its own stream is seen)."""
+Each test starts its own node in its own namespace (so only its own stream is seen).
+"""
 from __future__ import annotations
 
 import os
@@ -8,50 +10,50 @@ import signal
 import threading
 import time
 
-import numpy as np
-import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from helpers import REPO
-from ros_harness import Client, NodeProcess, node_with_client, wait_for
+import numpy as np
+import pytest
+from ros_harness import Client, node_of, node_with_client, NodeProcess, wait_for
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
 
 pytestmark = pytest.mark.ros
 
-NODE = "modal_spring"
+NODE = 'modal_spring'
 RATE = 60.0
 
 
 def test_sigint_and_sigterm_end_the_node_cleanly():
     for sig in (signal.SIGINT, signal.SIGTERM):
-        node = NodeProcess(namespace="lifecycle")
-        client = Client("sig_client")
-        points = client.collect(PointCloud2, "/lifecycle/points")
+        node = NodeProcess(namespace='lifecycle')
+        client = Client('sig_client')
+        points = client.collect(PointCloud2, '/lifecycle/points')
         assert wait_for(lambda: len(points) > 3, 30)
         client.close()
         node.proc.send_signal(sig)
         out, err = node.proc.communicate(timeout=15)
         assert node.proc.returncode == 0, err[-3000:]
-        assert "Traceback" not in err
-        assert "failed" not in err and "ERROR" not in err, err[-3000:]
+        assert 'Traceback' not in err
+        assert 'failed' not in err and 'ERROR' not in err, err[-3000:]
 
 
 @pytest.mark.slow
 def test_stress_band_changes_every_50ms_keep_the_stream_whole():
-    node = NodeProcess(namespace="stress")
-    client = Client("stress_client")
-    points = client.collect(PointCloud2, "/stress/points", qos=500)
-    diagnostics = client.collect(DiagnosticArray, "/diagnostics")
+    node = NodeProcess(namespace='stress')
+    client = Client('stress_client')
+    points = client.collect(PointCloud2, '/stress/points', qos=500)
+    diagnostics = client.collect(DiagnosticArray, '/diagnostics')
     try:
         assert wait_for(lambda: len(points) > 3, 30)
         time.sleep(3.0)                                     # the same run's steady stream
         steady = np.diff([t for t, _ in points if t >= time.monotonic() - 2.5])
-        bands = [("lowpass", 0.0, 12.0), ("highpass", 10.0, 11.0), ("bandpass", 5.0, 40.0),
-                 ("bandstop", 8.0, 30.0), ("allpass", 0.0, 1.0)]
+        bands = [('lowpass', 0.0, 12.0), ('highpass', 10.0, 11.0), ('bandpass', 5.0, 40.0),
+                 ('bandstop', 8.0, 30.0), ('allpass', 0.0, 1.0)]
         start = time.monotonic()
         for k in range(120):  # about 10 s: each request answers in a few ms, then 50 ms pause
             kind, low, high = bands[k % len(bands)]
-            (result,) = client.set_parameters(f"stress/{NODE}", atomically=True, filter__type=kind,
+            (result,) = client.set_parameters(f'stress/{NODE}', atomically=True, filter__type=kind,
                                               filter__low_hz=low, filter__high_hz=high)
             assert result.successful, result.reason
             time.sleep(0.05)
@@ -64,39 +66,39 @@ def test_stress_band_changes_every_50ms_keep_the_stream_whole():
         # allow (measured against them, so that a busy host's delays are not counted)
         assert gaps.max() < max(0.25, 4.0 * steady.max()), (gaps.max(), steady.max())
         for _, m in window:
-            assert np.isfinite(np.frombuffer(bytes(m.data), dtype="<f4")).all()
+            assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
         mine = [d.status[0] for t, d in diagnostics
-                if t >= start and d.status[0].name.startswith("/stress/")]
+                if t >= start and node_of(d.status[0]).startswith('/stress/')]
         assert mine
         assert DiagnosticStatus.ERROR not in [s.level for s in mine]
     finally:
         client.close()
         code, _, err = node.interrupt()
-        assert code == 0 and "Traceback" not in err
+        assert code == 0 and 'Traceback' not in err
 
 
 def test_params_file_is_accepted_as_ros2_run_would_pass_it(tmp_path):
     """The shipped file (the node's defaults) with one value edited, as a user would."""
     from diagnostic_msgs.msg import DiagnosticArray as Diag
-    text = (REPO / "config" / "modal_spring.yaml").read_text()
-    params = tmp_path / "mine.yaml"
+    text = (REPO / 'config' / 'modal_spring.yaml').read_text()
+    params = tmp_path / 'mine.yaml'
     params.write_text(text.replace('filter.type: "allpass"', 'filter.type: "lowpass"')
-                      .replace("filter.high_hz: 1000.0", "filter.high_hz: 45.0"))
+                      .replace('filter.high_hz: 1000.0', 'filter.high_hz: 45.0'))
     import subprocess
 
     from ros_harness import console_script
-    proc = subprocess.Popen([console_script("modal_spring_node"), "--ros-args",
-                             "--params-file", str(params), "-r", "__ns:=/params"],
+    proc = subprocess.Popen([console_script('modal_spring_node'), '--ros-args',
+                             '--params-file', str(params), '-r', '__ns:=/params'],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=dict(os.environ))
-    client = Client("params_client")
-    diags = client.collect(Diag, "/diagnostics")
+    client = Client('params_client')
+    diags = client.collect(Diag, '/diagnostics')
     try:
-        assert wait_for(lambda: any(d.status[0].name.startswith("/params/")
+        assert wait_for(lambda: any(node_of(d.status[0]).startswith('/params/')
                                     for _, d in diags), 30)
-        status = next(d.status[0] for _, d in diags if d.status[0].name.startswith("/params/"))
+        status = next(d.status[0] for _, d in diags if node_of(d.status[0]).startswith('/params/'))
         values = {kv.key: kv.value for kv in status.values}
-        assert values["band"] == "lowpass <= 45 Hz" and values["method"] == "modal"
+        assert values['band'] == 'lowpass <= 45 Hz' and values['method'] == 'modal'
     finally:
         client.close()
         proc.send_signal(signal.SIGINT)
@@ -105,19 +107,19 @@ def test_params_file_is_accepted_as_ros2_run_would_pass_it(tmp_path):
 
 
 def _status(diags, prefix):
-    return [(t, d.status[0]) for t, d in diags if d.status[0].name.startswith(prefix)]
+    return [(t, d.status[0]) for t, d in diags if node_of(d.status[0]).startswith(prefix)]
 
 
 def test_mesh_and_clock_are_published_when_asked_for():
     from visualization_msgs.msg import Marker
-    with node_with_client("publish_clock:=true", "mesh_rate_hz:=5.0",
-                          namespace="extras") as (node, client):
-        points = client.collect(PointCloud2, "/extras/points")
-        meshes = client.collect(Marker, "/extras/mesh")
-        clocks = client.collect(Clock, "/clock")
+    with node_with_client('publish_clock:=true', 'mesh_rate_hz:=5.0',
+                          namespace='extras') as (node, client):
+        points = client.collect(PointCloud2, '/extras/points')
+        meshes = client.collect(Marker, '/extras/mesh')
+        clocks = client.collect(Clock, '/clock')
         assert wait_for(lambda: len(meshes) >= 6 and len(clocks) > 10, 30)
         marker = meshes[-1][1]
-        assert marker.type == Marker.TRIANGLE_LIST and marker.header.frame_id == "world"
+        assert marker.type == Marker.TRIANGLE_LIST and marker.header.frame_id == 'world'
         assert len(marker.points) == 3 * 2 * 81 == len(marker.colors)   # 2 per cell
         assert all(0.0 <= c.r <= 1.0 and c.a == 1.0 for c in marker.colors)
         # about every 0.2 s of a real-time run: judged by the markers' own stamps (receive
@@ -131,96 +133,102 @@ def test_mesh_and_clock_are_published_when_asked_for():
 
 def test_divergence_is_reported_not_published_and_recovered_from():
     # A strain limit below the sheet's ordinary 0.7 %: every drop from rest "diverges".
-    with node_with_client("sim.strain_limit:=0.004", namespace="diverge") as (node, client):
-        points = client.collect(PointCloud2, "/diverge/points", qos=500)
-        diags = client.collect(DiagnosticArray, "/diagnostics")
+    with node_with_client('sim.strain_limit:=0.004', namespace='diverge') as (node, client):
+        points = client.collect(PointCloud2, '/diverge/points', qos=500)
+        diags = client.collect(DiagnosticArray, '/diagnostics')
         assert wait_for(lambda: any(s.level == DiagnosticStatus.ERROR
-                                    for _, s in _status(diags, "/diverge/")), 30)
-        errors = [s for _, s in _status(diags, "/diverge/") if s.level == DiagnosticStatus.ERROR]
-        assert "exceeds the limit 0.004" in errors[0].message
-        assert "back to the rest state" in errors[0].message
+                                    for _, s in _status(diags, '/diverge/')), 30)
+        errors = [s for _, s in _status(diags, '/diverge/') if s.level == DiagnosticStatus.ERROR]
+        assert 'exceeds the limit 0.004' in errors[0].message
+        assert 'back to the rest state' in errors[0].message
         start = time.monotonic()
         time.sleep(3.0)
         window = [m for t, m in points if t >= start]
         assert len(window) > 2 * RATE                    # the stream goes on (not frozen)
         for m in window:                                  # and never carries a bad frame
-            cloud = np.frombuffer(bytes(m.data), dtype="<f4").reshape(-1, 4)
+            cloud = np.frombuffer(bytes(m.data), dtype='<f4').reshape(-1, 4)
             assert np.isfinite(cloud).all()
         values = {kv.key: kv.value for kv in errors[-1].values}
-        assert int(values["divergences"]) >= 1
+        assert int(values['divergences']) >= 1
 
 
 def test_a_host_that_cannot_keep_real_time_says_so():
-    with node_with_client("method:=full", "realtime_factor:=200.0",
-                          namespace="slow") as (node, client):
-        diags = client.collect(DiagnosticArray, "/diagnostics")
+    with node_with_client('method:=full', 'realtime_factor:=200.0',
+                          namespace='slow') as (node, client):
+        diags = client.collect(DiagnosticArray, '/diagnostics')
         assert wait_for(lambda: any(s.level == DiagnosticStatus.WARN
-                                    for _, s in _status(diags, "/slow/")), 30)
-        warn = next(s for _, s in _status(diags, "/slow/") if s.level == DiagnosticStatus.WARN)
-        assert "cannot keep real time" in warn.message and "of 200" in warn.message
-        achieved = float({kv.key: kv.value for kv in warn.values}["achieved real-time factor"])
+                                    for _, s in _status(diags, '/slow/')), 30)
+        warn = next(s for _, s in _status(diags, '/slow/') if s.level == DiagnosticStatus.WARN)
+        assert 'cannot keep real time' in warn.message and 'of 200' in warn.message
+        achieved = float({kv.key: kv.value for kv in warn.values}['achieved real-time factor'])
         assert 0.5 < achieved < 180
 
 
-@pytest.mark.parametrize("param, message", [
-    ("sim.strain_limit:=0.0001", "sim.strain_limit out of range"),
-    ("filter.type:=notch", "filter.type 'notch' must be one of"),
-    ("stamp:=gps", "stamp 'gps' must be one of sim, wall"),
-    ("scene:=no_such_scene", "unknown scene 'no_such_scene'"),
-    ("publish_rate_hz:=30", "publish_rate_hz"),
+@pytest.mark.parametrize('param, message', [
+    ('sim.strain_limit:=0.0001', 'sim.strain_limit out of range'),
+    ('filter.type:=notch', "filter.type 'notch' must be one of"),
+    ('stamp:=gps', "stamp 'gps' must be one of sim, wall"),
+    ('scene:=no_such_scene', "unknown scene 'no_such_scene'"),
+    ('publish_rate_hz:=30', 'publish_rate_hz'),
 ])
 def test_bad_startup_parameters_exit_2_with_one_clear_line(param, message):
-    node = NodeProcess(param, namespace="badstart")
+    node = NodeProcess(param, namespace='badstart')
     out, err = node.proc.communicate(timeout=30)
     assert node.proc.returncode == 2
-    assert "Traceback" not in err and message in err
+    assert 'Traceback' not in err and message in err
 
 
 def test_a_band_needing_new_modes_keeps_the_stream_going():
-    """sheet_100x100 starts with 32 modes; a band up to mode 99 makes the node compute more
-    inside the parameter request, in its worker process, and build the switch there. The
-    stream must go on meanwhile: in-process, the eigensolver held the interpreter for
-    0.07-0.2 s at a time. (Rest modes: what the worker keeps off the stream is measured
-    here; the derivative basis adds the band's derivatives to the request.)"""
-    with node_with_client("scene:=sheet_100x100", "integrator:=average", "filter.type:=lowpass",
-                          "filter.by:=index", "filter.high_mode:=15", "modal.basis:=rest",
-                          namespace="grow") as (node, client):
-        points = client.collect(PointCloud2, "/grow/points", qos=500)
-        diags = client.collect(DiagnosticArray, "/diagnostics")
+    """
+    sheet_100x100 starts with 32 modes.
+
+    A band up to mode 99 makes the node compute more inside the parameter request, in its worker
+    process, and build the switch there. The stream must go on meanwhile: in-process, the
+    eigensolver held the interpreter for 0.07-0.2 s at a time. (Rest modes: what the worker keeps
+    off the stream is measured here; the derivative basis adds the band's derivatives to the
+    request.)
+    """
+    with node_with_client('scene:=sheet_100x100', 'integrator:=average', 'filter.type:=lowpass',
+                          'filter.by:=index', 'filter.high_mode:=15', 'modal.basis:=rest',
+                          namespace='grow') as (node, client):
+        points = client.collect(PointCloud2, '/grow/points', qos=500)
+        diags = client.collect(DiagnosticArray, '/diagnostics')
         assert wait_for(lambda: len(points) > 10, 60)
         time.sleep(3.0)                                  # a steady window to compare with
         start = time.monotonic()
-        (result,) = client.set_parameters("grow/modal_spring", timeout=180.0,
+        (result,) = client.set_parameters('grow/modal_spring', timeout=180.0,
                                           filter__high_mode=99)
         assert result.successful, result.reason
         done = time.monotonic()
         assert any(t > start and t < done for t, _ in points)   # frames during the request
         assert wait_for(lambda: any(
-            d.status[0].name.startswith("/grow/") and t > done + 1.0 for t, d in diags), 10)
+            node_of(d.status[0]).startswith('/grow/') and t > done + 1.0 for t, d in diags), 10)
         mine = [(t, d.status[0]) for t, d in diags
-                if d.status[0].name.startswith("/grow/") and t > start]
+                if node_of(d.status[0]).startswith('/grow/') and t > start]
         values = {kv.key: kv.value for kv in mine[-1][1].values}
-        assert values["modes stepped"] == "100" and int(values["modes computed"]) >= 100
+        assert values['modes stepped'] == '100' and int(values['modes computed']) >= 100
         times = np.array([t for t, _ in points])
         steady = float(np.diff(times[(times > start - 3.0) & (times < start)]).max())
         worst = float(np.diff(times[times > start - 0.5]).max())
-        print(f"longest gap {worst:.3f} s (steady: {steady:.3f} s)")
+        print(f'longest gap {worst:.3f} s (steady: {steady:.3f} s)')
         # here about 0.05 s (3 periods); on a loaded host no worse than its steady gaps allow
         assert worst < max(0.15, 3.0 * steady), (worst, steady, [s.message for _, s in mine])
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_during_a_long_mode_computation_at_startup_cancels_it(sig):
-    """sheet_100x100 with every band starts by computing 256 modes (seconds) in the worker
-    process. Ctrl-C (SIGINT to the whole process group, as a terminal sends it) or SIGTERM
-    (as a process manager sends it) must end the node cleanly without waiting for that
-    computation."""
-    node = NodeProcess("scene:=sheet_100x100", namespace="startint")
+    """
+    sheet_100x100 with every band starts by computing 256 modes (seconds) in the worker process.
+
+    Ctrl-C (SIGINT to the whole process group, as a terminal sends it) or SIGTERM (as a process
+    manager sends it) must end the node cleanly without waiting for that computation.
+    """
+    node = NodeProcess('scene:=sheet_100x100', namespace='startint')
     lines: list[str] = []
     reader = threading.Thread(target=lambda: lines.extend(node.proc.stderr), daemon=True)
     reader.start()
     try:
-        assert wait_for(lambda: any("computing the 256 lowest modes" in x for x in lines), 60)
+        assert wait_for(lambda: any('computing the 256 lowest modes' in x for x in lines), 60)
         if sig == signal.SIGINT:
             os.killpg(node.proc.pid, sig)
         else:
@@ -229,25 +237,25 @@ def test_a_signal_during_a_long_mode_computation_at_startup_cancels_it(sig):
         reader.join(timeout=10)
     finally:
         node.kill()
-    err = "".join(lines)
+    err = ''.join(lines)
     assert node.proc.returncode == 0, err[-3000:]
-    assert "Traceback" not in err
-    assert "256 modes ready" not in err                   # cancelled, not waited for
+    assert 'Traceback' not in err
+    assert '256 modes ready' not in err                   # cancelled, not waited for
 
 
 def test_no_clock_unless_asked_and_one_line_once_streaming():
-    node = NodeProcess(namespace="quiet")
-    client = Client("quiet_client")
+    node = NodeProcess(namespace='quiet')
+    client = Client('quiet_client')
     try:
-        points = client.collect(PointCloud2, "/quiet/points")
-        clocks = client.collect(Clock, "/clock")
+        points = client.collect(PointCloud2, '/quiet/points')
+        clocks = client.collect(Clock, '/clock')
         assert wait_for(lambda: len(points) > 5, 30)
 
         def clock_publishers():
-            return [i for i in client.node.get_publishers_info_by_topic("/clock")
-                    if i.node_namespace == "/quiet"]
+            return [i for i in client.node.get_publishers_info_by_topic('/clock')
+                    if i.node_namespace == '/quiet']
         assert clock_publishers() == []                 # no /clock publisher at all
-        (result,) = client.set_parameters("quiet/modal_spring", publish_clock=True)
+        (result,) = client.set_parameters('quiet/modal_spring', publish_clock=True)
         assert result.successful, result.reason
         assert wait_for(lambda: len(clocks) > 5, 10)    # created when asked for
         assert len(clock_publishers()) == 1
@@ -255,17 +263,17 @@ def test_no_clock_unless_asked_and_one_line_once_streaming():
         client.close()
         code, _, err = node.interrupt()
     assert code == 0
-    lines = [x for x in err.splitlines() if "streaming sheet_10x10" in x]
+    lines = [x for x in err.splitlines() if 'streaming sheet_10x10' in x]
     assert len(lines) == 1, err[-2000:]
-    assert ("streaming sheet_10x10 (100 particles; modal, allpass) on /quiet/points at 60 Hz, "
+    assert ('streaming sheet_10x10 (100 particles; modal, allpass) on /quiet/points at 60 Hz, '
             "frame 'world'") in lines[0]
 
 
 def test_the_stream_s_qos_can_be_overridden_at_start():
     from rclpy.qos import ReliabilityPolicy
     from ros_harness import node_with_client
-    with node_with_client("qos_overrides./qos/points.publisher.reliability:=best_effort",
-                          namespace="qos") as (node, client):
-        assert wait_for(lambda: client.node.get_publishers_info_by_topic("/qos/points"), 30)
-        (info,) = client.node.get_publishers_info_by_topic("/qos/points")
+    with node_with_client('qos_overrides./qos/points.publisher.reliability:=best_effort',
+                          namespace='qos') as (node, client):
+        assert wait_for(lambda: client.node.get_publishers_info_by_topic('/qos/points'), 30)
+        (info,) = client.node.get_publishers_info_by_topic('/qos/points')
         assert info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT

@@ -1,78 +1,86 @@
-"""What the node reports on /diagnostics about its run: the large-deformation warning and the
-automatic mode choice, over real DDS."""
+"""
+What the node reports on /diagnostics about its run.
+
+The large-deformation warning and the automatic mode choice, over real DDS.
+"""
 from __future__ import annotations
 
 import time
 
-import numpy as np
-import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from ros_harness import node_with_client, wait_for
-from sensor_msgs.msg import PointCloud2
-
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
+from ros_harness import node_of, node_with_client, wait_for
+from sensor_msgs.msg import PointCloud2
 
 pytestmark = pytest.mark.ros
 
 
 def test_the_node_flags_the_large_deformation_and_keeps_streaming():
-    """With rest modes (the paper's basis) the node warns once the deformation leaves their
-    regime, and keeps streaming."""
-    with node_with_client("scene:=sheet_10x10_resonance", "filter.type:=lowpass",
-                          "filter.by:=index", "filter.high_mode:=14", "realtime_factor:=2.0",
-                          "modal.basis:=rest", namespace="fold") as (node, client):
-        points = client.collect(PointCloud2, "/fold/points", qos=500)
-        diags = client.collect(DiagnosticArray, "/diagnostics")
+    """
+    With rest modes (the paper's basis) the node warns once the deformation leaves their regime.
+
+    And keeps streaming.
+    """
+    with node_with_client('scene:=sheet_10x10_resonance', 'filter.type:=lowpass',
+                          'filter.by:=index', 'filter.high_mode:=14', 'realtime_factor:=2.0',
+                          'modal.basis:=rest', namespace='fold') as (node, client):
+        points = client.collect(PointCloud2, '/fold/points', qos=500)
+        diags = client.collect(DiagnosticArray, '/diagnostics')
 
         def warned():
-            return any(d.status[0].name.startswith("/fold/") and
+            return any(node_of(d.status[0]).startswith('/fold/') and
                        d.status[0].level == DiagnosticStatus.WARN and
-                       "large deformation" in d.status[0].message for _, d in diags)
+                       'large deformation' in d.status[0].message for _, d in diags)
         assert wait_for(warned, 30)
         start = time.monotonic()
         time.sleep(1.0)
         window = [m for t, m in points if t >= start]
         assert len(window) > 30                               # not frozen
         for m in window:
-            assert np.isfinite(np.frombuffer(bytes(m.data), dtype="<f4")).all()
+            assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
 
 
 def test_node_automatic_mode_choice_is_reported():
-    with node_with_client("modal.auto:=true", "modal.tolerance:=0.05",
-                          namespace="auto") as (node, client):
-        diags = client.collect(DiagnosticArray, "/diagnostics")
-        assert wait_for(lambda: any(d.status[0].name.startswith("/auto/") for _, d in diags),
+    with node_with_client('modal.auto:=true', 'modal.tolerance:=0.05',
+                          namespace='auto') as (node, client):
+        diags = client.collect(DiagnosticArray, '/diagnostics')
+        assert wait_for(lambda: any(node_of(d.status[0]).startswith('/auto/') for _, d in diags),
                         30)
-        status = next(d.status[0] for _, d in diags if d.status[0].name.startswith("/auto/"))
+        status = next(d.status[0] for _, d in diags if node_of(d.status[0]).startswith('/auto/'))
         values = {kv.key: kv.value for kv in status.values}
-        assert values["automatic mode choice"].startswith("5 modes up to 20.44 Hz")
-        assert values["modes stepped"] == "5"
+        assert values['automatic mode choice'].startswith('5 modes up to 20.44 Hz')
+        assert values['modes stepped'] == '5'
         # the spring-force refresh follows the choice: what the engine chooses headless
-        expected = build_simulation(load_scene("sheet_10x10"),
+        expected = build_simulation(load_scene('sheet_10x10'),
                                     SimulationConfig(auto=True, tolerance=0.05))
-        assert values["force refresh (steps)"] == str(expected.force_refresh)
+        assert values['force refresh (steps)'] == str(expected.force_refresh)
         assert expected.force_refresh > 1
-        assert wait_for(lambda: float(_values(diags, "/auto/")["force refresh error"]) > 0, 10)
-        assert float(_values(diags, "/auto/")["force refresh error"]) < 0.01
+        assert wait_for(lambda: float(_values(diags, '/auto/')['force refresh error']) > 0, 10)
+        assert float(_values(diags, '/auto/')['force refresh error']) < 0.01
 
 
 def _values(diags, prefix):
-    status = [d.status[0] for _, d in diags if d.status[0].name.startswith(prefix)][-1]
+    status = [d.status[0] for _, d in diags if node_of(d.status[0]).startswith(prefix)][-1]
     return {kv.key: kv.value for kv in status.values}
 
 
 def test_the_node_streams_with_sampled_springs():
-    """modal.forces sampled on sheet_32x32: the sample is trained at start (cached for the
-    suite) and reported on /diagnostics."""
-    with node_with_client("scene:=sheet_32x32", "modal.forces:=sampled", "filter.type:=lowpass",
-                          "filter.high_hz:=30.0", namespace="sampled") as (node, client):
-        points = client.collect(PointCloud2, "/sampled/points")
-        diags = client.collect(DiagnosticArray, "/diagnostics")
+    """
+    modal.forces sampled on sheet_32x32.
+
+    The sample is trained at start (cached for the suite) and reported on /diagnostics.
+    """
+    with node_with_client('scene:=sheet_32x32', 'modal.forces:=sampled', 'filter.type:=lowpass',
+                          'filter.high_hz:=30.0', namespace='sampled') as (node, client):
+        points = client.collect(PointCloud2, '/sampled/points')
+        diags = client.collect(DiagnosticArray, '/diagnostics')
         assert wait_for(lambda: len(points) > 10, 60)
-        assert wait_for(lambda: any(d.status[0].name.startswith("/sampled/")
+        assert wait_for(lambda: any(node_of(d.status[0]).startswith('/sampled/')
                                     for _, d in diags), 10)
-        assert _values(diags, "/sampled/")["spring forces"].startswith("sampled: ")
+        assert _values(diags, '/sampled/')['spring forces'].startswith('sampled: ')
         for _, m in points:
-            assert np.isfinite(np.frombuffer(bytes(m.data), dtype="<f4")).all()
+            assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()

@@ -1,31 +1,35 @@
-"""The stream cannot die silently: band changes every 20 ms, reset and pause every 30 ms and
-method switches, all at once for 20 s, over real DDS against the real node process."""
+"""
+The stream cannot die silently.
+
+Band changes every 20 ms, reset and pause every 30 ms and method switches, all at once for 20 s,
+over real DDS against the real node process.
+"""
 from __future__ import annotations
 
 import threading
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 import numpy as np
 import pytest
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from ros_harness import node_with_client, wait_for
+from ros_harness import node_of, node_with_client, wait_for
 from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import SetBool, Trigger
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-NODE = "stress20/modal_spring"
+NODE = 'stress20/modal_spring'
 DURATION_S = 20.0
-BANDS = [("lowpass", 0.0, 12.0), ("highpass", 10.0, 11.0), ("bandpass", 5.0, 40.0),
-         ("bandstop", 8.0, 30.0), ("allpass", 0.0, 1.0)]
+BANDS = [('lowpass', 0.0, 12.0), ('highpass', 10.0, 11.0), ('bandpass', 5.0, 40.0),
+         ('bandstop', 8.0, 30.0), ('allpass', 0.0, 1.0)]
 
 
 def test_concurrent_band_reset_pause_and_method_changes_keep_the_stream_whole():
-    with node_with_client(namespace="stress20") as (node, client):
-        points = client.collect(PointCloud2, "/stress20/points", qos=1000)
-        diagnostics = client.collect(DiagnosticArray, "/diagnostics")
+    with node_with_client(namespace='stress20') as (node, client):
+        points = client.collect(PointCloud2, '/stress20/points', qos=1000)
+        diagnostics = client.collect(DiagnosticArray, '/diagnostics')
         assert wait_for(lambda: len(points) > 3, 30)
-        answered = {"band": 0, "reset": 0, "pause": 0, "method": 0}
+        answered = {'band': 0, 'reset': 0, 'pause': 0, 'method': 0}
         sent = dict.fromkeys(answered, 0)
         failures: list[str] = []
         end = time.monotonic() + DURATION_S
@@ -37,11 +41,11 @@ def test_concurrent_band_reset_pause_and_method_changes_keep_the_stream_whole():
                 try:
                     ok, why = call(k)
                 except TimeoutError as exc:  # unanswered: counted, reported below
-                    failures.append(f"{kind}: {exc}")
+                    failures.append(f'{kind}: {exc}')
                 else:
                     answered[kind] += 1
                     if not ok:
-                        failures.append(f"{kind} refused: {why}")
+                        failures.append(f'{kind} refused: {why}')
                 k += 1
                 time.sleep(period_s)
 
@@ -52,36 +56,36 @@ def test_concurrent_band_reset_pause_and_method_changes_keep_the_stream_whole():
             return r.successful, r.reason
 
         def reset(k):
-            r = client.call(Trigger, f"/{NODE}/reset", Trigger.Request(), timeout=10.0)
+            r = client.call(Trigger, f'/{NODE}/reset', Trigger.Request(), timeout=10.0)
             return r.success, r.message
 
         pauses = []  # (sent, answered, paused?)
 
         def pause(k):
             t0 = time.monotonic()
-            r = client.call(SetBool, f"/{NODE}/pause", SetBool.Request(data=k % 2 == 0),
+            r = client.call(SetBool, f'/{NODE}/pause', SetBool.Request(data=k % 2 == 0),
                             timeout=10.0)
             pauses.append((t0, time.monotonic(), k % 2 == 0))
             return r.success, r.message
 
         def method(k):
-            (r,) = client.set_parameters(NODE, timeout=10.0, method=("full", "modal")[k % 2])
+            (r,) = client.set_parameters(NODE, timeout=10.0, method=('full', 'modal')[k % 2])
             return r.successful, r.reason
 
         # one client per service, matched before the storm starts
-        client.call(Trigger, f"/{NODE}/reset", Trigger.Request())
-        client.call(SetBool, f"/{NODE}/pause", SetBool.Request(data=False))
-        client.set_parameters(NODE, atomically=True, filter__type="allpass")
-        client.set_parameters(NODE, method="modal")
+        client.call(Trigger, f'/{NODE}/reset', Trigger.Request())
+        client.call(SetBool, f'/{NODE}/pause', SetBool.Request(data=False))
+        client.set_parameters(NODE, atomically=True, filter__type='allpass')
+        client.set_parameters(NODE, method='modal')
         start = time.monotonic()
         workers = [threading.Thread(target=repeat, args=args) for args in (
-            ("band", 0.02, band), ("reset", 0.03, reset), ("pause", 0.03, pause),
-            ("method", 0.5, method))]
+            ('band', 0.02, band), ('reset', 0.03, reset), ('pause', 0.03, pause),
+            ('method', 0.5, method))]
         for w in workers:
             w.start()
         for w in workers:
             w.join()
-        client.call(SetBool, f"/{NODE}/pause", SetBool.Request(data=False))
+        client.call(SetBool, f'/{NODE}/pause', SetBool.Request(data=False))
         after = time.monotonic()
         assert wait_for(lambda: len([t for t, _ in points if t > after]) > 30, 10)
         assert node.proc.poll() is None
@@ -96,7 +100,7 @@ def test_concurrent_band_reset_pause_and_method_changes_keep_the_stream_whole():
                         if not any(p0 < b and a < p1 for p0, p1 in paused)]
         assert len(running_gaps) > 100 and max(running_gaps) < 0.5
         for _, m in points:
-            assert np.isfinite(np.frombuffer(bytes(m.data), dtype="<f4")).all()
+            assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
         levels = [d.status[0].level for t, d in diagnostics
-                  if t >= start and d.status[0].name.startswith("/stress20/")]
+                  if t >= start and node_of(d.status[0]).startswith('/stress20/')]
         assert levels and DiagnosticStatus.ERROR not in levels

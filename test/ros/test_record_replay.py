@@ -6,29 +6,28 @@ import subprocess
 import threading
 import time
 
-import numpy as np
-import pytest
 from helpers import BAGS
-from ros_harness import Client, NodeProcess, console_script, wait_for
-from sensor_msgs.msg import PointCloud2
-
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.ros.resimulate import resimulate
+import numpy as np
+import pytest
+from ros_harness import Client, console_script, NodeProcess, wait_for
+from sensor_msgs.msg import PointCloud2
 
 pytestmark = pytest.mark.ros
 
 
 def test_replay_delivers_exactly_the_recorded_messages_with_their_timing():
-    bag = BagReader(BAGS / "sheet_10x10_lowpass_0_14")
-    recorded = list(bag.messages(["/points"]))
-    client = Client("replay_client")
+    bag = BagReader(BAGS / 'sheet_10x10_lowpass_0_14')
+    recorded = list(bag.messages(['/points']))
+    client = Client('replay_client')
     received: list[tuple[float, bytes]] = []
-    client.node.create_subscription(PointCloud2, "/replay/points",
+    client.node.create_subscription(PointCloud2, '/replay/points',
                                     lambda data: received.append((time.monotonic(), data)),
                                     500, raw=True)
-    player = subprocess.Popen([console_script("modal_spring_replay"), str(bag.path), "--rate",
-                               "2.0", "--wait-for-subscribers", "--ros-args", "-r",
-                               "/points:=/replay/points"], stdout=subprocess.PIPE,
+    player = subprocess.Popen([console_script('modal_spring_replay'), str(bag.path), '--rate',
+                               '2.0', '--wait-for-subscribers', '--ros-args', '-r',
+                               '/points:=/replay/points'], stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True)
     try:
         out, err = player.communicate(timeout=60)
@@ -48,59 +47,59 @@ def test_replay_delivers_exactly_the_recorded_messages_with_their_timing():
 
 
 def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
-    out = tmp_path / "live"
-    node = NodeProcess("publish_rate_hz:=30.0", namespace="rec")
-    client = Client("rec_client")
-    points = client.collect(PointCloud2, "/rec/points")
+    out = tmp_path / 'live'
+    node = NodeProcess('publish_rate_hz:=30.0', namespace='rec')
+    client = Client('rec_client')
+    points = client.collect(PointCloud2, '/rec/points')
     recorder = None
     try:
         assert wait_for(lambda: len(points) > 3, 30)
         recorder = subprocess.Popen(
-            [console_script("modal_spring_record"), "--output", str(out), "--node",
-             "/rec/modal_spring", "--topics", "points", "/diagnostics", "/parameter_events",
-             "--ros-args", "-r", "__ns:=/rec"],
+            [console_script('modal_spring_record'), '--output', str(out), '--node',
+             '/rec/modal_spring', '--topics', 'points', '/diagnostics', '/parameter_events',
+             '--ros-args', '-r', '__ns:=/rec'],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         log: list[str] = []
-        reader = threading.Thread(target=lambda: log.extend(iter(recorder.stderr.readline, "")),
+        reader = threading.Thread(target=lambda: log.extend(iter(recorder.stderr.readline, '')),
                                   daemon=True)
         reader.start()
-        assert wait_for(lambda: any("recording /rec/points" in line for line in log), 30)
-        assert wait_for(lambda: any("parameters of node /rec/modal_spring and its scene" in line
+        assert wait_for(lambda: any('recording /rec/points' in line for line in log), 30)
+        assert wait_for(lambda: any('parameters of node /rec/modal_spring and its scene' in line
                                     for line in log), 30)
         time.sleep(2.0)
-        (result,) = client.set_parameters("rec/modal_spring", atomically=True,
-                                          filter__type="lowpass", filter__high_hz=12.0)
+        (result,) = client.set_parameters('rec/modal_spring', atomically=True,
+                                          filter__type='lowpass', filter__high_hz=12.0)
         assert result.successful
         time.sleep(2.5)
         recorder.send_signal(signal.SIGINT)
         recorder.wait(timeout=30)
         reader.join(timeout=5)
-        err = "".join(log)
+        err = ''.join(log)
         assert recorder.returncode == 0, err
-        assert "Traceback" not in err
+        assert 'Traceback' not in err
     finally:
         client.close()
         node.kill()
         if recorder is not None and recorder.poll() is None:
             recorder.kill()
     bag = BagReader(out)
-    assert bag.finalised and (out / "metadata.yaml").exists()
-    assert {"/rec/points", "/diagnostics", "/parameter_events"} <= set(bag.topics)
-    assert bag.topics["/rec/points"].count > 30          # over a second of frames
-    assert "reliability: reliable" in bag.topics["/rec/points"].offered_qos_profiles
+    assert bag.finalised and (out / 'metadata.yaml').exists()
+    assert {'/rec/points', '/diagnostics', '/parameter_events'} <= set(bag.topics)
+    assert bag.topics['/rec/points'].count > 30          # over a second of frames
+    assert 'reliability: reliable' in bag.topics['/rec/points'].offered_qos_profiles
     record = bag.run_record()
-    assert record["parameters"]["scene"] == "sheet_10x10"
-    assert record["parameters"]["filter.type"] == "allpass"
-    assert "particles:" in record["scene_yaml"]                 # the full definition
+    assert record['parameters']['scene'] == 'sheet_10x10'
+    assert record['parameters']['filter.type'] == 'allpass'
+    assert 'particles:' in record['scene_yaml']                 # the full definition
     # header stamp (simulation time) as publish time, receive time as log time
-    first = next(bag.messages(["/rec/points"]))
+    first = next(bag.messages(['/rec/points']))
     stamp = bag.decode(first).header.stamp
     assert first.publish_time_ns == stamp.sec * 1_000_000_000 + stamp.nanosec
     assert first.log_time_ns > 1_600_000_000 * 10**9
     # re-simulation: the same scene, parameters and change give the recorded frames
-    again = tmp_path / "again"
-    n = resimulate(out, again, topic="/rec/points")
-    t_rec, x_rec = bag.points("/rec/points")
+    again = tmp_path / 'again'
+    n = resimulate(out, again, topic='/rec/points')
+    t_rec, x_rec = bag.points('/rec/points')
     t_new, x_new = BagReader(again).points()
     assert n == len(t_rec)
     np.testing.assert_allclose(t_new, t_rec, atol=1e-9)
@@ -111,29 +110,33 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
 
 
 def test_the_nodes_own_capture_resimulates_frame_for_frame(tmp_path):
-    """record.bag: every published frame straight to a bag, with the parameters and each
-    change at the simulation time it took effect: the re-run reproduces all of it."""
+    """
+    record.bag.
+
+    Every published frame straight to a bag, with the parameters and each change at the simulation
+    time it took effect: the re-run reproduces all of it.
+    """
     from ros_harness import node_with_client
     from std_srvs.srv import Trigger
-    out = tmp_path / "direct"
-    with node_with_client(f"record.bag:={out}", "publish_rate_hz:=30.0",
-                          namespace="direct") as (node, client):
-        points = client.collect(PointCloud2, "/direct/points")
+    out = tmp_path / 'direct'
+    with node_with_client(f'record.bag:={out}', 'publish_rate_hz:=30.0',
+                          namespace='direct') as (node, client):
+        points = client.collect(PointCloud2, '/direct/points')
         assert wait_for(lambda: len(points) > 20, 30)
-        (r,) = client.set_parameters("direct/modal_spring", atomically=True,
-                                     filter__type="bandpass", filter__low_hz=8.0,
+        (r,) = client.set_parameters('direct/modal_spring', atomically=True,
+                                     filter__type='bandpass', filter__low_hz=8.0,
                                      filter__high_hz=40.0)
         assert r.successful
         time.sleep(1.0)
-        (r,) = client.set_parameters("direct/modal_spring", method="full")
+        (r,) = client.set_parameters('direct/modal_spring', method='full')
         assert r.successful
         time.sleep(0.7)
-        assert client.call(Trigger, "/direct/modal_spring/reset", Trigger.Request()).success
+        assert client.call(Trigger, '/direct/modal_spring/reset', Trigger.Request()).success
         time.sleep(0.7)
     bag = BagReader(out)
-    assert bag.finalised and bag.topics["/points"].count > 60
-    assert bag.topics["/parameter_events"].count == 2
-    again = tmp_path / "again"
+    assert bag.finalised and bag.topics['/points'].count > 60
+    assert bag.topics['/parameter_events'].count == 2
+    again = tmp_path / 'again'
     n = resimulate(out, again)
     t_rec, x_rec = bag.points()
     t_new, x_new = BagReader(again).points()
@@ -144,24 +147,24 @@ def test_the_nodes_own_capture_resimulates_frame_for_frame(tmp_path):
 
 def test_a_recorder_killed_with_sigkill_leaves_a_readable_bag(tmp_path):
     from ros_harness import node_with_client
-    out = tmp_path / "killed"
-    with node_with_client("publish_rate_hz:=60.0", namespace="kill") as (node, client):
-        points = client.collect(PointCloud2, "/kill/points", qos=500)
+    out = tmp_path / 'killed'
+    with node_with_client('publish_rate_hz:=60.0', namespace='kill') as (node, client):
+        points = client.collect(PointCloud2, '/kill/points', qos=500)
         assert wait_for(lambda: len(points) > 10, 30)
         recorder = subprocess.Popen(
-            [console_script("modal_spring_record"), "--output", str(out), "--topics", "points",
-             "--wait-for-node", "2", "--ros-args", "-r", "__ns:=/kill"],
+            [console_script('modal_spring_record'), '--output', str(out), '--topics', 'points',
+             '--wait-for-node', '2', '--ros-args', '-r', '__ns:=/kill'],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         log: list[str] = []
-        threading.Thread(target=lambda: log.extend(iter(recorder.stderr.readline, "")),
+        threading.Thread(target=lambda: log.extend(iter(recorder.stderr.readline, '')),
                          daemon=True).start()
-        assert wait_for(lambda: any("recording /kill/points" in line for line in log), 30)
+        assert wait_for(lambda: any('recording /kill/points' in line for line in log), 30)
         time.sleep(3.0)                       # about 180 clouds of 1.7 kB: 300 kB, under one
         recorder.kill()                       # full chunk (768 kB); chunks close each second
         recorder.wait(timeout=10)
     bag = BagReader(out)
-    assert not bag.finalised and not (out / "metadata.yaml").exists()
-    messages = list(bag.messages(["/kill/points"]))
+    assert not bag.finalised and not (out / 'metadata.yaml').exists()
+    messages = list(bag.messages(['/kill/points']))
     assert len(messages) > 100               # all but the last second's (unfinished) chunk
     stamps = [bag.decode(m).header.stamp for m in messages]   # every one decodes
     ns = [s.sec * 1_000_000_000 + s.nanosec for s in stamps]
@@ -169,11 +172,11 @@ def test_a_recorder_killed_with_sigkill_leaves_a_readable_bag(tmp_path):
 
 
 def test_the_nodes_capture_killed_with_sigkill_keeps_all_but_its_last_second(tmp_path):
-    out = tmp_path / "capture"
-    node = NodeProcess(f"record.bag:={out}", namespace="capkill")
-    client = Client("capkill_client")
+    out = tmp_path / 'capture'
+    node = NodeProcess(f'record.bag:={out}', namespace='capkill')
+    client = Client('capkill_client')
     try:
-        points = client.collect(PointCloud2, "/capkill/points", qos=500)
+        points = client.collect(PointCloud2, '/capkill/points', qos=500)
         assert wait_for(lambda: len(points) > 10, 30)
         time.sleep(3.0)
         node.kill()
@@ -181,7 +184,7 @@ def test_the_nodes_capture_killed_with_sigkill_keeps_all_but_its_last_second(tmp
         client.close()
         node.kill()
     bag = BagReader(out)
-    stamps, frames = bag.points("/points")
+    stamps, frames = bag.points('/points')
     assert not bag.finalised
     # 60 frames a second for about 3 s: a chunk closes every second, so at most about the
     # last second (and the frames of the open chunk) is lost

@@ -1,21 +1,23 @@
-"""The node's simulation thread on its own (no DDS): requests applied between steps and always
-answered, supervision that reports a failure and keeps the stream going, and "as fast as
-possible" filling each frame with steps."""
+"""
+The node's simulation thread on its own (no DDS).
+
+Requests applied between steps and always answered, supervision that reports a failure and keeps
+the stream going, and "as fast as possible" filling each frame with steps.
+"""
 from __future__ import annotations
 
 import threading
 import time
 
-import numpy as np
-import pytest
 from helpers import variant
-
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.ros.requests import ChangeBand, Pause, ReplaceSimulation, Reset
 from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
 from modal_spring_ros.scenes.resources import load_scene
+import numpy as np
+import pytest
 
 pytestmark = pytest.mark.ros  # the node's own thread (no DDS, but seconds of wall time)
 
@@ -57,11 +59,11 @@ def wait_for(predicate, timeout):
 
 @pytest.fixture
 def running():
-    """A running thread on sheet_10x10 (modal, all-pass) and its recorder; stopped after."""
+    """Return a running thread on sheet_10x10 (modal, all-pass) and its recorder; stopped after."""
     started = []
 
     def start(sim=None, settings=StreamSettings()):
-        sim = sim or build_simulation(load_scene("sheet_10x10"), SimulationConfig())
+        sim = sim or build_simulation(load_scene('sheet_10x10'), SimulationConfig())
         out = Recorder()
         thread = SimulationThread(sim, out, lambda: settings,
                                   rebuild=lambda: rebuild(sim.model, sim.basis,
@@ -79,12 +81,12 @@ def running():
 
 def test_a_reset_while_a_band_fades_is_applied_and_the_stream_goes_on(running):
     thread, out = running()
-    band = ChangeBand(band=FilterBand("lowpass", 0, 20, "hz"), transition_s=0.5)
+    band = ChangeBand(band=FilterBand('lowpass', 0, 20, 'hz'), transition_s=0.5)
     reset = Reset()
     thread.submit(band)
     thread.submit(reset)
     assert band.wait(2.0) and reset.wait(2.0), (band.message, reset.message)
-    assert reset.message == "back to the rest state at t = 0"
+    assert reset.message == 'back to the rest state at t = 0'
     after = time.monotonic()
     assert wait_for(lambda: len(out.frames_after(after)) > 10, 5.0)
     assert out.errors() == []
@@ -100,13 +102,13 @@ def test_a_failing_step_is_reported_and_the_run_goes_back_to_rest(running, monke
     def failing_once():
         calls.append(1)
         if len(calls) == 50:
-            raise RuntimeError("boom")
+            raise RuntimeError('boom')
         real()
 
-    monkeypatch.setattr(sim, "_step_once", failing_once)
+    monkeypatch.setattr(sim, '_step_once', failing_once)
     assert wait_for(lambda: out.errors(), 5.0)
     assert out.errors()[0] == ("simulation thread failed: RuntimeError('boom'); recovered: "
-                               "back to the rest state")
+                               'back to the rest state')
     after = time.monotonic()
     assert wait_for(lambda: len(out.frames_after(after)) > 10, 5.0)
     assert thread.sim is sim and thread.alive
@@ -121,21 +123,21 @@ def test_a_simulation_that_cannot_even_reset_is_rebuilt(running, monkeypatch):
     broken = thread.sim
 
     def fail(*_):
-        raise RuntimeError("broken state")
+        raise RuntimeError('broken state')
 
-    monkeypatch.setattr(broken, "_step_once", fail)
-    monkeypatch.setattr(broken, "reset", fail)
+    monkeypatch.setattr(broken, '_step_once', fail)
+    monkeypatch.setattr(broken, 'reset', fail)
     assert wait_for(lambda: thread.sim is not broken, 5.0)
     after = time.monotonic()
     assert wait_for(lambda: len(out.frames_after(after)) > 10, 5.0)
-    assert any("rebuilding the simulation" in e for e in out.errors())
+    assert any('rebuilding the simulation' in e for e in out.errors())
 
 
 def test_every_request_is_answered_under_a_storm_of_them(running):
     thread, out = running(settings=StreamSettings(publish_rate_hz=60.0))
     sim0 = thread.sim
-    bands = [FilterBand("lowpass", 0, 12, "hz"), FilterBand("highpass", 10, 0, "hz"),
-             FilterBand("bandpass", 5, 40, "hz"), FilterBand()]
+    bands = [FilterBand('lowpass', 0, 12, 'hz'), FilterBand('highpass', 10, 0, 'hz'),
+             FilterBand('bandpass', 5, 40, 'hz'), FilterBand()]
     requests, lock = [], threading.Lock()
 
     def submit(make, count, pause_s):
@@ -150,7 +152,7 @@ def test_every_request_is_answered_under_a_storm_of_them(running):
         (lambda k: ChangeBand(band=bands[k % 4], transition_s=0.2), 100, 0.02),
         (lambda k: Reset() if k % 2 else Pause(paused=k % 4 == 0), 60, 0.03),
         (lambda k: ReplaceSimulation(simulation=rebuild(
-            sim0.model, sim0.basis, SimulationConfig(method=("full", "modal")[k % 2]))),
+            sim0.model, sim0.basis, SimulationConfig(method=('full', 'modal')[k % 2]))),
          10, 0.15),
     ]
     workers = [threading.Thread(target=submit, args=m) for m in makers]
@@ -168,19 +170,23 @@ def test_every_request_is_answered_under_a_storm_of_them(running):
 
 
 def test_stopping_answers_the_requests_still_queued():
-    sim = build_simulation(load_scene("sheet_10x10"), SimulationConfig())
+    sim = build_simulation(load_scene('sheet_10x10'), SimulationConfig())
     thread = SimulationThread(sim, Recorder(), StreamSettings, rebuild=lambda: sim)
     pending = thread.submit(Reset())
     thread.stop()
     assert pending.answered and not pending.applied
-    assert pending.message == "the node is shutting down"
+    assert pending.message == 'the node is shutting down'
 
 
 def test_as_fast_as_possible_fills_each_frame_with_steps(running):
-    """realtime_factor 0: as many steps as fit between frames, so the achieved factor follows
-    the step cost (dt / step time), not one step per frame."""
-    scene = variant("sheet_10x10", anchor_motion=[])
-    sim = build_simulation(scene, SimulationConfig(band=FilterBand("lowpass", 0, 20, "hz")))
+    """
+    realtime_factor 0.
+
+    As many steps as fit between frames, so the achieved factor follows the step cost (dt / step
+    time), not one step per frame.
+    """
+    scene = variant('sheet_10x10', anchor_motion=[])
+    sim = build_simulation(scene, SimulationConfig(band=FilterBand('lowpass', 0, 20, 'hz')))
     thread, out = running(sim, StreamSettings(publish_rate_hz=30.0, realtime_factor=0.0))
     start_wall, start_sim = time.monotonic(), thread.sim.time
     time.sleep(2.5)
@@ -193,19 +199,19 @@ def test_as_fast_as_possible_fills_each_frame_with_steps(running):
 
 
 def test_band_changes_queued_together_build_only_the_last():
-    sim = build_simulation(load_scene("sheet_10x10"), SimulationConfig())
+    sim = build_simulation(load_scene('sheet_10x10'), SimulationConfig())
     out = Recorder()
     thread = SimulationThread(sim, out, StreamSettings, rebuild=lambda: sim)
-    first = thread.submit(ChangeBand(band=FilterBand("lowpass", 0, 12, "hz"),
-                                     changed={"filter.type": "lowpass", "filter.high_hz": 12.0}))
-    second = thread.submit(ChangeBand(band=FilterBand("lowpass", 0, 20, "hz"),
-                                      changed={"filter.high_hz": 20.0}))
+    first = thread.submit(ChangeBand(band=FilterBand('lowpass', 0, 12, 'hz'),
+                                     changed={'filter.type': 'lowpass', 'filter.high_hz': 12.0}))
+    second = thread.submit(ChangeBand(band=FilterBand('lowpass', 0, 20, 'hz'),
+                                      changed={'filter.high_hz': 20.0}))
     thread.start()
     try:
         assert first.wait(5.0) and second.wait(5.0)
-        assert "superseded by lowpass <= 20 Hz" in first.message
-        assert thread.sim.band == FilterBand("lowpass", 0, 20, "hz")
+        assert 'superseded by lowpass <= 20 Hz' in first.message
+        assert thread.sim.band == FilterBand('lowpass', 0, 20, 'hz')
         # one change recorded, with every parameter the two changed
-        assert out.changes == [{"filter.type": "lowpass", "filter.high_hz": 20.0}]
+        assert out.changes == [{'filter.type': 'lowpass', 'filter.high_hz': 20.0}]
     finally:
         thread.stop()

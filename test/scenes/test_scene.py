@@ -4,26 +4,25 @@ from __future__ import annotations
 import copy
 import math
 
-import numpy as np
-import pytest
 from helpers import variant
-
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.scene import SceneError
 from modal_spring_ros.core.simulations import FullSimulation
 from modal_spring_ros.scenes.resources import builtin_scene_names, load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
+import numpy as np
+import pytest
 
 
 def test_builtin_scenes_are_listed():
     names = builtin_scene_names()
-    for expected in ("sheet_10x10", "chain_2", "sheet_32x32", "sheet_100x100", "cantilever_3d"):
+    for expected in ('sheet_10x10', 'chain_2', 'sheet_32x32', 'sheet_100x100', 'cantilever_3d'):
         assert expected in names
 
 
 def test_sheet_10x10_is_the_papers_scene():
-    s = load_scene("sheet_10x10")
+    s = load_scene('sheet_10x10')
     assert s.n_particles == 100
     assert s.dimension == 2
     assert s.fixed.sum() == 10                     # the top row
@@ -35,7 +34,7 @@ def test_sheet_10x10_is_the_papers_scene():
 
 def test_sheet_10x10_stays_in_the_small_deformation_regime():
     """Largest spring strain under gravity below 5 % (the drop from rest included)."""
-    scene = variant("sheet_10x10", anchor_motion=[])
+    scene = variant('sheet_10x10', anchor_motion=[])
     model = MassSpringModel(scene)
     sim = FullSimulation(model, dt=5e-4, basis=ModalBasis(model))
     worst = 0.0
@@ -46,7 +45,7 @@ def test_sheet_10x10_stays_in_the_small_deformation_regime():
 
 
 def test_3d_scene_has_out_of_plane_motion():
-    s = load_scene("cantilever_3d")
+    s = load_scene('cantilever_3d')
     assert s.dimension == 3 and np.ptp(s.rest_positions[:, 2]) > 0
     model = MassSpringModel(s)
     basis = ModalBasis(model)
@@ -57,26 +56,26 @@ def test_3d_scene_has_out_of_plane_motion():
 
 
 def test_scene_round_trips_through_its_full_definition():
-    s = load_scene("sheet_10x10")
+    s = load_scene('sheet_10x10')
     again = scene_from_yaml(s.to_yaml())
-    for field in ("rest_positions", "mass", "springs", "stiffness", "rest_length", "fixed",
-                  "gravity"):
+    for field in ('rest_positions', 'mass', 'springs', 'stiffness', 'rest_length', 'fixed',
+                  'gravity'):
         assert np.array_equal(getattr(s, field), getattr(again, field)), field
     assert again.damping == s.damping and again.anchor_motion == s.anchor_motion
 
 
-_TURN = {"amplitude_deg": 10, "frequency_hz": 1, "pivot": [0.5, 0.0]}
+_TURN = {'amplitude_deg': 10, 'frequency_hz': 1, 'pivot': [0.5, 0.0]}
 
 
 def _chain(**override):
     data = {
-        "name": "bad", "dimension": 2,
-        "particles": {"positions": [[0, 0], [1, 0], [1, 1]], "mass": 1.0},
-        "springs": {"pairs": [[0, 1], [1, 2], [0, 2]], "stiffness": 10.0},
-        "fixed": {"indices": [0]},
+        'name': 'bad', 'dimension': 2,
+        'particles': {'positions': [[0, 0], [1, 0], [1, 1]], 'mass': 1.0},
+        'springs': {'pairs': [[0, 1], [1, 2], [0, 2]], 'stiffness': 10.0},
+        'fixed': {'indices': [0]},
     }
     for key, value in override.items():
-        section, _, field = key.partition("__")
+        section, _, field = key.partition('__')
         if field:
             data[section] = dict(data[section], **{field: value})
         else:
@@ -84,67 +83,67 @@ def _chain(**override):
     return data
 
 
-@pytest.mark.parametrize("override, message", [
-    ({"particles__mass": -1.0}, "particles.mass: must be positive, got -1"),
-    ({"particles__mass": [1.0, 0.0, 1.0]}, "particles.mass[1]: must be positive, got 0"),
-    ({"springs__stiffness": 0.0}, "springs.stiffness: must be positive, got 0"),
-    ({"springs__stiffness": [1.0, -2.0, 1.0]}, "springs.stiffness[1]: must be positive"),
-    ({"particles__positions": [[0, 0], [1, 0], [1, 0]]},
-     "springs.pairs[1]: zero-length spring: particles 1 and 2 are at the same position"),
-    ({"springs__pairs": [[0, 1], [1, 2], [1, 0]]},
-     "springs.pairs[2]: duplicate spring 0-1 (same as springs.pairs[0])"),
-    ({"springs__pairs": [[0, 1], [1, 3], [0, 2]]},
-     "springs.pairs[1]: particle index 3 out of range (0..2)"),
-    ({"springs__pairs": [[0, 1], [1, 1], [0, 2]]},
-     "springs.pairs[1]: connects particle 1 to itself"),
-    ({"springs__pairs": [[0, 1]], "springs__stiffness": 1.0},
-     "springs: 1 particle(s) no spring reaches: 2"),
-    ({"fixed": {"indices": []}}, "fixed: no particle is fixed"),
-    ({"fixed": None}, "fixed: missing: at least one particle must be fixed"),
-    ({"fixed": {"indices": [7]}}, "fixed.indices[0]: particle index 7 out of range (0..2)"),
-    ({"dimension": 4}, "dimension: must be 1, 2 or 3, got 4"),
-    ({"gravity": [0, 0, -9.81]}, "gravity: a 2D scene moves along x, y only"),
-    ({"particles__positions": [[0, 0, 0], [1, 0, 0], [1, 1, 1]]},
-     "particles: a 2D scene must have equal z for every particle"),
-    ({"anchor_motion": [{"axis": "z", "amplitude": 1, "frequency_hz": 1}]},
-     "anchor_motion[0].axis: must be one of x, y"),
-    ({"damping": {"ratio": -0.1}}, "damping.ratio: must not be negative"),
-    ({"colour": "red"}, "colour: unknown key"),
-    ({"anchor_motion": [{"rotation": "w", **_TURN}]},
+@pytest.mark.parametrize('override, message', [
+    ({'particles__mass': -1.0}, 'particles.mass: must be positive, got -1'),
+    ({'particles__mass': [1.0, 0.0, 1.0]}, 'particles.mass[1]: must be positive, got 0'),
+    ({'springs__stiffness': 0.0}, 'springs.stiffness: must be positive, got 0'),
+    ({'springs__stiffness': [1.0, -2.0, 1.0]}, 'springs.stiffness[1]: must be positive'),
+    ({'particles__positions': [[0, 0], [1, 0], [1, 0]]},
+     'springs.pairs[1]: zero-length spring: particles 1 and 2 are at the same position'),
+    ({'springs__pairs': [[0, 1], [1, 2], [1, 0]]},
+     'springs.pairs[2]: duplicate spring 0-1 (same as springs.pairs[0])'),
+    ({'springs__pairs': [[0, 1], [1, 3], [0, 2]]},
+     'springs.pairs[1]: particle index 3 out of range (0..2)'),
+    ({'springs__pairs': [[0, 1], [1, 1], [0, 2]]},
+     'springs.pairs[1]: connects particle 1 to itself'),
+    ({'springs__pairs': [[0, 1]], 'springs__stiffness': 1.0},
+     'springs: 1 particle(s) no spring reaches: 2'),
+    ({'fixed': {'indices': []}}, 'fixed: no particle is fixed'),
+    ({'fixed': None}, 'fixed: missing: at least one particle must be fixed'),
+    ({'fixed': {'indices': [7]}}, 'fixed.indices[0]: particle index 7 out of range (0..2)'),
+    ({'dimension': 4}, 'dimension: must be 1, 2 or 3, got 4'),
+    ({'gravity': [0, 0, -9.81]}, 'gravity: a 2D scene moves along x, y only'),
+    ({'particles__positions': [[0, 0, 0], [1, 0, 0], [1, 1, 1]]},
+     'particles: a 2D scene must have equal z for every particle'),
+    ({'anchor_motion': [{'axis': 'z', 'amplitude': 1, 'frequency_hz': 1}]},
+     'anchor_motion[0].axis: must be one of x, y'),
+    ({'damping': {'ratio': -0.1}}, 'damping.ratio: must not be negative'),
+    ({'colour': 'red'}, 'colour: unknown key'),
+    ({'anchor_motion': [{'rotation': 'w', **_TURN}]},
      "anchor_motion[0].rotation: must be one of x, y, z, got 'w'"),
-    ({"anchor_motion": [{"rotation": "x", **_TURN}]},
-     "anchor_motion[0].rotation: a turn about x leaves the xy plane of this 2D scene: turn "
-     "about z"),
-    ({"anchor_motion": [{"rotation": "z", "amplitude_deg": 10, "frequency_hz": 1}]},
-     "anchor_motion[0].pivot: missing: the point the axis goes through"),
-    ({"anchor_motion": [{"rotation": "z", **dict(_TURN, pivot=[0, "a"])}]},
+    ({'anchor_motion': [{'rotation': 'x', **_TURN}]},
+     'anchor_motion[0].rotation: a turn about x leaves the xy plane of this 2D scene: turn '
+     'about z'),
+    ({'anchor_motion': [{'rotation': 'z', 'amplitude_deg': 10, 'frequency_hz': 1}]},
+     'anchor_motion[0].pivot: missing: the point the axis goes through'),
+    ({'anchor_motion': [{'rotation': 'z', **dict(_TURN, pivot=[0, 'a'])}]},
      "anchor_motion[0].pivot[1]: must be a number, got 'a'"),
-    ({"anchor_motion": [{"rotation": "z", **dict(_TURN, amplitude=3)}]},
-     "anchor_motion[0].amplitude: unknown key (known keys: rotation, amplitude_deg"),
-    ({"anchor_motion": [{"rotation": "z", "pivot": [0, 0], "frequency_hz": 1}]},
-     "anchor_motion[0].amplitude_deg: missing"),
-    ({"anchor_motion": [{"axis": "x", "amplitude": 1, "frequency_hz": 1, "pivot": [0, 0]}]},
-     "anchor_motion[0].pivot: unknown key (known keys: axis, amplitude"),
+    ({'anchor_motion': [{'rotation': 'z', **dict(_TURN, amplitude=3)}]},
+     'anchor_motion[0].amplitude: unknown key (known keys: rotation, amplitude_deg'),
+    ({'anchor_motion': [{'rotation': 'z', 'pivot': [0, 0], 'frequency_hz': 1}]},
+     'anchor_motion[0].amplitude_deg: missing'),
+    ({'anchor_motion': [{'axis': 'x', 'amplitude': 1, 'frequency_hz': 1, 'pivot': [0, 0]}]},
+     'anchor_motion[0].pivot: unknown key (known keys: axis, amplitude'),
 ])
 def test_invalid_scene_names_field_and_problem(override, message):
     with pytest.raises(SceneError) as err:
-        scene_from_dict(_chain(**override), source="bad.yaml")
-    assert str(err.value).startswith("bad.yaml: ")
+        scene_from_dict(_chain(**override), source='bad.yaml')
+    assert str(err.value).startswith('bad.yaml: ')
     assert message in str(err.value)
 
 
 def test_a_1d_scene_cannot_turn():
-    data = {"name": "rod", "dimension": 1, "axis": "x",
-            "particles": {"positions": [[0, 0], [1, 0]], "mass": 1.0},
-            "springs": {"pairs": [[0, 1]], "stiffness": 10.0}, "fixed": {"indices": [0]},
-            "anchor_motion": [{"rotation": "z", **_TURN}]}
-    with pytest.raises(SceneError, match=r"anchor_motion\[0\]\.rotation: a 1D scene cannot "
-                       "turn"):
+    data = {'name': 'rod', 'dimension': 1, 'axis': 'x',
+            'particles': {'positions': [[0, 0], [1, 0]], 'mass': 1.0},
+            'springs': {'pairs': [[0, 1]], 'stiffness': 10.0}, 'fixed': {'indices': [0]},
+            'anchor_motion': [{'rotation': 'z', **_TURN}]}
+    with pytest.raises(SceneError, match=r'anchor_motion\[0\]\.rotation: a 1D scene cannot '
+                       'turn'):
         scene_from_dict(data)
 
 
 def test_a_turning_clamp_round_trips_and_composes_in_order():
-    s = load_scene("sheet_10x10_swing")
+    s = load_scene('sheet_10x10_swing')
     (turn,) = s.anchor_motion.rotations
     assert turn.axis == 2 and turn.pivot == (0.45, 0.0, 0.0)
     assert turn.amplitude == pytest.approx(math.radians(45.0), rel=1e-15)
@@ -153,13 +152,13 @@ def test_a_turning_clamp_round_trips_and_composes_in_order():
         a, b = s.anchor_motion.frame(t), again.anchor_motion.frame(t)
         np.testing.assert_allclose(a.rotation, b.rotation, rtol=0, atol=1e-15)
     # a 3D clamp: a turn about z, then one about x, then the offset
-    data = load_scene("cantilever_3d").to_dict()
-    data["anchor_motion"] = [
-        {"rotation": "z", "amplitude_deg": 90.0, "frequency_hz": 0.0, "phase": math.pi / 2,
-         "pivot": [0, 0, 0]},
-        {"rotation": "x", "amplitude_deg": 90.0, "frequency_hz": 0.0, "phase": math.pi / 2,
-         "pivot": [0, 0, 0]},
-        {"axis": "y", "amplitude": 2.0, "frequency_hz": 0.0, "phase": math.pi / 2}]
+    data = load_scene('cantilever_3d').to_dict()
+    data['anchor_motion'] = [
+        {'rotation': 'z', 'amplitude_deg': 90.0, 'frequency_hz': 0.0, 'phase': math.pi / 2,
+         'pivot': [0, 0, 0]},
+        {'rotation': 'x', 'amplitude_deg': 90.0, 'frequency_hz': 0.0, 'phase': math.pi / 2,
+         'pivot': [0, 0, 0]},
+        {'axis': 'y', 'amplitude': 2.0, 'frequency_hz': 0.0, 'phase': math.pi / 2}]
     frame = scene_from_dict(data).anchor_motion.frame(0.0)
     # e_x -> (z) e_y -> (x) e_z, then shifted 2 along y
     np.testing.assert_allclose(frame.carry(np.array([[1.0, 0.0, 0.0]])), [[0.0, 2.0, 1.0]],
@@ -175,47 +174,47 @@ def test_mechanism_reports_zero_mode_count_and_advice():
     # A square of four particles, top two fixed, edge springs only: the bottom edge can sway
     # sideways with no spring stretched: exactly one zero-stiffness mode.
     data = {
-        "name": "mechanism", "dimension": 2,
-        "particles": {"positions": [[0, 0], [1, 0], [0, 1], [1, 1]], "mass": 1.0},
-        "springs": {"pairs": [[0, 1], [0, 2], [1, 3], [2, 3]], "stiffness": 10.0},
-        "fixed": {"indices": [2, 3]},
+        'name': 'mechanism', 'dimension': 2,
+        'particles': {'positions': [[0, 0], [1, 0], [0, 1], [1, 1]], 'mass': 1.0},
+        'springs': {'pairs': [[0, 1], [0, 2], [1, 3], [2, 3]], 'stiffness': 10.0},
+        'fixed': {'indices': [2, 3]},
     }
-    with pytest.raises(SceneError, match=r"1 zero-stiffness mode\(s\) \(a mechanism\)") as err:
+    with pytest.raises(SceneError, match=r'1 zero-stiffness mode\(s\) \(a mechanism\)') as err:
         ModalBasis(MassSpringModel(scene_from_dict(data)))
-    assert "shear (diagonal) springs" in str(err.value)
+    assert 'shear (diagonal) springs' in str(err.value)
     # The same square with one diagonal is rigid.
-    data["springs"]["pairs"].append([0, 3])
+    data['springs']['pairs'].append([0, 3])
     assert ModalBasis(MassSpringModel(scene_from_dict(data))).count == 4
 
 
 def test_sheet_without_diagonals_is_a_mechanism_on_the_sparse_path_too():
-    data = copy.deepcopy(load_scene("sheet_32x32").to_dict())
-    keep = [p for p in data["springs"]["pairs"]
-            if abs(data["particles"]["positions"][p[0]][0]
-                   - data["particles"]["positions"][p[1]][0]) < 1e-12
-            or abs(data["particles"]["positions"][p[0]][1]
-                   - data["particles"]["positions"][p[1]][1]) < 1e-12]
-    data["springs"] = {"pairs": keep, "stiffness": 1000.0}
+    data = copy.deepcopy(load_scene('sheet_32x32').to_dict())
+    keep = [p for p in data['springs']['pairs']
+            if abs(data['particles']['positions'][p[0]][0]
+                   - data['particles']['positions'][p[1]][0]) < 1e-12
+            or abs(data['particles']['positions'][p[0]][1]
+                   - data['particles']['positions'][p[1]][1]) < 1e-12]
+    data['springs'] = {'pairs': keep, 'stiffness': 1000.0}
     model = MassSpringModel(scene_from_dict(data))
-    with pytest.raises(SceneError, match="zero-stiffness mode"):
+    with pytest.raises(SceneError, match='zero-stiffness mode'):
         ModalBasis(model)
 
 
 def test_unknown_scene_and_unreadable_file(tmp_path):
     with pytest.raises(SceneError, match="unknown scene 'nope'.*built-in: .*sheet_10x10"):
-        load_scene("nope")
-    with pytest.raises(SceneError, match="cannot read scene file"):
-        load_scene(tmp_path / "missing.yaml")
-    bad = tmp_path / "bad.yaml"
-    bad.write_text("particles: [1, 2\n")
-    with pytest.raises(SceneError, match="invalid YAML"):
+        load_scene('nope')
+    with pytest.raises(SceneError, match='cannot read scene file'):
+        load_scene(tmp_path / 'missing.yaml')
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('particles: [1, 2\n')
+    with pytest.raises(SceneError, match='invalid YAML'):
         load_scene(bad)
 
 
-@pytest.mark.parametrize("t", [0.0, 0.3, 0.9999, 1.0, 1.7, 4.2])
+@pytest.mark.parametrize('t', [0.0, 0.3, 0.9999, 1.0, 1.7, 4.2])
 def test_anchor_velocity_and_acceleration_are_the_derivatives_of_its_offset(t):
     """Within the ramp (1 s on sheet_10x10), at its end and after it."""
-    motion = load_scene("sheet_10x10").anchor_motion
+    motion = load_scene('sheet_10x10').anchor_motion
     assert len(motion.components) == 2 and all(c.ramp_s == 1.0 for c in motion.components)
     h = 1e-5
     before, after = (t - h, t + h) if t >= h else (t, t + 2 * h)  # no motion before t = 0
@@ -229,12 +228,15 @@ def test_anchor_velocity_and_acceleration_are_the_derivatives_of_its_offset(t):
 
 
 def test_a_ramped_motion_starts_and_ends_its_ramp_without_a_step_in_the_load():
-    """Base velocity and acceleration (the load) are continuous at both ends of the ramp,
-    even for a phase that starts the sine away from zero."""
+    """
+    Base velocity and acceleration (the load) are continuous at both ends of the ramp.
+
+    Even for a phase that starts the sine away from zero.
+    """
     from modal_spring_ros.core.anchor_motion import AnchorMotion, SineComponent
     motion = AnchorMotion((SineComponent(axis=0, amplitude=0.02, frequency_hz=0.7, phase=1.0,
                                          ramp_s=0.5),))
-    for order in ("offset", "velocity", "acceleration"):
+    for order in ('offset', 'velocity', 'acceleration'):
         assert getattr(motion, order)(0.0).tolist() == [0.0, 0.0, 0.0]
         at_end = getattr(motion, order)
         steady = np.abs(at_end(0.5 + 1e-9)).max()

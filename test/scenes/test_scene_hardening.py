@@ -1,5 +1,9 @@
-"""Scene files a careless or hostile user could write: each is refused at once with one line
-that names the field, and nothing hangs, exhausts memory or ends in a traceback."""
+"""
+Scene files a careless or hostile user could write.
+
+Each is refused at once with one line that names the field, and nothing hangs, exhausts memory or
+ends in a traceback.
+"""
 from __future__ import annotations
 
 import copy
@@ -8,20 +12,19 @@ import random
 import re
 import time
 
-import pytest
-import yaml
-
 from modal_spring_ros.cli.modal_spring_sim import main
 from modal_spring_ros.core.scene import Scene, SceneError
 from modal_spring_ros.scenes.resources import builtin_scene_dir, builtin_scene_names, load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
 from modal_spring_ros.scenes.yaml_reading import MAX_BYTES
+import pytest
+import yaml
 
 #: a refusal takes milliseconds; this only tells a hang from one
 HANG_S = 5.0
 
-SHEET = (builtin_scene_dir() / "sheet_10x10.yaml").read_text()
-BOMB = "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
+SHEET = (builtin_scene_dir() / 'sheet_10x10.yaml').read_text()
+BOMB = 'a: &a [x, x, x, x, x, x, x, x, x]\n' + ''.join(
     f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join([f'*{chr(97 + i)}'] * 9)}]\n"
     for i in range(9))
 
@@ -32,76 +35,76 @@ def _replace(text: str, old: str, new: str) -> str:
 
 
 CASES = {
-    "alias bomb": (BOMB, "aliases expand to more than"),
-    "deep nesting": ("[" * 5000 + "]" * 5000, "nested deeper than 16 levels"),
-    "syntax error": ("name: [1, 2\nfoo: bar: baz\n", "invalid YAML at line 2, column 4"),
-    "float dimension": (_replace(SHEET, "dimension: 2", "dimension: 2.0"),
-                        "dimension: must be 1, 2 or 3, got 2.0"),
-    "connect a number": (_replace(SHEET, "connect: [edges, diagonals]", "connect: 5"),
-                         "springs.connect: must be a kind or a list of kinds, got 5"),
-    "axis a list": (_replace(SHEET, "dimension: 2", "dimension: 1\naxis: [y]"),
+    'alias bomb': (BOMB, 'aliases expand to more than'),
+    'deep nesting': ('[' * 5000 + ']' * 5000, 'nested deeper than 16 levels'),
+    'syntax error': ('name: [1, 2\nfoo: bar: baz\n', 'invalid YAML at line 2, column 4'),
+    'float dimension': (_replace(SHEET, 'dimension: 2', 'dimension: 2.0'),
+                        'dimension: must be 1, 2 or 3, got 2.0'),
+    'connect a number': (_replace(SHEET, 'connect: [edges, diagonals]', 'connect: 5'),
+                         'springs.connect: must be a kind or a list of kinds, got 5'),
+    'axis a list': (_replace(SHEET, 'dimension: 2', 'dimension: 1\naxis: [y]'),
                     "axis: must be one of x, y, z, got ['y']"),
-    "anchor axis a list": (_replace(SHEET, "{axis: x,", "{axis: [x],"),
+    'anchor axis a list': (_replace(SHEET, '{axis: x,', '{axis: [x],'),
                            "anchor_motion[0].axis: must be one of x, y, got ['x']"),
-    "integer too large": (_replace(SHEET, "mass: 0.01", "mass: 1" + "0" * 400),
-                          "particles.mass: must be at most 1e+09 in size, got an integer of "
-                          "401 digits"),
-    "huge lattice": (_replace(SHEET, "counts: [10, 10]", "counts: [100000, 100000]"),
-                     "particles.lattice.counts: 10,000,000,000 particles need about"),
-    "large lattice": (_replace(SHEET, "counts: [10, 10]", "counts: [3000, 3000]"),
-                      "particles.lattice.counts: 9,000,000 particles need about"),
-    "tiny step": (_replace(SHEET, "simulation: {dt: 0.0005", "simulation: {dt: 1.0e-300"),
-                  "simulation.dt: 1e-300 s makes 5e+300 steps"),
-    "huge mass": (_replace(SHEET, "mass: 0.01", "mass: 1.0e308"),
-                  "particles.mass: must be at most 1e+09 in size, got 1e+308"),
-    "huge stiffness": (_replace(SHEET, "stiffness: 1000.0", "stiffness: 1.0e308"),
-                       "springs.stiffness: must be at most 1e+12 in size, got 1e+308"),
-    "huge gravity": (_replace(SHEET, "gravity: [0.0, -9.81, 0.0]", "gravity: [0, -1.0e308, 0]"),
-                     "gravity[1]: must be at most 10000 in size, got -1e+308"),
-    "huge amplitude": (_replace(SHEET, "amplitude: 0.02", "amplitude: 1.0e308"),
-                       "anchor_motion[0].amplitude: must be at most 1000 in size"),
+    'integer too large': (_replace(SHEET, 'mass: 0.01', 'mass: 1' + '0' * 400),
+                          'particles.mass: must be at most 1e+09 in size, got an integer of '
+                          '401 digits'),
+    'huge lattice': (_replace(SHEET, 'counts: [10, 10]', 'counts: [100000, 100000]'),
+                     'particles.lattice.counts: 10,000,000,000 particles need about'),
+    'large lattice': (_replace(SHEET, 'counts: [10, 10]', 'counts: [3000, 3000]'),
+                      'particles.lattice.counts: 9,000,000 particles need about'),
+    'tiny step': (_replace(SHEET, 'simulation: {dt: 0.0005', 'simulation: {dt: 1.0e-300'),
+                  'simulation.dt: 1e-300 s makes 5e+300 steps'),
+    'huge mass': (_replace(SHEET, 'mass: 0.01', 'mass: 1.0e308'),
+                  'particles.mass: must be at most 1e+09 in size, got 1e+308'),
+    'huge stiffness': (_replace(SHEET, 'stiffness: 1000.0', 'stiffness: 1.0e308'),
+                       'springs.stiffness: must be at most 1e+12 in size, got 1e+308'),
+    'huge gravity': (_replace(SHEET, 'gravity: [0.0, -9.81, 0.0]', 'gravity: [0, -1.0e308, 0]'),
+                     'gravity[1]: must be at most 10000 in size, got -1e+308'),
+    'huge amplitude': (_replace(SHEET, 'amplitude: 0.02', 'amplitude: 1.0e308'),
+                       'anchor_motion[0].amplitude: must be at most 1000 in size'),
 }
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+@pytest.mark.parametrize('name', sorted(CASES))
 def test_each_bad_scene_is_one_line_naming_the_field(name, tmp_path, capsys):
     text, message = CASES[name]
-    path = tmp_path / "bad.yaml"
+    path = tmp_path / 'bad.yaml'
     path.write_text(text)
     start = time.perf_counter()
     with pytest.raises(SystemExit) as info:
-        main(["--scene", str(path), "--duration", "0.01", "--quiet"])
+        main(['--scene', str(path), '--duration', '0.01', '--quiet'])
     assert time.perf_counter() - start < HANG_S
     assert info.value.code == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("modal_spring_sim: error: "), err
+    assert err.count('\n') == 1 and err.startswith('modal_spring_sim: error: '), err
     assert message in err, err
-    assert "Traceback" not in err
+    assert 'Traceback' not in err
 
 
 def test_files_that_are_not_scene_files_are_refused_without_reading_them(tmp_path):
-    fifo = tmp_path / "pipe.yaml"
+    fifo = tmp_path / 'pipe.yaml'
     os.mkfifo(fifo)                                   # no writer: opening it would block
-    big = tmp_path / "big.yaml"
-    with open(big, "wb") as fh:                       # sparse: costs no disk
+    big = tmp_path / 'big.yaml'
+    with open(big, 'wb') as fh:                       # sparse: costs no disk
         fh.truncate(MAX_BYTES + 1)
-    binary = tmp_path / "binary.yaml"
-    binary.write_bytes(b"name: \xff\xfe\n")
-    for path, message in ((fifo, "not a regular file"), ("/dev/zero", "not a regular file"),
-                          (tmp_path, "a folder"), (big, "larger than the 16 MiB"),
-                          (binary, "not UTF-8 text (byte 6)")):
+    binary = tmp_path / 'binary.yaml'
+    binary.write_bytes(b'name: \xff\xfe\n')
+    for path, message in ((fifo, 'not a regular file'), ('/dev/zero', 'not a regular file'),
+                          (tmp_path, 'a folder'), (big, 'larger than the 16 MiB'),
+                          (binary, 'not UTF-8 text (byte 6)')):
         start = time.perf_counter()
         with pytest.raises(SceneError, match=re.escape(message)):
             load_scene(path if isinstance(path, str) else str(path))
         assert time.perf_counter() - start < HANG_S
 
 
-MUTATIONS = [-1, 0, 10**400, 2**70, 1e308, float("nan"), float("inf"), "x", [], {}, None,
-             True, [[1]], 2.5, [1, 2, 3, 4], {"a": 1}]
+MUTATIONS = [-1, 0, 10**400, 2**70, 1e308, float('nan'), float('inf'), 'x', [], {}, None,
+             True, [[1]], 2.5, [1, 2, 3, 4], {'a': 1}]
 
 
 def _mutate(data, rng: random.Random):
-    """The scene with one value somewhere replaced (or one key removed)."""
+    """Return the scene with one value somewhere replaced (or one key removed)."""
     data = copy.deepcopy(data)
     node, path = data, []
     while True:
@@ -120,10 +123,10 @@ def _mutate(data, rng: random.Random):
         return data
 
 
-@pytest.mark.parametrize("name", builtin_scene_names())
+@pytest.mark.parametrize('name', builtin_scene_names())
 def test_random_mutations_of_the_built_in_scenes_load_or_are_refused(name):
     """Every mutation gives a Scene or a SceneError: never another exception, never a hang."""
-    source = yaml.safe_load((builtin_scene_dir() / f"{name}.yaml").read_text())
+    source = yaml.safe_load((builtin_scene_dir() / f'{name}.yaml').read_text())
     rng = random.Random(name)
     refused = 0
     for _ in range(60):
@@ -133,12 +136,12 @@ def test_random_mutations_of_the_built_in_scenes_load_or_are_refused(name):
             assert isinstance(scene_from_dict(mutated, source=name), Scene)
         except SceneError as exc:
             refused += 1
-            assert str(exc).startswith(f"{name}: ") and "\n" not in str(exc)
+            assert str(exc).startswith(f'{name}: ') and '\n' not in str(exc)
         assert time.perf_counter() - start < HANG_S
     assert refused > 20                                   # the mutations really are bad
 
 
-@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize('seed', range(3))
 def test_random_bytes_flipped_in_a_scene_file_load_or_are_refused(seed):
     rng = random.Random(seed)
     for _ in range(60):
@@ -146,12 +149,12 @@ def test_random_bytes_flipped_in_a_scene_file_load_or_are_refused(seed):
         for _ in range(rng.randint(1, 5)):
             raw[rng.randrange(len(raw))] = rng.randrange(32, 127)
         try:
-            scene_from_yaml(raw.decode(), "flipped.yaml")
+            scene_from_yaml(raw.decode(), 'flipped.yaml')
         except SceneError as exc:
-            assert "\n" not in str(exc)
+            assert '\n' not in str(exc)
 
 
 def test_numbers_yaml_1_1_reads_as_text_are_numbers():
     """``1e-4`` (no dot) and ``1.0e308`` (no exponent sign) are text to YAML 1.1."""
-    scene = scene_from_yaml(SHEET.replace("dt: 0.0005", "dt: 5e-4"), "sheet.yaml")
+    scene = scene_from_yaml(SHEET.replace('dt: 0.0005', 'dt: 5e-4'), 'sheet.yaml')
     assert scene.default_dt == 5e-4

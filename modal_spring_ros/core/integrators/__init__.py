@@ -1,5 +1,7 @@
-"""Time integrators for ``M a + C v = F(u, t)``: a contract, a name-to-class registry, one
-integrator a module.
+"""
+Time integrators for ``M a + C v = F(u, t)``.
+
+A contract, a name-to-class registry, one integrator a module.
 
 * ``explicit`` (:class:`ExplicitNewmark`, beta = 0): the paper's scheme.
 * ``average`` (:class:`AverageAcceleration`, beta = 1/4): implicit, unconditionally stable.
@@ -18,12 +20,12 @@ INTEGRATORS: dict[str, type[Integrator]] = {
 
 
 def integrator(name: str) -> Integrator:
-    """The integrator registered as ``name``. Raises ValueError naming the choices."""
+    """Return the integrator registered as ``name``. Raises ValueError naming the choices."""
     try:
         return INTEGRATORS[name]()
     except KeyError:
         raise ValueError(f"integrator '{name}' must be one of {', '.join(INTEGRATORS)}") from None
 
 
-__all__ = ["INTEGRATORS", "AverageAcceleration", "DiagonalOperators", "ExplicitNewmark",
-           "Integrator", "NonConvergence", "Operators", "StepResult", "integrator"]
+__all__ = ['INTEGRATORS', 'AverageAcceleration', 'DiagonalOperators', 'ExplicitNewmark',
+           'Integrator', 'NonConvergence', 'Operators', 'StepResult', 'integrator']

@@ -1,4 +1,5 @@
-"""The average-acceleration Newmark step (beta = 1/4, gamma = 1/2, the trapezoidal rule).
+"""
+The average-acceleration Newmark step (beta = 1/4, gamma = 1/2, the trapezoidal rule).
 
 Unconditionally stable for the linear part. The nonlinear spring force is handled by a
 modified Newton iteration with the rest stiffness ``K`` as the fixed tangent:
@@ -12,10 +13,9 @@ accepted.
 """
 from __future__ import annotations
 
-import numpy as np
-
 from modal_spring_ros.core.integrators.base import (Force, Integrator, NonConvergence, Operators,
                                                     StepResult)
+import numpy as np
 
 #: relative change of the acceleration at which the iteration has converged
 RTOL = 1e-10
@@ -24,7 +24,7 @@ MAX_ITERATIONS = 25
 
 
 class AverageAcceleration(Integrator):
-    name = "average"
+    name = 'average'
     conditionally_stable = False
 
     def __init__(self, rtol: float = RTOL, max_iterations: int = MAX_ITERATIONS):
@@ -49,5 +49,5 @@ class AverageAcceleration(Integrator):
             if change <= self.rtol * max(size, 1e-300) or change == 0.0:
                 return StepResult(u_pred + h2 * a1, v_pred + (0.5 * dt) * a1, a1, iteration)
         raise NonConvergence(
-            f"average-acceleration iteration did not converge in {self.max_iterations} "
-            f"iterations (dt = {dt:g} s is too large for this nonlinearity)")
+            f'average-acceleration iteration did not converge in {self.max_iterations} '
+            f'iterations (dt = {dt:g} s is too large for this nonlinearity)')

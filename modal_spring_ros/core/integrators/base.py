@@ -1,4 +1,5 @@
-"""The integrator contract: one Newmark step of ``M a + C v = F(u, t)`` in any coordinates.
+"""
+The integrator contract: one Newmark step of ``M a + C v = F(u, t)`` in any coordinates.
 
 An integrator advances ``(u, v, a)`` by ``dt`` given the nonlinear force ``F`` and the linear
 algebra of the equations (an :class:`Operators`), so that the same integrator steps the

@@ -1,16 +1,16 @@
-"""The explicit Newmark step (beta = 0, gamma = 1/2): the paper's eqs. 17-19.
+"""
+The explicit Newmark step (beta = 0, gamma = 1/2): the paper's eqs. 17-19.
 
 Stable for ``dt < 2 / omega_max`` of the coordinates stepped; one force evaluation a step.
 """
 from __future__ import annotations
 
-import numpy as np
-
 from modal_spring_ros.core.integrators.base import Force, Integrator, Operators, StepResult
+import numpy as np
 
 
 class ExplicitNewmark(Integrator):
-    name = "explicit"
+    name = 'explicit'
     conditionally_stable = True
 
     def step(self, u: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float, force: Force,

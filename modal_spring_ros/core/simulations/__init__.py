@@ -1,15 +1,17 @@
-"""Simulations of a scene: a contract (:class:`Simulation`), a name-to-class registry
-(:data:`METHODS`), one method a module.
+"""
+Simulations of a scene.
+
+A contract (:class:`Simulation`), a name-to-class registry (:data:`METHODS`), one method a module.
 
 * ``modal`` (:class:`ModalSimulation`): the paper's method, only the modes of the band.
 * ``full`` (:class:`FullSimulation`): every free DOF, the reference.
 """
 from __future__ import annotations
 
-from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, MIN_DT_S,
-                                                    DivergenceError, Simulation, SimulationStatus,
-                                                    UnstableStepError, check_step,
-                                                    stable_step_limit)
+from modal_spring_ros.core.simulations.base import (check_step, DEFAULT_STRAIN_LIMIT,
+                                                    DivergenceError, MIN_DT_S, Simulation,
+                                                    SimulationStatus, stable_step_limit,
+                                                    UnstableStepError)
 from modal_spring_ros.core.simulations.full import FullSimulation
 from modal_spring_ros.core.simulations.modal import DEFAULT_MAX_MODES, ModalSimulation
 
@@ -17,6 +19,6 @@ from modal_spring_ros.core.simulations.modal import DEFAULT_MAX_MODES, ModalSimu
 METHODS: dict[str, type[Simulation]] = {
     cls.method: cls for cls in (ModalSimulation, FullSimulation)}
 
-__all__ = ["DEFAULT_MAX_MODES", "DEFAULT_STRAIN_LIMIT", "METHODS", "MIN_DT_S",
-           "DivergenceError", "FullSimulation", "ModalSimulation", "Simulation",
-           "SimulationStatus", "UnstableStepError", "check_step", "stable_step_limit"]
+__all__ = ['DEFAULT_MAX_MODES', 'DEFAULT_STRAIN_LIMIT', 'METHODS', 'MIN_DT_S',
+           'DivergenceError', 'FullSimulation', 'ModalSimulation', 'Simulation',
+           'SimulationStatus', 'UnstableStepError', 'check_step', 'stable_step_limit']

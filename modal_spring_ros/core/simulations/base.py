@@ -1,4 +1,5 @@
-"""The simulation contract: what every method offers its callers.
+"""
+The simulation contract: what every method offers its callers.
 
 A :class:`Simulation` steps one scene at a fixed ``dt`` with one integrator and reports its
 state in physical terms. Every method has a filter band (a full run keeps it for a later switch
@@ -16,15 +17,15 @@ import dataclasses
 import math
 from typing import Callable, ClassVar
 
-import numpy as np
-
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.integrators import Integrator, NonConvergence, Operators
+from modal_spring_ros.core.integrators import Integrator
 from modal_spring_ros.core.integrators import integrator as make_integrator
+from modal_spring_ros.core.integrators import NonConvergence, Operators
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.pull import Pull
 from modal_spring_ros.core.scene import Damping
+import numpy as np
 
 #: Default spring strain treated as divergence (the simulation has left any meaningful regime).
 DEFAULT_STRAIN_LIMIT = 1.0
@@ -37,7 +38,7 @@ class DivergenceError(RuntimeError):
     """The step diverged. The simulation keeps its last good state."""
 
     def __init__(self, reason: str, time: float, step: int):
-        super().__init__(f"diverged at t = {time:.6g} s (step {step}): {reason}")
+        super().__init__(f'diverged at t = {time:.6g} s (step {step}): {reason}')
         self.reason = reason
         self.time = time
         self.step = step
@@ -47,14 +48,14 @@ class UnstableStepError(ValueError):
     """The explicit integrator would be unstable for the modes stepped at this ``dt``."""
 
 
-def check_step(integrator: str, dt: float, limit: float, method: str, dt_name: str = "dt"
+def check_step(integrator: str, dt: float, limit: float, method: str, dt_name: str = 'dt'
                ) -> None:
     """Refuse explicit stepping at or above the stability limit ``limit`` (s)."""
-    if integrator == "explicit" and dt >= limit:
+    if integrator == 'explicit' and dt >= limit:
         raise UnstableStepError(
-            f"{dt_name} ({dt:g} s) is at or above the explicit stability limit "
+            f'{dt_name} ({dt:g} s) is at or above the explicit stability limit '
             f"2/omega_max = {limit:.4g} s of the {method} run's highest mode "
-            f"({1.0 / (math.pi * limit):.4g} Hz): lower {dt_name}, keep fewer high modes "
+            f'({1.0 / (math.pi * limit):.4g} Hz): lower {dt_name}, keep fewer high modes '
             f"(a lower filter.high_hz), or use the 'average' integrator")
 
 
@@ -84,7 +85,7 @@ class SimulationStatus:
     steps: int
     max_strain: float
     fading: bool               # a band change is still fading modes in or out
-    forces: str = "exact every step"   # how the spring forces are evaluated
+    forces: str = 'exact every step'   # how the spring forces are evaluated
     forces_fell_back: bool = False     # sampled springs fell back to exact ones (error)
 
 
@@ -97,8 +98,8 @@ class Simulation(abc.ABC):
     def __init__(self, model: MassSpringModel, basis: ModalBasis | None, *, dt: float,
                  integrator: str, damping: Damping | None, strain_limit: float):
         if not (math.isfinite(dt) and dt >= MIN_DT_S):
-            raise ValueError(f"dt ({dt}) must be a finite number of seconds, at least "
-                             f"{MIN_DT_S:g} s (a smaller step does not advance time)")
+            raise ValueError(f'dt ({dt}) must be a finite number of seconds, at least '
+                             f'{MIN_DT_S:g} s (a smaller step does not advance time)')
         self._integrator: Integrator = make_integrator(integrator)
         self.model = model
         self.basis = basis
@@ -120,69 +121,79 @@ class Simulation(abc.ABC):
 
     @property
     def band(self) -> FilterBand:
-        """The filter band (a full run keeps it for a switch to a modal run)."""
+        """Filter band stepped (a full run keeps it for a switch to a modal run)."""
         return self._band
 
     @property
     @abc.abstractmethod
     def kept_modes(self) -> np.ndarray:
-        """Indices of the (computed) modes that take part: those of the band in a modal run,
-        every one in a full run."""
+        """
+        Return the indices of the (computed) modes that take part.
+
+        Those of the band in a modal run, every one in a full run.
+        """
 
     @property
     def force_refresh(self) -> int:
-        """Steps between exact evaluations of the nonlinear spring forces."""
+        """Step between exact evaluations of the nonlinear spring forces."""
         return 1
 
     @property
     def refresh_error(self) -> float | None:
-        """Largest measured error of refreshed forces since the last state change, or None
-        when the forces are exact on every step."""
+        """
+        Largest measured error of refreshed forces since the last state change.
+
+        Or None when the forces are exact on every step.
+        """
         return None
 
     @property
     def mode_choice(self):
-        """The automatic mode choice (a :class:`~modal_spring_ros.core.mode_selection.ModeChoice`)
-        that set this run's modes, or None."""
+        """
+        Return the automatic mode choice that set this run's modes, or None.
+
+        The automatic mode choice (a :class:`~modal_spring_ros.core.mode_selection.ModeChoice`)
+        that set this run's modes, or None.
+        """
         return None
 
     @property
     def fading(self) -> bool:
-        """A band change is still fading modes in or out."""
+        """Tell whether a band change is still fading modes in or out."""
         return False
 
     def describe_forces(self) -> str:
         """How the spring forces are evaluated, as text."""
         every = self.force_refresh
-        return "exact every step" if every == 1 else f"exact every {every} steps, tangent between"
+        return 'exact every step' if every == 1 else f'exact every {every} steps, tangent between'
 
     @property
     def forces_fell_back(self) -> bool:
-        """Sampled springs passed their tolerance and the forces fell back to exact ones."""
+        """Tell whether sampled springs passed their tolerance and fell back to exact ones."""
         return False
 
     @property
     def truncated(self) -> bool:
-        """The band reaches past the modes computed (capped at ``max_modes``)."""
+        """Tell whether the band reaches past the modes computed (capped at ``max_modes``)."""
         return False
 
     @property
     @abc.abstractmethod
     def coordinates(self) -> int:
-        """Number of coordinates stepped (modes and what the band adds, or free DOF)."""
+        """Return the number of coordinates stepped (modes and what the band adds, or free DOF)."""
 
     @property
     def modes(self) -> int:
-        """Number of rest modes of the band stepped (a full run: its free DOF)."""
+        """Return the number of rest modes of the band stepped (a full run: its free DOF)."""
         return self.coordinates
 
     @abc.abstractmethod
     def describe_band(self) -> str:
-        """The band stepped, as text."""
+        """Return the band stepped, as text."""
 
     def describe_basis(self) -> str:
-        """What the coordinates stepped are, as text."""
-        return "physical: every free DOF"
+        """Return what the coordinates stepped are, as text."""
+        return 'physical: every free DOF'
 
     @property
     def basis_seconds(self) -> float:
@@ -195,24 +206,26 @@ class Simulation(abc.ABC):
 
     @abc.abstractmethod
     def prepare_switch(self, band: FilterBand, transition_s: float | None = None,
-                       dt_name: str = "dt") -> None:
-        """Check ``band`` and do the slow part of switching to it ahead (computing the modes
-        it needs, building operators), from any thread, while the run goes on. Changes no
-        state of the run; :meth:`set_band` then finds the work done.
+                       dt_name: str = 'dt') -> None:
+        """
+        Check ``band`` and do the slow part of switching to it ahead.
 
-        Raises:
-            BandError: the band keeps no mode.
-            UnstableStepError: its highest mode is unstable at this ``dt`` (explicit), named
-                ``dt_name`` in the message.
+        Check ``band`` and do the slow part of switching to it ahead (computing the modes it needs,
+        building operators), from any thread, while the run goes on. Changes no state of the run;
+        :meth:`set_band` then finds the work done.
+
+        :raises BandError: the band keeps no mode.
+        :raises UnstableStepError: its highest mode is unstable at this ``dt`` (explicit), named
+            ``dt_name`` in the message.
         """
 
-    def check_stable(self, dt_name: str = "dt") -> None:
+    def check_stable(self, dt_name: str = 'dt') -> None:
         """Refuse explicit stepping at or above ``2 / omega_max`` of the coordinates stepped."""
         check_step(self.integrator, self.dt, self.stability_limit(), self.method, dt_name)
 
     @abc.abstractmethod
-    def with_dt(self, dt: float) -> "Simulation":
-        """The same settings with another step, at rest at t = 0."""
+    def with_dt(self, dt: float) -> 'Simulation':
+        """Return the same settings with another step, at rest at t = 0."""
 
     def status(self) -> SimulationStatus:
         choice = self.mode_choice
@@ -220,7 +233,7 @@ class Simulation(abc.ABC):
             method=self.method, band=self.describe_band(), basis=self.describe_basis(),
             basis_seconds=self.basis_seconds, modes=self.modes, coordinates=self.coordinates,
             modes_computed=self.basis.count if self.basis is not None else 0,
-            mode_choice=choice.describe() if choice is not None else "off",
+            mode_choice=choice.describe() if choice is not None else 'off',
             integrator=self.integrator, dt=self.dt, force_refresh=self.force_refresh,
             refresh_error=self.refresh_error, stability_limit=self.stability_limit(),
             time=self.time, steps=self.steps, max_strain=self.max_strain(),
@@ -230,8 +243,12 @@ class Simulation(abc.ABC):
     # -- state in physical terms ---------------------------------------------------------------
     @abc.abstractmethod
     def displacement(self) -> np.ndarray:
-        """Free-DOF displacement ``u`` from rest in the clamp's frame (relative to the moving
-        base; flat)."""
+        """
+        Free-DOF displacement ``u`` from rest in the clamp's frame.
+
+        Free-DOF displacement ``u`` from rest in the clamp's frame (relative to the moving base;
+        flat).
+        """
 
     @abc.abstractmethod
     def velocity(self) -> np.ndarray:
@@ -250,8 +267,12 @@ class Simulation(abc.ABC):
         """Start from a free-DOF displacement and velocity (relative to the base)."""
 
     def _at_rest(self) -> None:
-        """Back to rest at t = 0: no pull, and a clamp with a state of its own restarted (not
-        on construction: a simulation rebuilt for other settings takes the clamp over)."""
+        """
+        Back to rest at t = 0.
+
+        No pull, and a clamp with a state of its own restarted (not on construction: a simulation
+        rebuilt for other settings takes the clamp over).
+        """
         if self.time or self.steps:
             self.model.restart_clamp()
         self.time = self._t0 = 0.0
@@ -262,7 +283,7 @@ class Simulation(abc.ABC):
         self.set_state(np.zeros(n), np.zeros(n))
 
     def positions(self) -> np.ndarray:
-        """(n, 3) particle positions (scene order)."""
+        """Return the particles' (n, 3) positions, in scene order."""
         x = self.model.positions(self.displacement(), self.time)
         return self.model.positions3(x)
 
@@ -274,7 +295,7 @@ class Simulation(abc.ABC):
     def max_strain(self) -> float:
         return self.model.max_strain(self.model.positions(self.displacement(), self.time))
 
-    def take_over(self, other: "Simulation") -> None:
+    def take_over(self, other: 'Simulation') -> None:
         """Continue from another simulation's physical state and time (a settings change)."""
         self._t0, self.steps, self.time = other.time, 0, other.time
         self.pull = other.pull
@@ -285,8 +306,11 @@ class Simulation(abc.ABC):
         self.pull = pull
 
     def _pull_load(self, u_particle: np.ndarray, t: float) -> np.ndarray | None:
-        """The pull's force in the clamp's frame on its particle, given the particle's
-        displacement in that frame, or None when nothing pulls at ``t``."""
+        """
+        Return the pull's force in the clamp's frame on its particle.
+
+        Given the particle's displacement in that frame, or None when nothing pulls at ``t``.
+        """
         pull = self.pull
         if pull is None:
             return None
@@ -322,14 +346,18 @@ class Simulation(abc.ABC):
         return u1, v1, a1
 
     def _checked(self, a1: np.ndarray) -> None:
-        """Divergence checks of a step. ``u1`` and ``v1`` derive from the (finite) last state
-        and ``a1``, so a finite ``a1`` (squared norm, which also catches overflow) is enough."""
+        """
+        Divergence checks of a step.
+
+        ``u1`` and ``v1`` derive from the (finite) last state and ``a1``, so a finite ``a1``
+        (squared norm, which also catches overflow) is enough.
+        """
         reason = None
         if not math.isfinite(float(a1 @ a1)):
-            reason = "non-finite state"
+            reason = 'non-finite state'
         elif self._last_max_strain > self.strain_limit:
-            reason = (f"spring strain {self._last_max_strain:.3g} exceeds the limit "
-                      f"{self.strain_limit:g}")
+            reason = (f'spring strain {self._last_max_strain:.3g} exceeds the limit '
+                      f'{self.strain_limit:g}')
         if reason is not None:
             self.diverged = DivergenceError(reason, self.time + self.dt, self.steps + 1)
             raise self.diverged

@@ -1,6 +1,8 @@
-"""The coordinates a modal run steps: which ones (an :class:`ActiveSet`, with each one's fade
-progress) and what they are (an :class:`AddedCoordinateBank` for what bands add to their rest
-modes).
+"""
+The coordinates a modal run steps.
+
+Which ones (an :class:`ActiveSet`, with each one's fade progress) and what they are (an
+:class:`AddedCoordinateBank` for what bands add to their rest modes).
 
 A coordinate is identified by an id: a rest mode by its index, an added coordinate by an id
 from :data:`ADDED_ID` up.
@@ -10,20 +12,23 @@ from __future__ import annotations
 import dataclasses
 import threading
 
+from modal_spring_ros.core.basis import ModalBasis, Progress
+from modal_spring_ros.core.derivatives import added_coordinates, AddedCoordinates
 import numpy as np
 
-from modal_spring_ros.core.basis import ModalBasis, Progress
-from modal_spring_ros.core.derivatives import AddedCoordinates, added_coordinates
-
 #: The bases a modal run can step: the paper's rest modes, or rest modes and their derivatives.
-BASES = ("rest", "derivatives")
+BASES = ('rest', 'derivatives')
 #: Ids of added coordinates start here (rest modes are ids 0, 1, ...).
 ADDED_ID = 1 << 40
 
 
 class AddedCoordinateBank:
-    """The coordinates bands add, by band, with their ids; shared by the copies of a run
-    (:meth:`ModalSimulation.with_dt`) so that a band's derivatives are computed once."""
+    """
+    The coordinates bands add, by band, with their ids.
+
+    Shared by the copies of a run (:meth:`ModalSimulation.with_dt`) so that a band's derivatives
+    are computed once.
+    """
 
     def __init__(self, basis: ModalBasis, directions: int, progress: Progress | None = None):
         self.basis = basis
@@ -37,10 +42,13 @@ class AddedCoordinateBank:
         self._lock = threading.Lock()
 
     def for_band(self, keep: np.ndarray) -> tuple[np.ndarray, AddedCoordinates]:
-        """The ids and coordinates the band keeping rest modes ``keep`` adds (computed on its
-        first use, from any thread). The computation holds no lock: the simulation thread
-        reads the bank meanwhile; of two threads computing the same band, the first to finish
-        is kept."""
+        """
+        Return the ids and coordinates the band keeping rest modes ``keep`` adds.
+
+        The ids and coordinates the band keeping rest modes ``keep`` adds (computed on its first
+        use, from any thread). The computation holds no lock: the simulation thread reads the bank
+        meanwhile; of two threads computing the same band, the first to finish is kept.
+        """
         found = self.lookup(keep)
         if found is not None:
             return found
@@ -59,7 +67,7 @@ class AddedCoordinateBank:
             return ids, added
 
     def lookup(self, keep: np.ndarray) -> tuple[np.ndarray, AddedCoordinates] | None:
-        """What the band keeping ``keep`` adds, if it was computed (never computes)."""
+        """Return what the band keeping ``keep`` adds, if it was computed (never computes)."""
         return self._blocks.get(keep.tobytes())
 
     def columns(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -83,8 +91,12 @@ class AddedCoordinateBank:
         return omega
 
     def load_mask(self, ids: np.ndarray) -> np.ndarray:
-        """(len(ids), 4) bool: the loads (gravity, base x, y, z) acting on each coordinate
-        (every load on a rest mode; the band's loads on an added coordinate)."""
+        """
+        (len(ids), 4) bool.
+
+        The loads (gravity, base x, y, z) acting on each coordinate (every load on a rest mode; the
+        band's loads on an added coordinate).
+        """
         mask = np.ones((ids.size, 4), dtype=bool)
         for k in np.flatnonzero(ids >= ADDED_ID):
             mask[k] = self._loads[int(ids[k])]
@@ -93,15 +105,18 @@ class AddedCoordinateBank:
 
 @dataclasses.dataclass(frozen=True)
 class ActiveSet:
-    """The modes stepped, which of them are in the band, and each one's fade progress
-    (1 = fully in, 0 = out)."""
+    """
+    The modes stepped.
+
+    Which of them are in the band, and each one's fade progress (1 = fully in, 0 = out).
+    """
 
     modes: np.ndarray
     target: np.ndarray
     progress: np.ndarray
 
     @classmethod
-    def settled(cls, keep: np.ndarray) -> "ActiveSet":
+    def settled(cls, keep: np.ndarray) -> 'ActiveSet':
         keep = np.asarray(keep, dtype=np.int64)
         return cls(keep, np.ones(keep.size, dtype=bool), np.ones(keep.size))
 
@@ -113,9 +128,13 @@ class ActiveSet:
     def kept(self) -> np.ndarray:
         return self.modes[self.target]
 
-    def switched(self, keep: np.ndarray, instant: bool) -> "ActiveSet":
-        """The active set once ``keep`` is the band: modes new to the set fade in from 0,
-        modes in both keep their progress, leaving ones fade out."""
+    def switched(self, keep: np.ndarray, instant: bool) -> 'ActiveSet':
+        """
+        Return the active set once ``keep`` is the band.
+
+        Modes new to the set fade in from 0, modes in both keep their progress, leaving ones fade
+        out.
+        """
         modes = self.next_modes(keep, instant)
         target = np.isin(modes, keep)
         was = np.isin(modes, self.modes)

@@ -1,13 +1,10 @@
-"""The full physical reference: every free DOF in physical coordinates.
+"""
+The full physical reference: every free DOF in physical coordinates.
 
 Steps the same nonlinear forces with the same integrators and the equivalent damping; it is
 what modal runs are compared with. With every mode kept, the two agree to round-off.
 """
 from __future__ import annotations
-
-import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
@@ -18,10 +15,14 @@ from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simula
                                                     stable_step_limit)
 from modal_spring_ros.core.simulations.modal import ModalSimulation
 from modal_spring_ros.core.simulations.world_frame import WorldFrameRun
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 
 class PhysicalOperators:
-    """``M`` (lumped), ``C`` and ``K`` of the free DOF in physical coordinates.
+    """
+    ``M`` (lumped), ``C`` and ``K`` of the free DOF in physical coordinates.
 
     Damping is Rayleigh ``alpha M + beta K`` (sparse) when the scene has no modal ratio; with a
     modal ratio ``h`` it is the paper's equivalent ``c = M Phi C Phi^T M`` over every mode, which
@@ -39,9 +40,9 @@ class PhysicalOperators:
         if damping.ratio != 0.0:
             if basis is None or not basis.complete:
                 raise ValueError(
-                    "full method with a modal damping ratio needs every mode (equivalent "
-                    f"damping c = M Phi C Phi^T M); this scene has {model.n_free_dof} free DOF, "
-                    "above the dense limit. Use Rayleigh damping (damping.rayleigh) instead.")
+                    'full method with a modal damping ratio needs every mode (equivalent '
+                    f'damping c = M Phi C Phi^T M); this scene has {model.n_free_dof} free DOF, '
+                    'above the dense limit. Use Rayleigh damping (damping.rayleigh) instead.')
             phi = basis.vectors
             cm = damping.modal_coefficients(basis.omega)
             self._modal = (phi, cm, basis.omega)
@@ -98,16 +99,17 @@ class PhysicalOperators:
 
 
 class FullSimulation(Simulation):
-    """Every free DOF in physical coordinates: the reference the modal run is compared with.
+    """
+    Every free DOF in physical coordinates: the reference the modal run is compared with.
 
     Every mode takes part, so the band has no effect on it; it is kept (``set_band``) so that a
     switch to the modal method starts with the band the user chose.
     """
 
-    method = "full"
+    method = 'full'
 
     def __init__(self, model: MassSpringModel, basis: ModalBasis | None = None,
-                 band: FilterBand = FilterBand(), *, dt: float, integrator: str = "explicit",
+                 band: FilterBand = FilterBand(), *, dt: float, integrator: str = 'explicit',
                  damping: Damping | None = None, strain_limit: float = DEFAULT_STRAIN_LIMIT):
         super().__init__(model, basis, dt=dt, integrator=integrator, damping=damping,
                          strain_limit=strain_limit)
@@ -129,28 +131,28 @@ class FullSimulation(Simulation):
         return self.model.n_free_dof
 
     def describe_band(self) -> str:
-        return "full"
+        return 'full'
 
     def set_band(self, band: FilterBand, transition_s: float | None = None) -> None:
         self._band = band.validate()
 
     def prepare_switch(self, band: FilterBand, transition_s: float | None = None,
-                       dt_name: str = "dt") -> None:
-        """The band must be one a modal run of this step could take over."""
+                       dt_name: str = 'dt') -> None:
+        """Check that the band is one a modal run of this step could take over."""
         if self._probe is None:
             self._probe = ModalSimulation(self.model, self.basis, FilterBand(), dt=self.dt,
                                           integrator=self.integrator,
                                           strain_limit=self.strain_limit)
         self._probe.check_band(band, dt_name)
 
-    def with_dt(self, dt: float) -> "FullSimulation":
+    def with_dt(self, dt: float) -> 'FullSimulation':
         return FullSimulation(self.model, self.basis, self._band, dt=dt,
                               integrator=self.integrator, damping=self.damping,
                               strain_limit=self.strain_limit)
 
     def stability_limit(self) -> float:
         if self.basis is None:
-            raise ValueError("stability limit needs the modal basis")
+            raise ValueError('stability limit needs the modal basis')
         return stable_step_limit(self.basis.omega_max_estimate())
 
     def reset(self) -> None:

@@ -1,4 +1,5 @@
-"""The paper's method (fig. 5): step only the modes the filter band keeps.
+"""
+The paper's method (fig. 5): step only the modes the filter band keeps.
 
 Each step advances the modal coordinates ``q`` (Newmark), maps them to positions
 ``x = x_rest + Phi_R q`` (fixed particles follow their prescribed motion), evaluates the
@@ -28,30 +29,26 @@ during a fade starts from the settled band instead of a half-changed one.
 from __future__ import annotations
 
 import math
-import threading
-
-import numpy as np
 
 from modal_spring_ros.core.basis import DEFAULT_MAX_MODES, ModalBasis, Progress
-from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS, AddedCoordinates
+from modal_spring_ros.core.derivatives import AddedCoordinates, DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.refreshed_forces import RefreshedForces
 from modal_spring_ros.core.sampled_forces import SampledForces
 from modal_spring_ros.core.scene import Damping
-from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simulation, check_step,
+from modal_spring_ros.core.simulations.base import (check_step, DEFAULT_STRAIN_LIMIT, Simulation,
                                                     stable_step_limit)
-from modal_spring_ros.core.simulations.coordinates import (ADDED_ID, BASES, EMPTY_SET, ActiveSet,
-                                                           AddedCoordinateBank)
+from modal_spring_ros.core.simulations.coordinates import (ActiveSet, ADDED_ID,
+                                                           AddedCoordinateBank, BASES, EMPTY_SET)
+from modal_spring_ros.core.simulations.prepared_sets import PreparedSets
 from modal_spring_ros.core.simulations.stepped_set import SteppedSet
-
-#: Stepped-mode sets a modal run keeps prepared ahead (a switch needs two: the modes stepped
-#: during its transition and after it); the oldest goes first.
-PREPARED_SETS_KEPT = 4
+import numpy as np
 
 
 class ModalSimulation(Simulation):
-    """Steps the modes the filter band keeps.
+    """
+    Steps the modes the filter band keeps.
 
     ``force_refresh`` (steps): 1 evaluates the nonlinear spring forces on every step, exactly
     as the paper; ``N > 1`` evaluates them every ``N`` steps and continues them along the
@@ -64,13 +61,13 @@ class ModalSimulation(Simulation):
     (:mod:`modal_spring_ros.core.sampled_forces`).
     """
 
-    method = "modal"
+    method = 'modal'
 
     def __init__(self, model: MassSpringModel, basis: ModalBasis, band: FilterBand, *,
-                 dt: float, integrator: str = "explicit", damping: Damping | None = None,
+                 dt: float, integrator: str = 'explicit', damping: Damping | None = None,
                  transition_s: float = 0.5, max_modes: int | None = None,
                  strain_limit: float = DEFAULT_STRAIN_LIMIT, highest_hz: float | None = None,
-                 force_refresh: int = 1, mode_choice=None, basis_kind: str = "rest",
+                 force_refresh: int = 1, mode_choice=None, basis_kind: str = 'rest',
                  derivative_directions: int = DEFAULT_DIRECTIONS,
                  bank: AddedCoordinateBank | None = None, progress: Progress | None = None,
                  sample_tolerance: float | None = None):
@@ -80,14 +77,14 @@ class ModalSimulation(Simulation):
             raise ValueError(f"basis '{basis_kind}' must be one of {', '.join(BASES)}")
         if not (isinstance(derivative_directions, (int, np.integer))
                 and derivative_directions >= 1):
-            raise ValueError(f"derivative directions ({derivative_directions}) must be a whole "
-                             "number, at least 1")
+            raise ValueError(f'derivative directions ({derivative_directions}) must be a whole '
+                             'number, at least 1')
         self.basis_kind = basis_kind
         self._bank = bank if bank is not None else AddedCoordinateBank(
             basis, derivative_directions, progress)
         if not (isinstance(force_refresh, (int, np.integer)) and force_refresh >= 1):
-            raise ValueError(f"force refresh ({force_refresh}) must be a whole number of "
-                             "steps, at least 1")
+            raise ValueError(f'force refresh ({force_refresh}) must be a whole number of '
+                             'steps, at least 1')
         self._force_refresh = int(force_refresh)
         #: the springs are sampled within this relative force error (None: they are not)
         self.sample_tolerance = sample_tolerance
@@ -99,15 +96,14 @@ class ModalSimulation(Simulation):
         self._band = band.validate()
         self._set = EMPTY_SET
         self._q = self._v = self._a = np.empty(0)
-        self._built: dict[tuple[int, bytes], SteppedSet] = {}
-        self._built_lock = threading.Lock()
+        self._prepared = PreparedSets(self._build_set)
         self._install(ActiveSet.settled(self.coordinates_for(self.select_modes(band))), None)
         self.reset()
 
     # -- the contract --------------------------------------------------------------------------
     @property
     def kept_modes(self) -> np.ndarray:
-        """Indices of the rest modes in the band (fading-out modes excluded)."""
+        """Return the indices of the rest modes in the band (fading-out modes excluded)."""
         kept = self._set.kept
         return kept[kept < ADDED_ID]
 
@@ -118,8 +114,8 @@ class ModalSimulation(Simulation):
 
     @property
     def added_coordinates(self) -> AddedCoordinates | None:
-        """What the band adds to its rest modes (``derivatives`` basis), or None."""
-        if self.basis_kind == "rest":
+        """Return what the band adds to its rest modes (``derivatives`` basis), or None."""
+        if self.basis_kind == 'rest':
             return None
         found = self._bank.lookup(self.kept_modes)  # computed when the band was set
         return found[1] if found is not None else None
@@ -132,9 +128,9 @@ class ModalSimulation(Simulation):
     def describe_basis(self) -> str:
         added = self.added_coordinates
         if added is None:
-            return f"{self.basis_kind}: {self.kept_modes.size} modes"
-        return (f"derivatives: {self.kept_modes.size} modes + {added.derivative_count} "
-                f"derivative directions + {added.count - added.derivative_count} static")
+            return f'{self.basis_kind}: {self.kept_modes.size} modes'
+        return (f'derivatives: {self.kept_modes.size} modes + {added.derivative_count} '
+                f'derivative directions + {added.count - added.derivative_count} static')
 
     @property
     def coordinates(self) -> int:
@@ -174,7 +170,7 @@ class ModalSimulation(Simulation):
     def describe_band(self) -> str:
         return self._band.describe()
 
-    def with_dt(self, dt: float) -> "ModalSimulation":
+    def with_dt(self, dt: float) -> 'ModalSimulation':
         return ModalSimulation(self.model, self.basis, self._band, dt=dt,
                                integrator=self.integrator, damping=self.damping,
                                transition_s=self.transition_s, max_modes=self.max_modes,
@@ -188,9 +184,13 @@ class ModalSimulation(Simulation):
         return stable_step_limit(float(self._bank.omega(self._set.modes).max()))
 
     def coordinates_for(self, keep: np.ndarray) -> np.ndarray:
-        """The coordinates stepped for a band keeping rest modes ``keep`` (computing what the
-        basis adds to them on first use; no state of the run changes)."""
-        if self.basis_kind == "rest":
+        """
+        Return the coordinates stepped for a band keeping rest modes ``keep``.
+
+        The coordinates stepped for a band keeping rest modes ``keep`` (computing what the basis
+        adds to them on first use; no state of the run changes).
+        """
+        if self.basis_kind == 'rest':
             return keep
         return np.concatenate([keep, self._bank.for_band(keep)[0]])
 
@@ -200,7 +200,7 @@ class ModalSimulation(Simulation):
         band.validate()
         limit = min(self.max_modes, self.basis.n_dof)
         top = self.highest_hz if self.highest_hz is not None else math.inf
-        if band.by == "index":
+        if band.by == 'index':
             needed = int(band.high) + 1 if band.bounded_above else limit
             self.basis.ensure_count(min(needed, limit))
             if math.isfinite(top):
@@ -211,23 +211,24 @@ class ModalSimulation(Simulation):
             self.basis.ensure_count(limit)
 
     def select_modes(self, band: FilterBand) -> np.ndarray:
-        """Indices of the computed modes ``band`` keeps (computing what it needs first).
+        """
+        Return the indices of the computed modes ``band`` keeps (computing what it needs first).
+
         Changes no state of the run, so it can check a band before it is applied.
 
-        Raises:
-            BandError: the band keeps no mode.
+        :raises BandError: the band keeps no mode.
         """
         self.prepare_band(band)
         f = self.basis.frequencies_hz
         keep = np.flatnonzero(band.keeps(f))
-        if band.by == "index":
+        if band.by == 'index':
             keep = keep[keep < self.max_modes]
         if self.highest_hz is not None:
             keep = keep[f[keep] <= self.highest_hz * (1.0 + 1e-12)]
         if keep.size == 0:
-            span = f"{f[0]:.4g} .. {f[-1]:.4g} Hz" if band.by == "hz" else f"0 .. {f.size - 1}"
-            raise BandError(f"filter band {band.describe()} keeps no mode "
-                            f"(the computed modes span {span})")
+            span = f'{f[0]:.4g} .. {f[-1]:.4g} Hz' if band.by == 'hz' else f'0 .. {f.size - 1}'
+            raise BandError(f'filter band {band.describe()} keeps no mode '
+                            f'(the computed modes span {span})')
         return keep.astype(np.int64)
 
     def set_band(self, band: FilterBand, transition_s: float | None = None) -> None:
@@ -240,19 +241,18 @@ class ModalSimulation(Simulation):
 
     @property
     def truncated(self) -> bool:
-        """The band reaches past the computed modes (capped at ``max_modes``)."""
+        """Tell whether the band reaches past the computed modes (capped at ``max_modes``)."""
         top = self.highest_hz if self.highest_hz is not None else math.inf
         band = self._band
-        edge = min(band.high if band.bounded_above and band.by == "hz" else math.inf, top)
+        edge = min(band.high if band.bounded_above and band.by == 'hz' else math.inf, top)
         return not self.basis.complete and self.basis.frequencies_hz[-1] <= edge
 
-    def check_band(self, band: FilterBand, dt_name: str = "dt") -> np.ndarray:
-        """The coordinates stepped for ``band``, if this run can step them (computing them
-        first).
+    def check_band(self, band: FilterBand, dt_name: str = 'dt') -> np.ndarray:
+        """
+        Return the coordinates stepped for ``band``, if this run can step them (computed first).
 
-        Raises:
-            BandError: it keeps no mode.
-            UnstableStepError: its highest mode is unstable at ``dt`` (explicit).
+        :raises BandError: it keeps no mode.
+        :raises UnstableStepError: its highest mode is unstable at ``dt`` (explicit).
         """
         coordinates = self.coordinates_for(self.select_modes(band))
         omega = self._bank.omega(coordinates)
@@ -261,46 +261,35 @@ class ModalSimulation(Simulation):
         return coordinates
 
     def prepare_switch(self, band: FilterBand, transition_s: float | None = None,
-                       dt_name: str = "dt") -> None:
-        """Builds the operators of the modes stepped during the transition and after it."""
+                       dt_name: str = 'dt') -> None:
+        """Build the operators of the modes stepped during the transition and after it."""
         keep = self.check_band(band, dt_name)
         instant = (self.transition_s if transition_s is None else transition_s) <= 0.0
         current = self._set  # one consistent snapshot
-        self._prepare_set(current.next_modes(keep, instant), instant or not current.modes.size)
-        self._prepare_set(keep, True)
-
-    def _prepare_set(self, modes: np.ndarray, settled: bool) -> None:
-        """Build the operators of stepping ``modes`` and keep them for :meth:`_take_set`
-        (``settled``: no coordinate fading, so the springs may be sampled)."""
-        key = (self.basis.count, modes.tobytes(), settled)
-        with self._built_lock:
-            if key in self._built:
-                return
-        built = self._build_set(modes, settled)
-        with self._built_lock:  # the stepping thread may take from it meanwhile
-            self._built[key] = built
-            while len(self._built) > PREPARED_SETS_KEPT:  # a switch superseded before use
-                self._built.pop(next(iter(self._built)))
-
-    def _take_set(self, modes: np.ndarray, settled: bool) -> SteppedSet:
-        """The operators of stepping ``modes``: prepared ones (used once), else built now."""
-        with self._built_lock:
-            built = self._built.pop((self.basis.count, modes.tobytes(), settled), None)
-        return built if built is not None else self._build_set(modes, settled)
+        self._prepared.prepare(self.basis.count, current.next_modes(keep, instant),
+                               instant or not current.modes.size)
+        self._prepared.prepare(self.basis.count, keep, True)
 
     def _build_set(self, modes: np.ndarray, settled: bool) -> SteppedSet:
-        """Sampled springs only for a settled band (a fade is short: training for it would
-        cost more than it saves)."""
+        """
+        Build the operators of stepping ``modes``.
+
+        Sampled springs only for a settled band (a fade is short: training for it would cost more
+        than it saves).
+        """
         tolerance = self.sample_tolerance if settled else None
         return SteppedSet.build(self.model, self._bank, modes, self.damping, self._force_refresh,
                                 self.dt, self.strain_limit, tolerance, self._bank.progress)
 
     def _install(self, new: ActiveSet, old: ActiveSet | None) -> None:
-        """Step ``new`` from now on. With ``old``, coordinates in both sets keep their state
-        and those new to the set start from rest (a dropped one has faded to zero); without,
-        it starts at zero. Everything is built first and assigned last, so a failure leaves
-        the run as it was."""
-        stepped = self._take_set(new.modes, not new.fading)
+        """
+        Step ``new`` from now on.
+
+        With ``old``, coordinates in both sets keep their state and those new to the set start from
+        rest (a dropped one has faded to zero); without, it starts at zero. Everything is built
+        first and assigned last, so a failure leaves the run as it was.
+        """
+        stepped = self._prepared.take(self.basis.count, new.modes, not new.fading)
         q, v, a = (np.zeros(new.modes.size) for _ in range(3))
         if old is not None and old.modes.size:
             kept = np.isin(new.modes, old.modes)
@@ -319,8 +308,12 @@ class ModalSimulation(Simulation):
         self._is_fading = s.fading
 
     def _advance_fade(self) -> None:
-        """Move every fading mode's progress one step; leaving modes' state follows the
-        envelope down to zero (no jump), and modes that reach zero are dropped."""
+        """
+        Move every fading mode's progress one step.
+
+        Leaving modes' state follows the envelope down to zero (no jump), and modes that reach zero
+        are dropped.
+        """
         s = self._set
         step = self.dt / self.transition_s
         old = self._envelope

@@ -3,16 +3,15 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
-
 from modal_spring_ros.core.forces import GeneralizedForces
 from modal_spring_ros.core.frame_loads import FrameLoads
 from modal_spring_ros.core.integrators import DiagonalOperators
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.refreshed_forces import RefreshedForces
-from modal_spring_ros.core.sampled_forces import SampledForces, cached_sample
+from modal_spring_ros.core.sampled_forces import cached_sample, SampledForces
 from modal_spring_ros.core.scene import Damping
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
+import numpy as np
 
 
 @dataclasses.dataclass(frozen=True)
@@ -29,9 +28,12 @@ class SteppedSet:
     @classmethod
     def build(cls, model: MassSpringModel, bank: AddedCoordinateBank, modes: np.ndarray,
               damping: Damping, force_refresh: int, dt: float, strain_limit: float,
-              sample_tolerance: float | None = None, progress=None) -> "SteppedSet":
-        """The set of coordinates ``modes`` (rest or added, from ``bank``); with
-        ``sample_tolerance``, the springs sampled within it (trained, or from the cache)."""
+              sample_tolerance: float | None = None, progress=None) -> 'SteppedSet':
+        """
+        Return the set of coordinates ``modes`` (rest or added, from ``bank``).
+
+        With ``sample_tolerance``, the springs sampled within it (trained, or from the cache).
+        """
         phi, omega = bank.columns(modes)
         damp = damping.modal_coefficients(omega)
         exact = GeneralizedForces(model, phi, bank.load_mask(modes))

@@ -1,5 +1,5 @@
-"""The full run of a turning clamp, in the world: the reference the floating frame is checked
-against.
+"""
+The full run of a turning clamp, in the world: the reference the floating frame is checked against.
 
 The modal run writes a turning body in its clamp's frame and adds the frame's inertial loads
 (:mod:`modal_spring_ros.core.frame_loads`). The full run does none of that: it steps the free
@@ -14,16 +14,19 @@ the modal run): ``-R C R^T (x' - v_frame(x))``, with ``C`` the rest damping and
 """
 from __future__ import annotations
 
-import numpy as np
-
 from modal_spring_ros.core.forces import GeneralizedForces, spring_difference_matrix
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.rigid_frame import RigidFrame
+import numpy as np
 
 
 class PrescribedClampForces(GeneralizedForces):
-    """Force on the free DOF in world coordinates (``x = X + u``) with the fixed particles at
-    their prescribed positions, and gravity; no inertial load (the world is inertial)."""
+    """
+    Force on the free DOF in world coordinates (``x = X + u``).
+
+    Force on the free DOF in world coordinates (``x = X + u``) with the fixed particles at their
+    prescribed positions, and gravity; no inertial load (the world is inertial).
+    """
 
     def __init__(self, model: MassSpringModel):
         super().__init__(model, None)
@@ -46,9 +49,13 @@ class PrescribedClampForces(GeneralizedForces):
 
 
 class WorldFrameRun:
-    """Forces and turned operators of the full run of a turning clamp (the
-    :class:`~modal_spring_ros.core.integrators.Operators` of one step, once :meth:`at` has set
-    the step's time)."""
+    """
+    Forces and turned operators of the full run of a turning clamp.
+
+    Forces and turned operators of the full run of a turning clamp (the
+    :class:`~modal_spring_ros.core.integrators.Operators` of one step, once :meth:`at` has set the
+    step's time).
+    """
 
     def __init__(self, model: MassSpringModel, ops):
         self.model = model
@@ -57,7 +64,7 @@ class WorldFrameRun:
         self._free_rest = model.rest[model.free_particles]
         self._frame = model.frame(0.0)
 
-    def at(self, t: float) -> "WorldFrameRun":
+    def at(self, t: float) -> 'WorldFrameRun':
         """Use the clamp's frame at ``t`` (the end of the step being taken)."""
         self._frame = self.model.frame(t)
         return self
@@ -79,8 +86,12 @@ class WorldFrameRun:
 
     # -- forces and states ------------------------------------------------------------------
     def force(self, u: np.ndarray, t: float) -> np.ndarray:
-        """Springs and gravity at world displacement ``u``, plus the damping of the frame's
-        own velocity there (so that damping acts on the velocity relative to the frame)."""
+        """
+        Springs and gravity at world displacement ``u``.
+
+        Plus the damping of the frame's own velocity there (so that damping acts on the velocity
+        relative to the frame).
+        """
         self.at(t)
         f = self.forces(u, t)
         return f + self.damp(self._frame_velocity(u, self._frame))
