@@ -12,8 +12,9 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        # parameter file, launch file (config/*.launch.yaml) and RViz view
+        # parameter file and RViz view; the launch file
         ('share/' + package_name + '/config', glob('config/*.yaml') + glob('config/*.rviz')),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.yaml')),
         ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
     ],
     python_requires='>=3.10',
@@ -30,7 +31,7 @@ setup(
                  'flake8-comprehensions', 'flake8-deprecated', 'flake8-docstrings',
                  'flake8-import-order', 'flake8-quotes', 'pydocstyle',
                  # the ROS build tooling, to check the package as ROS sees it
-                 'catkin_pkg', 'colcon-core', 'colcon-ros', 'rosdep'],
+                 'catkin_pkg', 'colcon-common-extensions', 'rosdep'],
     },
     zip_safe=True,
     maintainer='modal_spring_ros maintainers',
@@ -46,6 +47,7 @@ setup(
             'modal_spring_compare = modal_spring_ros.cli.modal_spring_compare:main',
             'modal_spring_record = modal_spring_ros.cli.modal_spring_record:main',
             'modal_spring_gripper = modal_spring_ros.cli.modal_spring_gripper:main',
+            'modal_spring_render = modal_spring_ros.cli.modal_spring_render:main',
         ],
     },
 )

@@ -5,8 +5,9 @@
                          [--centre X Y Z] [--rate-hz R] [--duration S] [--ros-args ...]
 
 Publishes ``geometry_msgs/PoseStamped`` on ``anchor_pose`` (relative: remap or use a
-namespace to reach a node elsewhere): the position circles ``--centre`` in the x-y plane and
-the orientation turns to and fro about z, as a robot's gripper holding the clamp would. A node
+namespace to reach a node elsewhere): the position circles ``--centre`` in the x-z plane the
+sheets hang in and the orientation turns to and fro about y (their normal), as a robot's gripper
+holding the clamp would. A node
 started with ``anchor.source:=topic`` follows it. ``--start-node`` also starts one (with the
 default scene) and stops it on exit, so one command shows the whole thing::
 
@@ -40,10 +41,10 @@ def gripper_pose(t: float, args: argparse.Namespace) -> PoseStamped:
     ramp = min(t / args.ramp_s, 1.0) if args.ramp_s > 0 else 1.0
     x, y, z = args.centre
     m.pose.position.x = x + ramp * args.radius * math.sin(phase)
-    m.pose.position.y = y + ramp * args.radius * (math.cos(phase) - 1.0)
-    m.pose.position.z = z
+    m.pose.position.y = y
+    m.pose.position.z = z + ramp * args.radius * (math.cos(phase) - 1.0)
     angle = ramp * math.radians(args.turn_deg) * math.sin(phase)
-    m.pose.orientation.z, m.pose.orientation.w = math.sin(angle / 2), math.cos(angle / 2)
+    m.pose.orientation.y, m.pose.orientation.w = math.sin(angle / 2), math.cos(angle / 2)
     return m
 
 
@@ -55,7 +56,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--frequency-hz', type=float, default=0.3,
                    help='turns per second around the circle (default 0.3)')
     p.add_argument('--turn-deg', type=float, default=30.0,
-                   help='how far the gripper turns to and fro about z, degrees (default 30)')
+                   help='how far the gripper turns to and fro about y, degrees (default 30)')
     p.add_argument('--centre', type=float, nargs=3, default=[0.45, 0.0, 0.0],
                    metavar=('X', 'Y', 'Z'),
                    help="where the circle starts from, m (default the default scene's clamp "

@@ -49,8 +49,8 @@ class Scene:
     A validated mass-spring scene. Arrays are read-only.
 
     :ivar name: scene name (file stem for scene files).
-    :ivar dimension: 1 (motion along ``axis`` only, the paper's chain), 2 (motion in the x-y
-        plane, z stays at rest) or 3.
+    :ivar dimension: 1 (motion along ``axis`` only, the paper's chain), 2 (motion in a plane,
+        by default the vertical x-z plane of a z-up world; y stays at rest) or 3.
     :ivar axes: the world axes that move (0 = x, 1 = y, 2 = z), ``dimension`` of them.
     :ivar rest_positions: (n, 3) particle positions at rest (springs at their rest length).
     :ivar mass: (n,) particle masses, kg.
@@ -96,7 +96,7 @@ class Scene:
 
     def surface_triangles(self) -> np.ndarray:
         """
-        (T, 3) particle triangles of the scene's surface, empty when it has none.
+        Return the (T, 3) particle triangles of the surface, empty when it has none.
 
         A 2D lattice sheet is a surface (two triangles per cell, taken from its diagonal
         springs' cells); scenes without that structure return an empty array.
@@ -114,6 +114,7 @@ class Scene:
             'description': self.description,
             'dimension': self.dimension,
             **({'axis': 'xyz'[self.axes[0]]} if self.dimension == 1 else {}),
+            **({'plane': ''.join('xyz'[a] for a in self.axes)} if self.dimension == 2 else {}),
             'particles': {
                 'positions': self.rest_positions.tolist(),
                 'mass': self.mass.tolist(),
@@ -143,13 +144,12 @@ def _lattice_triangles(scene: Scene) -> np.ndarray:
     """Two triangles per square cell of a planar lattice whose four edges are springs."""
     if scene.dimension != 2:
         return np.empty((0, 3), dtype=np.int64)
-    pos = scene.rest_positions
-    xs = np.unique(np.round(pos[:, 0], 12))
-    ys = np.unique(np.round(pos[:, 1], 12))
+    across, up = (np.round(scene.rest_positions[:, a], 12) for a in scene.axes)  # its plane
+    xs, ys = np.unique(across), np.unique(up)
     if xs.size * ys.size != scene.n_particles or xs.size < 2 or ys.size < 2:
         return np.empty((0, 3), dtype=np.int64)
-    ix = np.searchsorted(xs, np.round(pos[:, 0], 12))
-    iy = np.searchsorted(ys, np.round(pos[:, 1], 12))
+    ix = np.searchsorted(xs, across)
+    iy = np.searchsorted(ys, up)
     grid = np.full((ys.size, xs.size), -1, dtype=np.int64)
     grid[iy, ix] = np.arange(scene.n_particles)
     a = grid[:-1, :-1].ravel()

@@ -13,6 +13,10 @@ from modal_spring_ros.core.scene import SceneError
 import numpy as np
 
 AXES = {'x': 0, 'y': 1, 'z': 2}
+#: The world planes a 2D scene can live in; the default hangs it in the vertical x-z plane of
+#: a z-up world (REP 103).
+PLANES = ('xz', 'xy', 'yz')
+DEFAULT_PLANE = 'xz'
 #: a decimal number as YAML 1.2 spells it (YAML 1.1 reads some of these as text)
 DECIMAL = re.compile(r'[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?')
 
@@ -26,6 +30,8 @@ class FieldReader:
 
     def __init__(self, source: str):
         self.source = source
+        #: the world axes a vector of two numbers gives (a 2D scene's plane: in-plane values)
+        self.pair_axes: tuple[int, int] = (0, 1)
 
     def fail(self, field: str, problem: str) -> SceneError:
         return SceneError(f'{self.source}: {field}: {problem}')
@@ -82,11 +88,13 @@ class FieldReader:
         return arr
 
     def vector3(self, value: Any, field: str, limit: float) -> np.ndarray:
+        """Return a world vector: three numbers, or two along :attr:`pair_axes`."""
         if not isinstance(value, (list, tuple)) or len(value) not in (2, 3):
             raise self.fail(field, f'must be a list of 2 or 3 numbers, got {short(value)}')
         out = np.zeros(3)
-        for i, v in enumerate(value):
-            out[i] = self.number(v, f'{field}[{i}]', limit=limit)
+        for i, (axis, v) in enumerate(zip(self.pair_axes if len(value) == 2 else (0, 1, 2),
+                                          value)):
+            out[axis] = self.number(v, f'{field}[{i}]', limit=limit)
         return out
 
     def axis(self, value: Any, field: str, allowed: tuple[int, ...]) -> int:

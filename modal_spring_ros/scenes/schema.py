@@ -13,7 +13,7 @@ from typing import Any, Mapping
 
 from modal_spring_ros.core.anchor_motion import AnchorMotion, RotationComponent, SineComponent
 from modal_spring_ros.core.scene import Damping, Scene
-from modal_spring_ros.scenes.fields import AXES, FieldReader, short
+from modal_spring_ros.scenes.fields import AXES, DEFAULT_PLANE, FieldReader, PLANES, short
 from modal_spring_ros.scenes.lattice import lattice_springs
 from modal_spring_ros.scenes.limits import available_memory, BYTES_PER_PARTICLE, LIMITS, MAX_STEPS
 from modal_spring_ros.scenes.yaml_reading import load_yaml
@@ -38,9 +38,8 @@ class _SceneParser(FieldReader):
     # -- the scene ----------------------------------------------------------------------------
     def parse(self, data: Any, default_name: str) -> Scene:
         data = self.mapping(data, 'scene')
-        known = {'name', 'description', 'dimension', 'axis', 'particles', 'springs', 'fixed',
-                 'gravity',
-                 'damping', 'anchor_motion', 'simulation'}
+        known = {'name', 'description', 'dimension', 'axis', 'plane', 'particles', 'springs',
+                 'fixed', 'gravity', 'damping', 'anchor_motion', 'simulation'}
         unknown = sorted(set(data) - known, key=str)
         if unknown:
             raise self.fail(unknown[0], f"unknown key (known keys: {', '.join(sorted(known))})")
@@ -49,17 +48,20 @@ class _SceneParser(FieldReader):
         if isinstance(dimension, bool) or not isinstance(dimension, int) \
                 or dimension not in (1, 2, 3):
             raise self.fail('dimension', f'must be 1, 2 or 3, got {short(dimension)}')
+        if dimension != 1 and 'axis' in data:
+            raise self.fail('axis', 'only a 1D scene (dimension: 1) has an axis')
+        if dimension != 2 and 'plane' in data:
+            raise self.fail('plane', 'only a 2D scene (dimension: 2) has a plane')
         if dimension == 1:
             axes = (self.axis(data.get('axis', 'x'), 'axis', (0, 1, 2)),)
-        elif 'axis' in data:
-            raise self.fail('axis', 'only a 1D scene (dimension: 1) has an axis')
+        elif dimension == 2:
+            axes = self.plane(data.get('plane', DEFAULT_PLANE))
+            self.pair_axes = axes  # two numbers are in the plane's own coordinates
         else:
-            axes = tuple(range(dimension))
+            axes = (0, 1, 2)
 
         particles = self.mapping(self.required(data, 'particles', 'scene'), 'particles')
-        positions, lattice = self.positions(particles, dimension)
-        if lattice is not None and dimension == 1 and axes[0] != 0:
-            positions[:, [0, axes[0]]] = positions[:, [axes[0], 0]]
+        positions, lattice = self.positions(particles, axes)
         n = positions.shape[0]
         mass = self.per_item(self.required(particles, 'mass', 'particles'), n,
                              'particles.mass', 'particles', LIMITS['mass'])
@@ -120,9 +122,21 @@ class _SceneParser(FieldReader):
             description=str(data.get('description', '')),
         )
 
-    def positions(self, particles: Mapping[str, Any], dimension: int
+    def plane(self, value: Any) -> tuple[int, int]:
+        """Return the world axes of the plane a 2D scene lives in: ``xz`` is x across, z up."""
+        if not isinstance(value, str) or value not in PLANES:
+            raise self.fail('plane', f"must be one of {', '.join(PLANES)}, got {short(value)}")
+        return AXES[value[0]], AXES[value[1]]
+
+    def positions(self, particles: Mapping[str, Any], axes: tuple[int, ...]
                   ) -> tuple[np.ndarray, tuple[int, ...] | None]:
-        """Particle positions, and the lattice counts when a lattice generated them."""
+        """
+        Return the particle positions, and the lattice counts when a lattice generated them.
+
+        A lattice's counts and spacing go along the scene's ``axes`` in order (a 2D sheet in the
+        x-z plane: its first count along x, its second along z).
+        """
+        dimension = len(axes)
         has_lattice = 'lattice' in particles
         has_positions = 'positions' in particles
         if has_lattice == has_positions:
@@ -160,7 +174,7 @@ class _SceneParser(FieldReader):
         # Scene order: x fastest, then y, then z (row by row).
         coords = [g.transpose().ravel() for g in grids]
         pos = np.zeros((coords[0].size, 3))
-        for axis, c in enumerate(coords):
+        for axis, c in zip(axes, coords):
             pos[:, axis] = c
         return pos + origin, tuple(int(c) for c in counts)
 

@@ -68,9 +68,10 @@ def test_a_turning_clamp_carries_its_particles_rigidly():
     fixed = x[model.fixed_particles]
     rest = model.rest[model.fixed_particles]
     angle = math.radians(45.0) * math.sin(2 * math.pi * 0.5 * t)
-    pivot = np.array([0.45, 0.0])
-    turned = (rest - pivot) @ np.array([[math.cos(angle), math.sin(angle)],
-                                        [-math.sin(angle), math.cos(angle)]]) + pivot
+    pivot = np.array([0.45, 0.0])  # (x, z): the sheet hangs in the x-z plane
+    # a turn about +y: x -> x cos + z sin, z -> -x sin + z cos (rows, so the transpose)
+    turned = (rest - pivot) @ np.array([[math.cos(angle), -math.sin(angle)],
+                                        [math.sin(angle), math.cos(angle)]]) + pivot
     np.testing.assert_allclose(fixed, turned, atol=1e-15)
     # every particle rides along: distances in the rest shape are kept
     np.testing.assert_allclose(np.linalg.norm(x[1:] - x[0], axis=1),

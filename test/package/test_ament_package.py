@@ -29,7 +29,7 @@ import yaml
 
 PACKAGE = 'modal_spring_ros'
 #: what ``colcon build`` needs of the source tree (the README copies the whole folder)
-SOURCE_ITEMS = ['package.xml', 'setup.py', 'setup.cfg', 'resource', PACKAGE, 'config']
+SOURCE_ITEMS = ['package.xml', 'setup.py', 'setup.cfg', 'resource', PACKAGE, 'config', 'launch']
 
 #: top-level import -> the package.xml key that provides it
 IMPORT_KEYS = {
@@ -53,7 +53,7 @@ IMPORT_KEYS = {
 }
 TEST_IMPORT_KEYS = {'pytest': 'python3-pytest', 'rosbags': 'python3-rosbags-pip',
                     'catkin_pkg': 'python3-catkin-pkg', 'ament_flake8': 'ament_flake8',
-                    'ament_pep257': 'ament_pep257'}
+                    'ament_pep257': 'ament_pep257', 'PIL': 'python3-pil'}
 #: tools this file runs as ``python -m MODULE``
 TEST_TOOL_KEYS = {'colcon': 'python3-colcon-common-extensions', 'rosdep2': 'python3-rosdep',
                   'flake8': 'python3-flake8'}
@@ -207,14 +207,15 @@ def _console_scripts() -> list[str]:
 def test_colcon_build_installs_the_ament_layout(colcon_install):
     prefix = colcon_install / PACKAGE
     scripts = _console_scripts()
-    assert 'modal_spring_node' in scripts and len(scripts) == 7
+    assert 'modal_spring_node' in scripts and len(scripts) == 8
     for name in scripts:  # where `ros2 run modal_spring_ros NAME` looks
         exe = prefix / 'lib' / PACKAGE / name
         assert exe.is_file() and os.access(exe, os.X_OK), exe
     assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages' / PACKAGE).is_file()
     share = prefix / 'share' / PACKAGE
     assert (share / 'package.xml').read_text() == (REPO / 'package.xml').read_text()
-    for pattern in ('config/*.yaml', 'config/*.rviz', 'config/scenes/*.yaml'):
+    for pattern in ('config/*.yaml', 'config/*.rviz', 'config/scenes/*.yaml',
+                    'launch/*.launch.yaml'):
         shipped = sorted(p.name for p in REPO.glob(pattern))
         assert shipped and sorted(p.name for p in share.glob(pattern)) == shipped
 
@@ -285,7 +286,7 @@ def test_an_installed_console_script_runs_a_built_in_scene(colcon_install, tmp_p
 
 # -- launch file and RViz view -----------------------------------------------------------------
 
-LAUNCH_FILE = 'config/modal_spring.launch.yaml'
+LAUNCH_FILE = 'launch/modal_spring.launch.yaml'
 RVIZ_FILE = 'config/modal_spring.rviz'
 _SUBSTITUTION = re.compile(r'\$\(([a-z-]+) ([^)]*)\)')
 
@@ -418,6 +419,23 @@ def test_the_rviz_view_shows_what_the_node_publishes():
     assert view['Global Options']['Fixed Frame'] == PARAMETERS['frame_id'][0]
     params = yaml.safe_load((REPO / 'config' / 'modal_spring.yaml').read_text())
     assert list(params) == [f'/**/{NODE_NAME}']              # the launch file's node name
+
+
+def test_the_rviz_view_looks_at_the_default_sheet_upright_in_a_z_up_world():
+    from modal_spring_ros.scenes.resources import DEFAULT_SCENE, load_scene
+    scene = load_scene(DEFAULT_SCENE)
+    view = yaml.safe_load((REPO / RVIZ_FILE).read_text())['Visualization Manager']
+    camera = view['Views']['Current']
+    focal = np.array([camera['Focal Point'][k] for k in 'XYZ'], dtype=float)
+    low, high = scene.rest_positions.min(axis=0), scene.rest_positions.max(axis=0)
+    assert np.all(low <= focal) and np.all(focal <= high)    # centred on the sheet
+    # an orbit camera sits along (cos p cos y, cos p sin y, sin p) from its focal point
+    pitch, yaw = camera['Pitch'], camera['Yaw']
+    eye = np.array([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw), np.sin(pitch)])
+    normal = ({0, 1, 2} - set(scene.axes)).pop()
+    assert normal == 1 and abs(eye[normal]) > 0.9              # facing the hanging sheet
+    grid = next(d for d in view['Displays'] if d['Class'] == 'rviz_default_plugins/Grid')
+    assert grid['Plane'] == 'XY' and grid['Offset']['Z'] < low[2]   # a floor below it
 
 
 def test_the_shipped_parameter_file_holds_the_node_s_own_defaults():

@@ -120,6 +120,6 @@ def test_modules_stay_readable():
 def test_one_module_per_console_script_named_after_it():
     scripts = re.findall(r"'(\w+) = (modal_spring_ros\.[\w.]+):main'",
                          (REPO / 'setup.py').read_text())
-    assert len(scripts) == 7
+    assert len(scripts) == 8
     for name, module in scripts:
         assert module == f'{PACKAGE}.cli.{name}', (name, module)

@@ -19,7 +19,7 @@ from modal_spring_ros.ros.resimulate import resimulate
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
-from ros_harness import node_with_client, wait_for
+from ros_harness import node_of, node_with_client, wait_for
 from sensor_msgs.msg import PointCloud2
 import yaml
 
@@ -34,7 +34,8 @@ def pose(angle_deg: float, position=PIVOT, frame_id: str = 'world',
     m.header.frame_id = frame_id
     m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(v) for v in position)
     a = math.radians(angle_deg)
-    q = quaternion if quaternion is not None else (0.0, 0.0, math.sin(a / 2), math.cos(a / 2))
+    # a turn about y, the normal of the x-z plane the sheets hang in
+    q = quaternion if quaternion is not None else (0.0, math.sin(a / 2), 0.0, math.cos(a / 2))
     o = m.pose.orientation
     o.x, o.y, o.z, o.w = (float(v) for v in q)
     return m
@@ -65,10 +66,13 @@ def top_row(scene) -> np.ndarray:
 
 
 def turned(points: np.ndarray, angle_deg: float) -> np.ndarray:
+    """Return ``points`` turned about y through the pivot: x, z -> x c + z s, -x s + z c."""
     a = math.radians(angle_deg)
-    r = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    r = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])
+    plane = [0, 2]
     out = points.copy()
-    out[:, :2] = (points[:, :2] - PIVOT[:2]) @ r.T + PIVOT[:2]
+    pivot = np.asarray(PIVOT)[plane]
+    out[:, plane] = (points[:, plane] - pivot) @ r.T + pivot
     return out
 
 
@@ -135,7 +139,7 @@ def test_bad_poses_are_refused_change_nothing_and_silence_is_reported():
         def anchor(prefix):
             for _, d in reversed(diags):
                 s = d.status[0]
-                if s.name.startswith(prefix):
+                if node_of(s).startswith(prefix):
                     return s, {kv.key: kv.value for kv in s.values}
             return None, {}
         # no valid pose for more than 0.5 s: the clamp holds the last, and diagnostics say so
@@ -157,10 +161,10 @@ def test_a_clicked_point_pulls_the_nearest_particle_toward_it(tmp_path):
         assert wait_for(lambda: len(points) > 5 and pub.get_subscription_count() > 0, 30)
         time.sleep(1.0)                                   # settled in the sag
         before = latest(points)
-        corner = int(np.argmax(before[:, 0] - before[:, 1]))   # the bottom right particle
+        corner = int(np.argmax(before[:, 0] - before[:, 2]))   # the bottom right particle
         click = PointStamped()
         click.header.frame_id = 'world'
-        click.point.x, click.point.y = before[corner, 0] + 0.5, before[corner, 1]
+        click.point.x, click.point.z = before[corner, 0] + 0.5, before[corner, 2]
         pub.publish(click)
         assert wait_for(lambda: latest(points)[corner, 0] - before[corner, 0] > 0.01, 10)
         moved = latest(points) - before
@@ -182,7 +186,7 @@ def test_the_capture_of_a_driven_run_resimulates_frame_for_frame(tmp_path):
         time.sleep(1.0)
         click = PointStamped()
         click.header.frame_id = 'world'
-        click.point.x, click.point.y = 1.2, -0.9
+        click.point.x, click.point.z = 1.2, -0.9
         pub.publish(click)
         time.sleep(1.5)
         stream.stop()

@@ -26,10 +26,54 @@ def test_sheet_10x10_is_the_papers_scene():
     assert s.n_particles == 100
     assert s.dimension == 2
     assert s.fixed.sum() == 10                     # the top row
-    assert np.all(s.rest_positions[s.fixed, 1] == s.rest_positions[:, 1].max())
+    assert np.all(s.rest_positions[s.fixed, 2] == s.rest_positions[:, 2].max())
     assert s.n_free_dof == 180                     # paper: 180 vibration systems
     assert s.n_springs == 2 * 9 * 10 + 2 * 9 * 9   # edges + both diagonals per cell
-    assert np.allclose(s.gravity, [0.0, -9.81, 0.0])
+    # hanging in the vertical x-z plane of a z-up world (REP 103)
+    assert s.axes == (0, 2) and np.all(s.rest_positions[:, 1] == 0.0)
+    assert np.allclose(s.gravity, [0.0, 0.0, -9.81])
+
+
+@pytest.mark.parametrize('name', builtin_scene_names())
+def test_every_built_in_scene_lives_in_a_z_up_world(name):
+    s = load_scene(name)
+    assert s.gravity[2] < 0.0 and np.all(s.gravity[:2] == 0.0), s.gravity
+    if s.dimension == 2:
+        assert s.axes == (0, 2)  # hanging in the vertical x-z plane
+        # the clamp is the top row, the sheet hangs below it
+        assert np.all(s.rest_positions[s.fixed, 2] == s.rest_positions[:, 2].max())
+
+
+@pytest.mark.parametrize('plane', ['xz', 'xy', 'yz'])
+def test_a_2d_sheet_is_a_surface_in_whichever_plane_it_lives_in(plane):
+    data = load_scene('sheet_10x10').to_dict()
+    data['plane'] = plane
+    data['particles'] = {'lattice': {'counts': [4, 3], 'spacing': 0.1}, 'mass': 0.01}
+    data['springs'] = {'connect': ['edges', 'diagonals'], 'stiffness': 1000.0}
+    data['fixed'] = {'indices': [0, 1, 2, 3]}
+    data.update(gravity=[0.0, 0.0], anchor_motion=[])
+    s = scene_from_dict(data)
+    tris = s.surface_triangles()
+    assert tris.shape == (2 * 3 * 2, 3)        # two per cell, each cell's corners
+    area = np.cross(s.rest_positions[tris[:, 1]] - s.rest_positions[tris[:, 0]],
+                    s.rest_positions[tris[:, 2]] - s.rest_positions[tris[:, 0]])
+    np.testing.assert_allclose(np.linalg.norm(area, axis=1), 0.01)   # none degenerate
+
+
+def test_a_2d_scene_says_which_plane_it_lives_in():
+    data = {'name': 'floor', 'dimension': 2, 'plane': 'xy',
+            'particles': {'positions': [[0, 0], [1, 0], [1, 1]], 'mass': 1.0},
+            'springs': {'pairs': [[0, 1], [1, 2], [0, 2]], 'stiffness': 10.0},
+            'fixed': {'indices': [0]}}
+    s = scene_from_dict(data)
+    assert s.axes == (0, 1) and s.rest_positions[2].tolist() == [1.0, 1.0, 0.0]
+    data['plane'] = 'yz'  # two numbers are in the plane's own coordinates
+    s = scene_from_dict(data)
+    assert s.axes == (1, 2) and s.rest_positions[2].tolist() == [0.0, 1.0, 1.0]
+    del data['plane']  # the default: the vertical x-z plane
+    s = scene_from_dict(data)
+    assert s.axes == (0, 2) and s.rest_positions[2].tolist() == [1.0, 0.0, 1.0]
+    assert scene_from_yaml(s.to_yaml()).axes == (0, 2)  # the plane round-trips
 
 
 def test_sheet_10x10_stays_in_the_small_deformation_regime():
@@ -102,25 +146,25 @@ def _chain(**override):
     ({'fixed': None}, 'fixed: missing: at least one particle must be fixed'),
     ({'fixed': {'indices': [7]}}, 'fixed.indices[0]: particle index 7 out of range (0..2)'),
     ({'dimension': 4}, 'dimension: must be 1, 2 or 3, got 4'),
-    ({'gravity': [0, 0, -9.81]}, 'gravity: a 2D scene moves along x, y only'),
+    ({'gravity': [0, -9.81, 0]}, 'gravity: a 2D scene moves along x, z only'),
     ({'particles__positions': [[0, 0, 0], [1, 0, 0], [1, 1, 1]]},
-     'particles: a 2D scene must have equal z for every particle'),
-    ({'anchor_motion': [{'axis': 'z', 'amplitude': 1, 'frequency_hz': 1}]},
-     'anchor_motion[0].axis: must be one of x, y'),
+     'particles: a 2D scene must have equal y for every particle'),
+    ({'anchor_motion': [{'axis': 'y', 'amplitude': 1, 'frequency_hz': 1}]},
+     'anchor_motion[0].axis: must be one of x, z'),
     ({'damping': {'ratio': -0.1}}, 'damping.ratio: must not be negative'),
     ({'colour': 'red'}, 'colour: unknown key'),
     ({'anchor_motion': [{'rotation': 'w', **_TURN}]},
      "anchor_motion[0].rotation: must be one of x, y, z, got 'w'"),
     ({'anchor_motion': [{'rotation': 'x', **_TURN}]},
-     'anchor_motion[0].rotation: a turn about x leaves the xy plane of this 2D scene: turn '
-     'about z'),
-    ({'anchor_motion': [{'rotation': 'z', 'amplitude_deg': 10, 'frequency_hz': 1}]},
+     'anchor_motion[0].rotation: a turn about x leaves the xz plane of this 2D scene: turn '
+     'about y'),
+    ({'anchor_motion': [{'rotation': 'y', 'amplitude_deg': 10, 'frequency_hz': 1}]},
      'anchor_motion[0].pivot: missing: the point the axis goes through'),
-    ({'anchor_motion': [{'rotation': 'z', **dict(_TURN, pivot=[0, 'a'])}]},
+    ({'anchor_motion': [{'rotation': 'y', **dict(_TURN, pivot=[0, 'a'])}]},
      "anchor_motion[0].pivot[1]: must be a number, got 'a'"),
-    ({'anchor_motion': [{'rotation': 'z', **dict(_TURN, amplitude=3)}]},
+    ({'anchor_motion': [{'rotation': 'y', **dict(_TURN, amplitude=3)}]},
      'anchor_motion[0].amplitude: unknown key (known keys: rotation, amplitude_deg'),
-    ({'anchor_motion': [{'rotation': 'z', 'pivot': [0, 0], 'frequency_hz': 1}]},
+    ({'anchor_motion': [{'rotation': 'y', 'pivot': [0, 0], 'frequency_hz': 1}]},
      'anchor_motion[0].amplitude_deg: missing'),
     ({'anchor_motion': [{'axis': 'x', 'amplitude': 1, 'frequency_hz': 1, 'pivot': [0, 0]}]},
      'anchor_motion[0].pivot: unknown key (known keys: axis, amplitude'),
@@ -145,7 +189,7 @@ def test_a_1d_scene_cannot_turn():
 def test_a_turning_clamp_round_trips_and_composes_in_order():
     s = load_scene('sheet_10x10_swing')
     (turn,) = s.anchor_motion.rotations
-    assert turn.axis == 2 and turn.pivot == (0.45, 0.0, 0.0)
+    assert turn.axis == 1 and turn.pivot == (0.45, 0.0, 0.0)
     assert turn.amplitude == pytest.approx(math.radians(45.0), rel=1e-15)
     again = scene_from_yaml(s.to_yaml())
     for t in (0.3, 1.7, 4.1):
@@ -192,8 +236,8 @@ def test_sheet_without_diagonals_is_a_mechanism_on_the_sparse_path_too():
     keep = [p for p in data['springs']['pairs']
             if abs(data['particles']['positions'][p[0]][0]
                    - data['particles']['positions'][p[1]][0]) < 1e-12
-            or abs(data['particles']['positions'][p[0]][1]
-                   - data['particles']['positions'][p[1]][1]) < 1e-12]
+            or abs(data['particles']['positions'][p[0]][2]
+                   - data['particles']['positions'][p[1]][2]) < 1e-12]
     data['springs'] = {'pairs': keep, 'stiffness': 1000.0}
     model = MassSpringModel(scene_from_dict(data))
     with pytest.raises(SceneError, match='zero-stiffness mode'):
