@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
+import threading
 
 from helpers import variant
 from modal_spring_ros.core.basis import ModalBasis
@@ -27,3 +29,21 @@ def sheet_undamped_still():
 def sheet_10x10():
     model = MassSpringModel(load_scene('sheet_10x10'))
     return model, ModalBasis(model)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """
+    End ROS before the interpreter ends.
+
+    An rclpy context or executor thread still alive at exit makes the C++ runtime abort the
+    interpreter (``terminate called without an active exception``, exit -6), which colcon test
+    reports as a failure whatever the tests said: shut the default context down if a test left
+    it initialised, and say which threads were left running.
+    """
+    if 'rclpy' in sys.modules:
+        sys.modules['rclpy'].try_shutdown()
+    left = [t.name for t in threading.enumerate()
+            if t is not threading.main_thread() and t.is_alive() and not t.daemon]
+    if left:
+        print(f'\nthreads left running at the end of the session: {", ".join(left)}',
+              file=sys.stderr)
