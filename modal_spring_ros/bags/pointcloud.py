@@ -7,6 +7,9 @@ position, for colouring in RViz or Foxglove); ``point_step`` 16, ``is_dense`` tr
 """
 from __future__ import annotations
 
+import array
+import math
+
 import numpy as np
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
@@ -28,21 +31,51 @@ def distance_from_rest(positions: np.ndarray, rest_positions: np.ndarray) -> np.
 def to_pointcloud2(positions: np.ndarray, rest_positions: np.ndarray, header: Header
                    ) -> PointCloud2:
     """Return a cloud of ``positions`` (n, 3), each point's displacement from rest beside it."""
-    n = positions.shape[0]
-    buf = np.empty((n, 4), dtype='<f4')
-    buf[:, :3] = positions
-    buf[:, 3] = distance_from_rest(positions, rest_positions)
-    msg = PointCloud2()
-    msg.header = header
-    msg.height = 1
-    msg.width = n
-    msg.fields = _FIELDS
-    msg.is_bigendian = False
-    msg.point_step = 16
-    msg.row_step = 16 * n
-    msg.is_dense = True
-    msg.data = buf.tobytes()
-    return msg
+    cloud = CloudBuffer(rest_positions)
+    cloud.points[:, :3] = positions
+    return cloud.message(header)
+
+
+class CloudBuffer:
+    """
+    One cloud's bytes, written in place frame after frame: no array or copy per frame.
+
+    :attr:`points` is an (n, 4) float32 view of the bytes the message carries (``x``, ``y``,
+    ``z``, ``displacement``): write the positions into ``points[:, :3]``, then :meth:`message`
+    fills in the displacement and returns a cloud whose ``data`` is those bytes. The next frame
+    writes over them, so publish (or serialise) a message before the next one is written.
+    """
+
+    def __init__(self, rest_positions: np.ndarray):
+        n = rest_positions.shape[0]
+        self._bytes = array.array('B', bytes(16 * n))  # what rclpy takes as uint8[] as it is
+        self.points = np.frombuffer(self._bytes, dtype='<f4').reshape(n, 4)
+        self._rest = np.zeros((n, 4), dtype='<f4')  # a fourth column of zeros: contiguous rows
+        self._rest[:, :3] = rest_positions
+        self._moved = np.empty((n, 4), dtype='<f4')
+        self._distance = np.empty(n, dtype='<f4')
+
+    def finite(self) -> bool:
+        """
+        Tell whether every value written is finite: one pass over the bytes, summed in float64.
+
+        The displacement column holds the last message's values (finite, or zeros) meanwhile.
+        """
+        return math.isfinite(float(np.add.reduce(self.points.reshape(-1), dtype=np.float64)))
+
+    def message(self, header: Header) -> PointCloud2:
+        """Return the cloud of the positions written, each point's displacement beside them."""
+        self.points[:, 3] = 0.0
+        np.subtract(self.points, self._rest, out=self._moved)
+        np.einsum('ij,ij->i', self._moved, self._moved, out=self._distance)
+        np.sqrt(self._distance, out=self.points[:, 3])
+        n = self.points.shape[0]
+        msg = PointCloud2(check_fields=True, header=header, height=1, width=n, fields=_FIELDS,
+                          is_bigendian=False, point_step=16, row_step=16 * n, is_dense=True)
+        # with its fields checked, the setter takes a uint8 array.array as it is (unchecked, or
+        # in the constructor, it copies it): the bytes written are the bytes published
+        msg.data = self._bytes
+        return msg
 
 
 def from_pointcloud2(msg) -> np.ndarray:

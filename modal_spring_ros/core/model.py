@@ -45,6 +45,7 @@ class MassSpringModel:
         self._inv_l = 1.0 / self._l
         self._frame: tuple[tuple[float, int], RigidFrame] | None = None
         self._axes_index = np.ix_(self.axes, self.axes)
+        self._layouts: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # see write_positions
 
     # -- stiffness and mass at rest ------------------------------------------------------------
     @functools.cached_property
@@ -119,6 +120,30 @@ class MassSpringModel:
         x = self.rest + self.anchor_offset(t)
         x.reshape(-1)[self.free_dof] += u  # flat index: several times faster than by rows
         return x
+
+    def write_positions(self, out: np.ndarray, u: np.ndarray, t: float) -> None:
+        """
+        Write ``X + u + p`` (a clamp that only translates) into the first columns of ``out``.
+
+        ``out``: (n, m) float32, C-contiguous; ``u``: float32 free-DOF displacement. The rest
+        positions in that layout (other columns zero) and the flat indices of the free DOF in it
+        are made once per width.
+        """
+        rest, index = self._output_layout(out.shape[1])
+        np.copyto(out, rest)  # whole rows: a contiguous copy
+        offset = self.anchor_offset(t)
+        if np.any(offset):
+            out[:, self.axes] += offset.astype(np.float32)
+        flat = out.reshape(-1)  # a view: ``out`` is contiguous
+        flat[index] += u
+
+    def _output_layout(self, width: int) -> tuple[np.ndarray, np.ndarray]:
+        if width not in self._layouts:
+            particle, axis = np.divmod(self.free_dof, self.dimension)
+            rest = np.zeros((self.scene.n_particles, width), dtype=np.float32)
+            rest[:, :3] = self.scene.rest_positions
+            self._layouts[width] = rest, particle * width + np.asarray(self.axes)[axis]
+        return self._layouts[width]
 
     def world_velocity(self, u: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """

@@ -7,7 +7,8 @@ A step whose cost does not depend on the number of springs.
 :class:`~modal_spring_ros.core.forces.GeneralizedForces`: ``forces(q, t)``. The spring force is
 the weighted sum over the sampled springs (:mod:`~modal_spring_ros.core.spring_sampling`),
 still nonlinear (eq. 20 on each sampled spring); the loads stay exact. At a low rate
-(``check_every`` calls) the exact force is evaluated beside it: the relative difference is
+(``check_every`` calls, by default spaced by the cost of a check, :func:`check_spacing`) the
+exact force is evaluated beside it: the relative difference is
 ``sample_error`` (its largest value ``max_sample_error``), and the largest spring strain of
 that evaluation is what divergence detection sees until the next one (the sampled springs'
 strain otherwise). The sample is trained to half the tolerance; if its error on states it was
@@ -31,8 +32,12 @@ from modal_spring_ros.core.integrators import DiagonalOperators, integrator
 from modal_spring_ros.core.spring_sampling import DEFAULT_TOLERANCE, SpringSample, train
 import numpy as np
 
-#: calls between two checks of the sampled force against the exact one
-DEFAULT_CHECK_EVERY = 200
+#: fewest calls between two checks of the sampled force against the exact one
+MIN_CHECK_EVERY = 200
+#: a check costs about as much as (springs / sampled springs) sampled evaluations: checks are
+#: spaced this many times that apart, so that they add at most a fifth of the sampled springs'
+#: own cost and a step stays as cheap on a large scene as on a small one
+CHECK_SPACING = 5
 #: the sample is trained to this share of the tolerance, so that states it was not trained
 #: on stay within the tolerance
 TRAINING_SHARE = 0.3
@@ -129,16 +134,20 @@ def cached_sample(exact: GeneralizedForces, phi: np.ndarray, omega2: np.ndarray,
     return sample
 
 
+def check_spacing(springs: int, sampled: int) -> int:
+    """Return the calls between two checks: a check's cost spread thin (at least 200)."""
+    return max(MIN_CHECK_EVERY, math.ceil(CHECK_SPACING * springs / max(sampled, 1)))
+
+
 class SampledForces:
     """``Q(q, t)`` with the springs sampled; see the module text."""
 
     def __init__(self, exact: GeneralizedForces, sample: SpringSample,
-                 tolerance: float = DEFAULT_TOLERANCE,
-                 check_every: int = DEFAULT_CHECK_EVERY):
+                 tolerance: float = DEFAULT_TOLERANCE, check_every: int | None = None):
         self.exact = exact
         self.sample = sample
         self.tolerance = tolerance
-        self.check_every = int(check_every)
+        self.check_every = int(check_every or check_spacing(exact.n_springs, sample.count))
         d = exact.dimension
         springs = sample.springs
         self._g = exact.g_rows_of(springs).reshape(d * springs.size, -1)      # (d k, m)

@@ -14,7 +14,7 @@ from typing import Any, Callable
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point
 from modal_spring_ros.bags.capture import RunBagWriter
-from modal_spring_ros.bags.pointcloud import distance_from_rest, to_pointcloud2
+from modal_spring_ros.bags.pointcloud import CloudBuffer, distance_from_rest
 from modal_spring_ros.bags.stamps import to_time_msg
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.core.simulations import Simulation, SimulationStatus
@@ -81,13 +81,14 @@ class NodeOutputs:
         if self._clock is None:
             self._clock = self._node.create_publisher(Clock, CLOCK_TOPIC, QUEUE_DEPTH)
 
-    def frame(self, sim: Simulation, positions: np.ndarray, mesh: bool) -> None:
+    def frame(self, sim: Simulation, cloud: CloudBuffer, mesh: bool) -> None:
         values = self._values()
         rest = self._scene.rest_positions
         stamp = (to_time_msg(sim.time) if values['stamp'] == 'sim'
                  else self._node.get_clock().now().to_msg())
         header = Header(stamp=stamp, frame_id=values['frame_id'])
-        self._points.publish(to_pointcloud2(positions, rest, header))
+        self._points.publish(cloud.message(header))  # serialised here: the bytes are free again
+        positions = cloud.points[:, :3]
         if self._bag is not None:
             self._bag.frame(sim.time, positions)
         if values['publish_clock'] and self._clock is not None:

@@ -19,12 +19,12 @@ import threading
 import time
 from typing import Callable, Protocol
 
+from modal_spring_ros.bags.pointcloud import CloudBuffer
 from modal_spring_ros.core.simulations import DivergenceError, Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import StreamReport
 from modal_spring_ros.ros.inputs import apply_click, apply_pose
 from modal_spring_ros.ros.requests import (ChangeBand, FollowPose, Pause, PullPoint,
                                            ReplaceSimulation, Request, Reset)
-import numpy as np
 
 #: wall time between two diagnostics messages, s
 DIAGNOSTICS_PERIOD_S = 1.0
@@ -35,7 +35,7 @@ RECOVERY_RETRY_S = 0.5
 class Outputs(Protocol):
     """What the thread publishes through (the node's publishers, or a test's recorder)."""
 
-    def frame(self, sim: Simulation, positions: np.ndarray, mesh: bool) -> None: ...
+    def frame(self, sim: Simulation, cloud: CloudBuffer, mesh: bool) -> None: ...
 
     def diagnostics(self, status: SimulationStatus, report: StreamReport) -> None: ...
 
@@ -101,6 +101,8 @@ class SimulationThread:
         self._window = _Window()
         self._frames = 0
         self._last_frame = 0.0
+        self._cloud: CloudBuffer | None = None  # the frames' bytes, reused (see _publish_frame)
+        self._cloud_scene = None
         self._divergences = 0
         self._last_divergence = ''
         self._diverged_recently = False
@@ -277,12 +279,15 @@ class SimulationThread:
 
     # -- frames and reports --------------------------------------------------------------------
     def _publish_frame(self, mesh: bool) -> None:
-        positions = self.sim.positions()
-        if not np.isfinite(positions).all():  # defensive: the engine never returns these
+        scene = self.sim.model.scene
+        if self._cloud is None or self._cloud_scene is not scene:  # once per scene
+            self._cloud, self._cloud_scene = CloudBuffer(scene.rest_positions), scene
+        self.sim.positions_into(self._cloud.points)  # in place: no array per frame
+        if not self._cloud.finite():  # defensive: the engine never returns these
             self._on_divergence(DivergenceError('non-finite positions', self.sim.time,
                                                 self.sim.steps))
             return
-        self._outputs.frame(self.sim, positions, mesh)
+        self._outputs.frame(self.sim, self._cloud, mesh)
         now = time.monotonic()
         w = self._window
         if self._last_frame:

@@ -1,8 +1,8 @@
 """The published cloud's layout and values, and the particle positions it is built from."""
 from __future__ import annotations
 
-from modal_spring_ros.bags.pointcloud import (distance_from_rest, from_pointcloud2, to_pointcloud2,
-                                              xyz)
+from modal_spring_ros.bags.pointcloud import (CloudBuffer, distance_from_rest, from_pointcloud2,
+                                              to_pointcloud2, xyz)
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -22,7 +22,29 @@ def test_cloud_layout_and_values_round_trip():
     cloud = from_pointcloud2(msg)
     np.testing.assert_array_equal(xyz(msg), positions.astype(np.float32).astype(np.float64))
     expected = np.array([np.sqrt(sum((p - r) ** 2)) for p, r in zip(positions, rest)])
-    np.testing.assert_allclose(cloud['displacement'], expected, rtol=1e-6)
+    # from the float32 positions the cloud carries: to their resolution
+    np.testing.assert_allclose(cloud['displacement'], expected, rtol=1e-6,
+                               atol=4e-7 * np.abs(positions).max())
+
+
+def test_a_cloud_buffer_is_written_in_place_frame_after_frame():
+    rng = np.random.default_rng(4)
+    rest = rng.normal(size=(40, 3))
+    cloud = CloudBuffer(rest)
+    first = rest + 0.01
+    cloud.points[:, :3] = first
+    assert cloud.finite()
+    msg = cloud.message(Header(frame_id='world'))
+    np.testing.assert_allclose(xyz(msg), first, atol=1e-6)
+    np.testing.assert_allclose(from_pointcloud2(msg)['displacement'], np.sqrt(3) * 0.01,
+                               rtol=1e-4)
+    cloud.points[:, :3] = rest  # the next frame: the same bytes, no new array
+    again = cloud.message(Header(frame_id='world'))
+    assert again.data is msg.data and np.all(from_pointcloud2(again)['displacement'] < 1e-6)
+    cloud.points[7, 1] = np.nan
+    assert not cloud.finite()
+    cloud.points[7, 1] = np.inf
+    assert not cloud.finite()
 
 
 def test_distance_from_rest_is_the_euclidean_distance():
@@ -57,3 +79,22 @@ def test_positions_put_each_free_particle_at_rest_plus_base_plus_displacement():
     np.testing.assert_allclose(x[model.free_particles],
                                model.rest[model.free_particles] + offset + u.reshape(-1, d),
                                rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize('scene', ['sheet_10x10', 'sheet_10x10_swing', 'cantilever_3d'])
+def test_positions_written_in_place_are_the_run_s_positions_in_float32(scene):
+    from modal_spring_ros.core.config import SimulationConfig
+    from modal_spring_ros.core.factory import build_simulation
+    from modal_spring_ros.core.filter_band import FilterBand
+    sim = build_simulation(load_scene(scene), SimulationConfig())
+    sim.step(300)
+    sim.set_band(FilterBand('lowpass', 0, 5, 'index'), 0.5)  # the frames of a fade, too
+    sim.step(100)
+    cloud = CloudBuffer(sim.model.scene.rest_positions)
+    for _ in range(2):  # the second frame writes over the first
+        sim.step(50)
+        sim.positions_into(cloud.points)
+        reference = sim.positions()
+        assert np.abs(reference - reference[0]).max() > 1e-3
+        np.testing.assert_allclose(cloud.points[:, :3], reference, rtol=0,
+                                   atol=3e-7 * np.abs(reference).max())

@@ -13,7 +13,7 @@ from helpers import variant
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.sampled_forces import cache_folder, SampledForces
+from modal_spring_ros.core.sampled_forces import cache_folder, check_spacing, SampledForces
 from modal_spring_ros.core.simulations import ModalSimulation
 from modal_spring_ros.core.spring_sampling import SpringSample
 from modal_spring_ros.scenes.resources import load_scene
@@ -127,3 +127,11 @@ def test_a_sample_beyond_its_tolerance_falls_back_to_exact_forces(sheet_10x10):
     assert bad.fell_back and bad.sample_error > 0.02
     np.testing.assert_allclose(bad.spring_forces(q), forces.exact.spring_forces(q))
     assert bad.describe().startswith('exact (the 3-spring sample fell back')
+
+
+@pytest.mark.parametrize('springs, sampled', [(342, 220), (39402, 211), (397530, 212)])
+def test_run_time_checks_are_spaced_by_their_cost(springs, sampled):
+    """A check costs about springs / sampled sampled calls: spread over 5 times that, or 200."""
+    every = check_spacing(springs, sampled)
+    assert every >= 200 and every * sampled >= 5 * springs
+    assert every == 200 or (every - 1) * sampled < 5 * springs   # and no sparser than that

@@ -31,8 +31,8 @@ class Recorder:
         self.logs = []
         self.changes: list[dict] = []
 
-    def frame(self, sim, positions, mesh):
-        self.frames.append((time.monotonic(), sim.time, positions.copy()))
+    def frame(self, sim, cloud, mesh):
+        self.frames.append((time.monotonic(), sim.time, cloud.points[:, :3].astype(float)))
 
     def diagnostics(self, status, report):
         self.reports.append((status, report))

@@ -287,6 +287,25 @@ class Simulation(abc.ABC):
         x = self.model.positions(self.displacement(), self.time)
         return self.model.positions3(x)
 
+    def positions_into(self, out: np.ndarray) -> None:
+        """
+        Write the particles' positions into the first three columns of ``out``.
+
+        ``out``: (n, m) float32, C-contiguous, ``m >= 3`` (a cloud's points; its other columns
+        are left as they are). A run whose displacement is cheap in float32
+        (:meth:`_displacement32`) and whose clamp only translates writes them in place, with no
+        float64 array per frame.
+        """
+        u = None if self.model.rotates else self._displacement32()
+        if u is None:
+            out[:, :3] = self.positions()
+        else:
+            self.model.write_positions(out, u, self.time)
+
+    def _displacement32(self) -> np.ndarray | None:
+        """Return the displacement in float32 when that is cheaper (None: it is not)."""
+        return None
+
     def energy(self) -> dict[str, float]:
         u = self.displacement()
         x = self.model.positions(u, self.time)

@@ -24,6 +24,7 @@ class SteppedSet:
     ops: DiagonalOperators
     forces: GeneralizedForces | RefreshedForces | SampledForces
     frame: FrameLoads | None   # a turning clamp's inertial loads on these coordinates
+    phi32: np.ndarray          # the shapes in float32, for the frames (made with the set)
 
     @classmethod
     def build(cls, model: MassSpringModel, bank: AddedCoordinateBank, modes: np.ndarray,
@@ -45,4 +46,4 @@ class SteppedSet:
         else:
             forces = RefreshedForces(exact, omega**2, force_refresh, dt, strain_limit)
         return cls(phi, omega**2, damp, DiagonalOperators(1.0, damp, omega**2, dt), forces,
-                   exact.frame)
+                   exact.frame, phi.astype(np.float32))
