@@ -21,10 +21,12 @@ scene, the coordinates and the tolerance, so a restart does not train again.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import os
 from pathlib import Path
+import time
 from typing import Callable
 
 from modal_spring_ros.core.forces import GeneralizedForces, pull_springs
@@ -42,7 +44,10 @@ CHECK_SPACING = 5
 #: on stay within the tolerance
 TRAINING_SHARE = 0.3
 #: the exact run the snapshots are taken from: at most this long, s, and this many steps,
-#: and the snapshots taken from it
+#: and the snapshots taken from it; its step resolves the fastest coordinate's period in this
+#: many steps (no finer than the run's own step: a snapshot needs the motion, not the
+#: stream's accuracy, and every step evaluates every spring)
+TRAINING_STEPS_PER_PERIOD = 10
 TRAINING_RUN_S = 2.0
 TRAINING_STEPS = 6000
 RUN_SNAPSHOTS = 80
@@ -62,9 +67,11 @@ def training_snapshots(exact: GeneralizedForces, omega2: np.ndarray, damping: np
     A short exact run from rest (the scene released under its loads), alternately, and random
     states around it.
     """
+    fastest = math.sqrt(max(float(omega2.max()), 1e-300))
+    dt = max(dt, min(2.0 * math.pi / fastest / TRAINING_STEPS_PER_PERIOD,
+                     TRAINING_RUN_S / RUN_SNAPSHOTS))
     ops = DiagonalOperators(1.0, damping, omega2, dt)
-    stepper = integrator('explicit' if dt < 2.0 / math.sqrt(max(omega2.max(), 1e-300))
-                         else 'average')
+    stepper = integrator('explicit' if dt < 2.0 / fastest else 'average')
     steps = max(min(int(round(TRAINING_RUN_S / dt)), TRAINING_STEPS), RUN_SNAPSHOTS)
     every = max(steps // RUN_SNAPSHOTS, 1)
     q = v = np.zeros(omega2.size)
@@ -119,8 +126,11 @@ def cached_sample(exact: GeneralizedForces, phi: np.ndarray, omega2: np.ndarray,
                                     float(data['held_out_error']), 0.0)
         except (OSError, KeyError, ValueError):
             pass  # a damaged cache entry is trained again
+    start = time.perf_counter()
     snapshots, held_out = training_snapshots(exact, omega2, damping, dt)
     sample = train(exact, snapshots, held_out, TRAINING_SHARE * tolerance, progress)
+    # the whole cost of sampling: the snapshots' exact run too
+    sample = dataclasses.replace(sample, seconds=time.perf_counter() - start)
     if path is not None:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)

@@ -13,8 +13,8 @@ Training: on snapshots ``q_s`` of the kept coordinates (see :func:`training_snap
 weights solve the non-negative least-squares problem ``min |A w - b|``, ``w >= 0``, where the
 column of spring ``e`` stacks its contributions ``Q_e(q_s)`` over the snapshots (each snapshot
 scaled by its total force, so that every one counts by its relative error) and ``b`` stacks
-the totals. It is solved greedily: the springs whose contributions correlate most with what is
-still missing join the sample in batches, the weights of the sample are solved with
+the totals. It is solved greedily: springs drawn from those whose contributions correlate most
+with what is still missing join the sample in batches, the weights of the sample are solved with
 ``scipy.optimize.nnls``, springs whose weight drops to zero leave, until the training error is
 below the tolerance. ``A`` is never built whole: its product with the residual is one product
 with ``G`` per snapshot.
@@ -31,9 +31,12 @@ import scipy.optimize
 
 #: Default largest relative error of the sampled force on the training snapshots.
 DEFAULT_TOLERANCE = 0.01
-#: Springs most correlated with what the sample still misses, tried beside it each round
-#: (most leave again with a zero weight).
+#: Springs tried beside the sample each round (most leave again with a zero weight), drawn at
+#: random from the ``SPREAD`` times as many springs most correlated with what the sample still
+#: misses: the most correlated few are neighbours doing the same work, of which the weights
+#: keep one, so a spread pool needs a quarter of the rounds on a fine sheet.
 POOL = 400
+SPREAD = 10
 #: Most greedy rounds.
 MAX_ROUNDS = 200
 
@@ -102,15 +105,18 @@ def train(forces, snapshots: np.ndarray, held_out: np.ndarray,
     weights = np.empty(0)
     residual = b.copy()
     error = 1.0
+    rng = np.random.default_rng(0)
     for rounds in range(1, MAX_ROUNDS + 1):
         # correlation of each spring's column with the residual, over its norm:
         # -sum_s f_e(q_s) . (G r_s)_e / |A_e|
         g_r = _g_times(forces, residual.reshape(len(snapshots), -1).T)        # (S, d, E)
         correlation = -np.einsum('sde,sde->e', per_spring, g_r) / norms
         correlation[chosen] = -np.inf
-        pool = min(POOL, n_springs - chosen.size)
-        best = np.argpartition(-correlation, pool - 1)[:pool] if pool > 0 else chosen[:0]
+        top = min(SPREAD * POOL, n_springs - chosen.size)
+        best = np.argpartition(-correlation, top - 1)[:top] if top > 0 else chosen[:0]
         best = best[correlation[best] > 0.0]
+        if best.size > POOL:  # seeded: the same springs train the same sample
+            best = rng.choice(best, POOL, replace=False)
         if best.size == 0:
             break
         candidates = np.concatenate([chosen, best])
