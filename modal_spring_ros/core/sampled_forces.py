@@ -32,6 +32,7 @@ from typing import Callable
 from modal_spring_ros.core.forces import GeneralizedForces, pull_springs
 from modal_spring_ros.core.integrators import DiagonalOperators, integrator
 from modal_spring_ros.core.spring_sampling import DEFAULT_TOLERANCE, SpringSample, train
+from modal_spring_ros.core.worker import WorkerProcess
 import numpy as np
 
 #: fewest calls between two checks of the sampled force against the exact one
@@ -114,8 +115,14 @@ def cache_folder() -> Path | None:
 
 def cached_sample(exact: GeneralizedForces, phi: np.ndarray, omega2: np.ndarray,
                   damping: np.ndarray, dt: float, tolerance: float = DEFAULT_TOLERANCE,
-                  progress: Callable[[str], None] | None = None) -> SpringSample:
-    """Return the sample for these coordinates: from the cache, else trained (and cached)."""
+                  progress: Callable[[str], None] | None = None,
+                  worker: WorkerProcess | None = None) -> SpringSample:
+    """
+    Return the sample for these coordinates: from the cache, else trained (and cached).
+
+    With ``worker``, training runs in that process (its progress is not reported then): the
+    caller's other threads, a node's stream, keep the interpreter to themselves.
+    """
     folder = cache_folder()
     path = folder / f'{sample_key(exact, phi, tolerance)}.npz' if folder else None
     if path is not None and path.is_file():
@@ -126,11 +133,12 @@ def cached_sample(exact: GeneralizedForces, phi: np.ndarray, omega2: np.ndarray,
                                     float(data['held_out_error']), 0.0)
         except (OSError, KeyError, ValueError):
             pass  # a damaged cache entry is trained again
-    start = time.perf_counter()
-    snapshots, held_out = training_snapshots(exact, omega2, damping, dt)
-    sample = train(exact, snapshots, held_out, TRAINING_SHARE * tolerance, progress)
-    # the whole cost of sampling: the snapshots' exact run too
-    sample = dataclasses.replace(sample, seconds=time.perf_counter() - start)
+    if worker is not None:
+        if progress is not None:
+            progress(f'sampling {exact.n_springs} springs in a worker process')
+        sample = worker.call(trained_sample, exact, omega2, damping, dt, tolerance)
+    else:
+        sample = trained_sample(exact, omega2, damping, dt, tolerance, progress)
     if path is not None:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -147,6 +155,16 @@ def cached_sample(exact: GeneralizedForces, phi: np.ndarray, omega2: np.ndarray,
 def check_spacing(springs: int, sampled: int) -> int:
     """Return the calls between two checks: a check's cost spread thin (at least 200)."""
     return max(MIN_CHECK_EVERY, math.ceil(CHECK_SPACING * springs / max(sampled, 1)))
+
+
+def trained_sample(exact: GeneralizedForces, omega2: np.ndarray, damping: np.ndarray,
+                   dt: float, tolerance: float,
+                   progress: Callable[[str], None] | None = None) -> SpringSample:
+    """Return a sample trained on the snapshots of the scene's own motion (its time: both)."""
+    start = time.perf_counter()
+    snapshots, held_out = training_snapshots(exact, omega2, damping, dt)
+    sample = train(exact, snapshots, held_out, TRAINING_SHARE * tolerance, progress)
+    return dataclasses.replace(sample, seconds=time.perf_counter() - start)
 
 
 class SampledForces:

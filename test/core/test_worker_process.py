@@ -81,3 +81,22 @@ def test_a_cancelled_call_ends_its_child_and_the_next_call_gets_a_new_one():
             worker.call(time.sleep, 60.0)
         cancel.clear()
         assert worker.call(os.getpid) not in (child, os.getpid())
+
+
+def test_springs_sampled_in_the_worker_are_the_same_sample(monkeypatch, tmp_path):
+    from modal_spring_ros.core.config import SimulationConfig
+    from modal_spring_ros.core.factory import build_simulation
+    from modal_spring_ros.core.filter_band import FilterBand
+    monkeypatch.setenv('MODAL_SPRING_ROS_CACHE', '')       # train both times
+    scene = load_scene('sheet_32x32')
+    config = SimulationConfig(band=FilterBand('lowpass', 0, 15, 'index'), forces='sampled',
+                              basis='rest')
+    here = build_simulation(scene, config)._forces.sample
+    with WorkerProcess() as worker:
+        messages = []
+        there = build_simulation(scene, config, progress=messages.append,
+                                 worker=worker)._forces.sample
+    assert any('in a worker process' in m for m in messages)
+    np.testing.assert_array_equal(there.springs, here.springs)
+    np.testing.assert_array_equal(there.weights, here.weights)
+    assert there.held_out_error == here.held_out_error < 0.01

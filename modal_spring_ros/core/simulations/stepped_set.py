@@ -39,7 +39,8 @@ class SteppedSet:
         damp = damping.modal_coefficients(omega)
         exact = GeneralizedForces(model, phi, bank.load_mask(modes))
         if sample_tolerance is not None:
-            sample = cached_sample(exact, phi, omega**2, damp, dt, sample_tolerance, progress)
+            sample = cached_sample(exact, phi, omega**2, damp, dt, sample_tolerance, progress,
+                                   bank.basis.worker)
             forces = SampledForces(exact, sample, sample_tolerance)
         elif force_refresh == 1:
             forces = exact
