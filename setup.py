@@ -12,8 +12,9 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        # parameter file and RViz view; the launch file
-        ('share/' + package_name + '/config', glob('config/*.yaml') + glob('config/*.rviz')),
+        # parameter file, RViz view, Fast DDS profile for large clouds; the launch file
+        ('share/' + package_name + '/config',
+         glob('config/*.yaml') + glob('config/*.rviz') + glob('config/*.xml')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.yaml')),
         ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
     ],

@@ -3,21 +3,28 @@ Step benchmark: time per step and basis cost, as medians, with peak memory.
 
 Each case runs in its own child process (so its peak memory is its own): it builds the
 simulation, warms up, then times repeated batches of steps and reports the median time per
-step. Ratios against the full physical run are measured in the same invocation.
+step. Ratios against the full physical run are measured in the same invocation. A modal case
+also times one frame as the node makes it (positions written in place, the cloud, its
+serialisation) against the same frame made with new arrays (positions in float64, a new cloud
+and a copy of its bytes), in the same process.
 """
 from __future__ import annotations
 
+import array
 import multiprocessing as mp
 import resource
 import statistics
 import time
 from typing import Callable
 
+from modal_spring_ros.bags.pointcloud import CloudBuffer, to_pointcloud2
 from modal_spring_ros.core.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
 from modal_spring_ros.scenes.resources import load_scene
+from rclpy.serialization import serialize_message
+from std_msgs.msg import Header
 
 #: (label, scene, method, kept modes or None, dt, steps between spring evaluations); the
 #: method "derivatives" is the modal method with the band's derivative coordinates
@@ -31,18 +38,23 @@ CASES = [
     ('sheet_100x100 modal 32 modes + derivatives', 'sheet_100x100', 'derivatives', 32, 1e-4,
      1),
     ('sheet_100x100 full', 'sheet_100x100', 'full', None, 1e-4, 1),
+    ('sheet_316x316 modal 32 modes, sampled springs', 'sheet_316x316', 'sampled', 32, 1e-4,
+     1),
 ]
+#: cases too slow to set up for --quick (the 100k sheet's modes and spring sample)
+SLOW_SCENES = ('sheet_316x316',)
 
 
 def _measure(scene_name: str, method: str, modes: int | None, dt: float, refresh: int,
              batches: int, batch_steps: int, out: mp.Queue) -> None:
     model = MassSpringModel(load_scene(scene_name))
     start = time.perf_counter()
-    if method in ('modal', 'derivatives'):
+    if method in ('modal', 'derivatives', 'sampled'):
         basis = ModalBasis(model, initial_modes=modes)
         sim = ModalSimulation(model, basis, FilterBand('lowpass', 0, modes - 1, 'index'), dt=dt,
                               force_refresh=refresh,
-                              basis_kind='rest' if method == 'modal' else 'derivatives')
+                              basis_kind='derivatives' if method == 'derivatives' else 'rest',
+                              sample_tolerance=0.01 if method == 'sampled' else None)
         basis_seconds = time.perf_counter() - start
     else:
         basis = ModalBasis(model, initial_modes=8)  # for the damping and stability limit
@@ -56,14 +68,47 @@ def _measure(scene_name: str, method: str, modes: int | None, dt: float, refresh
         times.append((time.perf_counter() - t0) / batch_steps)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out.put({'step_us': 1e6 * statistics.median(times), 'basis_s': basis_seconds,
-             'peak_mb': peak_mb, 'dt': dt})
+             'peak_mb': peak_mb, 'dt': dt,
+             **(frame_costs(sim, batches) if method != 'full' else {})})
+
+
+def frame_costs(sim, batches: int) -> dict:
+    """Return the median cost of one frame's parts, us, as the node makes it and with copies."""
+    cloud = CloudBuffer(sim.model.scene.rest_positions)
+    header = Header(frame_id='world')
+
+    def median_us(work: Callable[[], object]) -> float:
+        work()
+        times = []
+        for _ in range(batches):
+            t0 = time.perf_counter()
+            for _ in range(10):
+                work()
+            times.append((time.perf_counter() - t0) / 10)
+        return 1e6 * statistics.median(times)
+    lean = {'positions': median_us(lambda: sim.positions_into(cloud.points)),
+            'cloud': median_us(lambda: cloud.message(header)),
+            'serialise': median_us(lambda: serialize_message(cloud.message(header)))}
+    lean['serialise'] = max(lean['serialise'] - lean['cloud'], 0.0)
+    rest = sim.model.scene.rest_positions
+    copying = median_us(lambda: serialize_message(copied_cloud(sim.positions(), rest, header)))
+    return {'frame_us': lean, 'frame_total_us': sum(lean.values()),
+            'frame_with_copies_us': copying}
+
+
+def copied_cloud(positions, rest, header: Header):
+    """Return the cloud as a frame made with new arrays makes it: new bytes, copied once more."""
+    msg = to_pointcloud2(positions, rest, header)
+    msg.data = array.array('B', msg.data)  # what an unchecked message does with its bytes
+    return msg
 
 
 def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:
     ctx = mp.get_context('spawn')
     results = []
-    for k, (label, scene, method, modes, dt, refresh) in enumerate(CASES):
-        progress(f'steps {k + 1}/{len(CASES)}: {label}')
+    cases = [c for c in CASES if not (quick and c[1] in SLOW_SCENES)]
+    for k, (label, scene, method, modes, dt, refresh) in enumerate(cases):
+        progress(f'steps {k + 1}/{len(cases)}: {label}')
         small = scene == 'sheet_10x10'
         batches = 5 if quick else 15
         batch_steps = (400 if small else 20) if quick else (2000 if small else 100)
@@ -86,13 +131,15 @@ def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:
 
 
 def table(results: list[dict]) -> str:
-    lines = [f"{'case':44s} {'us/step':>10s} {'basis s':>8s} {'peak MB':>8s} {'x full':>7s} "
-             f"{'x rest':>7s}"]
+    lines = [f"{'case':48s} {'us/step':>10s} {'basis s':>8s} {'peak MB':>8s} {'x full':>7s} "
+             f"{'x rest':>7s} {'us/frame':>9s} {'copying':>8s}"]
     for r in results:
         ratio = f"{r['speedup_vs_full']:.1f}" if r['speedup_vs_full'] else '-'
         rest = f"{r['cost_vs_rest_modes']:.2f}" if r.get('cost_vs_rest_modes') else '-'
-        lines.append(f"{r['label']:44s} {r['step_us']:10.1f} {r['basis_s']:8.2f} "
-                     f"{r['peak_mb']:8.0f} {ratio:>7s} {rest:>7s}")
+        frame = f"{r['frame_total_us']:.0f}" if 'frame_total_us' in r else '-'
+        copying = f"{r['frame_with_copies_us']:.0f}" if 'frame_with_copies_us' in r else '-'
+        lines.append(f"{r['label']:48s} {r['step_us']:10.1f} {r['basis_s']:8.2f} "
+                     f"{r['peak_mb']:8.0f} {ratio:>7s} {rest:>7s} {frame:>9s} {copying:>8s}")
     return '\n'.join(lines)
 
 

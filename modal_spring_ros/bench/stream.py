@@ -18,25 +18,33 @@ import time
 from typing import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray
-from modal_spring_ros.scenes.resources import executable
+from modal_spring_ros.scenes.resources import executable, share_directory
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import PointCloud2
 
+#: the Fast DDS profile shipped for large clouds (``--profile=`` in a case: the node's
+#: FASTRTPS_DEFAULT_PROFILES_FILE)
+LARGE_CLOUDS_PROFILE = 'config/fastdds_large_clouds.xml'
+#: the paper's method on the lowest 32 rest modes (the node's default adds their derivatives)
+_REST_32 = ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31',
+            'modal.basis:=rest']
+
 #: (label, scene, extra node parameters)
 CASES = [
     ('sheet_10x10, modal all modes', 'sheet_10x10', []),
-    ('sheet_100x100, modal 32 modes', 'sheet_100x100',
-     ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31']),
-    ('sheet_316x316 (100k), modal 32 modes', 'sheet_316x316',
-     ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31']),
+    ('sheet_100x100, modal 32 modes', 'sheet_100x100', _REST_32),
+    ('sheet_100x100, modal 32 modes + derivatives, sampled springs', 'sheet_100x100',
+     ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31',
+      'modal.forces:=sampled']),
+    ('sheet_316x316 (100k), modal 32 modes', 'sheet_316x316', _REST_32),
     ('sheet_316x316 (100k), modal 32 modes, springs every 10 steps', 'sheet_316x316',
-     ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31',
-      'modal.force_refresh:=10']),
+     _REST_32 + ['modal.force_refresh:=10']),
     ('sheet_316x316 (100k), modal 32 modes, sampled springs', 'sheet_316x316',
-     ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31',
-      'modal.forces:=sampled', 'modal.basis:=rest']),
+     _REST_32 + ['modal.forces:=sampled']),
+    ('sheet_316x316 (100k), sampled springs, large-cloud Fast DDS profile', 'sheet_316x316',
+     _REST_32 + ['modal.forces:=sampled', f'--profile={LARGE_CLOUDS_PROFILE}']),
 ]
 
 
@@ -48,7 +56,10 @@ def measure(scene: str, params: list[str], seconds: float, startup_timeout: floa
     exe = executable('modal_spring_node')
     args = [str(exe), '--ros-args', '-p', f'scene:={scene}', '-p', 'stamp:=wall']
     for p in params:
-        args += ['-p', p]
+        if p.startswith('--profile='):
+            env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(share_directory() / p.split('=', 1)[1])
+        else:
+            args += ['-p', p]
     node = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, start_new_session=True)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'

@@ -214,7 +214,7 @@ def test_colcon_build_installs_the_ament_layout(colcon_install):
     assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages' / PACKAGE).is_file()
     share = prefix / 'share' / PACKAGE
     assert (share / 'package.xml').read_text() == (REPO / 'package.xml').read_text()
-    for pattern in ('config/*.yaml', 'config/*.rviz', 'config/scenes/*.yaml',
+    for pattern in ('config/*.yaml', 'config/*.rviz', 'config/*.xml', 'config/scenes/*.yaml',
                     'launch/*.launch.yaml'):
         shipped = sorted(p.name for p in REPO.glob(pattern))
         assert shipped and sorted(p.name for p in share.glob(pattern)) == shipped
@@ -449,3 +449,21 @@ def test_the_shipped_parameter_file_holds_the_node_s_own_defaults():
     params = yaml.safe_load((REPO / 'config' / 'modal_spring.yaml').read_text())
     values = params['/**/modal_spring']['ros__parameters']
     assert values == {name: default for name, (default, _) in PARAMETERS.items()}
+
+
+def test_the_large_cloud_profile_sends_a_100k_cloud_through_shared_memory():
+    import xml.etree.ElementTree as ET
+    from modal_spring_ros.bench.stream import LARGE_CLOUDS_PROFILE
+    from modal_spring_ros.scenes.resources import load_scene
+    ns = {'f': 'http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles'}
+    root = ET.parse(REPO / LARGE_CLOUDS_PROFILE).getroot()
+    transports = {t.findtext('f:transport_id', namespaces=ns): t
+                  for t in root.iterfind('.//f:transport_descriptor', ns)}
+    shm = [t for t in transports.values() if t.findtext('f:type', namespaces=ns) == 'SHM']
+    cloud = 16 * load_scene('sheet_316x316').n_particles          # the points' bytes
+    assert len(shm) == 1 and int(shm[0].findtext('f:segment_size', namespaces=ns)) > 4 * cloud
+    participant = root.find('.//f:participant', ns)
+    assert participant.get('is_default_profile') == 'true'
+    used = [e.text for e in participant.iterfind('.//f:userTransports/f:transport_id', ns)]
+    assert set(used) == set(transports)                          # shared memory, then UDPv4
+    assert {t.findtext('f:type', namespaces=ns) for t in transports.values()} == {'SHM', 'UDPv4'}
