@@ -150,9 +150,9 @@ class AnchorMotion:
     @functools.cached_property
     def _turns(self) -> tuple[tuple, ...]:
         """
-        Per rotation term.
+        Return what each rotation term needs at every call, computed once.
 
-        Axis, amplitude, angular frequency, phase, ramp time, pivot, ``[e]x`` and ``[e]x^2`` of its
+        Per term: axis, amplitude, angular frequency, phase, ramp time, pivot, ``[e]x`` and ``[e]x^2`` of its
         axis.
         """
         return tuple((c.axis, c.amplitude, 2.0 * math.pi * c.frequency_hz, c.phase, c.ramp_s,

@@ -84,8 +84,7 @@ def _drives(model: MassSpringModel):
     """
     Return each term of the clamp's motion as a load.
 
-    (load pattern per unit acceleration, acceleration amplitude, frequency) of each term of the
-    clamp's motion: a shake's inertial load; a turn's Euler and centrifugal loads about its pivot
+    Each is (load pattern per unit acceleration, acceleration amplitude, frequency): a shake's inertial load; a turn's Euler and centrifugal loads about its pivot
     and gravity turned through its angle.
     """
     d, mass = model.dimension, model.mass_dof

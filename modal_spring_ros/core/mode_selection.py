@@ -78,10 +78,10 @@ class ModeChoice:
 
 def scene_loads(model: MassSpringModel) -> dict[str, np.ndarray]:
     """
-    Gravity.
+    Return the scene's loads by name.
 
-    The unit base-excitation load per axis the base moves along, and a turning clamp's frame load
-    patterns.
+    Gravity, the unit base-excitation load per axis the base moves along, and a turning clamp's
+    frame load patterns.
     """
     loads = {}
     if np.any(model.gravity_force != 0.0):

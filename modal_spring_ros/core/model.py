@@ -59,7 +59,7 @@ class MassSpringModel:
     @functools.cached_property
     def spring_difference(self) -> sp.csr_matrix:
         """
-        Sparse ``D``.
+        Return the sparse spring-difference matrix ``D``.
 
         Per spring and axis, ``u_j - u_i`` of a free-DOF displacement ``u`` (component-major rows:
         every spring's x, then every y, ...).
@@ -101,8 +101,7 @@ class MassSpringModel:
         """
         Return the (d,) rigid offset of the base (every fixed particle) at time ``t``.
 
-        (d,) rigid offset of the base (every fixed particle) at time ``t`` (a clamp that only
-        translates).
+        The offset of a clamp that only translates.
         """
         return self.scene.anchor_motion.offset(t)[self.axes]
 
@@ -110,8 +109,7 @@ class MassSpringModel:
         """
         Return the (n, d) positions for displacement ``u`` in the clamp's frame at ``t``.
 
-        (n, d) positions for displacement ``u`` in the clamp's frame at ``t`` (``x = R (X + u) +
-        b``; ``X + u + p`` when the clamp only translates).
+        ``x = R (X + u) + b``; ``X + u + p`` when the clamp only translates.
         """
         if self.rotates:
             y = self.rest.copy()

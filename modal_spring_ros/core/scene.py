@@ -105,9 +105,9 @@ class Scene:
 
     def to_dict(self) -> dict[str, Any]:
         """
-        Return the full.
+        Return the full explicit definition, every particle and spring listed.
 
-        Explicit definition (what :func:`modal_spring_ros.scenes.schema.scene_from_dict` loads).
+        What :func:`modal_spring_ros.scenes.schema.scene_from_dict` loads back.
         """
         return {
             'name': self.name,

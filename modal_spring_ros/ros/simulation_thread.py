@@ -80,9 +80,9 @@ class SimulationThread:
                  running: Callable[[], bool] = lambda: True,
                  anchor_status: Callable[[], tuple[str, bool]] = lambda: ('', False)):
         """
-        ``rebuild``.
+        Step ``sim`` and publish through ``outputs`` with the ``settings`` of the moment.
 
-        A fresh simulation of the current settings at rest (the last resort of recovery);
+        ``rebuild``: a fresh simulation of the current settings at rest (the last resort of recovery);
         ``computing_modes``: whether a request is computing modes right now; ``running``: False
         once the node is shutting down (its publishers are then gone, and the thread ends instead
         of reporting them as failures); ``anchor_status``: what the clamp follows, and whether no

@@ -98,8 +98,8 @@ def deformation(run: RunData) -> np.ndarray:
     """
     Return the (F, n, 3) displacement from rest relative to the moving base.
 
-    (F, n, 3) displacement from rest relative to the moving base (the fixed particles' common
-    offset), i.e. what the filter shapes; plain displacement when the scene is unknown.
+    The moving base is the fixed particles' common offset: what is left is what the filter
+    shapes. Plain displacement when the scene is unknown.
     """
     u = run.positions - run.rest
     if run.scene is not None:

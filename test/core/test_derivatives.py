@@ -34,9 +34,9 @@ def resonance():
 def errors_against_full(model, basis, sims: dict, duration: float, dt: float,
                         full_dt: float | None = None) -> dict:
     """
-    Per simulation.
+    Return each simulation's error against the full run.
 
-    (largest windowed error, error over the run) against the full run (stepped at ``full_dt``, a
+    As (largest windowed error, error over the run), against the full run (stepped at ``full_dt``, a
     whole fraction of ``dt``, when that is smaller).
     """
     substeps = int(round(dt / full_dt)) if full_dt else 1

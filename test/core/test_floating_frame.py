@@ -25,9 +25,9 @@ LOWPASS_0_14 = FilterBand('lowpass', 0, 14, 'index')
 
 def deformation_errors(model, basis, sims: dict, duration: float, dt: float) -> dict:
     """
-    Per simulation.
+    Return each simulation's error against the full run in the world.
 
-    Relative L2 error over the run of the displacement in the clamp's frame, against the full run
+    The relative L2 error over the run of the displacement in the clamp's frame, against the full run
     in the world.
     """
     full = FullSimulation(model, basis, dt=dt)

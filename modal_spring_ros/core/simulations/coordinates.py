@@ -92,9 +92,9 @@ class AddedCoordinateBank:
 
     def load_mask(self, ids: np.ndarray) -> np.ndarray:
         """
-        (len(ids), 4) bool.
+        Return which loads act on each coordinate, as (len(ids), 4) booleans.
 
-        The loads (gravity, base x, y, z) acting on each coordinate (every load on a rest mode; the
+        The loads are gravity and the base's x, y, z excitation (every load on a rest mode; the
         band's loads on an added coordinate).
         """
         mask = np.ones((ids.size, 4), dtype=bool)
