@@ -152,8 +152,8 @@ class AnchorMotion:
         """
         Return what each rotation term needs at every call, computed once.
 
-        Per term: axis, amplitude, angular frequency, phase, ramp time, pivot, ``[e]x`` and ``[e]x^2`` of its
-        axis.
+        Per term: axis, amplitude, angular frequency, phase, ramp time, pivot, ``[e]x`` and
+        ``[e]x^2`` of its axis.
         """
         return tuple((c.axis, c.amplitude, 2.0 * math.pi * c.frequency_hz, c.phase, c.ramp_s,
                       np.array(c.pivot, dtype=float), cross_matrix(c.axis),

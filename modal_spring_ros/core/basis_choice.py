@@ -84,8 +84,9 @@ def _drives(model: MassSpringModel):
     """
     Return each term of the clamp's motion as a load.
 
-    Each is (load pattern per unit acceleration, acceleration amplitude, frequency): a shake's inertial load; a turn's Euler and centrifugal loads about its pivot
-    and gravity turned through its angle.
+    Each is (load pattern per unit acceleration, acceleration amplitude, frequency): a shake's
+    inertial load; a turn's Euler and centrifugal loads about its pivot and gravity turned
+    through its angle.
     """
     d, mass = model.dimension, model.mass_dof
     motion = model.scene.anchor_motion

@@ -36,8 +36,8 @@ def errors_against_full(model, basis, sims: dict, duration: float, dt: float,
     """
     Return each simulation's error against the full run.
 
-    As (largest windowed error, error over the run), against the full run (stepped at ``full_dt``, a
-    whole fraction of ``dt``, when that is smaller).
+    As (largest windowed error, error over the run), against the full run (stepped at
+    ``full_dt``, a whole fraction of ``dt``, when that is smaller).
     """
     substeps = int(round(dt / full_dt)) if full_dt else 1
     full = FullSimulation(model, basis, dt=dt / substeps)

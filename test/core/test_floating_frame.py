@@ -27,8 +27,8 @@ def deformation_errors(model, basis, sims: dict, duration: float, dt: float) -> 
     """
     Return each simulation's error against the full run in the world.
 
-    The relative L2 error over the run of the displacement in the clamp's frame, against the full run
-    in the world.
+    The relative L2 error over the run of the displacement in the clamp's frame, against the full
+    run in the world.
     """
     full = FullSimulation(model, basis, dt=dt)
     sums = {name: [0.0, 0.0] for name in sims}
