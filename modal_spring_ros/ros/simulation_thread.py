@@ -83,10 +83,10 @@ class SimulationThread:
         Step ``sim`` and publish through ``outputs`` with the ``settings`` of the moment.
 
         ``rebuild``: a fresh simulation of the current settings at rest (the last resort of
-        recovery); ``computing_modes``: whether a request is computing modes right now; ``running``: False
-        once the node is shutting down (its publishers are then gone, and the thread ends instead
-        of reporting them as failures); ``anchor_status``: what the clamp follows, and whether no
-        pose came for a while.
+        recovery); ``computing_modes``: whether a request is computing modes right now;
+        ``running``: False once the node is shutting down (its publishers are then gone, and the
+        thread ends instead of reporting them as failures); ``anchor_status``: what the clamp
+        follows, and whether no pose came for a while.
         """
         self._running = running
         self._anchor_status = anchor_status
