@@ -17,7 +17,7 @@ from __future__ import annotations
 import copy
 import time
 
-from modal_spring_ros.bags.pointcloud import to_pointcloud2
+from modal_spring_ros.bags.pointcloud import CloudBuffer
 from modal_spring_ros.bags.qos import profiles_to_yaml
 from modal_spring_ros.bags.stamps import to_nanoseconds, to_time_msg
 from modal_spring_ros.bags.writer import BagWriter
@@ -63,6 +63,7 @@ class RunBagWriter:
         through :meth:`parameter_event`, stamped with the simulation time they took effect at.
         """
         self.scene = scene
+        self._cloud = CloudBuffer(scene.rest_positions)  # reused: each frame is written at once
         self.frame_id = frame_id
         self.node = node
         self.writer = BagWriter(directory)
@@ -127,8 +128,8 @@ class RunBagWriter:
         bags read in the same order.
         """
         stamp = to_time_msg(t)
-        msg = to_pointcloud2(positions, self.scene.rest_positions,
-                             Header(stamp=stamp, frame_id=self.frame_id))
+        self._cloud.points[:, :3] = positions
+        msg = self._cloud.message(Header(stamp=stamp, frame_id=self.frame_id))
         ns = to_nanoseconds(stamp)
         log = log_time_ns if log_time_ns is not None else self._log_time()
         self.writer.write_message(POINTS_TOPIC, msg, self._epoch_ns + ns if log is None else log,
