@@ -41,14 +41,14 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'modal_spring_sim = modal_spring_ros.cli.modal_spring_sim:main',
-            'modal_spring_node = modal_spring_ros.cli.modal_spring_node:main',
-            'modal_spring_bench = modal_spring_ros.cli.modal_spring_bench:main',
-            'modal_spring_replay = modal_spring_ros.cli.modal_spring_replay:main',
-            'modal_spring_compare = modal_spring_ros.cli.modal_spring_compare:main',
-            'modal_spring_record = modal_spring_ros.cli.modal_spring_record:main',
-            'modal_spring_gripper = modal_spring_ros.cli.modal_spring_gripper:main',
-            'modal_spring_render = modal_spring_ros.cli.modal_spring_render:main',
+            'modal_spring_sim = modal_spring_ros.cli.launcher:modal_spring_sim',
+            'modal_spring_node = modal_spring_ros.cli.launcher:modal_spring_node',
+            'modal_spring_bench = modal_spring_ros.cli.launcher:modal_spring_bench',
+            'modal_spring_replay = modal_spring_ros.cli.launcher:modal_spring_replay',
+            'modal_spring_compare = modal_spring_ros.cli.launcher:modal_spring_compare',
+            'modal_spring_record = modal_spring_ros.cli.launcher:modal_spring_record',
+            'modal_spring_gripper = modal_spring_ros.cli.launcher:modal_spring_gripper',
+            'modal_spring_render = modal_spring_ros.cli.launcher:modal_spring_render',
         ],
     },
 )

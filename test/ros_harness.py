@@ -47,19 +47,20 @@ class NodeProcess:
         self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, env=dict(os.environ), start_new_session=True)
 
-    def interrupt(self, timeout: float = 15.0) -> tuple[int, str, str]:
+    def interrupt(self, timeout: float = 15.0,
+                  sig: signal.Signals = signal.SIGINT) -> tuple[int, str, str]:
         """
-        SIGINT, as Ctrl-C would.
+        SIGINT (as Ctrl-C would), or ``sig``; return the exit status and what it printed.
 
         A node still running after ``timeout`` is killed and the test fails with what it printed
         (never left running into the next test).
         """
-        self.proc.send_signal(signal.SIGINT)
+        self.proc.send_signal(sig)
         try:
             out, err = self.proc.communicate(timeout=timeout)
         except subprocess.TimeoutExpired:
             out, err = self.kill()
-            raise AssertionError(f'node still running {timeout} s after SIGINT; '
+            raise AssertionError(f'node still running {timeout} s after {sig.name}; '
                                  f'stderr: {err[-2000:]}') from None
         return self.proc.returncode, out, err
 

@@ -24,6 +24,8 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 PROG = 'modal_spring_node'
 #: executor threads: the parameter services, and the node's own services beside them
 EXECUTOR_THREADS = 2
+#: longest the executor waits for work before it checks again that ROS is still up, s
+SPIN_SLICE_S = 0.25
 
 
 USAGE = """usage: modal_spring_node [-h] [--ros-args -p NAME:=VALUE ... --params-file FILE ...]
@@ -56,6 +58,23 @@ def _ignore_after_rclpy(signum, frame) -> None:
     """
 
 
+def spin_until_shutdown(executor: MultiThreadedExecutor) -> None:
+    """
+    Spin until ROS is shut down (Ctrl-C, SIGTERM), never waiting unboundedly.
+
+    ``Executor.spin`` waits for work with no timeout and counts on the signal handler's guard
+    condition to wake it; when that trigger is taken by a wait that still saw the context up, the
+    wait that follows never returns (seen as a node hanging on SIGINT, most often right after a
+    subscriber died). Waiting in slices makes the check of the context the thing that ends it.
+    Callbacks still running are waited for, with the executor's threads.
+    """
+    try:
+        while executor.context.ok():
+            executor.spin_once(timeout_sec=SPIN_SLICE_S)
+    finally:
+        executor.shutdown(timeout_sec=SPIN_SLICE_S)
+
+
 def main(args: list[str] | None = None) -> int:
     own, _ = split_ros_args(args)
     if own and own[0] in ('-h', '--help'):
@@ -68,7 +87,7 @@ def main(args: list[str] | None = None) -> int:
         node = ModalSpringNode()
         executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
         executor.add_node(node)
-        executor.spin()
+        spin_until_shutdown(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (SceneError, ValueError, ParameterException, BagError) as exc:

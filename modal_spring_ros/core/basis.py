@@ -38,6 +38,9 @@ REFINEMENT_STEPS = 2
 #: Relative size (against the largest eigenvalue scale) below which an eigenvalue is zero.
 ZERO_MODE_RTOL = 1e-9
 
+#: Seed of the generic vector that fixes the modes' signs (see ``_deterministic_signs``).
+SIGN_SEED = 20240611
+
 Progress = Callable[[str], None]
 
 
@@ -194,12 +197,61 @@ class ModalBasis:
                 f'springs, bending springs for out-of-plane motion, or fix more particles.')
 
     def _store(self, lam: np.ndarray, phi: np.ndarray) -> None:
-        # Deterministic sign: the largest-magnitude component of each mode is positive.
-        pivot = np.argmax(np.abs(phi), axis=0)
-        signs = np.sign(phi[pivot, np.arange(phi.shape[1])])
-        signs[signs == 0] = 1.0
-        self.vectors = np.ascontiguousarray(phi * signs)
+        phi = _deterministic_signs(phi, self.model.mass_dof)
+        if self.count:
+            # The basis grows: the modes already handed out stay exactly as they were (a run's
+            # state is carried over by mode index; a mode coming back with another sign, or
+            # another member of a degenerate pair, would move the object).
+            lam, phi = _grown(self.omega ** 2, self.vectors, lam, phi, self.model.mass_dof)
+        self.vectors = np.ascontiguousarray(phi)
         self.omega = np.sqrt(np.maximum(lam, 0.0))
+
+
+def _deterministic_signs(phi: np.ndarray, mass: np.ndarray) -> np.ndarray:
+    """
+    Return ``phi`` with each mode's sign fixed by a rule that does not depend on the solver.
+
+    A mode's sign is that of its projection ``phi^T M w`` on a fixed generic vector ``w``
+    (seeded): unlike "the largest component is positive", which picks either sign when a mode
+    has two components of equal size and opposite sign (every symmetric mode of a symmetric
+    scene), it is tied only on a set of measure zero; a projection too small to trust falls
+    back to the largest component.
+    """
+    if phi.size == 0:
+        return phi
+    generic = np.random.default_rng(SIGN_SEED).uniform(0.5, 1.5, phi.shape[0])
+    projection = phi.T @ (mass * generic)
+    scale = np.sqrt(np.einsum('ij,i,ij->j', phi, mass, phi)) * np.linalg.norm(mass * generic)
+    pivot = np.argmax(np.abs(phi), axis=0)
+    fallback = phi[pivot, np.arange(phi.shape[1])]
+    signs = np.where(np.abs(projection) > 1e-6 * scale, np.sign(projection), np.sign(fallback))
+    signs[signs == 0] = 1.0
+    return phi * signs
+
+
+def _grown(old_lam: np.ndarray, old_phi: np.ndarray, lam: np.ndarray, phi: np.ndarray,
+           mass: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the modes ``old`` extended by those of ``lam, phi`` beyond them.
+
+    ``lam, phi`` are a fresh computation of more of the lowest modes. Its first modes repeat
+    ``old`` up to sign and, within a degenerate group, up to a rotation; ``old`` is kept as it
+    is, and the fresh modes past it are made M-orthogonal to it (which, for a degenerate pair cut
+    by the old count, leaves the partner of the kept member) and M-normalised again.
+    """
+    k = old_lam.size
+    if lam.size <= k:
+        return old_lam, old_phi
+    extra = phi[:, k:]
+    extra = extra - old_phi @ (old_phi.T @ (mass[:, None] * extra))
+    gram = extra.T @ (mass[:, None] * extra)
+    value, vector = np.linalg.eigh(0.5 * (gram + gram.T))
+    if value.min() <= 1e-12 * max(value.max(), 1e-300):
+        raise RuntimeError('the new modes repeat the ones already computed (eigensolver '
+                           'returned a dependent set)')
+    # Loewdin orthonormalisation: the M-orthonormal set nearest to the fresh modes (signs kept).
+    extra = extra @ (vector @ np.diag(value ** -0.5) @ vector.T)
+    return np.concatenate([old_lam, lam[k:]]), np.concatenate([old_phi, extra], axis=1)
 
 
 class ShiftInvertModes:

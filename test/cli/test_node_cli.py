@@ -1,10 +1,19 @@
-"""modal_spring_node's own command line: --help prints the parameters and exits."""
+"""modal_spring_node's own command line: --help, the spin loop, Ctrl-C while starting."""
 from __future__ import annotations
 
+import signal
 import subprocess
+import threading
+import time
 
+from modal_spring_ros.cli.launcher import EXIT_INTERRUPTED
+from modal_spring_ros.cli.modal_spring_node import spin_until_shutdown
 from modal_spring_ros.ros.parameters import PARAMETERS
-from ros_harness import console_script
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import MultiThreadedExecutor
+from ros_harness import console_script, DOMAIN_ID
 
 
 def test_help_prints_every_parameter_and_exits_without_starting():
@@ -18,3 +27,46 @@ def test_help_prints_every_parameter_and_exits_without_starting():
         assert descriptor.description.split()[0] in proc.stdout
     assert "  scene (default 'sheet_10x10', read-only)" in proc.stdout
     assert proc.stderr == ''  # nothing started: no log line
+
+
+@pytest.mark.ros
+def test_spinning_ends_when_ros_shuts_down_without_waking_the_executor():
+    """
+    The lost wake-up behind a node hanging on SIGINT.
+
+    rclpy's signal handler shuts the context down below Python (no ``on_shutdown`` callback
+    runs) and relies on a guard condition to wake the executor; when that trigger was taken by
+    the wait before, ``Executor.spin`` waits forever. Shut a context down that way: the node's
+    spin loop must end all the same.
+    """
+    context = Context()
+    rclpy.init(context=context, domain_id=DOMAIN_ID)
+    node = rclpy.create_node('spin_probe', context=context)
+    executor = MultiThreadedExecutor(num_threads=2, context=context)
+    executor.add_node(node)
+    spinning = threading.Thread(target=spin_until_shutdown, args=(executor,), daemon=True)
+    spinning.start()
+    time.sleep(0.5)                                   # waiting for work, none comes
+    with context.handle:
+        context.handle.shutdown()                     # as the signal handler does: no wake
+    spinning.join(timeout=10.0)
+    assert not spinning.is_alive(), 'the spin loop did not notice that ROS was shut down'
+    node.destroy_node()
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('delay', [0.1, 0.3, 0.6])
+def test_ctrl_c_while_the_node_starts_ends_it_quietly(delay):
+    """An interrupt during the first second (imports, start-up) ends without a traceback."""
+    proc = subprocess.Popen([console_script('modal_spring_node'), '--ros-args', '-r',
+                             '__ns:=/early'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    time.sleep(delay)
+    proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise AssertionError(f'still running 30 s after SIGINT at {delay} s') from None
+    assert proc.returncode in (0, EXIT_INTERRUPTED), (proc.returncode, err[-2000:])
+    assert 'Traceback' not in err, err[-2000:]

@@ -83,3 +83,71 @@ def test_large_scene_never_goes_dense_and_gets_only_the_modes_asked_for():
     assert not basis.dense and basis.count == 8
     assert basis.vectors.shape == (19800, 8)
     assert basis.frequencies_hz[0] == pytest.approx(4.59, rel=0.01)
+
+
+def _tie_broken_the_other_way(lowest):
+    """Wrap ``ShiftInvertModes.lowest``: a mode with a tied largest pair comes back negated."""
+    def wrapped(self, count):
+        lam, phi = lowest(self, count)
+        phi = phi.copy()
+        for j in range(phi.shape[1]):
+            order = np.argsort(-np.abs(phi[:, j]))
+            a, b = order[:2]
+            if abs(abs(phi[a, j]) - abs(phi[b, j])) <= 1e-12 * abs(phi[a, j]):
+                phi[:, j] *= -1.0                   # the solver's sign is arbitrary ...
+                phi[b, j] *= 1.0 + 1e-13            # ... and round-off breaks the tie
+        return lam, phi
+    return wrapped
+
+
+def test_modes_already_computed_stay_as_they_are_when_the_basis_grows(monkeypatch):
+    """
+    A mode with two largest components of equal size and opposite sign.
+
+    (``sheet_32x32`` mode 14) must not come back with its sign flipped when the basis grows,
+    whatever the eigensolver's round-off does with the tie: a run carries its state over by
+    mode index.
+    """
+    from modal_spring_ros.core.basis import ShiftInvertModes
+    model = MassSpringModel(load_scene('sheet_32x32'))
+    basis = ModalBasis(model, initial_modes=16)
+    before = basis.vectors.copy()
+    tied = [j for j in range(16) if np.sum(np.isclose(np.abs(before[:, j]),
+                                                      np.abs(before[:, j]).max(),
+                                                      rtol=1e-12)) >= 2]
+    assert tied, 'the scene has no mode with a tied largest component any more'
+    monkeypatch.setattr(ShiftInvertModes, 'lowest', _tie_broken_the_other_way(
+        ShiftInvertModes.lowest))
+    basis.ensure_count(48)
+    assert basis.count >= 48
+    np.testing.assert_array_equal(basis.vectors[:, :16], before)
+    m = model.mass_dof
+    np.testing.assert_allclose(basis.vectors.T @ (m[:, None] * basis.vectors),
+                               np.eye(basis.count), atol=1e-9)
+    # the modes added are modes: K phi = omega^2 M phi
+    k = model.stiffness_free
+    phi = basis.vectors[:, 16:]
+    residual = k @ phi - m[:, None] * phi * basis.omega[16:] ** 2
+    assert np.linalg.norm(residual) <= 1e-6 * np.linalg.norm(k @ phi)
+
+
+def test_a_degenerate_pair_cut_by_the_old_count_keeps_its_member_and_adds_its_partner():
+    """The fresh modes rotate a degenerate pair; the kept member stays, its partner is added."""
+    from modal_spring_ros.core.basis import _grown
+    rng = np.random.default_rng(3)
+    mass = rng.uniform(0.5, 2.0, 8)
+    lam = np.array([1.0, 2.0, 3.0, 3.0, 5.0, 6.0, 7.0, 8.0])
+    # an M-orthonormal eigenbasis of diag(lam) in the M inner product
+    q, _ = np.linalg.qr(rng.normal(size=(8, 8)))
+    phi = q / np.sqrt(mass)[:, None]                      # phi^T M phi = I
+    old = phi[:, :3]                                      # cut inside the pair (modes 2, 3)
+    turn = np.array([[np.cos(0.7), -np.sin(0.7)], [np.sin(0.7), np.cos(0.7)]])
+    fresh = phi[:, :6].copy()
+    fresh[:, 2:4] = fresh[:, 2:4] @ turn                  # the solver picks another pair basis
+    fresh[:, 0] *= -1.0                                   # and another sign
+    new_lam, new_phi = _grown(lam[:3], old, lam[:6], fresh, mass)
+    np.testing.assert_array_equal(new_phi[:, :3], old)
+    np.testing.assert_allclose(new_lam, lam[:6])
+    np.testing.assert_allclose(new_phi.T @ (mass[:, None] * new_phi), np.eye(6), atol=1e-12)
+    # the added mode 3 is the partner of the kept member 2 within the pair
+    np.testing.assert_allclose(np.abs(new_phi[:, 3] @ (mass * phi[:, 3])), 1.0, atol=1e-12)

@@ -7,6 +7,7 @@ and modules of a readable size.
 from __future__ import annotations
 
 import ast
+import importlib
 import json
 import re
 import subprocess
@@ -118,8 +119,13 @@ def test_modules_stay_readable():
 
 
 def test_one_module_per_console_script_named_after_it():
-    scripts = re.findall(r"'(\w+) = (modal_spring_ros\.[\w.]+):main'",
+    """Each script starts in the launcher (Ctrl-C guarded) and runs its own module's main."""
+    from modal_spring_ros.cli import launcher
+    scripts = re.findall(r"'(\w+) = (modal_spring_ros\.[\w.]+):(\w+)'",
                          (REPO / 'setup.py').read_text())
-    assert len(scripts) == 8
-    for name, module in scripts:
-        assert module == f'{PACKAGE}.cli.{name}', (name, module)
+    assert sorted(name for name, _, _ in scripts) == sorted(launcher.SCRIPTS)
+    for name, module, function in scripts:
+        assert (module, function) == (f'{PACKAGE}.cli.launcher', name), name
+        assert callable(getattr(launcher, name))
+        assert (REPO / PACKAGE / 'cli' / f'{name}.py').is_file()
+        assert callable(importlib.import_module(f'{PACKAGE}.cli.{name}').main)

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
 import threading
 import time
 
@@ -31,11 +33,40 @@ def test_sigint_and_sigterm_end_the_node_cleanly():
         points = client.collect(PointCloud2, '/lifecycle/points')
         assert wait_for(lambda: len(points) > 3, 30)
         client.close()
-        node.proc.send_signal(sig)
-        out, err = node.proc.communicate(timeout=15)
-        assert node.proc.returncode == 0, err[-3000:]
+        code, _, err = node.interrupt(sig=sig)
+        assert code == 0, err[-3000:]
         assert 'Traceback' not in err
         assert 'failed' not in err and 'ERROR' not in err, err[-3000:]
+
+
+SUBSCRIBER = """
+import sys, rclpy
+from sensor_msgs.msg import PointCloud2
+rclpy.init()
+node = rclpy.create_node('doomed_subscriber')
+got = []
+node.create_subscription(PointCloud2, sys.argv[1], got.append, 10)
+while len(got) < 3:
+    rclpy.spin_once(node, timeout_sec=0.1)
+print('receiving', flush=True)
+while True:
+    rclpy.spin_once(node, timeout_sec=0.1)
+"""
+
+
+def test_sigint_right_after_a_subscriber_was_killed_ends_the_node_every_time():
+    """A subscriber SIGKILLed (no goodbye on DDS), then Ctrl-C: the node ends, again and again."""
+    for attempt in range(3):
+        node = NodeProcess(namespace='orphaned')
+        subscriber = subprocess.Popen([sys.executable, '-c', SUBSCRIBER, '/orphaned/points'],
+                                      stdout=subprocess.PIPE, text=True)
+        try:
+            assert subscriber.stdout.readline().strip() == 'receiving', attempt
+        finally:
+            subscriber.kill()
+            subscriber.wait(10)
+        code, _, err = node.interrupt()
+        assert code == 0 and 'Traceback' not in err, (attempt, err[-2000:])
 
 
 @pytest.mark.slow

@@ -1,0 +1,70 @@
+"""
+Where every console script starts: the script's module is imported here, under Ctrl-C's guard.
+
+A console script's wrapper imports its entry point before it calls it, so an interrupt during
+the first second of imports (numpy, scipy, rclpy) would end in a traceback from the import
+itself. Each function here imports its script's module (``modal_spring_ros.cli.<name>``, the
+one place this package imports lazily: the import is what is guarded) and runs its ``main``;
+an interrupt before ``main`` has installed its own handling ends quietly with status 130, as
+a shell reports a Ctrl-C.
+"""
+from __future__ import annotations
+
+import importlib
+
+#: Exit status of a run ended by Ctrl-C before it started (128 + SIGINT), as a shell reports it.
+EXIT_INTERRUPTED = 130
+
+#: The console scripts, each a module of this package named after it.
+SCRIPTS = ('modal_spring_sim', 'modal_spring_node', 'modal_spring_bench', 'modal_spring_replay',
+           'modal_spring_compare', 'modal_spring_record', 'modal_spring_gripper',
+           'modal_spring_render')
+
+
+def run(script: str) -> int:
+    """Import the module of console script ``script`` and run its ``main``."""
+    try:
+        module = importlib.import_module(f'{__package__}.{script}')
+        return module.main()
+    except KeyboardInterrupt:
+        return EXIT_INTERRUPTED
+
+
+def modal_spring_sim() -> int:
+    """``modal_spring_sim``: headless runs."""
+    return run('modal_spring_sim')
+
+
+def modal_spring_node() -> int:
+    """``modal_spring_node``: the streaming node."""
+    return run('modal_spring_node')
+
+
+def modal_spring_bench() -> int:
+    """``modal_spring_bench``: the benchmarks."""
+    return run('modal_spring_bench')
+
+
+def modal_spring_replay() -> int:
+    """``modal_spring_replay``: play a bag."""
+    return run('modal_spring_replay')
+
+
+def modal_spring_compare() -> int:
+    """``modal_spring_compare``: compare two runs."""
+    return run('modal_spring_compare')
+
+
+def modal_spring_record() -> int:
+    """``modal_spring_record``: record a node."""
+    return run('modal_spring_record')
+
+
+def modal_spring_gripper() -> int:
+    """``modal_spring_gripper``: an example pose stream."""
+    return run('modal_spring_gripper')
+
+
+def modal_spring_render() -> int:
+    """``modal_spring_render``: draw a run."""
+    return run('modal_spring_render')
