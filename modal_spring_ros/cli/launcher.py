@@ -28,6 +28,26 @@ def run(script: str) -> int:
         return module.main()
     except KeyboardInterrupt:
         return EXIT_INTERRUPTED
+    except Exception as exc:
+        if _interrupted(exc):
+            return EXIT_INTERRUPTED
+        raise
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """
+    Tell an interrupt that an import wrapped in another exception.
+
+    Python 3.11 reports a KeyboardInterrupt raised while a class is created (in
+    ``__set_name__``, say of a ``cached_property``) as a RuntimeError caused by it.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def modal_spring_sim() -> int:

@@ -107,6 +107,8 @@ def summary(sim, diverged: str, seconds_per_step: float, wall: float) -> str:
     if choice is not None:
         errors = ', '.join(f'{k} {v:.2%}' for k, v in choice.load_errors.items())
         lines.append(f'auto       {choice.describe()} ({errors})')
+    if sim.pilot is not None:
+        lines.append(f'measured   {sim.pilot.describe()}')
     lines.append(f'stepping   {sim.integrator} Newmark, dt {sim.dt:g} s '
                  f'(explicit limit {sim.stability_limit():.4g} s), {sim.steps} steps, '
                  f't = {sim.time:.4g} s')

@@ -15,14 +15,17 @@ from modal_spring_ros.core.basis_choice import choose_basis
 from modal_spring_ros.core.clamp_follower import ClampFollower
 from modal_spring_ros.core.config import (AUTO_DT_SAFETY, DEFAULT_REFRESH, SAMPLE_MIN_SPRINGS,
                                           SimulationConfig)
-from modal_spring_ros.core.mode_selection import (choose_modes, choose_refresh, choose_step, SHARE,
-                                                  STABILITY_SAFETY)
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.mode_selection import (choose_modes, choose_refresh, choose_step,
+                                                  ModeChoice, SHARE, STABILITY_SAFETY)
 from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.pilot import Pilot, PlanSettings
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSimulation,
                                                Simulation)
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
 from modal_spring_ros.core.worker import WorkerProcess
+import numpy as np
 
 
 def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig) -> Simulation:
@@ -40,47 +43,116 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
     """
     config.validate()
     dt = config.dt or model.scene.default_dt
+    if config.method == 'modal' and config.auto:
+        return _automatic(model, basis, config)
     if config.method == 'modal':
-        choice = None
         forces = config.forces
         refresh = config.force_refresh or (DEFAULT_REFRESH if forces == 'refreshed' else 1)
-        kind = config.basis
         bank = AddedCoordinateBank(basis, config.derivative_directions, basis.progress)
-        if config.auto:
-            choice = choose_modes(model, basis, config.band, config.tolerance,
-                                  max_modes=config.max_modes or DEFAULT_MAX_MODES)
-            chosen = choose_basis(model, basis, choice.modes, SHARE * config.tolerance,
-                                  lambda keep: bank.for_band(keep)[1])
-            choice = dataclasses.replace(choice, basis=chosen)
-            kind = chosen.kind
-            dt = config.dt or choose_step(choice, config.integrator, config.tolerance,
-                                          model.scene.damping)
-            forces = ('sampled' if model.scene.n_springs >= SAMPLE_MIN_SPRINGS else
-                      'refreshed' if chosen.small else 'exact')
-            refresh = config.force_refresh or (
-                choose_refresh(choice.highest_hz, dt) if forces == 'refreshed' else 1)
-        sim: Simulation = ModalSimulation(
-            model, basis, config.band, dt=dt or 1e-3, integrator=config.integrator,
-            transition_s=config.transition_s, max_modes=config.max_modes,
-            strain_limit=config.strain_limit,
-            highest_hz=choice.highest_hz if choice else None, force_refresh=refresh,
-            mode_choice=choice, basis_kind=kind,
-            derivative_directions=config.derivative_directions, bank=bank,
-            progress=basis.progress,
-            sample_tolerance=config.tolerance if forces == 'sampled' else None)
-        if config.dt is None and config.integrator == 'explicit':
-            # the step the scene or the mode choice suggests may be beyond the stability
-            # limit of what the band adds: stay within it
-            limit = sim.stability_limit()
-            if (dt or 0.0) >= STABILITY_SAFETY * limit:
-                dt = None
-    else:
-        sim = FullSimulation(model, basis, config.band, dt=dt or 1e-3,
-                             integrator=config.integrator, strain_limit=config.strain_limit)
-    if dt is None:
-        limit = sim.stability_limit()
-        sim = sim.with_dt(AUTO_DT_SAFETY * limit if math.isfinite(limit) else 1e-3)
+        plan = PlanSettings(math.inf, config.basis, config.derivative_directions, forces,
+                            refresh, dt or 0.0)
+        return _modal(model, basis, config, bank, None, plan, keep_dt=config.dt is not None)
+    sim = FullSimulation(model, basis, config.band, dt=dt or 1e-3,
+                         integrator=config.integrator, strain_limit=config.strain_limit)
+    return sim if dt else _within_stability(sim)
+
+
+def _within_stability(sim: Simulation) -> Simulation:
+    """``sim`` at ``AUTO_DT_SAFETY`` of its stability limit (no step was given)."""
+    limit = sim.stability_limit()
+    return sim.with_dt(AUTO_DT_SAFETY * limit if math.isfinite(limit) else 1e-3)
+
+
+def _modal(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig,
+           bank: AddedCoordinateBank, choice: ModeChoice | None, plan: PlanSettings,
+           keep_dt: bool) -> Simulation:
+    """
+    Return the modal run of ``plan``.
+
+    (``highest_hz`` inf: the whole band; ``dt`` 0: from the stability limit.)
+
+    An explicit step the plan suggests beyond the stability limit of what it steps (the added
+    coordinates included) gives way to ``AUTO_DT_SAFETY`` of that limit, unless it was given.
+    """
+    sim: Simulation = ModalSimulation(
+        model, basis, config.band, dt=plan.dt or 1e-3, integrator=config.integrator,
+        transition_s=config.transition_s, max_modes=config.max_modes,
+        strain_limit=config.strain_limit,
+        highest_hz=plan.highest_hz if math.isfinite(plan.highest_hz) else None,
+        force_refresh=plan.refresh, mode_choice=choice, basis_kind=plan.basis_kind,
+        derivative_directions=plan.directions, bank=bank, progress=basis.progress,
+        sample_tolerance=config.tolerance if plan.forces == 'sampled' else None)
+    if keep_dt:
+        return sim
+    if not plan.dt or (config.integrator == 'explicit'
+                       and plan.dt >= STABILITY_SAFETY * sim.stability_limit()):
+        return _within_stability(sim)
     return sim
+
+
+def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig
+               ) -> Simulation:
+    """
+    ``modal.auto``: the plan the prediction gives, then measured by a pilot run and refined.
+
+    (:mod:`~modal_spring_ros.core.pilot`); the full run where it is cheaper or the plan cannot
+    be brought within the tolerance (bands that keep every mode only).
+    """
+    limit = min(config.max_modes or DEFAULT_MAX_MODES, basis.n_dof)
+    choice = choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
+    bank = AddedCoordinateBank(basis, config.derivative_directions, basis.progress)
+    chosen = choose_basis(model, basis, choice.modes, SHARE * config.tolerance,
+                          lambda keep: bank.for_band(keep)[1])
+    choice = dataclasses.replace(choice, basis=chosen)
+    dt = config.dt or choose_step(choice, config.integrator, config.tolerance,
+                                  model.scene.damping)
+    forces = ('sampled' if model.scene.n_springs >= SAMPLE_MIN_SPRINGS else
+              'refreshed' if chosen.small else 'exact')
+    refresh = config.force_refresh or (
+        choose_refresh(choice.highest_hz, dt) if forces == 'refreshed' else 1)
+    plan = PlanSettings(choice.highest_hz, chosen.kind, config.derivative_directions, forces,
+                        refresh, dt)
+    keep_dt = config.dt is not None
+
+    def make(settings: PlanSettings) -> Simulation:
+        return _modal(model, basis, config, bank, choice, settings, keep_dt)
+
+    def full(longest_dt: float, sample_s: float) -> Simulation:
+        # explicit, within its stability limit and no longer than ``longest_dt`` (the pilot
+        # chooses: the plan's step, shorter ones, a converged one for a reference), landing on
+        # the pilot's samples
+        sim = FullSimulation(model, basis, config.band, dt=1e-3, integrator='explicit',
+                             strain_limit=config.strain_limit)
+        step = min(AUTO_DT_SAFETY * sim.stability_limit(), longest_dt)
+        return sim.with_dt(sample_s / math.ceil(sample_s / step - 1e-9))
+
+    def more_modes(hz: float) -> float | None:
+        return _more_modes(basis, config.band, hz, limit)
+
+    everything = config.band.kind == 'allpass'
+    pilot = Pilot(model, config.tolerance, make, full if everything else None, more_modes,
+                  float(basis.frequencies_hz[choice.modes[0]]), can_halve_step=not keep_dt)
+    sim, report = pilot.run(plan)
+    sim.pilot = report
+    return sim
+
+
+def _more_modes(basis: ModalBasis, band: FilterBand, hz: float, limit: int) -> float | None:
+    """Return a mode limit with half as many more modes of ``band`` as up to ``hz`` (or None)."""
+    def kept() -> np.ndarray:
+        f = basis.frequencies_hz
+        return f[band.keeps(f)]
+    now = int(np.sum(kept() <= hz * (1.0 + 1e-12)))
+    target = min(max(now + 4, (3 * now) // 2), limit, basis.n_dof - 2 if not basis.dense
+                 else basis.n_dof)
+    if target <= now:
+        return None
+    if not basis.complete and basis.count < target:
+        basis.ensure_count(min(2 * target, limit, basis.n_dof - 2))
+    freqs = kept()
+    if freqs.size <= now:
+        return None
+    return float(freqs[min(target, freqs.size) - 1])
 
 
 def build_simulation(scene: Scene, config: SimulationConfig, *,

@@ -26,6 +26,11 @@ NODE = 'modal_spring'
 RATE = 60.0
 
 
+def stamp_s(msg) -> float:
+    """Return a message's header stamp in seconds."""
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
 def test_sigint_and_sigterm_end_the_node_cleanly():
     for sig in (signal.SIGINT, signal.SIGTERM):
         node = NodeProcess(namespace='lifecycle')
@@ -71,14 +76,14 @@ def test_sigint_right_after_a_subscriber_was_killed_ends_the_node_every_time():
 
 @pytest.mark.slow
 def test_stress_band_changes_every_50ms_keep_the_stream_whole():
-    node = NodeProcess(namespace='stress')
+    # stamped with the node's clock when it publishes: gaps are the node's, not the delays of
+    # this (busy) test process receiving them
+    node = NodeProcess('stamp:=wall', namespace='stress')
     client = Client('stress_client')
     points = client.collect(PointCloud2, '/stress/points', qos=500)
     diagnostics = client.collect(DiagnosticArray, '/diagnostics')
     try:
         assert wait_for(lambda: len(points) > 3, 30)
-        time.sleep(3.0)                                     # the same run's steady stream
-        steady = np.diff([t for t, _ in points if t >= time.monotonic() - 2.5])
         bands = [('lowpass', 0.0, 12.0), ('highpass', 10.0, 11.0), ('bandpass', 5.0, 40.0),
                  ('bandstop', 8.0, 30.0), ('allpass', 0.0, 1.0)]
         start = time.monotonic()
@@ -88,14 +93,21 @@ def test_stress_band_changes_every_50ms_keep_the_stream_whole():
                                               filter__low_hz=low, filter__high_hz=high)
             assert result.successful, result.reason
             time.sleep(0.05)
+        changing = time.monotonic() - start
         assert node.proc.poll() is None                       # still running
-        window = [(t, m) for t, m in points if t >= start]
-        gaps = np.diff([t for t, _ in window])
-        # frames at the publish rate (or at the rate a busy host kept before the changes)
+        window = [(t, m) for t, m in points if start <= t < start + changing]
+        gaps = np.diff([stamp_s(m) for _, m in window])
+        # the same run's steady stream, as long as the changes took: what this machine's load
+        # does to the stream without them (a busy host's delays are not the node's)
+        quiet = time.monotonic()
+        time.sleep(changing)
+        steady = np.diff([stamp_s(m) for t, m in points if t >= quiet])
+        # frames at the publish rate (or at the rate a busy host kept without the changes)
         assert np.median(gaps) < 1.5 * max(1.0 / RATE, float(np.median(steady)))
-        # no stall the band changes caused: gaps no longer than the same run's steady ones
-        # allow (measured against them, so that a busy host's delays are not counted)
-        assert gaps.max() < max(0.25, 4.0 * steady.max()), (gaps.max(), steady.max())
+        # no stall the band changes caused: the changes' gaps stay within what the steady
+        # window shows (its longest, and its 99th percentile for the many)
+        assert gaps.max() < 4.0 * max(steady.max(), 1.0 / RATE), (gaps.max(), steady.max())
+        assert np.percentile(gaps, 99) < 2.0 * max(np.percentile(steady, 99), 1.0 / RATE)
         for _, m in window:
             assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
         mine = [d.status[0] for t, d in diagnostics

@@ -20,23 +20,42 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 NODE = 'stress20/modal_spring'
 DURATION_S = 20.0
+#: each kind of request is sent at least this often, however long a busy machine takes for it
+MIN_EACH = 12
+#: the storm ends by this time at the latest (a guard, not a measurement)
+LONGEST_S = 150.0
+
+
+def stamp_s(msg) -> float:
+    """Return a message's header stamp in seconds."""
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
 BANDS = [('lowpass', 0.0, 12.0), ('highpass', 10.0, 11.0), ('bandpass', 5.0, 40.0),
          ('bandstop', 8.0, 30.0), ('allpass', 0.0, 1.0)]
 
 
 def test_concurrent_band_reset_pause_and_method_changes_keep_the_stream_whole():
-    with node_with_client(namespace='stress20') as (node, client):
+    # frames stamped with the node's clock when it publishes: gaps are the node's, not the
+    # delays of this busy test process receiving them
+    with node_with_client('stamp:=wall', namespace='stress20') as (node, client):
         points = client.collect(PointCloud2, '/stress20/points', qos=1000)
         diagnostics = client.collect(DiagnosticArray, '/diagnostics')
         assert wait_for(lambda: len(points) > 3, 30)
+        quiet = time.monotonic()
+        time.sleep(3.0)                              # the steady stream on this machine
+        steady = np.diff([stamp_s(m) for t, m in points if t >= quiet])
         answered = {'band': 0, 'reset': 0, 'pause': 0, 'method': 0}
         sent = dict.fromkeys(answered, 0)
         failures: list[str] = []
         end = time.monotonic() + DURATION_S
+        last = time.monotonic() + LONGEST_S
 
         def repeat(kind, period_s, call):
             k = 0
-            while time.monotonic() < end:
+            # for DURATION_S, and on until this kind was sent MIN_EACH times (a slow machine
+            # answers fewer in the same time: the count, not the clock, says what was tested)
+            while (time.monotonic() < end or k < MIN_EACH) and time.monotonic() < last:
                 sent[kind] += 1
                 try:
                     ok, why = call(k)
@@ -90,15 +109,18 @@ def test_concurrent_band_reset_pause_and_method_changes_keep_the_stream_whole():
         assert wait_for(lambda: len([t for t, _ in points if t > after]) > 30, 10)
         assert node.proc.poll() is None
         assert failures == []
-        assert answered == sent and min(sent.values()) > 10, (sent, answered)
+        assert answered == sent and min(sent.values()) >= MIN_EACH, (sent, answered)
         # gaps while the stream runs (a pause, from its request to the answer of the next
         # resume, is the user's stop, not a stall)
         paused = [(sent_at, pauses[i + 1][1] if i + 1 < len(pauses) else after)
                   for i, (sent_at, _, data) in enumerate(pauses) if data]
-        stamps = [t for t, _ in points if t >= start]
-        running_gaps = [b - a for a, b in zip(stamps, stamps[1:])
+        frames = [(t, stamp_s(m)) for t, m in points if t >= start]
+        running_gaps = [sb - sa for (a, sa), (b, sb) in zip(frames, frames[1:])
                         if not any(p0 < b and a < p1 for p0, p1 in paused)]
-        assert len(running_gaps) > 100 and max(running_gaps) < 0.5
+        # no stall: the longest running gap within what the steady stream's longest allows
+        longest = 8.0 * max(steady.max(), 1.0 / 60.0)
+        assert len(running_gaps) > 30 and max(running_gaps) < longest, (
+            max(running_gaps), steady.max())
         for _, m in points:
             assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
         levels = [d.status[0].level for t, d in diagnostics

@@ -10,7 +10,6 @@ import copy
 import os
 import random
 import re
-import time
 
 from modal_spring_ros.cli.modal_spring_sim import main
 from modal_spring_ros.core.scene import Scene, SceneError
@@ -20,8 +19,9 @@ from modal_spring_ros.scenes.yaml_reading import MAX_BYTES
 import pytest
 import yaml
 
-#: a refusal takes milliseconds; this only tells a hang from one
-HANG_S = 5.0
+#: A refusal takes milliseconds; a test stuck longer than this is a hang (pytest-timeout fails
+#: it), not a slow machine: no refusal's time is asserted.
+hangs_fail = pytest.mark.timeout(120)
 
 SHEET = (builtin_scene_dir() / 'sheet_10x10.yaml').read_text()
 BOMB = 'a: &a [x, x, x, x, x, x, x, x, x]\n' + ''.join(
@@ -73,15 +73,14 @@ CASES = {
 }
 
 
+@hangs_fail
 @pytest.mark.parametrize('name', sorted(CASES))
 def test_each_bad_scene_is_one_line_naming_the_field(name, tmp_path, capsys):
     text, message = CASES[name]
     path = tmp_path / 'bad.yaml'
     path.write_text(text)
-    start = time.perf_counter()
     with pytest.raises(SystemExit) as info:
         main(['--scene', str(path), '--duration', '0.01', '--quiet'])
-    assert time.perf_counter() - start < HANG_S
     assert info.value.code == 2
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and err.startswith('modal_spring_sim: error: '), err
@@ -89,6 +88,7 @@ def test_each_bad_scene_is_one_line_naming_the_field(name, tmp_path, capsys):
     assert 'Traceback' not in err
 
 
+@hangs_fail
 def test_files_that_are_not_scene_files_are_refused_without_reading_them(tmp_path):
     fifo = tmp_path / 'pipe.yaml'
     os.mkfifo(fifo)                                   # no writer: opening it would block
@@ -100,10 +100,8 @@ def test_files_that_are_not_scene_files_are_refused_without_reading_them(tmp_pat
     for path, message in ((fifo, 'not a regular file'), ('/dev/zero', 'not a regular file'),
                           (tmp_path, 'a folder'), (big, 'larger than the 16 MiB'),
                           (binary, 'not UTF-8 text (byte 6)')):
-        start = time.perf_counter()
         with pytest.raises(SceneError, match=re.escape(message)):
             load_scene(path if isinstance(path, str) else str(path))
-        assert time.perf_counter() - start < HANG_S
 
 
 MUTATIONS = [-1, 0, 10**400, 2**70, 1e308, float('nan'), float('inf'), 'x', [], {}, None,
@@ -130,6 +128,7 @@ def _mutate(data, rng: random.Random):
         return data
 
 
+@hangs_fail
 @pytest.mark.parametrize('name', builtin_scene_names())
 def test_random_mutations_of_the_built_in_scenes_load_or_are_refused(name):
     """Every mutation gives a Scene or a SceneError: never another exception, never a hang."""
@@ -138,13 +137,11 @@ def test_random_mutations_of_the_built_in_scenes_load_or_are_refused(name):
     refused = 0
     for _ in range(60):
         mutated = _mutate(source, rng)
-        start = time.perf_counter()
         try:
             assert isinstance(scene_from_dict(mutated, source=name), Scene)
         except SceneError as exc:
             refused += 1
             assert str(exc).startswith(f'{name}: ') and '\n' not in str(exc)
-        assert time.perf_counter() - start < HANG_S
     assert refused > 20                                   # the mutations really are bad
 
 
