@@ -303,7 +303,8 @@ class Pilot:
         """
         Return the full run at the longest step that measures within budget, and its error.
 
-        Steps from the plan's, halved. Against a richer plan (no full reference), the reference step.
+        Steps from the plan's, halved. Against a richer plan (no full reference), the
+        reference step.
         """
         sample_s, samples, reference, _ = self._sampling
         if against != 'the full run':
