@@ -51,7 +51,7 @@ MIN_WINDOW_S, MAX_WINDOW_S, WINDOW_PERIODS = 1.0, 3.0, 8.0
 #: Samples of the displacement over the window (at least).
 SAMPLES = 120
 #: The full reference run is used when its window costs at most this much modelled CPU time, us.
-REFERENCE_WORK = 8e6
+REFERENCE_WORK = 5e6
 #: First step of the full reference run: at most this share of its explicit stability limit,
 #: and this many times shorter than the plan's (then halved until it has converged).
 REFERENCE_SAFETY, REFERENCE_REFINEMENT = 0.15, 4.0
@@ -65,6 +65,8 @@ MAX_PILOT_DIRECTIONS = 96
 #: products with the shapes), and per pair of coordinates (a refreshed step's tangent).
 STEP_US = {'full': 60.0, 'modal': 45.0}
 SPRING_US, DOF_US, PROJECTION_US, TANGENT_US = 0.02, 0.02, 0.001, 0.0005
+#: A turning clamp's step also computes the frame's motion and its inertial loads.
+TURNING_STEP_US = 140.0
 #: A candidate within this factor of another's measured error counts as a tie (cheaper wins).
 TIE = 1.1
 
@@ -129,16 +131,17 @@ def work_per_second(sim: Simulation, sample_springs: int | None = None) -> float
     """
     model = sim.model
     springs = model.scene.n_springs
+    turning = TURNING_STEP_US if model.rotates else 0.0
     if sim.method == 'full':
-        per_step = STEP_US['full'] + SPRING_US * springs + DOF_US * model.n_free_dof
+        per_step = STEP_US['full'] + turning + SPRING_US * springs + DOF_US * model.n_free_dof
         return per_step / sim.dt
     coords = sim.coordinates
     if getattr(sim, 'sample_tolerance', None) is not None:
         evaluated = float(sample_springs or min(springs, 4 * coords))
-        per_step = (STEP_US['modal'] + SPRING_US * evaluated
+        per_step = (STEP_US['modal'] + turning + SPRING_US * evaluated
                     + PROJECTION_US * evaluated * 2 * model.dimension * coords)
     else:
-        per_step = (STEP_US['modal'] + (SPRING_US * springs
+        per_step = (STEP_US['modal'] + turning + (SPRING_US * springs
                                         + PROJECTION_US * model.n_free_dof * coords)
                     / sim.force_refresh
                     + (TANGENT_US * coords * coords if sim.force_refresh > 1 else 0.0))
