@@ -141,10 +141,9 @@ def work_per_second(sim: Simulation, sample_springs: int | None = None) -> float
         per_step = (STEP_US['modal'] + turning + SPRING_US * evaluated
                     + PROJECTION_US * evaluated * 2 * model.dimension * coords)
     else:
-        per_step = (STEP_US['modal'] + turning + (SPRING_US * springs
-                                        + PROJECTION_US * model.n_free_dof * coords)
-                    / sim.force_refresh
-                    + (TANGENT_US * coords * coords if sim.force_refresh > 1 else 0.0))
+        evaluation = SPRING_US * springs + PROJECTION_US * model.n_free_dof * coords
+        tangent = TANGENT_US * coords * coords if sim.force_refresh > 1 else 0.0
+        per_step = STEP_US['modal'] + turning + evaluation / sim.force_refresh + tangent
     return per_step / sim.dt
 
 
