@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import sys
 import tempfile
 import threading
@@ -33,7 +34,7 @@ def sheet_10x10():
 
 def pytest_sessionfinish(session, exitstatus):
     """
-    End ROS before the interpreter ends.
+    End ROS before the interpreter ends, and remove this session's sample cache.
 
     An rclpy context or executor thread still alive at exit makes the C++ runtime abort the
     interpreter (``terminate called without an active exception``, exit -6), which colcon test
@@ -42,6 +43,7 @@ def pytest_sessionfinish(session, exitstatus):
     """
     if 'rclpy' in sys.modules:
         sys.modules['rclpy'].try_shutdown()
+    shutil.rmtree(os.environ['MODAL_SPRING_ROS_CACHE'], ignore_errors=True)
     left = [t.name for t in threading.enumerate()
             if t is not threading.main_thread() and t.is_alive() and not t.daemon]
     if left:

@@ -14,6 +14,10 @@ import math
 import numpy as np
 
 
+#: Smallest margin of the reach around a scene's rest shape, m (a scene of one point has one).
+REACH_MIN_M = 1.0
+
+
 class PullError(ValueError):
     """A pull that cannot be applied (a fixed particle, a value out of range)."""
 
@@ -70,5 +74,18 @@ def make_pull(model, particle: int, point, stiffness: float, max_force: float, n
     slots = np.flatnonzero(model.free_particles == particle)
     if not slots.size:
         raise PullError(f'particle {particle} is fixed or does not exist: it cannot be pulled')
-    return Pull(int(particle), int(slots[0]), point[model.axes].copy(), float(stiffness),
-                float(max_force), float(now + hold_s))
+    return Pull(int(particle), int(slots[0]), within_reach(model, point[model.axes]),
+                float(stiffness), float(max_force), float(now + hold_s))
+
+
+def within_reach(model, target: np.ndarray) -> np.ndarray:
+    """
+    Return ``target`` (on the scene's axes) moved into the scene's reach.
+
+    The reach is the box of the rest shape grown by its own size (at least ``REACH_MIN_M``) on
+    every side: a point further away pulls no harder than one at its edge (the force is capped
+    anyway), and a point like -1e308 can no longer overflow the pull's spring (inf x 0 = NaN).
+    """
+    low, high = model.rest.min(axis=0), model.rest.max(axis=0)
+    grow = max(float(np.max(high - low)), REACH_MIN_M)
+    return np.clip(np.asarray(target, dtype=float), low - grow, high + grow)

@@ -137,6 +137,7 @@ class ModalSpringNode(Node):
             self._values = change.values
             if change.request is not None:
                 self._thread.submit(change.request)
+        self._thread.settings_changed()
         return SetParametersResult(successful=True)
 
     def _publish_frequencies(self) -> None:

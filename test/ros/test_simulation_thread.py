@@ -215,3 +215,24 @@ def test_band_changes_queued_together_build_only_the_last():
         assert out.changes == [{'filter.type': 'lowpass', 'filter.high_hz': 20.0}]
     finally:
         thread.stop()
+
+
+def test_a_faster_publish_rate_takes_effect_at_once():
+    """0.1 Hz then 60 Hz: frames at the new rate now, not after the old ten-second period."""
+    sim = build_simulation(load_scene('sheet_10x10'), SimulationConfig())
+    settings = {'rate': 0.1}
+    out = Recorder()
+    thread = SimulationThread(sim, out, lambda: StreamSettings(publish_rate_hz=settings['rate']),
+                              rebuild=lambda: sim)
+    thread.start()
+    try:
+        assert wait_for(lambda: len(out.frames) >= 1, 5.0)
+        time.sleep(0.5)                                   # now inside the ten-second wait
+        changed = time.monotonic()
+        settings['rate'] = 60.0
+        thread.settings_changed()
+        old_period = 10.0
+        assert wait_for(lambda: len(out.frames_after(changed)) >= 10, old_period / 2), (
+            'the old period was waited out')
+    finally:
+        thread.stop()
