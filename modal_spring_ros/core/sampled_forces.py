@@ -28,10 +28,12 @@ import os
 from pathlib import Path
 import time
 from typing import Callable
+import zipfile
 
 from modal_spring_ros.core.forces import GeneralizedForces, pull_springs
 from modal_spring_ros.core.integrators import DiagonalOperators, integrator
-from modal_spring_ros.core.spring_sampling import DEFAULT_TOLERANCE, SpringSample, train
+from modal_spring_ros.core.spring_sampling import (DEFAULT_TOLERANCE, relative_error,
+                                                   SpringSample, train)
 from modal_spring_ros.core.worker import WorkerProcess
 import numpy as np
 
@@ -58,6 +60,13 @@ RANDOM_SHARE = 0.5
 RANDOM_SPREAD = 1.5
 #: environment variable naming the cache folder ("" disables the cache)
 CACHE_ENV = 'MODAL_SPRING_ROS_CACHE'
+#: a cache entry's force error is recomputed on this many states when it is loaded, and must be
+#: within this many times the tolerance (the states are not its held-out ones)
+CHECK_STATES, CHECK_FACTOR = 4, 3.0
+
+
+class CacheEntryError(ValueError):
+    """A sample cache entry that cannot be used; the message says why."""
 
 
 def training_snapshots(exact: GeneralizedForces, omega2: np.ndarray, damping: np.ndarray,
@@ -127,12 +136,14 @@ def cached_sample(exact: GeneralizedForces, phi: np.ndarray, omega2: np.ndarray,
     path = folder / f'{sample_key(exact, phi, tolerance)}.npz' if folder else None
     if path is not None and path.is_file():
         try:
-            with np.load(path) as data:
-                return SpringSample(data['springs'], data['weights'],
-                                    float(data['training_error']),
-                                    float(data['held_out_error']), 0.0)
-        except (OSError, KeyError, ValueError):
-            pass  # a damaged cache entry is trained again
+            return loaded_sample(path, exact, omega2, tolerance)
+        except CacheEntryError as exc:  # reported, removed, trained again
+            if progress is not None:
+                progress(f'sample cache entry {path} refused: {exc}; removed, training again')
+            try:
+                path.unlink()
+            except OSError:
+                pass
     if worker is not None:
         if progress is not None:
             progress(f'sampling {exact.n_springs} springs in a worker process')
@@ -150,6 +161,68 @@ def cached_sample(exact: GeneralizedForces, phi: np.ndarray, omega2: np.ndarray,
         except OSError:
             pass  # an unwritable cache only costs training again
     return sample
+
+
+def loaded_sample(path: Path, exact: GeneralizedForces, omega2: np.ndarray,
+                  tolerance: float) -> SpringSample:
+    """
+    Return the sample a cache entry holds, validated as any input is.
+
+    Its arrays (shapes, types, indices in range and distinct, weights finite and not negative,
+    errors finite), then its force error recomputed on a few states of the scene (its static
+    sag under gravity, scaled, and seeded random states of that size): an entry that was
+    truncated, flipped or written by hand cannot reach the stream.
+
+    :raises CacheEntryError: what is wrong with it.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            springs, weights = np.asarray(data['springs']), np.asarray(data['weights'])
+            training = float(data['training_error'])
+            held_out = float(data['held_out_error'])
+    except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        raise CacheEntryError(f'unreadable ({type(exc).__name__}: {exc})') from None
+    if springs.ndim != 1 or springs.size == 0 or not np.issubdtype(springs.dtype, np.integer):
+        raise CacheEntryError('its springs are not a list of spring indices')
+    if weights.shape != springs.shape or not np.issubdtype(weights.dtype, np.floating):
+        raise CacheEntryError('its weights do not match its springs')
+    if springs.min() < 0 or springs.max() >= exact.n_springs:
+        raise CacheEntryError(f'a spring index is out of range (the scene has '
+                              f'{exact.n_springs} springs)')
+    if np.unique(springs).size != springs.size:
+        raise CacheEntryError('a spring is listed twice')
+    if not (np.isfinite(weights).all() and weights.min() >= 0.0):
+        raise CacheEntryError('a weight is negative or not finite')
+    if not (math.isfinite(training) and training >= 0.0
+            and (math.isnan(held_out) or held_out >= 0.0)):
+        raise CacheEntryError('its recorded errors are not errors')
+    sample = SpringSample(springs.astype(np.int64), weights.astype(float), training, held_out,
+                          0.0)
+    error = relative_error(exact, sample, check_states(exact, omega2))
+    if not error <= CHECK_FACTOR * tolerance:
+        raise CacheEntryError(f'its force error on check states is {error:.3g}, beyond '
+                              f'{CHECK_FACTOR:g} x the tolerance {tolerance:g}')
+    return sample
+
+
+def check_states(exact: GeneralizedForces, omega2: np.ndarray) -> np.ndarray:
+    """
+    Return a few states to check a sample on (``CHECK_STATES``, m).
+
+    The static sag under gravity at half, full and one and a half times its size, and that sag
+    moved by a fifth of its size in a seeded random direction (the states a sample is trained
+    on are the scene's own motion, which starts from that sag; a scene without gravity: its
+    first coordinate at 1e-3 in place of the sag).
+    """
+    sag = exact.gravity() / np.maximum(omega2, 1e-300)
+    if not np.any(sag):  # relative errors of small states hardly depend on their size
+        sag = np.zeros(omega2.size)
+        sag[0] = 1e-3
+    size = float(np.linalg.norm(sag))
+    step = np.random.default_rng(0).standard_normal(sag.size)
+    states = [sag * scale for scale in (0.5, 1.0, 1.5)]
+    states.append(sag + 0.2 * size * step / np.linalg.norm(step))
+    return np.array(states[:CHECK_STATES])
 
 
 def check_spacing(springs: int, sampled: int) -> int:
@@ -214,7 +287,7 @@ class SampledForces:
             self.sample_error = float(np.linalg.norm(force - exact)) / scale
             self.max_sample_error = max(self.max_sample_error, self.sample_error)
             self._checked_strain = self.exact.last_max_strain
-            if self.sample_error > self.tolerance:
+            if not self.sample_error <= self.tolerance:  # NaN too
                 self.fell_back = True
                 force = exact
         self.last_max_strain = max(strain, self._checked_strain)

@@ -135,3 +135,65 @@ def test_run_time_checks_are_spaced_by_their_cost(springs, sampled):
     every = check_spacing(springs, sampled)
     assert every >= 200 and every * sampled >= 5 * springs
     assert every == 200 or (every - 1) * sampled < 5 * springs   # and no sparser than that
+
+
+def _tampered(path, **changes):
+    """Rewrite a cache entry with some of its arrays replaced."""
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays.update(changes)
+    np.savez(path, **arrays)
+
+
+@pytest.mark.parametrize('damage', ['truncated', 'bit flipped', 'index out of range',
+                                    'nan weights', 'weights x1000, claimed 0 %',
+                                    'springs listed twice'])
+def test_a_tampered_cache_entry_is_refused_removed_and_trained_again(sheet_10x10, damage):
+    """Every cache entry is input: a bad one costs a report and training, never the run."""
+    model, basis = sheet_10x10
+    band = FilterBand('lowpass', 0, 14, 'index')
+    first = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
+    good = first._forces.sample
+    entry = max(cache_folder().glob('*.npz'), key=lambda p: p.stat().st_mtime)
+    raw = entry.read_bytes()
+    if damage == 'truncated':
+        entry.write_bytes(raw[:len(raw) // 2])
+    elif damage == 'bit flipped':
+        flipped = bytearray(raw)
+        flipped[len(raw) // 2] ^= 0xFF
+        entry.write_bytes(bytes(flipped))
+    elif damage == 'index out of range':
+        _tampered(entry, springs=good.springs + model.scene.n_springs)
+    elif damage == 'nan weights':
+        _tampered(entry, weights=np.full(good.weights.shape, np.nan))
+    elif damage == 'weights x1000, claimed 0 %':
+        _tampered(entry, weights=good.weights * 1000.0, training_error=0.0,
+                  held_out_error=0.0)
+    else:
+        _tampered(entry, springs=np.concatenate([good.springs[:1], good.springs[:-1]]))
+    said = []
+    again = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02,
+                            progress=said.append)
+    assert again._forces.sample.seconds > 0.0                      # trained again
+    np.testing.assert_array_equal(again._forces.sample.springs, good.springs)
+    assert any('refused' in line and 'removed, training again' in line for line in said) or \
+        damage == 'bit flipped', said
+    again.step(400)
+    assert np.isfinite(again.positions()).all() and not again.forces_fell_back
+    # the entry was replaced by a good one: loaded, not trained, next time
+    third = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
+    assert third._forces.sample.seconds == 0.0
+
+
+def test_nan_in_a_sample_makes_it_fall_back_at_the_first_check(sheet_10x10):
+    """A NaN compares false with everything: the run-time check must still catch it (at rest)."""
+    model, basis = sheet_10x10
+    band = FilterBand('lowpass', 0, 14, 'index')
+    sim = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
+    forces = sim._forces
+    broken = SpringSample(forces.sample.springs, np.full(forces.sample.count, np.nan), 0.0,
+                          0.0, 0.0)
+    bad = SampledForces(forces.exact, broken, tolerance=0.02, check_every=10)
+    q = np.zeros(forces.exact.spring_forces(sim.modal_coordinates).size)
+    force = bad.spring_forces(q)                     # at rest: the first call is checked
+    assert bad.fell_back and np.isfinite(force).all()
