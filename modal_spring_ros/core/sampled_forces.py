@@ -156,7 +156,7 @@ def cached_sample(exact: GeneralizedForces, phi: np.ndarray, omega2: np.ndarray,
             tmp = path.with_suffix('.tmp.npz')
             np.savez(tmp, springs=sample.springs, weights=sample.weights,
                      training_error=sample.training_error,
-                     held_out_error=sample.held_out_error)
+                     held_out_error=sample.held_out_error, gave_up=np.str_(sample.gave_up))
             os.replace(tmp, path)
         except OSError:
             pass  # an unwritable cache only costs training again
@@ -180,6 +180,7 @@ def loaded_sample(path: Path, exact: GeneralizedForces, omega2: np.ndarray,
             springs, weights = np.asarray(data['springs']), np.asarray(data['weights'])
             training = float(data['training_error'])
             held_out = float(data['held_out_error'])
+            gave_up = str(data['gave_up']) if 'gave_up' in data.files else ''
     except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
         raise CacheEntryError(f'unreadable ({type(exc).__name__}: {exc})') from None
     if springs.ndim != 1 or springs.size == 0 or not np.issubdtype(springs.dtype, np.integer):
@@ -197,7 +198,9 @@ def loaded_sample(path: Path, exact: GeneralizedForces, omega2: np.ndarray,
             and (math.isnan(held_out) or held_out >= 0.0)):
         raise CacheEntryError('its recorded errors are not errors')
     sample = SpringSample(springs.astype(np.int64), weights.astype(float), training, held_out,
-                          0.0)
+                          0.0, gave_up)
+    if gave_up:  # used for nothing but the report: the forces are exact
+        return sample
     error = relative_error(exact, sample, check_states(exact, omega2))
     if not error <= CHECK_FACTOR * tolerance:
         raise CacheEntryError(f'its force error on check states is {error:.3g}, beyond '
@@ -295,6 +298,8 @@ class SampledForces:
 
     def describe(self) -> str:
         sample = self.sample
+        if sample.gave_up:
+            return f'exact ({sample.gave_up})'
         if self.fell_back:
             return (f'exact (the {sample.count}-spring sample fell back: error '
                     f'{max(self.max_sample_error, sample.held_out_error):.2%} beyond '

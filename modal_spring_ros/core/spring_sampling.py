@@ -39,6 +39,9 @@ POOL = 400
 SPREAD = 10
 #: Most greedy rounds.
 MAX_ROUNDS = 200
+#: A sample that needs this share of the springs and still misses the tolerance cannot pay (it
+#: would cost about as much as every spring): training gives up and says so.
+MAX_SAMPLE_SHARE = 0.5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,6 +53,7 @@ class SpringSample:
     training_error: float      # relative force error on the training snapshots
     held_out_error: float      # relative force error on snapshots not trained on
     seconds: float             # time to train
+    gave_up: str = ''          # why training stopped without a sample worth using, if it did
 
     @property
     def count(self) -> int:
@@ -131,6 +135,13 @@ def train(forces, snapshots: np.ndarray, held_out: np.ndarray,
                      f'{error:.2%}')
         if error <= tolerance:
             break
+        if chosen.size >= MAX_SAMPLE_SHARE * n_springs:
+            why = (f'sampling cannot pay here: {chosen.size} of {n_springs} springs still miss '
+                   f'{tolerance:.2%} (training error {error:.2%})')
+            if progress is not None:
+                progress(why)
+            return SpringSample(np.sort(chosen), weights[np.argsort(chosen)], error, math.nan,
+                                time.perf_counter() - start, gave_up=why)
     keep = weights > 0.0                     # a spring whose weight fell to zero is not sampled
     order = np.argsort(chosen[keep])
     sample = SpringSample(chosen[keep][order], weights[keep][order], error, math.nan, 0.0)

@@ -197,3 +197,27 @@ def test_nan_in_a_sample_makes_it_fall_back_at_the_first_check(sheet_10x10):
     q = np.zeros(forces.exact.spring_forces(sim.modal_coordinates).size)
     force = bad.spring_forces(q)                     # at rest: the first call is checked
     assert bad.fell_back and np.isfinite(force).all()
+
+
+def test_training_gives_up_early_where_sampling_cannot_pay(sheet_10x10):
+    """
+    Every mode of sheet_10x10 needs nearly every spring.
+
+    Training once took 221 s (333 of 342) and blocked the parameter service.
+    """
+    model, basis = sheet_10x10
+    said = []
+    sim = ModalSimulation(model, basis, FilterBand(), dt=2e-4, basis_kind='rest',
+                          sample_tolerance=0.01, progress=said.append)
+    sample = sim._forces.sample
+    assert sample.gave_up.startswith('sampling cannot pay here')
+    assert sample.count >= 0.5 * model.scene.n_springs
+    assert sim.forces_fell_back and sim.describe_forces().startswith('exact (sampling cannot pay')
+    assert any('sampling cannot pay here' in line for line in said)
+    # it took a few training rounds, not the two hundred of before: fewer than ten reported
+    assert sum(line.startswith('sampling springs:') for line in said) < 10
+    sim.step(200)
+    assert np.isfinite(sim.positions()).all()
+    again = ModalSimulation(model, basis, FilterBand(), dt=2e-4, basis_kind='rest',
+                            sample_tolerance=0.01)
+    assert again._forces.sample.gave_up and again._forces.sample.seconds == 0.0  # cached
