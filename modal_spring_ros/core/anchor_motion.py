@@ -98,6 +98,9 @@ class AnchorMotion:
     def restart(self) -> None:
         """Go back to t = 0 with the run (a function of time has nothing to restart)."""
 
+    def clear(self) -> None:
+        """Forget what the motion was given (``~/reset``; a function of time was given nothing)."""
+
     @property
     def is_static(self) -> bool:
         return all(c.amplitude == 0.0 for c in (*self.components, *self.rotations))

@@ -80,7 +80,15 @@ class ClampFollower:
     rotations: tuple = ()
     is_static = False
 
-    def __init__(self, follow_hz: float, axes: tuple[int, ...]):
+    def __init__(self, follow_hz: float, axes: tuple[int, ...], home=None,
+                 reach_m: float = math.inf):
+        """
+        Follow poses through a filter of bandwidth ``follow_hz`` on the scene's ``axes``.
+
+        ``home``: the clamp's rest position (world), ``reach_m``: how far from it the first pose
+        may be (the clamp turns about the first pose's position: one a kilometre away would
+        swing the object through kilometres).
+        """
         if not (math.isfinite(follow_hz) and follow_hz > 0.0):
             raise ValueError(f'follow bandwidth ({follow_hz}) must be a positive number of Hz')
         self.follow_hz = float(follow_hz)
@@ -93,8 +101,10 @@ class ClampFollower:
         elif len(axes) == 3:
             self._mask[3:] = True
         self._lock = threading.Lock()
+        self.home = np.zeros(3) if home is None else np.asarray(home, dtype=float)
+        self.reach_m = float(reach_m)
         self._reference: tuple[np.ndarray, np.ndarray] | None = None   # first pose
-        self._last_position: np.ndarray | None = None
+        self._accepted: tuple[np.ndarray, np.ndarray] | None = None    # last pose accepted
         self._target = np.zeros(6)
         self.revision = 0
         self.restart()
@@ -122,12 +132,15 @@ class ClampFollower:
         return []
 
     # -- poses ---------------------------------------------------------------------------------
-    def check(self, position, quaternion, max_jump_m: float) -> str | None:
+    def check(self, position, quaternion, max_jump_m: float,
+              max_turn_rad: float = math.pi) -> str | None:
         """
-        Why a pose is refused, or None.
+        Why a pose is refused, or None: then it is the last pose accepted.
 
-        Non-finite values, a quaternion that is not a unit one, or a jump of more than
-        ``max_jump_m`` from the last pose followed.
+        Refused: non-finite values, a quaternion that is not a unit one, a first pose further
+        than ``reach_m`` from the clamp's home, a jump of more than ``max_jump_m`` or a turn of
+        more than ``max_turn_rad`` from the last pose *accepted* (not the last one applied: a
+        stream of poses is judged pose by pose, so steps that each pass never lock it out).
         """
         position = np.asarray(position, dtype=float)
         quaternion = np.asarray(quaternion, dtype=float)
@@ -136,13 +149,40 @@ class ClampFollower:
         norm = float(np.linalg.norm(quaternion))
         if abs(norm - 1.0) > QUATERNION_TOLERANCE:
             return f'orientation is not a unit quaternion (norm {norm:.6g})'
-        last = self._last_position
-        if last is not None:
-            jump = float(np.linalg.norm(position - last))
-            if jump > max_jump_m:
-                return (f'position jumps {jump:.3g} m from the last pose followed (at most '
-                        f'anchor.max_jump_m = {max_jump_m:g} m)')
+        quaternion = quaternion / norm
+        with self._lock:
+            if self._accepted is None:
+                distance = float(np.linalg.norm(position - self.home))
+                if distance > self.reach_m:
+                    return (f'the first pose is {distance:.3g} m from the clamp (at most '
+                            f'{self.reach_m:.3g} m: the clamp turns about the first pose)')
+            else:
+                last_position, last_quaternion = self._accepted
+                jump = float(np.linalg.norm(position - last_position))
+                if jump > max_jump_m:
+                    return (f'position jumps {jump:.3g} m from the last pose accepted (at most '
+                            f'anchor.max_jump_m = {max_jump_m:g} m)')
+                cosine = min(1.0, abs(float(quaternion @ last_quaternion)))
+                turn = 2.0 * math.acos(cosine)
+                if turn > max_turn_rad + 1e-12:
+                    return (f'orientation turns {math.degrees(turn):.3g} degrees from the last '
+                            f'pose accepted (at most anchor.max_turn_deg = '
+                            f'{math.degrees(max_turn_rad):g})')
+            self._accepted = (position.copy(), quaternion)
         return None
+
+    def clear(self) -> None:
+        """
+        Forget every pose (``~/reset``): the clamp at its rest pose, the next pose a first one.
+
+        Unlike :meth:`restart`, which keeps the last pose as the target.
+        """
+        with self._lock:
+            self._reference = None
+            self._accepted = None
+            self._target = np.zeros(6)
+            self.revision += 1
+        self.restart()
 
     def follow(self, t: float, position, quaternion) -> None:
         """
@@ -166,7 +206,6 @@ class ClampFollower:
             target = np.concatenate([position - p0, turn])
             self._t0, self._x0, self._v0 = t, x, v
             self._target = np.where(self._mask, target, 0.0)
-            self._last_position = position.copy()
             self.revision += 1
 
     def restart(self) -> None:

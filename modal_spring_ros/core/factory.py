@@ -20,6 +20,7 @@ from modal_spring_ros.core.mode_selection import (choose_modes, choose_refresh, 
                                                   ModeChoice, SHARE, STABILITY_SAFETY)
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.pilot import Pilot, PlanSettings
+from modal_spring_ros.core.pull import REACH_MIN_M
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSimulation,
                                                Simulation)
@@ -171,8 +172,12 @@ def build_simulation(scene: Scene, config: SimulationConfig, *,
     """
     config.validate()
     if config.anchor == 'topic':  # the clamp follows poses (from t = 0: at its rest pose)
-        scene = dataclasses.replace(scene, anchor_motion=ClampFollower(config.follow_hz,
-                                                                       scene.axes))
+        rest = np.asarray(scene.rest_positions, dtype=float)
+        fixed = np.flatnonzero(scene.fixed)
+        clamp = rest[fixed] if fixed.size else rest
+        reach = max(float(np.max(np.ptp(rest, axis=0))), REACH_MIN_M)
+        scene = dataclasses.replace(scene, anchor_motion=ClampFollower(
+            config.follow_hz, scene.axes, home=clamp.mean(axis=0), reach_m=reach))
     model = MassSpringModel(scene)
     basis = ModalBasis(model, progress=progress, worker=worker)
     sim = rebuild(model, basis, config)

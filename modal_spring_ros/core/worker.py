@@ -15,12 +15,16 @@ from __future__ import annotations
 
 import multiprocessing as mp
 from multiprocessing.connection import Connection
+import os
 import signal
 import threading
 from typing import Any, Callable
 
 #: How often a waiting call asks whether it was cancelled, s.
 POLL_S = 0.1
+#: The child's niceness: its long computations give way to the process that waits for them (a
+#: node's stream), which shares no lock with it.
+WORKER_NICENESS = 10
 
 
 class WorkerError(RuntimeError):
@@ -39,6 +43,10 @@ def _serve(conn: Connection) -> None:
     closes.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:  # long work yields the CPU to the stream that waits for it (shares no lock with it)
+        os.nice(WORKER_NICENESS)
+    except OSError:
+        pass
     while True:
         try:
             function, args = conn.recv()

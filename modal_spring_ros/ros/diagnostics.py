@@ -47,39 +47,39 @@ class StreamReport:
 
 
 def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[int, str]:
-    """Return the status level and its one-line message: the most severe condition wins."""
-    level, message = DiagnosticStatus.OK, 'streaming'
-    if stream.paused:
-        message = 'paused'
-    elif (stream.window_valid and stream.requested_rtf > 0
-          and stream.achieved_rtf < REALTIME_TOLERANCE * stream.requested_rtf):
-        level = DiagnosticStatus.WARN
-        message = (f'cannot keep real time: achieved real-time factor '
-                   f'{stream.achieved_rtf:.2f} of {stream.requested_rtf:g}')
+    """
+    Return the status level and its one-line message.
+
+    The level is the most severe condition's; the message says every warning that holds, joined
+    with '; ' as diagnostic_updater merges summaries (a host that stalls and cannot keep real
+    time says both). An error says only itself.
+    """
+    warnings = []
+    if (not stream.paused and stream.window_valid and stream.requested_rtf > 0
+            and stream.achieved_rtf < REALTIME_TOLERANCE * stream.requested_rtf):
+        warnings.append(f'cannot keep real time: achieved real-time factor '
+                        f'{stream.achieved_rtf:.2f} of {stream.requested_rtf:g}')
     if not stream.paused:
-        if stream.longest_gap_s > STALL_PERIODS * stream.publish_period_s:
-            level = DiagnosticStatus.WARN
-            message = (f'stream stalled for {stream.longest_gap_s:.2f} s'
-                       + (' while computing modes for a band change'
-                          if stream.computing_modes else ''))
         if stream.window_valid and stream.frames_in_window == 0 and stream.window_s > 0:
-            level = DiagnosticStatus.WARN
-            message = f'no frame published in the last {stream.window_s:.1f} s'
+            warnings.append(f'no frame published in the last {stream.window_s:.1f} s')
+        elif stream.longest_gap_s > STALL_PERIODS * stream.publish_period_s:
+            warnings.append(f'stream stalled for {stream.longest_gap_s:.2f} s'
+                            + (' while computing modes for a band change'
+                               if stream.computing_modes else ''))
     if status.forces_fell_back:
-        level = DiagnosticStatus.WARN
-        message = f'spring sample off: {status.forces}'
+        warnings.append(f'spring sample off: {status.forces}')
     if stream.anchor_stale:
-        level = DiagnosticStatus.WARN
-        message = f'anchor pose: {stream.anchor}'
+        warnings.append(f'anchor pose: {stream.anchor}')
     if status.max_strain > stream.strain_warning and status.basis.startswith('rest'):
         # the rest modes' regime; the derivative basis follows the sway's rotation beyond it
-        level = DiagnosticStatus.WARN
-        message = (f'large deformation: spring strain {status.max_strain:.1%} beyond the '
-                   f'small-deformation regime of the modal basis')
+        warnings.append(f'large deformation: spring strain {status.max_strain:.1%} beyond the '
+                        f'small-deformation regime of the modal basis')
     if stream.error or stream.diverged_recently:
-        level = DiagnosticStatus.ERROR
-        message = stream.error or f'{stream.last_divergence}; recovered: back to the rest state'
-    return level, message
+        return DiagnosticStatus.ERROR, (
+            stream.error or f'{stream.last_divergence}; recovered: back to the rest state')
+    if warnings:
+        return DiagnosticStatus.WARN, '; '.join(reversed(warnings))
+    return DiagnosticStatus.OK, 'paused' if stream.paused else 'streaming'
 
 
 def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, str]:

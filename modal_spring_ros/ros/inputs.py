@@ -6,11 +6,14 @@ follows each accepted pose through its filter
 (:class:`~modal_spring_ros.core.clamp_follower.ClampFollower`). ``/clicked_point``
 (``geometry_msgs/PointStamped``, what RViz's "Publish Point" tool sends): the particle nearest
 to the point is pulled toward it (:mod:`~modal_spring_ros.core.pull`). A message in another
-frame than the node's ``frame_id``, with non-finite values, a quaternion that is not a unit one
-or a pose that jumps further than ``anchor.max_jump_m`` is refused with a throttled warning and
-changes nothing. Accepted inputs reach the simulation thread as requests, applied between two
-steps at the simulation time they are recorded with (``record.bag``), so a re-simulation
-applies them at the same step.
+frame than the node's ``frame_id``, with non-finite values, a quaternion that is not a unit
+one, a first pose beyond the clamp's reach, or a pose that jumps further than
+``anchor.max_jump_m`` or turns more than ``anchor.max_turn_deg`` from the last pose accepted
+is refused with a throttled warning and changes nothing. Header stamps are not used for
+timing: a pose or a click takes effect when it arrives (any stamp, 0 included, is accepted).
+Accepted inputs reach the simulation thread as requests, applied between two steps at the
+simulation time they are recorded with (``record.bag``), so a re-simulation applies them at
+the same step.
 """
 from __future__ import annotations
 
@@ -103,8 +106,9 @@ class NodeInputs:
         problem = self._frame_problem(message.header.frame_id)
         if problem is None:
             position, quaternion = pose_arrays(message)
-            problem = self._follower.check(position, quaternion,
-                                           self._values()['anchor.max_jump_m'])
+            values = self._values()
+            problem = self._follower.check(position, quaternion, values['anchor.max_jump_m'],
+                                           math.radians(values['anchor.max_turn_deg']))
         if problem is not None:
             self._refuse(ANCHOR_TOPIC, problem)
             return

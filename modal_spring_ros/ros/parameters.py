@@ -110,8 +110,11 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         'Bandwidth of the critically damped filter the clamp follows poses through, Hz', _D,
         read_only=True, float_range=(0.1, MAX_FOLLOW_HZ))),
     'anchor.max_jump_m': (0.5, _descriptor(
-        'A pose further than this from the last one followed is refused, m', _D,
+        'A pose further than this from the last one accepted is refused, m', _D,
         float_range=(0.0, 1000.0))),
+    'anchor.max_turn_deg': (30.0, _descriptor(
+        'A pose turned more than this from the last one accepted is refused, degrees', _D,
+        float_range=(0.0, 180.0))),
     'interaction.stiffness': (50.0, _descriptor(
         'Stiffness of the spring a /clicked_point pulls the nearest particle with, N/m', _D,
         float_range=(0.0, 1e6))),

@@ -30,6 +30,14 @@ from modal_spring_ros.ros.requests import (ChangeBand, FollowPose, Pause, PullPo
 DIAGNOSTICS_PERIOD_S = 1.0
 #: wait before trying again when even recovering failed, s
 RECOVERY_RETRY_S = 0.5
+#: Divergences in a row (each within ``HEALTHY_S`` of simulated time after the recovery before
+#: it) after which the run is held at rest and inputs are refused until ``~/reset``: the same
+#: input again and again must not loop through divergences forever.
+MAX_RECOVERIES, HEALTHY_S = 3, 2.0
+
+
+class HeldError(RuntimeError):
+    """An input refused because the run is held after repeated divergence."""
 
 
 class Outputs(Protocol):
@@ -105,6 +113,8 @@ class SimulationThread:
         self._cloud: CloudBuffer | None = None  # the frames' bytes, reused (see _publish_frame)
         self._cloud_scene = None
         self._divergences = 0
+        self._streak = 0                # divergences in a row
+        self.held = ''                  # why the run is held (after MAX_RECOVERIES), or ''
         self._last_divergence = ''
         self._diverged_recently = False
         self._last_status = sim.status()
@@ -167,7 +177,7 @@ class SimulationThread:
             rtf = settings.realtime_factor
             if self._apply_requests():
                 published_time = None
-            if not self.paused:
+            if not (self.paused or self.held):
                 if rtf > 0.0:
                     wall0, sim0 = self._anchor
                     target = sim0 + (time.monotonic() - wall0) * rtf
@@ -184,12 +194,12 @@ class SimulationThread:
                 if mesh:
                     next_mesh = now + 1.0 / settings.mesh_rate_hz
             if now >= next_diagnostics:
-                self._publish_diagnostics(settings)
+                self._publish_diagnostics(settings, error=self.held)
                 next_diagnostics = now + DIAGNOSTICS_PERIOD_S
             next_publish += period
             if next_publish < now:
                 next_publish = now + period
-            if rtf > 0.0 or self.paused:
+            if rtf > 0.0 or self.paused or self.held:
                 self._wake.wait(max(0.0, next_publish - time.monotonic()))
                 self._wake.clear()
 
@@ -236,6 +246,9 @@ class SimulationThread:
                 continue
             try:
                 message = self._apply(request)
+            except HeldError as exc:  # said once when the run was held: not again per input
+                request.finish(False, str(exc))
+                continue
             except Exception as exc:  # refused: the run is as it was before the request
                 request.finish(False, f'could not apply: {exc}')
                 self._report_error(f'could not apply {type(request).__name__}: {exc!r}')
@@ -252,12 +265,18 @@ class SimulationThread:
             PullPoint: self._pull}
         return handlers[type(request)](request)
 
+    def _refuse_while_held(self) -> None:
+        if self.held:
+            raise HeldError(f'refused: {self.held}')
+
     def _follow(self, request: FollowPose) -> str:
+        self._refuse_while_held()
         message = apply_pose(self.sim, request.message)
         self._outputs.received(self.sim, request.message)
         return message
 
     def _pull(self, request: PullPoint) -> str:
+        self._refuse_while_held()
         message = apply_click(self.sim, request.message, request.stiffness, request.max_force,
                               request.hold_s)
         self._outputs.received(self.sim, request.message)
@@ -276,7 +295,9 @@ class SimulationThread:
         return f'{self.sim.method} run continues'
 
     def _reset(self, request: Reset) -> str:
+        self.sim.model.scene.anchor_motion.clear()  # a followed clamp forgets its poses
         self.sim.reset()
+        self._streak, self.held = 0, ''
         self._reanchor(window_valid=False)
         return 'back to the rest state at t = 0'
 
@@ -358,11 +379,18 @@ class SimulationThread:
     # -- failures ------------------------------------------------------------------------------
     def _on_divergence(self, exc: DivergenceError) -> None:
         self._divergences += 1
+        self._streak = self._streak + 1 if exc.time < HEALTHY_S else 1
         self._last_divergence = str(exc)
         self._diverged_recently = True
-        self._outputs.log('error', f'{exc}; back to the rest state')
-        self._publish_diagnostics(self._settings(),
-                                  error=f'{exc}; recovered: back to the rest state')
+        if self._streak >= MAX_RECOVERIES:
+            self.held = (f'{self._streak} divergences in a row (last: {exc}): holding at rest, '
+                         'inputs refused until ~/reset')
+            self._outputs.log('error', self.held)
+            self._publish_diagnostics(self._settings(), error=self.held)
+        else:
+            self._outputs.log('error', f'{exc}; back to the rest state')
+            self._publish_diagnostics(self._settings(),
+                                      error=f'{exc}; recovered: back to the rest state')
         self._to_rest()
 
     def _report_error(self, message: str) -> None:

@@ -56,6 +56,7 @@ def test_a_new_pose_changes_nothing_at_the_instant_it_comes():
 
 def test_bad_poses_are_named_and_a_2d_scene_follows_only_its_plane():
     follower = ClampFollower(5.0, (0, 1))
+    assert follower.check([0.0, 0.0, 0.0], Q0, 1.0) is None       # the first pose, accepted
     follower.follow(0.0, [0.0, 0.0, 0.0], Q0)
     assert follower.check([math.nan, 0, 0], Q0, 1.0) == 'non-finite position or orientation'
     assert follower.check([0, 0, 0], 2 * Q0, 1.0).startswith('orientation is not a unit '
@@ -76,3 +77,46 @@ def test_a_follower_goes_to_the_worker_process_and_comes_back_the_same():
     again = pickle.loads(pickle.dumps(follower))
     np.testing.assert_array_equal(again.frame(0.3).rotation, follower.frame(0.3).rotation)
     again.follow(0.3, [0.5, 0.0, 0.0], Q0)                     # its lock works
+
+
+def test_the_first_pose_must_be_within_the_clamps_reach():
+    """The clamp turns about the first pose: one at x = 1e6 swung the sheet through kilometres."""
+    follower = ClampFollower(5.0, (0, 2), home=[0.45, 0.0, 0.0], reach_m=1.0)
+    assert follower.check([1e6, 0.0, 0.0], Q0, 0.5).startswith(
+        'the first pose is 1e+06 m from the clamp (at most 1 m')
+    assert follower.check([0.5, 0.0, 0.2], Q0, 0.5) is None      # near the clamp: the first
+
+
+def test_poses_are_judged_against_the_last_one_accepted_not_the_last_applied():
+    """0.3 m steps at 50 Hz (each within 0.5 m) were locked out for good; none is now."""
+    follower = ClampFollower(5.0, (0, 2), home=[0.0, 0.0, 0.0], reach_m=1.0)
+    for k in range(20):                       # none applied (follow) in between: a fast stream
+        assert follower.check([0.3 * k, 0.0, 0.0], Q0, 0.5) is None, k
+    assert follower.check([0.3 * 19 + 0.6, 0.0, 0.0], Q0, 0.5).startswith('position jumps 0.6')
+
+
+def test_orientation_jumps_are_bounded():
+    """0, 90, 180 degrees at 50 Hz diverged the run: turns beyond anchor.max_turn_deg refused."""
+    follower = ClampFollower(5.0, (0, 2), home=[0.0, 0.0, 0.0], reach_m=1.0)
+    turn = math.radians(30.0)
+    assert follower.check([0.0, 0.0, 0.0], Q0, 0.5, turn) is None
+    quarter = np.array([0.0, math.sin(math.pi / 4), 0.0, math.cos(math.pi / 4)])  # 90 deg on y
+    assert follower.check([0.0, 0.0, 0.0], quarter, 0.5, turn).startswith(
+        'orientation turns 90 degrees from the last pose accepted (at most '
+        'anchor.max_turn_deg = 30)')
+    small = np.array([0.0, math.sin(math.pi / 24), 0.0, math.cos(math.pi / 24)])  # 15 deg
+    assert follower.check([0.0, 0.0, 0.0], small, 0.5, turn) is None
+    assert follower.check([0.0, 0.0, 0.0], -small, 0.5, turn) is None  # the same turn
+
+
+def test_clearing_forgets_every_pose():
+    """``~/reset``: back at the rest pose, and the next pose is judged as a first one."""
+    follower = ClampFollower(5.0, (0, 2), home=[0.0, 0.0, 0.0], reach_m=1.0)
+    assert follower.check([0.2, 0.0, 0.0], Q0, 0.5) is None
+    follower.follow(0.0, [0.2, 0.0, 0.0], Q0)
+    assert follower.check([0.6, 0.0, 0.0], Q0, 0.5) is None
+    follower.follow(0.1, [0.6, 0.0, 0.0], Q0)
+    assert np.linalg.norm(follower.frame(10.0).translation) > 0.3
+    follower.clear()
+    np.testing.assert_allclose(follower.frame(10.0).translation, 0.0, atol=1e-12)
+    assert follower.check([5.0, 0.0, 0.0], Q0, 0.5).startswith('the first pose is 5 m')

@@ -68,6 +68,15 @@ def test_each_condition_has_its_level_and_message(changes, level, message):
     assert (entry.level, entry.message) == (level, message)
 
 
+def test_every_warning_that_holds_is_said_as_diagnostic_updater_merges_them():
+    """A loaded host stalls and cannot keep real time: one message says both."""
+    entry, _ = _entry(stream=dataclasses.replace(STREAM, requested_rtf=200.0, achieved_rtf=3.0,
+                                                 longest_gap_s=0.5))
+    assert entry.level == WARN
+    assert entry.message == ('stream stalled for 0.50 s; cannot keep real time: achieved '
+                             'real-time factor 3.00 of 200')
+
+
 def test_large_deformation_warns_and_an_error_outranks_it():
     strained = dataclasses.replace(STATUS, max_strain=0.25)
     derived = dataclasses.replace(strained, basis='derivatives: 4 modes + 15 + 2')

@@ -206,9 +206,14 @@ def test_a_host_that_cannot_keep_real_time_says_so():
     with node_with_client('method:=full', 'realtime_factor:=200.0',
                           namespace='slow') as (node, client):
         diags = client.collect(DiagnosticArray, '/diagnostics')
-        assert wait_for(lambda: any(s.level == DiagnosticStatus.WARN
-                                    for _, s in _status(diags, '/slow/')), 30)
-        warn = next(s for _, s in _status(diags, '/slow/') if s.level == DiagnosticStatus.WARN)
+
+        def real_time_warnings():
+            return [s for _, s in _status(diags, '/slow/')
+                    if s.level == DiagnosticStatus.WARN and 'cannot keep real time' in s.message]
+
+        # (on a loaded host a stall may be reported beside it, in the same message)
+        assert wait_for(lambda: real_time_warnings(), 30)
+        warn = real_time_warnings()[0]
         assert 'cannot keep real time' in warn.message and 'of 200' in warn.message
         achieved = float({kv.key: kv.value for kv in warn.values}['achieved real-time factor'])
         assert 0.5 < achieved < 180
@@ -240,7 +245,7 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
     """
     with node_with_client('scene:=sheet_100x100', 'integrator:=average', 'filter.type:=lowpass',
                           'filter.by:=index', 'filter.high_mode:=15', 'modal.basis:=rest',
-                          namespace='grow') as (node, client):
+                          'stamp:=wall', namespace='grow') as (node, client):
         points = client.collect(PointCloud2, '/grow/points', qos=500)
         diags = client.collect(DiagnosticArray, '/diagnostics')
         assert wait_for(lambda: len(points) > 10, 60)
@@ -257,9 +262,12 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
                 if node_of(d.status[0]).startswith('/grow/') and t > start]
         values = {kv.key: kv.value for kv in mine[-1][1].values}
         assert values['modes stepped'] == '100' and int(values['modes computed']) >= 100
-        times = np.array([t for t, _ in points])
-        steady = float(np.diff(times[(times > start - 3.0) & (times < start)]).max())
-        worst = float(np.diff(times[times > start - 0.5]).max())
+        # gaps by the node's own stamps (when it published), not by when this busy test
+        # process got to receive them
+        received = np.array([t for t, _ in points])
+        times = np.array([stamp_s(m) for _, m in points])
+        steady = float(np.diff(times[(received > start - 3.0) & (received < start)]).max())
+        worst = float(np.diff(times[received > start - 0.5]).max())
         print(f'longest gap {worst:.3f} s (steady: {steady:.3f} s)')
         # here about 0.05 s (3 periods); on a loaded host no worse than its steady gaps allow
         assert worst < max(0.15, 3.0 * steady), (worst, steady, [s.message for _, s in mine])

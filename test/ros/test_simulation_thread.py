@@ -13,7 +13,7 @@ from helpers import variant
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.ros.requests import ChangeBand, Pause, ReplaceSimulation, Reset
+from modal_spring_ros.ros.requests import ChangeBand, Pause, PullPoint, ReplaceSimulation, Reset
 from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -236,3 +236,42 @@ def test_a_faster_publish_rate_takes_effect_at_once():
             'the old period was waited out')
     finally:
         thread.stop()
+
+
+def test_a_divergence_that_comes_back_every_time_is_held_and_reported_once(
+        running, monkeypatch):
+    """The same input again and again must not loop through divergences forever."""
+    from modal_spring_ros.core.simulations import DivergenceError
+    from modal_spring_ros.ros.simulation_thread import MAX_RECOVERIES
+    thread, out = running()
+    sim = thread.sim
+    real = sim._step_once
+
+    def diverging():
+        if sim.steps >= 20:                   # every run diverges soon after it starts
+            raise DivergenceError('non-finite acceleration', sim.time, sim.steps)
+        real()
+
+    monkeypatch.setattr(sim, '_step_once', diverging)
+    assert wait_for(lambda: thread.held, 5.0)
+    held_logs = [m for level, m in out.logs if level == 'error']
+    time.sleep(1.5)                           # held: no more divergences, no more logs
+    assert [m for level, m in out.logs if level == 'error'] == held_logs
+    assert len(held_logs) == MAX_RECOVERIES and 'holding at rest' in held_logs[-1]
+    assert out.errors()[-1] == thread.held    # /diagnostics keeps saying it
+    click = PullPoint(message=_click(0.3, -0.5), stiffness=50.0, max_force=5.0, hold_s=1.0)
+    thread.submit(click)
+    assert click.wait(2.0) is False and 'refused' in click.message
+    monkeypatch.setattr(sim, '_step_once', real)
+    reset = thread.submit(Reset())
+    assert reset.wait(2.0) and not thread.held
+    after = time.monotonic()
+    assert wait_for(lambda: len(out.frames_after(after)) > 10, 5.0)
+
+
+def _click(x: float, z: float):
+    from geometry_msgs.msg import PointStamped
+    message = PointStamped()
+    message.header.frame_id = 'world'
+    message.point.x, message.point.z = x, z
+    return message
