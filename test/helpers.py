@@ -1,7 +1,10 @@
-"""What several tests share: where things are, and scenes made for a test."""
+"""What several tests share: where things are, scenes made for a test, a disk that fills."""
 from __future__ import annotations
 
+import builtins
 import copy
+import errno
+import io
 import os
 from pathlib import Path
 
@@ -61,3 +64,44 @@ def max_step_motion(sim, steps: int) -> float:
         worst = max(worst, float(np.linalg.norm(now - prev, axis=1).max()))
         prev = now
     return worst
+
+
+class FullAfter(io.RawIOBase):
+    """A file that takes ``budget`` bytes, then fails every write as a full disk does."""
+
+    def __init__(self, fh, budget: int):
+        self._fh, self._budget = fh, budget
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, data) -> int:
+        data = bytes(data)
+        room = self._budget - self._fh.tell()
+        if len(data) > room:
+            self._fh.write(data[:max(room, 0)])
+            raise OSError(errno.ENOSPC, 'No space left on device')
+        return self._fh.write(data)
+
+    def tell(self) -> int:
+        return self._fh.tell()
+
+    def flush(self) -> None:
+        if not self._fh.closed:
+            self._fh.flush()
+
+    def close(self) -> None:
+        super().close()
+        self._fh.close()
+
+
+def fill_disk_after(monkeypatch, budget: int) -> None:
+    """Make bag (.mcap) and run (.npz) files opened from now on fill up after ``budget`` bytes."""
+    real_open = builtins.open
+
+    def full_open(path, mode='r', *args, **kwargs):
+        fh = real_open(path, mode, *args, **kwargs)
+        if 'w' in mode and 'b' in mode and str(path).endswith(('.mcap', '.npz')):
+            return FullAfter(fh, budget)
+        return fh
+    monkeypatch.setattr(builtins, 'open', full_open)

@@ -14,10 +14,12 @@ killed loses at most about the last second.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
 from pathlib import Path
+import shutil
 import time
 from typing import Any
 
@@ -44,6 +46,9 @@ class BagError(ValueError):
 def check_new_bag_path(directory: str | Path) -> Path:
     """Return the folder a new bag may be written to; raises BagError (and touches nothing)."""
     d = Path(directory)
+    too_long = _too_long(d)
+    if too_long:
+        raise BagError(f'{str(d)[:60]}...: {too_long} (nothing was written)')
     if d.exists():
         raise BagError(f'{d}: already exists; a bag is written to a new folder '
                        '(nothing was overwritten)')
@@ -53,6 +58,23 @@ def check_new_bag_path(directory: str | Path) -> Path:
     if not os.access(parent, os.W_OK):
         raise BagError(f'{d}: parent folder {parent} is not writable')
     return d
+
+
+def _too_long(d: Path) -> str:
+    """Say why the file system would refuse the bag's names for their length, or ''."""
+    parent = d.parent if str(d.parent) else Path('.')
+    try:
+        name_max = os.pathconf(parent if parent.is_dir() else '.', 'PC_NAME_MAX')
+        path_max = os.pathconf(parent if parent.is_dir() else '.', 'PC_PATH_MAX')
+    except (OSError, ValueError):
+        name_max, path_max = 255, 4096
+    longest = max([len(os.fsencode(p)) for p in d.parts] + [len(os.fsencode(d.name)) + 7])
+    if longest > name_max:  # the folder, or the file named after it (<name>_0.mcap)
+        return (f'a name of {longest} bytes is too long for the file system (at most '
+                f'{name_max})')
+    if len(os.fsencode(os.path.abspath(d))) + len(d.name) + 8 > path_max:
+        return f'the path is too long for the file system (at most {path_max} bytes)'
+    return ''
 
 
 class BagWriter:
@@ -88,14 +110,36 @@ class BagWriter:
         self._start: int | None = None
         self._end: int | None = None
         self._closed = False
+        #: why writing stopped ('' while it goes on)
+        self.failed = ''
         self._writer.add_metadata('rosbag2', {'serialized_metadata': self._info_yaml()})
         self._fh.flush()
 
     # -- topics and messages -------------------------------------------------------------------
+    @contextlib.contextmanager
+    def _writing(self):
+        """
+        Write to the file; a failure stops all writing, as a BagError.
+
+        A full disk or a device gone: the chunks already on disk stay readable, nothing more is
+        written, and every later write says why.
+        """
+        if self.failed:
+            raise BagError(f'{self.directory}: not written to any more: {self.failed}')
+        try:
+            yield
+        except OSError as exc:
+            self.failed = f'cannot write: {exc.strerror or exc}'
+            raise BagError(f'{self.directory}: {self.failed}') from None
+
     def add_topic(self, name: str, type_name: str, offered_qos_profiles: str = '') -> None:
         """Declare a topic (type like ``sensor_msgs/msg/PointCloud2``)."""
         if name in self._topics:
             return
+        with self._writing():
+            self._add_topic(name, type_name, offered_qos_profiles)
+
+    def _add_topic(self, name: str, type_name: str, offered_qos_profiles: str) -> None:
         if type_name not in self._schemas:
             self._schemas[type_name] = self._writer.register_schema(
                 name=type_name, encoding='ros2msg',
@@ -109,17 +153,23 @@ class BagWriter:
 
     def write(self, topic: str, data: bytes, log_time_ns: int,
               publish_time_ns: int | None = None) -> None:
-        """Write one serialized (CDR) message."""
+        """
+        Write one serialized (CDR) message.
+
+        :raises BagError: the file cannot be written (a full disk, a device gone): the chunks
+            already on disk stay readable; nothing more is written.
+        """
         t = self._topics[topic]
-        before = self._fh.tell()
-        self._writer.add_message(channel_id=t['channel'], log_time=int(log_time_ns),
-                                 data=bytes(data),
-                                 publish_time=int(log_time_ns if publish_time_ns is None
-                                                  else publish_time_ns),
-                                 sequence=t['count'])
-        if self._fh.tell() != before:  # a chunk was completed: put it on disk now
-            self._fh.flush()
-            self._chunk_opened = None
+        with self._writing():
+            before = self._fh.tell()
+            self._writer.add_message(channel_id=t['channel'], log_time=int(log_time_ns),
+                                     data=bytes(data),
+                                     publish_time=int(log_time_ns if publish_time_ns is None
+                                                      else publish_time_ns),
+                                     sequence=t['count'])
+            if self._fh.tell() != before:  # a chunk was completed: put it on disk now
+                self._fh.flush()
+                self._chunk_opened = None
         if self._chunk_opened is None:
             self._chunk_opened = time.monotonic()
         self.flush_if_due()
@@ -133,9 +183,10 @@ class BagWriter:
 
         Call it now and then when messages may stop coming.
         """
-        if (self._chunk_opened is not None and not self._closed
+        if (self._chunk_opened is not None and not self._closed and not self.failed
                 and time.monotonic() - self._chunk_opened >= self.chunk_seconds):
-            self._writer.flush()
+            with self._writing():
+                self._writer.flush()
             self._chunk_opened = None
 
     def write_message(self, topic: str, msg, log_time_ns: int,
@@ -149,8 +200,9 @@ class BagWriter:
         The description is the scene YAML and the settings; values that are not strings are stored
         as JSON.
         """
-        self._writer.add_metadata(RUN_RECORD, {k: v if isinstance(v, str) else json.dumps(v)
-                                               for k, v in data.items()})
+        with self._writing():
+            self._writer.add_metadata(RUN_RECORD, {
+                k: v if isinstance(v, str) else json.dumps(v) for k, v in data.items()})
 
     @property
     def message_count(self) -> int:
@@ -189,15 +241,43 @@ class BagWriter:
         return yaml.safe_dump(self._info(), sort_keys=False)
 
     def close(self) -> None:
-        """Finalise the file (metadata record, summary) and write ``metadata.yaml``."""
+        """
+        Finalise the file (metadata record, summary) and write ``metadata.yaml``.
+
+        After a failed write the file is closed as it is: its completed chunks stay readable
+        (readers that scan a file without a summary read them).
+
+        :raises BagError: finalising failed (a full disk).
+        """
         if self._closed:
             return
         self._closed = True
-        self._writer.add_metadata('rosbag2', {'serialized_metadata': self._info_yaml()})
-        self._writer.finish()
-        self._fh.close()
-        (self.directory / 'metadata.yaml').write_text(
-            yaml.safe_dump({'rosbag2_bagfile_information': self._info()}, sort_keys=False))
+        try:
+            if not self.failed:
+                self._writer.add_metadata('rosbag2',
+                                          {'serialized_metadata': self._info_yaml()})
+                self._writer.finish()
+        except OSError as exc:
+            self.failed = f'cannot write: {exc.strerror or exc}'
+        finally:
+            with contextlib.suppress(OSError):
+                self._fh.close()
+        if self.failed:
+            raise BagError(f'{self.directory}: {self.failed}')
+        try:
+            (self.directory / 'metadata.yaml').write_text(
+                yaml.safe_dump({'rosbag2_bagfile_information': self._info()},
+                               sort_keys=False))
+        except OSError as exc:
+            raise BagError(f'{self.directory}: cannot write metadata.yaml: '
+                           f'{exc.strerror or exc}') from None
+
+    def discard(self) -> None:
+        """Close the file as it is and remove the bag's folder (a run that did not finish)."""
+        self._closed = True
+        with contextlib.suppress(OSError):
+            self._fh.close()
+        shutil.rmtree(self.directory, ignore_errors=True)
 
     def __enter__(self) -> 'BagWriter':
         return self

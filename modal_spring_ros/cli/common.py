@@ -106,10 +106,16 @@ def claimed_outputs(outputs: dict[str, str | None],
 
 
 def write_output(path: str, option: str, write: Callable[[], None]) -> None:
-    """Run ``write`` (which writes ``path``); a failure is one line naming ``option``."""
+    """
+    Run ``write`` (which writes ``path``); a failure is one line naming ``option``.
+
+    A file the failure left half-written (a full disk) is removed: no truncated output stays.
+    """
     try:
         write()
     except OSError as exc:
+        with contextlib.suppress(OSError):
+            os.remove(path)
         raise ValueError(f'{option} {path}: cannot write: {exc.strerror or exc}') from None
 
 

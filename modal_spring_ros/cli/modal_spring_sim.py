@@ -66,9 +66,12 @@ def main(argv: list[str] | None = None) -> int:
                          on_progress=None if args.quiet else
                          (lambda frac: print(f'[{PROG}] {frac:4.0%}', file=sys.stderr)),
                          on_frame=bag.frame if bag else None)
-        finally:
             if bag:
                 bag.close()
+        except BaseException:  # a full disk, Ctrl-C: no half-written bag is left behind
+            if bag:
+                bag.writer.discard()
+            raise
         wall = time.perf_counter() - start
         steps = max(sim.steps, 1)
         print(summary(sim, run.diverged, wall / steps, wall))

@@ -44,6 +44,7 @@ class StreamReport:
     error: str = ''                    # a failure reported now (ERROR)
     anchor: str = ''                   # what the clamp follows (anchor.source topic)
     anchor_stale: bool = False         # no pose for a while: the clamp holds the last
+    recording: str = ''                # why the capture (record.bag) stopped, if it did
 
 
 def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[int, str]:
@@ -70,6 +71,8 @@ def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[i
         warnings.append(f'spring sample off: {status.forces}')
     if stream.anchor_stale:
         warnings.append(f'anchor pose: {stream.anchor}')
+    if stream.recording:
+        warnings.append(stream.recording)
     if status.max_strain > stream.strain_warning and status.basis.startswith('rest'):
         # the rest modes' regime; the derivative basis follows the sway's rotation beyond it
         warnings.append(f'large deformation: spring strain {status.max_strain:.1%} beyond the '

@@ -9,6 +9,8 @@ the mesh), writes it to the ``record.bag`` capture when there is one, and builds
 """
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 from typing import Any, Callable
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -16,6 +18,7 @@ from geometry_msgs.msg import Point
 from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.bags.pointcloud import CloudBuffer, distance_from_rest
 from modal_spring_ros.bags.stamps import to_time_msg
+from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.scene import Scene
 from modal_spring_ros.core.simulations import Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import diagnostic_array, StreamReport
@@ -61,6 +64,8 @@ class NodeOutputs:
         self._triangles = scene.surface_triangles()
         self._values = values
         self._bag = bag
+        #: why the capture stopped ('' while it records, or when there is none)
+        self.recording_stopped = ''
         # the stream's QoS can be overridden at start, as rclpy nodes commonly allow:
         # -p qos_overrides./<namespace>/points.publisher.reliability:=best_effort (also
         # history, depth, durability)
@@ -90,7 +95,7 @@ class NodeOutputs:
         self._points.publish(cloud.message(header))  # serialised here: the bytes are free again
         positions = cloud.points[:, :3]
         if self._bag is not None:
-            self._bag.frame(sim.time, positions)
+            self._capture(lambda: self._bag.frame(sim.time, positions))
         if values['publish_clock'] and self._clock is not None:
             self._clock.publish(Clock(clock=to_time_msg(sim.time)))
         if not self._announced:
@@ -104,28 +109,46 @@ class NodeOutputs:
         if mesh and self._triangles.size and self._mesh.get_subscription_count() > 0:
             self._mesh.publish(mesh_marker(positions, rest, self._triangles, header))
 
+    def _capture(self, write: Callable[[], None]) -> None:
+        """
+        Write to the capture; if it cannot (a full disk), stop capturing and say so once.
+
+        The stream goes on; what was written stays readable; /diagnostics then reports the
+        stop (WARN) for as long as the node runs.
+        """
+        try:
+            write()
+        except BagError as exc:
+            self.recording_stopped = f'recording stopped: {exc}'
+            self._node.get_logger().error(f'{self.recording_stopped}; the stream goes on')
+            bag, self._bag = self._bag, None
+            with contextlib.suppress(BagError, OSError):
+                bag.close()
+
     def diagnostics(self, status: SimulationStatus, report: StreamReport) -> None:
-        if self._bag is not None:
-            self._bag.writer.flush_if_due()  # frames stop while paused: close their chunk
+        if self._bag is not None:  # frames stop while paused: close their chunk
+            self._capture(self._bag.writer.flush_if_due)
+        if self.recording_stopped:
+            report = dataclasses.replace(report, recording=self.recording_stopped)
         self._diagnostics.publish(diagnostic_array(
             status, report, node=self._node.get_fully_qualified_name(),
             hardware_id=self._scene.name, stamp=self._node.get_clock().now().to_msg()))
 
     def changed(self, sim: Simulation, changed: dict) -> None:
         if self._bag is not None and changed:
-            self._bag.parameter_event(sim.time, changed)
+            self._capture(lambda: self._bag.parameter_event(sim.time, changed))
 
     def received(self, sim: Simulation, message) -> None:
         """Keep an input (pose, clicked point) that took effect at ``sim.time`` in the capture."""
         if self._bag is not None:
-            self._bag.record_input(sim.time, message)
+            self._capture(lambda: self._bag.record_input(sim.time, message))
 
     def log(self, level: str, message: str) -> None:
         logger = self._node.get_logger()
         {'error': logger.error, 'warning': logger.warning, 'info': logger.info}[level](message)
 
     def close(self) -> None:
-        """Finalise the capture, if any."""
+        """Finalise the capture, if any (a failure to is logged, as any capture failure)."""
         if self._bag is not None:
-            self._bag.close()
+            self._capture(self._bag.close)
             self._bag = None
