@@ -23,7 +23,7 @@ import shutil
 import time
 from typing import Any
 
-from mcap.writer import CompressionType, Writer
+from mcap.writer import CompressionType, IndexType, Writer
 from modal_spring_ros import __version__
 from modal_spring_ros.bags.message_definitions import full_definition, type_hash
 from rclpy.serialization import serialize_message
@@ -103,7 +103,10 @@ class BagWriter:
             raise BagError(f'{self.directory}: cannot create: {exc.strerror or exc}') from None
         self.file_name = f'{self.directory.name}_0.mcap'
         self._fh = open(self.directory / self.file_name, 'wb')
-        self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.NONE)
+        # every index but the attachments': a bag has none, and an empty attachment
+        # index group is a summary offset that points at nothing (mcap doctor flags it)
+        self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.NONE,
+                              index_types=IndexType.ALL & ~IndexType.ATTACHMENT)
         self._writer.start(profile='ros2', library=f'modal_spring_ros {__version__}')
         self._schemas: dict[str, int] = {}
         self._topics: dict[str, dict[str, Any]] = {}

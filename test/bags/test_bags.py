@@ -399,3 +399,21 @@ def test_reference_bags_start_at_the_date_they_were_made_and_keep_simulation_sta
     stamps, _ = bag.points()
     assert stamps[0] < 0.1 and abs(stamps[-1] - 3.0) < 0.1
     np.testing.assert_allclose(np.diff(logs) * 1e-9, np.diff(stamps), atol=1e-9)
+
+
+def test_the_summary_has_no_empty_index_group(tmp_path):
+    """Every summary offset points at records (an empty AttachmentIndex group is flagged)."""
+    from mcap.reader import make_reader
+    from mcap.records import SummaryOffset
+    from mcap.stream_reader import StreamReader
+    with BagWriter(tmp_path / 'summary') as writer:
+        writer.add_topic('/data', 'std_msgs/msg/String', '')
+        for i in range(10):
+            writer.write_message('/data', String(data=f'message {i}'), i, i)
+    path = tmp_path / 'summary' / 'summary_0.mcap'
+    with open(path, 'rb') as fh:
+        offsets = [r for r in StreamReader(fh, skip_magic=False).records
+                   if isinstance(r, SummaryOffset)]
+    assert offsets and all(o.group_length > 0 for o in offsets), offsets
+    with open(path, 'rb') as fh:
+        assert len(list(make_reader(fh).iter_messages())) == 10
