@@ -10,6 +10,7 @@ a shell reports a Ctrl-C.
 """
 from __future__ import annotations
 
+import functools
 import importlib
 
 #: Exit status of a run ended by Ctrl-C before it started (128 + SIGINT), as a shell reports it.
@@ -50,41 +51,12 @@ def _interrupted(exc: BaseException) -> bool:
     return False
 
 
-def modal_spring_sim() -> int:
-    """``modal_spring_sim``: headless runs."""
-    return run('modal_spring_sim')
-
-
-def modal_spring_node() -> int:
-    """``modal_spring_node``: the streaming node."""
-    return run('modal_spring_node')
-
-
-def modal_spring_bench() -> int:
-    """``modal_spring_bench``: the benchmarks."""
-    return run('modal_spring_bench')
-
-
-def modal_spring_replay() -> int:
-    """``modal_spring_replay``: play a bag."""
-    return run('modal_spring_replay')
-
-
-def modal_spring_compare() -> int:
-    """``modal_spring_compare``: compare two runs."""
-    return run('modal_spring_compare')
-
-
-def modal_spring_record() -> int:
-    """``modal_spring_record``: record a node."""
-    return run('modal_spring_record')
-
-
-def modal_spring_gripper() -> int:
-    """``modal_spring_gripper``: an example pose stream."""
-    return run('modal_spring_gripper')
-
-
-def modal_spring_render() -> int:
-    """``modal_spring_render``: draw a run."""
-    return run('modal_spring_render')
+# The console scripts' entry points (setup.py names them): each runs its own module's main.
+modal_spring_sim = functools.partial(run, 'modal_spring_sim')
+modal_spring_node = functools.partial(run, 'modal_spring_node')
+modal_spring_bench = functools.partial(run, 'modal_spring_bench')
+modal_spring_replay = functools.partial(run, 'modal_spring_replay')
+modal_spring_compare = functools.partial(run, 'modal_spring_compare')
+modal_spring_record = functools.partial(run, 'modal_spring_record')
+modal_spring_gripper = functools.partial(run, 'modal_spring_gripper')
+modal_spring_render = functools.partial(run, 'modal_spring_render')

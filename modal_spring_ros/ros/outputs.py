@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-from typing import Any, Callable
+from typing import Any, Callable, Protocol
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point
@@ -52,6 +52,20 @@ def mesh_marker(positions: np.ndarray, rest: np.ndarray, triangles: np.ndarray,
     m.points = [Point(x=x, y=y, z=z) for x, y, z in corners.tolist()]
     m.colors = [ColorRGBA(r=c, g=0.2, b=1.0 - c, a=1.0) for c in level.tolist()]
     return m
+
+
+class Outputs(Protocol):
+    """What the thread publishes through (the node's publishers, or a test's recorder)."""
+
+    def frame(self, sim: Simulation, cloud: CloudBuffer, mesh: bool) -> None: ...
+
+    def diagnostics(self, status: SimulationStatus, report: StreamReport) -> None: ...
+
+    def changed(self, sim: Simulation, changed: dict) -> None: ...
+
+    def received(self, sim: Simulation, message) -> None: ...
+
+    def log(self, level: str, message: str) -> None: ...
 
 
 class NodeOutputs:

@@ -17,12 +17,14 @@ import dataclasses
 import queue
 import threading
 import time
-from typing import Callable, Protocol
+from typing import Callable
 
 from modal_spring_ros.bags.pointcloud import CloudBuffer
 from modal_spring_ros.core.simulations import DivergenceError, Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import StreamReport
+from modal_spring_ros.ros.divergence_streak import DivergenceStreak, HeldError
 from modal_spring_ros.ros.inputs import apply_click, apply_pose
+from modal_spring_ros.ros.outputs import Outputs
 from modal_spring_ros.ros.requests import (ChangeBand, FollowPose, Pause, PullPoint,
                                            ReplaceSimulation, Request, Reset)
 
@@ -30,28 +32,6 @@ from modal_spring_ros.ros.requests import (ChangeBand, FollowPose, Pause, PullPo
 DIAGNOSTICS_PERIOD_S = 1.0
 #: wait before trying again when even recovering failed, s
 RECOVERY_RETRY_S = 0.5
-#: Divergences in a row (each within ``HEALTHY_S`` of simulated time after the recovery before
-#: it) after which the run is held at rest and inputs are refused until ``~/reset``: the same
-#: input again and again must not loop through divergences forever.
-MAX_RECOVERIES, HEALTHY_S = 3, 2.0
-
-
-class HeldError(RuntimeError):
-    """An input refused because the run is held after repeated divergence."""
-
-
-class Outputs(Protocol):
-    """What the thread publishes through (the node's publishers, or a test's recorder)."""
-
-    def frame(self, sim: Simulation, cloud: CloudBuffer, mesh: bool) -> None: ...
-
-    def diagnostics(self, status: SimulationStatus, report: StreamReport) -> None: ...
-
-    def changed(self, sim: Simulation, changed: dict) -> None: ...
-
-    def received(self, sim: Simulation, message) -> None: ...
-
-    def log(self, level: str, message: str) -> None: ...
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,8 +93,7 @@ class SimulationThread:
         self._cloud: CloudBuffer | None = None  # the frames' bytes, reused (see _publish_frame)
         self._cloud_scene = None
         self._divergences = 0
-        self._streak = 0                # divergences in a row
-        self.held = ''                  # why the run is held (after MAX_RECOVERIES), or ''
+        self._streak = DivergenceStreak()
         self._last_divergence = ''
         self._diverged_recently = False
         self._last_status = sim.status()
@@ -265,18 +244,16 @@ class SimulationThread:
             PullPoint: self._pull}
         return handlers[type(request)](request)
 
-    def _refuse_while_held(self) -> None:
-        if self.held:
-            raise HeldError(f'refused: {self.held}')
+    held = property(lambda self: self._streak.held, doc='Why the run is held, or empty.')
 
     def _follow(self, request: FollowPose) -> str:
-        self._refuse_while_held()
+        self._streak.refuse_while_held()
         message = apply_pose(self.sim, request.message)
         self._outputs.received(self.sim, request.message)
         return message
 
     def _pull(self, request: PullPoint) -> str:
-        self._refuse_while_held()
+        self._streak.refuse_while_held()
         message = apply_click(self.sim, request.message, request.stiffness, request.max_force,
                               request.hold_s)
         self._outputs.received(self.sim, request.message)
@@ -297,7 +274,7 @@ class SimulationThread:
     def _reset(self, request: Reset) -> str:
         self.sim.model.scene.anchor_motion.clear()  # a followed clamp forgets its poses
         self.sim.reset()
-        self._streak, self.held = 0, ''
+        self._streak.clear()
         self._reanchor(window_valid=False)
         return 'back to the rest state at t = 0'
 
@@ -379,12 +356,9 @@ class SimulationThread:
     # -- failures ------------------------------------------------------------------------------
     def _on_divergence(self, exc: DivergenceError) -> None:
         self._divergences += 1
-        self._streak = self._streak + 1 if exc.time < HEALTHY_S else 1
         self._last_divergence = str(exc)
         self._diverged_recently = True
-        if self._streak >= MAX_RECOVERIES:
-            self.held = (f'{self._streak} divergences in a row (last: {exc}): holding at rest, '
-                         'inputs refused until ~/reset')
+        if self._streak.diverged(exc):
             self._outputs.log('error', self.held)
             self._publish_diagnostics(self._settings(), error=self.held)
         else:

@@ -242,7 +242,7 @@ def test_a_divergence_that_comes_back_every_time_is_held_and_reported_once(
         running, monkeypatch):
     """The same input again and again must not loop through divergences forever."""
     from modal_spring_ros.core.simulations import DivergenceError
-    from modal_spring_ros.ros.simulation_thread import MAX_RECOVERIES
+    from modal_spring_ros.ros.divergence_streak import MAX_RECOVERIES
     thread, out = running()
     sim = thread.sim
     real = sim._step_once
