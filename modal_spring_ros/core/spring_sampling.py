@@ -41,7 +41,7 @@ SPREAD = 10
 MAX_ROUNDS = 200
 #: A sample that needs this share of the springs and still misses the tolerance cannot pay (it
 #: would cost about as much as every spring): training gives up and says so.
-MAX_SAMPLE_SHARE = 0.5
+MAX_SAMPLE_SHARE = 0.9
 
 
 @dataclasses.dataclass(frozen=True)

@@ -166,7 +166,8 @@ class SimulationThread:
                 else:  # as fast as possible: as many steps as fit until the frame is due
                     self._step_until(float('inf'), next_publish)
             now = time.monotonic()
-            if self.sim.time != published_time and not self.paused:
+            # a held run goes on publishing its held state: the stream never goes silent
+            if (self.sim.time != published_time or self.held) and not self.paused:
                 mesh = now >= next_mesh and settings.mesh_rate_hz > 0
                 self._publish_frame(mesh)
                 published_time = self.sim.time

@@ -15,7 +15,7 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.sampled_forces import cache_folder, check_spacing, SampledForces
 from modal_spring_ros.core.simulations import ModalSimulation
-from modal_spring_ros.core.spring_sampling import SpringSample
+from modal_spring_ros.core.spring_sampling import MAX_SAMPLE_SHARE, SpringSample
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -211,7 +211,7 @@ def test_training_gives_up_early_where_sampling_cannot_pay(sheet_10x10):
                           sample_tolerance=0.01, progress=said.append)
     sample = sim._forces.sample
     assert sample.gave_up.startswith('sampling cannot pay here')
-    assert sample.count >= 0.5 * model.scene.n_springs
+    assert sample.count >= MAX_SAMPLE_SHARE * model.scene.n_springs
     assert sim.forces_fell_back and sim.describe_forces().startswith('exact (sampling cannot pay')
     assert any('sampling cannot pay here' in line for line in said)
     # it took a few training rounds, not the two hundred of before: fewer than ten reported

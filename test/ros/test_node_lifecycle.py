@@ -200,6 +200,16 @@ def test_divergence_is_reported_not_published_and_recovered_from():
             assert np.isfinite(cloud).all()
         values = {kv.key: kv.value for kv in errors[-1].values}
         assert int(values['divergences']) >= 1
+        # the same drop diverging again and again: held at rest after three in a row, said
+        # once, and the count stops growing (no endless loop of recoveries)
+        assert wait_for(lambda: any('holding at rest' in s.message
+                                    for _, s in _status(diags, '/diverge/')), 10)
+        held = [s for _, s in _status(diags, '/diverge/') if 'holding at rest' in s.message]
+        assert held[0].message.startswith('3 divergences in a row')
+        count = int({kv.key: kv.value for kv in held[0].values}['divergences'])
+        time.sleep(2.0)
+        last = _status(diags, '/diverge/')[-1][1]
+        assert int({kv.key: kv.value for kv in last.values}['divergences']) == count
 
 
 def test_a_host_that_cannot_keep_real_time_says_so():
