@@ -68,5 +68,8 @@ def test_ctrl_c_while_the_node_starts_ends_it_quietly(delay):
     except subprocess.TimeoutExpired:
         proc.kill()
         raise AssertionError(f'still running 30 s after SIGINT at {delay} s') from None
-    assert proc.returncode in (0, EXIT_INTERRUPTED), (proc.returncode, err[-2000:])
+    # 0: it had started and ended cleanly; 130: interrupted while importing; -SIGINT: the
+    # signal came before the interpreter was up (a busy machine), ended as any program is
+    assert proc.returncode in (0, EXIT_INTERRUPTED, -signal.SIGINT), (proc.returncode,
+                                                                      err[-2000:])
     assert 'Traceback' not in err, err[-2000:]
