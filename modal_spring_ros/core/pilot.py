@@ -200,7 +200,7 @@ class Pilot:
         sim = self.make(plan)
         sample_s = sim.dt * max(1, int(round(self.window_s / SAMPLES / sim.dt)))
         samples = max(1, int(math.ceil(self.window_s / sample_s)))
-        reference, against = self._reference(plan, sim, sample_s, samples)
+        reference, against = self._reference(plan, sample_s, samples)
         self._sampling = (sample_s, samples, reference, against)
         budget = PILOT_MARGIN * self.tolerance
         error = planned = relative_error(trajectory(sim, sample_s, samples), reference)
@@ -226,7 +226,7 @@ class Pilot:
         return self._choose(sim, plan, error, planned, against, tuple(refined))
 
     # -- internals -----------------------------------------------------------------------------
-    def _reference(self, plan: PlanSettings, sim: Simulation, sample_s: float, samples: int
+    def _reference(self, plan: PlanSettings, sample_s: float, samples: int
                    ) -> tuple[np.ndarray, str]:
         if self.full is not None:
             found = self._converged_full_run(plan, sample_s, samples)
