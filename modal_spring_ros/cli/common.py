@@ -109,13 +109,15 @@ def write_output(path: str, option: str, write: Callable[[], None]) -> None:
     """
     Run ``write`` (which writes ``path``); a failure is one line naming ``option``.
 
-    A file the failure left half-written (a full disk) is removed: no truncated output stays.
+    A regular file the failure left half-written (a full disk) is removed: no truncated output
+    stays. Anything else (a device such as /dev/full, a FIFO, a link) is never removed.
     """
     try:
         write()
     except OSError as exc:
-        with contextlib.suppress(OSError):
-            os.remove(path)
+        if os.path.isfile(path) and not os.path.islink(path):
+            with contextlib.suppress(OSError):
+                os.remove(path)
         raise ValueError(f'{option} {path}: cannot write: {exc.strerror or exc}') from None
 
 

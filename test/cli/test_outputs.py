@@ -6,6 +6,9 @@ refused at once with one line, and a failed command leaves no file behind.
 """
 from __future__ import annotations
 
+import os
+import stat
+
 from helpers import BAGS
 from modal_spring_ros.cli import modal_spring_compare, modal_spring_sim
 import pytest
@@ -32,10 +35,13 @@ def _error(main, argv, capsys) -> str:
 def test_an_output_that_cannot_be_written_fails_before_the_run(target, message, tmp_path,
                                                                capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
+    kind = os.stat(target).st_mode if os.path.exists(target) else None
     err = _error(modal_spring_sim.main, ['--duration', '0.01', '--quiet', '--output', target],
                  capsys)
     assert message in err
     assert list(tmp_path.iterdir()) == []               # nothing left behind
+    if kind is not None:                                 # and what was there is still there
+        assert stat.S_IFMT(os.stat(target).st_mode) == stat.S_IFMT(kind)
 
 
 def test_output_and_bag_may_not_be_the_same_path(tmp_path, capsys):

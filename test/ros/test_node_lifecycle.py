@@ -281,8 +281,10 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
         steady = float(np.diff(times[(received > start - 3.0) & (received < start)]).max())
         worst = float(np.diff(times[received > start - 0.5]).max())
         print(f'longest gap {worst:.3f} s (steady: {steady:.3f} s)')
-        # here about 0.05 s (3 periods); on a loaded host no worse than its steady gaps allow
-        assert worst < max(0.15, 3.0 * steady), (worst, steady, [s.message for _, s in mine])
+        # here about 0.05-0.2 s; within five of the same run's longest steady gaps (what the
+        # eigensolver in the node's own interpreter once did: 0.07-0.2 s at each hold, every time)
+        assert worst < 5.0 * max(steady, 1.0 / 60.0), (worst, steady,
+                                                       [s.message for _, s in mine])
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
