@@ -121,13 +121,13 @@ def pilot_window(model: MassSpringModel, lowest_hz: float) -> float:
     return float(min(MAX_WINDOW_S, max(MIN_WINDOW_S, window)))
 
 
-def work_per_second(sim: Simulation, sample_springs: int | None = None) -> float:
+def work_per_second(sim: Simulation) -> float:
     """
     Return the modelled CPU time ``sim`` takes per simulated second, us (see ``STEP_US``).
 
     Deterministic (no clock is read), so that the same scene and settings give the same plan on
-    any machine and under any load. ``sample_springs``: springs a sampled plan evaluates (about
-    four per coordinate when not known yet).
+    any machine and under any load. A sampled plan is taken to evaluate about four springs per
+    coordinate (its sample is trained only once the plan is chosen).
     """
     model = sim.model
     springs = model.scene.n_springs
@@ -137,7 +137,7 @@ def work_per_second(sim: Simulation, sample_springs: int | None = None) -> float
         return per_step / sim.dt
     coords = sim.coordinates
     if getattr(sim, 'sample_tolerance', None) is not None:
-        evaluated = float(sample_springs or min(springs, 4 * coords))
+        evaluated = float(min(springs, 4 * coords))
         per_step = (STEP_US['modal'] + turning + SPRING_US * evaluated
                     + PROJECTION_US * evaluated * 2 * model.dimension * coords)
     else:
@@ -163,7 +163,7 @@ def trajectory(sim: Simulation, sample_s: float, samples: int) -> np.ndarray | N
     return out if np.isfinite(out).all() else None
 
 
-def relative_error(run: np.ndarray | None, reference: np.ndarray) -> float:
+def trajectory_error(run: np.ndarray | None, reference: np.ndarray) -> float:
     """Relative L2 error of a trajectory against the reference (inf where it diverged)."""
     if run is None:
         return math.inf
@@ -203,7 +203,7 @@ class Pilot:
         reference, against = self._reference(plan, sample_s, samples)
         self._sampling = (sample_s, samples, reference, against)
         budget = PILOT_MARGIN * self.tolerance
-        error = planned = relative_error(trajectory(sim, sample_s, samples), reference)
+        error = planned = trajectory_error(trajectory(sim, sample_s, samples), reference)
         refined: list[str] = []
         for _ in range(MAX_ROUNDS):
             if error <= budget:
@@ -211,7 +211,7 @@ class Pilot:
             options = []
             for name, candidate in self._refinements(plan):
                 trial = self.make(candidate)
-                measured = relative_error(trajectory(trial, sample_s, samples), reference)
+                measured = trajectory_error(trajectory(trial, sample_s, samples), reference)
                 options.append((measured, work_per_second(trial), name, candidate, trial))
             if not options:
                 break
@@ -264,7 +264,7 @@ class Pilot:
             fine = trajectory(full, sample_s, samples)
             if fine is None:
                 return None
-            if coarse is not None and (relative_error(coarse, fine) / 3.0
+            if coarse is not None and (trajectory_error(coarse, fine) / 3.0
                                        <= REFERENCE_ACCURACY * self.tolerance):
                 self._reference_dt = full.dt
                 return (4.0 * fine - coarse) / 3.0
@@ -315,7 +315,7 @@ class Pilot:
         step = plan.dt
         while True:
             full = self.full(step, sample_s)
-            error = relative_error(trajectory(full, sample_s, samples), reference)
+            error = trajectory_error(trajectory(full, sample_s, samples), reference)
             if error <= PILOT_MARGIN * self.tolerance or step <= shortest:
                 return full, error
             step /= 2.0

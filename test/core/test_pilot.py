@@ -10,7 +10,7 @@ import math
 
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.pilot import relative_error, trajectory
+from modal_spring_ros.core.pilot import trajectory, trajectory_error
 from modal_spring_ros.scenes.generator import random_scene
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -34,7 +34,7 @@ def converged_full_run(scene, sample_s: float, samples: int) -> np.ndarray:
     coarse = None
     for _ in range(10):
         fine = trajectory(full.with_dt(sample_s / math.ceil(sample_s / step)), sample_s, samples)
-        if coarse is not None and relative_error(coarse, fine) / 3.0 < 0.1 * TOLERANCE:
+        if coarse is not None and trajectory_error(coarse, fine) / 3.0 < 0.1 * TOLERANCE:
             return (4.0 * fine - coarse) / 3.0
         coarse, step = fine, step / 2.0
     raise AssertionError('the reference did not converge')
@@ -55,7 +55,7 @@ def test_auto_meets_its_tolerance_on_random_scenes_or_refuses():
         samples = int(DURATION_S / SAMPLE_S)
         sample_s = sim.dt * max(1, round(SAMPLE_S / sim.dt))
         reference = converged_full_run(scene, sample_s, samples)
-        achieved[seed] = relative_error(trajectory(sim, sample_s, samples), reference)
+        achieved[seed] = trajectory_error(trajectory(sim, sample_s, samples), reference)
     assert len(refused) <= 1, refused
     errors = np.array(list(achieved.values()))
     assert np.all(errors <= 2 * TOLERANCE), achieved                 # never beyond 2 T
