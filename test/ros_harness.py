@@ -178,6 +178,21 @@ def wait_for(predicate, timeout: float, interval: float = 0.02) -> bool:
     return predicate()
 
 
+def frames_since(received: list, start: float, count: int, timeout: float = 20.0) -> list:
+    """
+    Wait for ``count`` messages received after ``start`` (monotonic); return all of them.
+
+    A stream that goes on reaches the count; a busy machine may slow it but never fails the
+    test: how steady the stream stays under load is measured against the same run's steady
+    rate where a test means it (``test_node_stress``), never as a fixed rate.
+    """
+    def window():
+        return [m for t, m in list(received) if t > start]
+    assert wait_for(lambda: len(window()) >= count, timeout), (
+        f'{len(window())} messages in {time.monotonic() - start:.1f} s, {count} expected')
+    return window()
+
+
 @contextlib.contextmanager
 def node_with_client(*params: str, namespace: str, argv: list[str] | None = None):
     """

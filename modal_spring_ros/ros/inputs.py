@@ -71,6 +71,7 @@ class NodeInputs:
         self._submit = submit
         self._lock = threading.Lock()
         self._last_pose = 0.0        # monotonic time of the last accepted pose
+        self._last_warning = -math.inf
         self.refused = 0
         if follower is not None:
             node.create_subscription(PoseStamped, ANCHOR_TOPIC, self._on_pose, QUEUE_DEPTH,
@@ -91,10 +92,15 @@ class NodeInputs:
         return f'following {ANCHOR_TOPIC} (last pose {age:.2f} s ago){refused}', False
 
     def _refuse(self, what: str, why: str) -> None:
+        # throttled here, not by the logger: rclpy's throttle looks up its caller's source line
+        # on every call (0.5 ms), which a flood of bad messages would spend on nothing
+        now = time.monotonic()
         with self._lock:
             self.refused += 1
-        self._node.get_logger().warning(f'{what} refused: {why}',
-                                        throttle_duration_sec=WARN_PERIOD_S)
+            if now - self._last_warning < WARN_PERIOD_S:
+                return
+            self._last_warning = now
+        self._node.get_logger().warning(f'{what} refused: {why}')
 
     def _frame_problem(self, frame_id: str) -> str | None:
         expected = self._values()['frame_id']
