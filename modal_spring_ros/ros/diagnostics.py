@@ -45,6 +45,8 @@ class StreamReport:
     anchor: str = ''                   # what the clamp follows (anchor.source topic)
     anchor_stale: bool = False         # no pose for a while: the clamp holds the last
     recording: str = ''                # why the capture (record.bag) stopped, if it did
+    parameters_preparing: str = ''     # parameter changes accepted and still being prepared
+    parameters_reverted: str = ''      # a change that failed after it was accepted, recently
 
 
 def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[int, str]:
@@ -73,6 +75,8 @@ def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[i
         warnings.append(f'anchor pose: {stream.anchor}')
     if stream.recording:
         warnings.append(stream.recording)
+    if stream.parameters_reverted:
+        warnings.append(f'parameter change {stream.parameters_reverted}')
     if status.max_strain > stream.strain_warning and status.basis.startswith('rest'):
         # the rest modes' regime; the derivative basis follows the sway's rotation beyond it
         warnings.append(f'large deformation: spring strain {status.max_strain:.1%} beyond the '
@@ -114,6 +118,7 @@ def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, s
         'paused': str(stream.paused).lower(),
         'longest gap between frames (s)': f'{stream.longest_gap_s:.3f}',
         'computing modes': str(stream.computing_modes).lower(),
+        'parameter changes pending': stream.parameters_preparing or 'none',
         **({'anchor pose': stream.anchor} if stream.anchor else {}),
     }
 

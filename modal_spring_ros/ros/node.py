@@ -3,11 +3,12 @@
 
 Wiring only. The simulation thread (:mod:`~modal_spring_ros.ros.simulation_thread`) steps at a
 fixed ``sim.dt`` and publishes on its own period through the node's outputs
-(:mod:`~modal_spring_ros.ros.outputs`). The executor serves parameter requests (planned by
-:mod:`~modal_spring_ros.ros.parameter_changes`, which computes missing modes, on large scenes
-in a worker process) and the ``~/reset`` and ``~/pause`` services, in a callback group of their
-own so that a long mode computation never delays them. Every change reaches the simulation
-thread as one typed request (:mod:`~modal_spring_ros.ros.requests`).
+(:mod:`~modal_spring_ros.ros.outputs`). The executor serves parameter requests (validated at
+once; their slow part planned by :mod:`~modal_spring_ros.ros.parameter_changes` in the change
+preparer's thread, :mod:`~modal_spring_ros.ros.change_preparer`, which computes missing modes,
+on large scenes in a worker process, so that no request waits behind a slow one) and the
+``~/reset`` and ``~/pause`` services, in a callback group of their own. Every change reaches
+the simulation thread as one typed request (:mod:`~modal_spring_ros.ros.requests`).
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
 (Marker TRIANGLE_LIST, for scenes with a surface, when subscribed), ``/diagnostics``, and
@@ -24,11 +25,13 @@ from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError, WorkerProcess
+from modal_spring_ros.ros.change_preparer import ChangePreparer, ChangeRefused, describe
 from modal_spring_ros.ros.inputs import NodeInputs
 from modal_spring_ros.ros.outputs import NodeOutputs
-from modal_spring_ros.ros.parameter_changes import ChangePlanner
+from modal_spring_ros.ros.parameter_changes import ChangePlanner, PlannedChange
 from modal_spring_ros.ros.parameters import (config_from_parameters, FREQUENCIES,
-                                             FREQUENCIES_DESCRIPTOR, PARAMETERS)
+                                             FREQUENCIES_DESCRIPTOR, PARAMETERS,
+                                             SLOW_PARAMETERS)
 from modal_spring_ros.ros.requests import Pause, Request, Reset
 from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
 from modal_spring_ros.scenes.resources import load_scene
@@ -66,9 +69,10 @@ class ModalSpringNode(Node):
             self._worker.close()
             raise
         self._planner = ChangePlanner(sim.model, sim.basis)
-        self._lock = threading.Lock()  # one parameter change at a time
-        self._own_update = threading.local()  # the node setting modal.frequencies_hz itself
-        self._computing = False
+        self._lock = threading.Lock()  # guards the two views of the parameters below
+        self._applied = dict(self._values)  # what the run has (a pending change not yet)
+        self._own_update = threading.local()  # the node setting parameters itself
+        self._preparer = ChangePreparer(self._prepare, self._commit, self._revert)
         self.declare_parameter(FREQUENCIES, sim.basis.frequencies_hz.tolist(),
                                FREQUENCIES_DESCRIPTOR)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -76,9 +80,9 @@ class ModalSpringNode(Node):
         self._outputs = NodeOutputs(self, scene, lambda: self._values, self._open_capture(sim))
         self._thread = SimulationThread(
             sim, self._outputs, self._stream_settings,
-            rebuild=lambda: rebuild(sim.model, sim.basis, config_from_parameters(self._values)),
-            computing_modes=lambda: self._computing, running=self.context.ok,
-            anchor_status=lambda: self._inputs.anchor_status())
+            rebuild=lambda: rebuild(sim.model, sim.basis, config_from_parameters(self._applied)),
+            computing_modes=lambda: self._preparer.busy, running=self.context.ok,
+            node_report=self._report)
         follower = scene.anchor_motion if self._values['anchor.source'] == 'topic' else None
         self._inputs = NodeInputs(self, follower, lambda: self._values, self._thread.submit,
                                   MutuallyExclusiveCallbackGroup())
@@ -113,9 +117,15 @@ class ModalSpringNode(Node):
 
     # -- parameters ----------------------------------------------------------------------------
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        """
+        Validate a request and answer it within :data:`ANSWER_WITHIN_S`.
+
+        Cheap checks here; the slow part (modes, operators, a new simulation) in the change
+        preparer (:mod:`~modal_spring_ros.ros.change_preparer`).
+        """
+        if getattr(self._own_update, 'active', False):   # the node itself: frequencies, reverts
+            return SetParametersResult(successful=True)
         if any(p.name == FREQUENCIES for p in params):
-            if getattr(self._own_update, 'active', False):
-                return SetParametersResult(successful=True)
             return SetParametersResult(
                 successful=False, reason=f'{FREQUENCIES} is read-only: the node reports the '
                 'frequencies of the modes it has computed')
@@ -123,33 +133,73 @@ class ModalSpringNode(Node):
         if not incoming:
             return SetParametersResult(successful=True)
         with self._lock:
-            self._computing = True
-            try:
-                change = self._planner.plan(self._values, incoming, self._thread.sim)
-            except (ValueError, SceneError, WorkerError) as exc:
-                self.get_logger().warning(f'parameter change rejected: {exc}')
-                return SetParametersResult(successful=False, reason=str(exc))
-            finally:
-                self._computing = False
-            self._publish_frequencies()
-            if change.values['publish_clock']:
+            requested = dict(self._values, **incoming)
+        try:
+            config_from_parameters(requested)       # values, ranges, the band's edges
+        except ValueError as exc:
+            return self._refused(str(exc))
+        slow = {k: v for k, v in incoming.items() if k in SLOW_PARAMETERS}
+        reason = ''
+        if slow:
+            accepted, reason = self._preparer.request(slow)
+            if not accepted:
+                return self._refused(reason)
+        with self._lock:
+            self._values = dict(self._values, **incoming)
+            self._applied.update({k: v for k, v in incoming.items() if k not in slow})
+            if self._values['publish_clock']:
                 self._outputs.enable_clock()
-            self._values = change.values
-            if change.request is not None:
-                self._thread.submit(change.request)
         self._thread.settings_changed()
-        return SetParametersResult(successful=True)
+        return SetParametersResult(successful=True, reason=reason)
+
+    def _refused(self, reason: str) -> SetParametersResult:
+        self.get_logger().warning(f'parameter change rejected: {reason}')
+        return SetParametersResult(successful=False, reason=reason)
+
+    def _prepare(self, incoming: dict) -> PlannedChange:
+        with self._lock:
+            applied = dict(self._applied)
+        try:
+            return self._planner.plan(applied, incoming, self._thread.sim)
+        except (ValueError, SceneError, WorkerError) as exc:
+            raise ChangeRefused(str(exc)) from exc
+
+    def _commit(self, incoming: dict, change: PlannedChange) -> None:
+        with self._lock:
+            self._applied.update(incoming)
+        self._publish_frequencies()
+        if change.request is not None:
+            self._thread.submit(change.request)
+
+    def _revert(self, incoming: dict, reason: str) -> None:
+        """Set back what a change answered as accepted set, unless something newer has."""
+        with self._lock:
+            back = {k: self._applied[k] for k, v in incoming.items() if self._values[k] == v}
+            self._values.update(back)
+        self.get_logger().error(f'parameter change {describe(incoming)} failed after it was '
+                                f'accepted: {reason}; back to {describe(back)}')
+        self._set_own([Parameter(k, value=v) for k, v in back.items()])
+
+    def _set_own(self, params: list[Parameter]) -> None:
+        self._own_update.active = True
+        try:
+            self.set_parameters(params)
+        finally:
+            self._own_update.active = False
+
+    def _report(self) -> dict:
+        """Return what the node adds to the simulation thread's report on /diagnostics."""
+        anchor, stale = self._inputs.anchor_status()
+        state = self._preparer.state()
+        return {'anchor': anchor, 'anchor_stale': stale,
+                'parameters_preparing': state.preparing, 'parameters_reverted': state.reverted}
 
     def _publish_frequencies(self) -> None:
         """Update modal.frequencies_hz when a band made the node compute more modes."""
         freqs = self._planner.basis.frequencies_hz.tolist()
         if len(freqs) == len(self.get_parameter(FREQUENCIES).value):
             return
-        self._own_update.active = True
-        try:
-            self.set_parameters([Parameter(FREQUENCIES, value=freqs)])
-        finally:
-            self._own_update.active = False
+        self._set_own([Parameter(FREQUENCIES, value=freqs)])
 
     # -- services ------------------------------------------------------------------------------
     def _answer(self, request: Request, response):
@@ -167,5 +217,6 @@ class ModalSpringNode(Node):
     def stop(self) -> None:
         """Stop the simulation thread (before destroy_node) and finalise the capture."""
         self._worker.close()
+        self._preparer.stop()
         self._thread.stop()
         self._outputs.close()

@@ -171,6 +171,8 @@ REBUILD_PARAMETERS = frozenset({'method', 'integrator', 'sim.dt', 'modal.auto',
 #: parameters of the band
 BAND_PARAMETERS = frozenset({'filter.type', 'filter.by', 'filter.low_hz', 'filter.high_hz',
                              'filter.low_mode', 'filter.high_mode', 'filter.transition_s'})
+#: parameters whose change has a slow part (prepared off the parameter services' thread)
+SLOW_PARAMETERS = REBUILD_PARAMETERS | BAND_PARAMETERS
 #: string parameters with a fixed set of values
 CHOICES = {'method': tuple(METHODS), 'filter.type': FILTER_TYPES, 'filter.by': UNITS,
            'integrator': tuple(INTEGRATORS), 'stamp': STAMPS, 'modal.basis': BASES,

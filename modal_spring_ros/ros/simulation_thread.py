@@ -66,18 +66,19 @@ class SimulationThread:
                  rebuild: Callable[[], Simulation],
                  computing_modes: Callable[[], bool] = lambda: False,
                  running: Callable[[], bool] = lambda: True,
-                 anchor_status: Callable[[], tuple[str, bool]] = lambda: ('', False)):
+                 node_report: Callable[[], dict] = dict):
         """
         Step ``sim`` and publish through ``outputs`` with the ``settings`` of the moment.
 
         ``rebuild``: a fresh simulation of the current settings at rest (the last resort of
         recovery); ``computing_modes``: whether a request is computing modes right now;
         ``running``: False once the node is shutting down (its publishers are then gone, and the
-        thread ends instead of reporting them as failures); ``anchor_status``: what the clamp
-        follows, and whether no pose came for a while.
+        thread ends instead of reporting them as failures); ``node_report``: what the node
+        adds to each report (:class:`StreamReport` fields: the clamp's pose stream, pending
+        parameter changes).
         """
         self._running = running
-        self._anchor_status = anchor_status
+        self._node_report = node_report
         self.sim = sim
         self.paused = False
         self._outputs = outputs
@@ -316,7 +317,6 @@ class SimulationThread:
         now = time.monotonic()
         span = now - w.wall
         achieved = (self.sim.time - w.sim_time) / span if span > 0 and w.valid else 0.0
-        anchor, stale = self._anchor_status()
         return StreamReport(
             window_s=span, window_valid=w.valid, achieved_rtf=achieved,
             requested_rtf=settings.realtime_factor,
@@ -326,8 +326,7 @@ class SimulationThread:
             computing_modes=w.computing_modes or self._computing_modes(), paused=self.paused,
             strain_warning=settings.strain_warning, divergences=self._divergences,
             last_divergence=self._last_divergence,
-            diverged_recently=self._diverged_recently, error=error,
-            anchor=anchor, anchor_stale=stale)
+            diverged_recently=self._diverged_recently, error=error, **self._node_report())
 
     def _status(self) -> SimulationStatus:
         """Return the simulation's status, or the last one read when it cannot give one."""

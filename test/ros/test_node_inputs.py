@@ -200,6 +200,8 @@ def test_the_capture_of_a_driven_run_resimulates_frame_for_frame(tmp_path):
 
 
 class _CountingLogger:
+    """Counts the warnings a node would log."""
+
     def __init__(self):
         self.warnings = []
 
