@@ -144,6 +144,8 @@ class ModalSpringNode(Node):
             accepted, reason = self._preparer.request(slow)
             if not accepted:
                 return self._refused(reason)
+            if reason:      # rclpy answers a success without its reason: said in the log
+                self.get_logger().info(f'parameter change accepted, {reason}')
         with self._lock:
             self._values = dict(self._values, **incoming)
             self._applied.update({k: v for k, v in incoming.items() if k not in slow})
