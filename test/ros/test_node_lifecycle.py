@@ -246,8 +246,8 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
     """
     sheet_100x100 starts with 32 modes.
 
-    A band up to mode 99 makes the node compute more inside the parameter request, in its worker
-    process, and build the switch there. The stream must go on meanwhile: in-process, the
+    A band up to mode 99 makes the node compute more (its change preparer, in the worker
+    process) and build the switch there. The stream must go on meanwhile: in-process, the
     eigensolver held the interpreter for 0.07-0.2 s at a time. (Rest modes: what the worker keeps
     off the stream is measured here; the derivative basis adds the band's derivatives to the
     request.)
@@ -260,17 +260,24 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
         assert wait_for(lambda: len(points) > 10, 60)
         time.sleep(3.0)                                  # a steady window to compare with
         start = time.monotonic()
-        (result,) = client.set_parameters('grow/modal_spring', timeout=180.0,
+        (result,) = client.set_parameters('grow/modal_spring', timeout=10.0,
                                           filter__high_mode=99)
-        assert result.successful, result.reason
+        assert result.successful, result.reason          # at once: pending, or done
+
+        def applied():
+            for t, d in reversed(diags):
+                if node_of(d.status[0]).startswith('/grow/') and t > start:
+                    values = {kv.key: kv.value for kv in d.status[0].values}
+                    return (values['modes stepped'] == '100'
+                            and values['parameter changes pending'] == 'none')
+            return False
+        assert wait_for(applied, 180)
         done = time.monotonic()
-        assert any(t > start and t < done for t, _ in points)   # frames during the request
-        assert wait_for(lambda: any(
-            node_of(d.status[0]).startswith('/grow/') and t > done + 1.0 for t, d in diags), 10)
+        assert any(t > start and t < done for t, _ in points)   # frames during the work
         mine = [(t, d.status[0]) for t, d in diags
                 if node_of(d.status[0]).startswith('/grow/') and t > start]
         values = {kv.key: kv.value for kv in mine[-1][1].values}
-        assert values['modes stepped'] == '100' and int(values['modes computed']) >= 100
+        assert int(values['modes computed']) >= 100
         # gaps by the node's own stamps (when it published), not by when this busy test
         # process got to receive them
         received = np.array([t for t, _ in points])
