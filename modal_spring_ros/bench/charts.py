@@ -12,7 +12,7 @@ COLORS = {'full explicit': 'C3', 'full average': 'C1', 'modal explicit': 'C0',
           'modal derivatives': 'C6', 'modal sampled': 'C9'}
 
 
-def _subplots(*grid, **kw):
+def subplots(*grid, **kw):
     """
     Return a figure and its axes, without pyplot (no display, no global state).
 
@@ -44,7 +44,7 @@ def _finite(rows):
 
 
 def error_vs_cost(case: dict, path: Path) -> Path:
-    fig, ax = _subplots(figsize=(8, 5.5))
+    fig, ax = subplots(figsize=(8, 5.5))
     rows = _finite(case['configs'])
     for method, color in COLORS.items():
         pts = sorted((r for r in rows if r['method'] == method),
@@ -65,7 +65,7 @@ def error_vs_cost(case: dict, path: Path) -> Path:
 
 
 def stability_map(case: dict, path: Path) -> Path:
-    fig, ax = _subplots(figsize=(7, 4.5))
+    fig, ax = subplots(figsize=(7, 4.5))
     st = case['stability']
     modal = sorted((s for s in st if s['method'] == 'modal explicit'), key=lambda s: s['modes'])
     ax.plot([s['modes'] for s in modal], [s['largest_stable'] for s in modal], 'o-',
@@ -91,7 +91,7 @@ def stability_map(case: dict, path: Path) -> Path:
 
 def fig7(costs: dict, path: Path) -> Path:
     rows = costs['fig7']
-    fig, ax = _subplots(figsize=(6, 4))
+    fig, ax = subplots(figsize=(6, 4))
     n = [r['particles'] for r in rows]
     ax.plot(n, [1e6 * r['full'] for r in rows], 'o-', c='C3', label='physical (full)')
     for key, colour, label in (('modal_exact', 'C0', '32 modes, every spring (the paper)'),
@@ -105,7 +105,7 @@ def fig7(costs: dict, path: Path) -> Path:
 
 def fig8(costs: dict, path: Path) -> Path:
     rows = costs['fig8']
-    fig, ax = _subplots(figsize=(6, 4))
+    fig, ax = subplots(figsize=(6, 4))
     ax.plot([r['dropped'] for r in rows], [1e6 * r['seconds_per_step'] for r in rows], 'o-')
     return _finish(fig, ax, path, 'dropped modes (of 180)', 'time per step (us)',
                    'Paper fig. 8: sheet_10x10, time per step against dropped modes',
@@ -113,7 +113,7 @@ def fig8(costs: dict, path: Path) -> Path:
 
 
 def failure_chart(f: dict, path: Path) -> Path:
-    fig, (top, bottom) = _subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    fig, (top, bottom) = subplots(2, 1, figsize=(8, 6.5), sharex=True)
     top.semilogy(f['t'], f['rel_l2_window'],
                  label='15 rest modes (the paper) against full (0.25 s windows)')
     if 'derivatives_rel_l2_window' in f:
@@ -143,7 +143,7 @@ def failure_chart(f: dict, path: Path) -> Path:
 
 
 def turning_clamp_chart(f: dict, path: Path) -> Path:
-    fig, ax = _subplots(figsize=(8, 4.2))
+    fig, ax = subplots(figsize=(8, 4.2))
     w = f['windows']
     ax.semilogy(f['t'], w['rest'], label="15 rest modes in the clamp's frame")
     ax.semilogy(f['t'], w['derivatives'], c='C6',

@@ -82,7 +82,8 @@ def _modal(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig,
         highest_hz=plan.highest_hz if math.isfinite(plan.highest_hz) else None,
         force_refresh=plan.refresh, mode_choice=choice, basis_kind=plan.basis_kind,
         derivative_directions=plan.directions, bank=bank, progress=basis.progress,
-        sample_tolerance=config.tolerance if plan.forces == 'sampled' else None)
+        sample_tolerance=config.tolerance if plan.forces == 'sampled' else None,
+        force_tolerance=config.tolerance)
     if keep_dt:
         return sim
     if not plan.dt or (config.integrator == 'explicit'

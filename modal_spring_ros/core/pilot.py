@@ -171,6 +171,33 @@ def trajectory_error(run: np.ndarray | None, reference: np.ndarray) -> float:
     return float(np.linalg.norm(run - reference)) / norm if norm > 0 else 0.0
 
 
+def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sample_s: float,
+                         samples: int, accuracy: float, work_per_s: float = math.inf
+                         ) -> tuple[np.ndarray, float] | None:
+    """
+    Return a run's trajectory converged in its step, and the finer step it was computed at.
+
+    ``run_at(dt)`` builds the run at a step no longer than ``dt`` (landing on the samples).
+    Step doubling: a second-order scheme's error at ``h / 2`` is about a third of the
+    difference between its runs at ``h`` and ``h / 2``; the step is halved from ``step`` until
+    that is within ``accuracy`` (relative), and the Richardson extrapolation of the last two is
+    returned. None when it diverges, or when the modelled work of the runs so far passes
+    ``work_per_s`` (us per simulated second, summed over the runs).
+    """
+    spent, coarse = 0.0, None
+    while True:
+        sim = run_at(step)
+        spent += work_per_second(sim)
+        if spent > work_per_s:
+            return None
+        fine = trajectory(sim, sample_s, samples)
+        if fine is None:
+            return None
+        if coarse is not None and trajectory_error(coarse, fine) / 3.0 <= accuracy:
+            return (4.0 * fine - coarse) / 3.0, sim.dt
+        coarse, step = fine, sim.dt / 2.0
+
+
 class Pilot:
     """
     Refine a plan by measurement and choose between it and the full run.
@@ -245,30 +272,16 @@ class Pilot:
 
     def _converged_full_run(self, plan: PlanSettings, sample_s: float, samples: int
                             ) -> np.ndarray | None:
-        """
-        Return the full run's trajectory, its step halved until it has converged.
-
-        Step doubling: the second-order scheme's error at ``h / 2`` is about a third of the
-        difference between the runs at ``h`` and ``h / 2``; halving stops when that is within
-        ``REFERENCE_ACCURACY`` of the tolerance, and the Richardson extrapolation of the last
-        two is returned. None when the work would pass ``REFERENCE_WORK`` first (a large scene).
-        """
+        """Return the full run's converged trajectory, or None beyond ``REFERENCE_WORK``."""
         probe = self.full(plan.dt, sample_s)
         step = min(plan.dt / REFERENCE_REFINEMENT, REFERENCE_SAFETY * probe.stability_limit())
-        spent, coarse = 0.0, None
-        while True:
-            full = self.full(step, sample_s)
-            spent += work_per_second(full) * self.window_s
-            if spent > REFERENCE_WORK:
-                return None
-            fine = trajectory(full, sample_s, samples)
-            if fine is None:
-                return None
-            if coarse is not None and (trajectory_error(coarse, fine) / 3.0
-                                       <= REFERENCE_ACCURACY * self.tolerance):
-                self._reference_dt = full.dt
-                return (4.0 * fine - coarse) / 3.0
-            coarse, step = fine, full.dt / 2.0
+        found = converged_trajectory(lambda dt: self.full(dt, sample_s), step, sample_s,
+                                     samples, REFERENCE_ACCURACY * self.tolerance,
+                                     REFERENCE_WORK / self.window_s)
+        if found is None:
+            return None
+        reference, self._reference_dt = found
+        return reference
 
     def _refinements(self, plan: PlanSettings):
         if plan.forces != 'exact':

@@ -18,7 +18,10 @@ modes. A step between refreshes costs a few operations on the kept modes, not on
 ``interval = 1`` is the paper's method exactly (the simulation then does not use this class).
 At each refresh the continued force is compared with the exact one; the relative difference,
 ``refresh_error`` (and its largest value since the last restart), is the measured cost in
-accuracy, reported by the node on ``/diagnostics``.
+accuracy, reported by the node on ``/diagnostics``. It checks itself: a refresh whose error
+passes ``tolerance`` (the run's ``modal.tolerance``) makes every later step evaluate the springs
+exactly (``fell_back``, reported with a WARN), before the lagging force can feed a divergence
+(on a flag driven at its resonance the error grows past 100 % before it blows up).
 
 Divergence stays detected on the step it happens: between refreshes the largest spring strain
 is bounded by its exact value at the last refresh plus the most any spring can have stretched
@@ -74,15 +77,20 @@ class RefreshedForces:
     :ivar last_max_strain: largest spring strain at the last call: exact when the springs were
         evaluated, else an upper bound (never below the true value).
     :ivar strain_limit: a step whose strain bound passes it evaluates the springs exactly.
+    :ivar fell_back: a refresh measured an error beyond ``tolerance``: every step is exact
+        from then on (kept over restarts: the scene and band are what made it fail).
     """
 
     def __init__(self, exact: GeneralizedForces, omega2: np.ndarray, interval: int, dt: float,
-                 strain_limit: float = math.inf):
+                 strain_limit: float = math.inf, tolerance: float = math.inf):
         if interval < 1:
             raise ValueError(f'force refresh interval ({interval}) must be at least 1 step')
         self.exact = exact
         self.interval = int(interval)
         self.strain_limit = strain_limit
+        self.tolerance = float(tolerance)
+        self.fell_back = False
+        self.fell_back_error = 0.0
         self._due = (self.interval - 0.5) * dt
         self._strain_gain = exact.strain_sensitivity()
         q_static, self.static_found = static_equilibrium(exact, omega2)
@@ -106,7 +114,7 @@ class RefreshedForces:
         Exact on an evaluation, else an upper bound of the largest spring strain.
         """
         force = None
-        if not (t - self._t >= self._due or t < self._t):
+        if not self.fell_back and not (t - self._t >= self._due or t < self._t):
             dq = q - self._q
             bound = self._strain_at_refresh + self._strain_gain * math.sqrt(float(dq @ dq))
             if bound <= self.strain_limit:
@@ -114,16 +122,26 @@ class RefreshedForces:
                 self.last_max_strain = bound
         if force is None:
             spring = self.exact.spring_forces(q)
-            if self._q is not None and t >= self._t:
+            if self._q is not None and t >= self._t and not self.fell_back:
                 continued = self._continued(q - self._q)
                 scale = max(float(np.linalg.norm(spring)), self._scale)
                 self.refresh_error = float(np.linalg.norm(spring - continued)) / scale
                 self.max_refresh_error = max(self.max_refresh_error, self.refresh_error)
+                if not self.refresh_error <= self.tolerance and not self.fell_back:  # NaN too
+                    self.fell_back = True
+                    self.fell_back_error = self.refresh_error
             self._t, self._q, self._spring = t, q.copy(), spring
             self._strain_at_refresh = self.last_max_strain = self.exact.last_max_strain
             force = spring.copy()
         force += self.exact.loads(t)
         return force
+
+    def describe(self) -> str:
+        """Return how the springs are evaluated, as text."""
+        if self.fell_back:
+            return (f'exact every step (refreshed every {self.interval} steps fell back: error '
+                    f'{self.fell_back_error:.2%} beyond {self.tolerance:.2%})')
+        return f'exact every {self.interval} steps, tangent between'
 
     def _continued(self, dq: np.ndarray) -> np.ndarray:
         """Return the last exact spring force continued along the static tangent by ``dq``."""

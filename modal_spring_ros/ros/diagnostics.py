@@ -70,7 +70,7 @@ def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[i
                             + (' while computing modes for a band change'
                                if stream.computing_modes else ''))
     if status.forces_fell_back:
-        warnings.append(f'spring sample off: {status.forces}')
+        warnings.append(f'spring forces fell back: {status.forces}')
     if stream.anchor_stale:
         warnings.append(f'anchor pose: {stream.anchor}')
     if stream.recording:

@@ -10,7 +10,7 @@ import math
 
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.pilot import trajectory, trajectory_error
+from modal_spring_ros.core.pilot import converged_trajectory, trajectory, trajectory_error
 from modal_spring_ros.scenes.generator import random_scene
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -23,21 +23,13 @@ DURATION_S = 3.0
 
 
 def converged_full_run(scene, sample_s: float, samples: int) -> np.ndarray:
-    """
-    Return the full run converged in its step (to 10 % of the tolerance).
-
-    The step is halved until the error of the finer run, a third of its difference from the
-    coarser one (second order), is within 10 % of the tolerance; the two are then extrapolated.
-    """
+    """Return the full run converged in its step (to 10 % of the tolerance)."""
     full = build_simulation(scene, SimulationConfig(method='full'))
-    step = 0.2 * full.stability_limit()
-    coarse = None
-    for _ in range(10):
-        fine = trajectory(full.with_dt(sample_s / math.ceil(sample_s / step)), sample_s, samples)
-        if coarse is not None and trajectory_error(coarse, fine) / 3.0 < 0.1 * TOLERANCE:
-            return (4.0 * fine - coarse) / 3.0
-        coarse, step = fine, step / 2.0
-    raise AssertionError('the reference did not converge')
+    found = converged_trajectory(
+        lambda dt: full.with_dt(sample_s / math.ceil(sample_s / dt)), 0.2 * full.stability_limit(),
+        sample_s, samples, 0.1 * TOLERANCE)
+    assert found is not None, 'the reference did not converge'
+    return found[0]
 
 
 @pytest.mark.slow

@@ -211,3 +211,45 @@ def test_refreshed_forces_detect_divergence_on_the_step_it_happens():
                 assert sim.max_strain() <= limit
         reported[refresh] = sim.steps + 1
     assert reported[25] == reported[1] == first
+
+
+def test_refreshed_forces_fall_back_to_exact_ones_past_the_tolerance():
+    """
+    A flag driven at its resonance: the error at a refresh grows to 50 % (0.1-0.9 % on sways).
+
+    Past ``modal.tolerance`` every later step is exact, said in the status, and the run stays
+    with the exact one where the unchecked shortcut drifts away.
+    """
+    scene = load_scene('sheet_32x32_resonance')
+    band = FilterBand('lowpass', 0.0, 30.0)
+
+    def run(refresh, tolerance=0.01):
+        sim = build_simulation(scene, SimulationConfig(band=band, force_refresh=refresh,
+                                                       tolerance=tolerance or 0.01))
+        if tolerance is None:         # the shortcut unchecked, as before it checked itself
+            sim = ModalSimulation(sim.model, sim.basis, band, dt=sim.dt, force_refresh=refresh)
+        out = []
+        for _ in range(60):
+            sim.step(int(round(0.05 / sim.dt)))
+            out.append(sim.displacement())
+        return np.array(out), sim
+
+    exact, _ = run(1)
+    unchecked, loose = run(10, None)
+    checked, sim = run(10, 0.01)
+    assert not loose.forces_fell_back and loose.refresh_error > 0.1
+    assert sim.forces_fell_back and sim.status().forces_fell_back
+    assert 'fell back: error' in sim.describe_forces() and 'beyond 1.00%' in sim.describe_forces()
+
+    def error(run_):
+        return np.linalg.norm(run_ - exact) / np.linalg.norm(exact)
+    assert error(checked) < 0.5 * error(unchecked), (error(checked), error(unchecked))
+
+
+def test_refreshed_forces_within_the_tolerance_keep_their_shortcut(sheet_10x10):
+    model, basis = sheet_10x10
+    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, force_refresh=8,
+                          force_tolerance=0.01)
+    sim.step(2000)
+    assert 0.0 < sim.refresh_error < 0.01 and not sim.forces_fell_back
+    assert sim.describe_forces() == 'exact every 8 steps, tangent between'

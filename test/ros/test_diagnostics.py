@@ -98,8 +98,8 @@ def test_sampled_springs_are_described_and_a_fallback_warns():
                                '4.10% beyond 1.00%)', forces_fell_back=True)
     entry, _ = _entry(status=fell)
     assert entry.level == WARN
-    assert entry.message == ('spring sample off: exact (the 3-spring sample fell back: error '
-                             '4.10% beyond 1.00%)')
+    assert entry.message == ('spring forces fell back: exact (the 3-spring sample fell back: '
+                             'error 4.10% beyond 1.00%)')
 
 
 def test_a_silent_pose_stream_warns_that_the_clamp_holds_the_last_pose():

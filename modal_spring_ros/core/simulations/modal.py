@@ -70,7 +70,7 @@ class ModalSimulation(Simulation):
                  force_refresh: int = 1, mode_choice=None, basis_kind: str = 'rest',
                  derivative_directions: int = DEFAULT_DIRECTIONS,
                  bank: AddedCoordinateBank | None = None, progress: Progress | None = None,
-                 sample_tolerance: float | None = None):
+                 sample_tolerance: float | None = None, force_tolerance: float = math.inf):
         super().__init__(model, basis, dt=dt, integrator=integrator, damping=damping,
                          strain_limit=strain_limit)
         if basis_kind not in BASES:
@@ -88,6 +88,8 @@ class ModalSimulation(Simulation):
         self._force_refresh = int(force_refresh)
         #: the springs are sampled within this relative force error (None: they are not)
         self.sample_tolerance = sample_tolerance
+        #: refreshed forces whose measured error passes this fall back to exact ones
+        self.force_tolerance = float(force_tolerance)
         self.highest_hz = highest_hz
         self._mode_choice = mode_choice
         self.max_modes = int(max_modes) if max_modes else (
@@ -159,13 +161,13 @@ class ModalSimulation(Simulation):
         return self._mode_choice
 
     def describe_forces(self) -> str:
-        if isinstance(self._forces, SampledForces):
+        if isinstance(self._forces, (SampledForces, RefreshedForces)):
             return self._forces.describe()
         return super().describe_forces()
 
     @property
     def forces_fell_back(self) -> bool:
-        return isinstance(self._forces, SampledForces) and self._forces.fell_back
+        return getattr(self._forces, 'fell_back', False)
 
     def describe_band(self) -> str:
         return self._band.describe()
@@ -178,7 +180,8 @@ class ModalSimulation(Simulation):
                                force_refresh=self._force_refresh,
                                mode_choice=self._mode_choice, basis_kind=self.basis_kind,
                                derivative_directions=self._bank.directions, bank=self._bank,
-                               sample_tolerance=self.sample_tolerance)
+                               sample_tolerance=self.sample_tolerance,
+                               force_tolerance=self.force_tolerance)
 
     def stability_limit(self) -> float:
         return stable_step_limit(float(self._bank.omega(self._set.modes).max()))
@@ -279,7 +282,8 @@ class ModalSimulation(Simulation):
         """
         tolerance = self.sample_tolerance if settled else None
         return SteppedSet.build(self.model, self._bank, modes, self.damping, self._force_refresh,
-                                self.dt, self.strain_limit, tolerance, self._bank.progress)
+                                self.dt, self.strain_limit, tolerance, self._bank.progress,
+                                self.force_tolerance)
 
     def _install(self, new: ActiveSet, old: ActiveSet | None) -> None:
         """

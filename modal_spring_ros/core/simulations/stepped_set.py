@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 from modal_spring_ros.core.forces import GeneralizedForces
 from modal_spring_ros.core.frame_loads import FrameLoads
@@ -29,11 +30,13 @@ class SteppedSet:
     @classmethod
     def build(cls, model: MassSpringModel, bank: AddedCoordinateBank, modes: np.ndarray,
               damping: Damping, force_refresh: int, dt: float, strain_limit: float,
-              sample_tolerance: float | None = None, progress=None) -> 'SteppedSet':
+              sample_tolerance: float | None = None, progress=None,
+              force_tolerance: float = math.inf) -> 'SteppedSet':
         """
         Return the set of coordinates ``modes`` (rest or added, from ``bank``).
 
-        With ``sample_tolerance``, the springs sampled within it (trained, or from the cache).
+        With ``sample_tolerance``, the springs sampled within it (trained, or from the cache);
+        refreshed forces fall back to exact ones past ``force_tolerance``.
         """
         phi, omega = bank.columns(modes)
         damp = damping.modal_coefficients(omega)
@@ -45,6 +48,7 @@ class SteppedSet:
         elif force_refresh == 1:
             forces = exact
         else:
-            forces = RefreshedForces(exact, omega**2, force_refresh, dt, strain_limit)
+            forces = RefreshedForces(exact, omega**2, force_refresh, dt, strain_limit,
+                                     force_tolerance)
         return cls(phi, omega**2, damp, DiagonalOperators(1.0, damp, omega**2, dt), forces,
                    exact.frame, phi.astype(np.float32))

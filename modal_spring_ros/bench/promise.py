@@ -1,0 +1,198 @@
+"""
+The automatic choice's promise on scenes nobody tuned it on: measured error against tolerance.
+
+For each seed of :func:`~modal_spring_ros.scenes.generator.random_scene` and each tolerance
+``T``, ``modal.auto`` plans the run (its pilot measures the plan: :mod:`~modal_spring_ros.core.
+pilot`). The plan is then checked independently of the pilot, over ``DURATION_S`` (longer than
+the pilot's window): its error against the full run converged in its step (to a tenth of ``T``),
+and its CPU time per simulated second against the full run's at the longest step that meets
+``T`` (halved from 0.9 of its stability limit), both timed in the same process one after the
+other. Each scene runs in a worker process with single-threaded BLAS (two at a time).
+
+Results: ``promise.json``, ``promise.csv`` and ``promise.png`` (achieved against printed
+error, and the cost against the full run's, per tolerance).
+"""
+from __future__ import annotations
+
+import csv
+import math
+import multiprocessing as mp
+import os
+from pathlib import Path
+import time
+from typing import Callable
+
+from modal_spring_ros.bench.charts import subplots
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.pilot import converged_trajectory, trajectory, trajectory_error
+from modal_spring_ros.core.simulations import Simulation
+from modal_spring_ros.scenes.generator import random_scene
+import numpy as np
+
+SEEDS, QUICK_SEEDS = 50, 6
+TOLERANCES = (0.01, 0.003)
+DURATION_S, SAMPLE_S = 3.0, 0.02
+MAX_PARTICLES = 80
+#: CPU time per simulated second is measured over this much simulated time
+TIMED_S = 1.0
+#: the reference's own error, as a share of the tolerance
+REFERENCE_ACCURACY = 0.1
+WORKERS = 2
+
+
+def cpu_per_second(sim: Simulation, simulated_s: float = TIMED_S) -> float:
+    """Return the CPU seconds ``sim`` takes per simulated second (from rest)."""
+    sim.reset()
+    steps = max(1, int(round(simulated_s / sim.dt)))
+    start = time.process_time()
+    sim.step(steps)
+    spent = time.process_time() - start
+    sim.reset()
+    return spent / (steps * sim.dt)
+
+
+def _on_samples(sim: Simulation, sample_s: float, dt: float) -> Simulation:
+    return sim.with_dt(sample_s / math.ceil(sample_s / dt - 1e-9))
+
+
+def measure(seed: int, tolerance: float) -> dict:
+    """Plan ``random_scene(seed)`` automatically at ``tolerance`` and check the plan."""
+    scene = random_scene(seed, MAX_PARTICLES)
+    row = {'seed': seed, 'tolerance': tolerance, 'particles': scene.n_particles,
+           'dimension': scene.dimension, 'turning': bool(scene.anchor_motion.rotates),
+           'damping': float(scene.damping.ratio), 'refused': ''}
+    start = time.process_time()
+    try:
+        sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=tolerance))
+    except ValueError as exc:
+        row['refused'] = str(exc)
+        return row
+    row['plan_cpu_s'] = time.process_time() - start
+    pilot = sim.pilot
+    row.update(method=sim.method, coordinates=int(sim.coordinates), dt=float(sim.dt),
+               printed=float(pilot.error) if pilot is not None else math.nan,
+               against=pilot.against if pilot is not None else '')
+    sample_s = sim.dt * max(1, int(round(SAMPLE_S / sim.dt)))
+    samples = int(round(DURATION_S / sample_s))
+    full = build_simulation(scene, SimulationConfig(method='full'))
+    found = converged_trajectory(lambda dt: _on_samples(full, sample_s, dt),
+                                 0.2 * full.stability_limit(), sample_s, samples,
+                                 REFERENCE_ACCURACY * tolerance)
+    if found is None:
+        row['refused'] = 'the reference did not converge'
+        return row
+    reference, _ = found
+    row['achieved'] = trajectory_error(trajectory(sim, sample_s, samples), reference)
+    step = 0.9 * full.stability_limit()
+    while True:   # the full run at the longest step that meets the tolerance
+        baseline = _on_samples(full, sample_s, step)
+        error = trajectory_error(trajectory(baseline, sample_s, samples), reference)
+        if error <= tolerance or step < 1e-6:
+            break
+        step = baseline.dt / 2.0
+    row.update(full_dt=float(baseline.dt), full_error=error,
+               auto_cpu_per_s=cpu_per_second(sim), full_cpu_per_s=cpu_per_second(baseline))
+    row['cost_ratio'] = row['auto_cpu_per_s'] / row['full_cpu_per_s']
+    return row
+
+
+def _measure(args: tuple[int, float]) -> dict:
+    return measure(*args)
+
+
+def run(quick: bool, progress: Callable[[str], None]) -> dict:
+    jobs = [(seed, t) for seed in range(QUICK_SEEDS if quick else SEEDS) for t in TOLERANCES]
+    saved = {k: os.environ.get(k) for k in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS')}
+    os.environ.update(OPENBLAS_NUM_THREADS='1', OMP_NUM_THREADS='1')   # in the workers
+    rows = []
+    try:
+        with mp.get_context('spawn').Pool(WORKERS) as pool:
+            for k, row in enumerate(pool.imap_unordered(_measure, jobs)):
+                rows.append(row)
+                what = (f"refused ({row['refused'][:60]})" if row['refused'] else
+                        f"{row['method']}, measured {row['achieved']:.2%}, printed "
+                        f"{row['printed']:.2%}, cost {row['cost_ratio']:.2g} x full")
+                progress(f"promise {k + 1}/{len(jobs)}: seed {row['seed']} at "
+                         f"{row['tolerance']:.1%}: {what}")
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+    rows.sort(key=lambda r: (r['tolerance'], r['seed']))
+    return {'rows': rows, 'summary': summary(rows)}
+
+
+def summary(rows: list[dict]) -> list[dict]:
+    """Per tolerance: how many met it, the worst ratio to it, refusals, cost against full."""
+    out = []
+    for t in sorted({r['tolerance'] for r in rows}, reverse=True):
+        mine = [r for r in rows if r['tolerance'] == t]
+        ran = [r for r in mine if not r['refused']]
+        achieved = np.array([r['achieved'] for r in ran])
+        cost = np.array([r['cost_ratio'] for r in ran])
+        out.append({
+            'tolerance': t, 'scenes': len(mine), 'refused': len(mine) - len(ran),
+            'within_t': float(np.mean(achieved <= t)) if ran else math.nan,
+            'within_2t': float(np.mean(achieved <= 2 * t)) if ran else math.nan,
+            'worst_ratio': float(achieved.max() / t) if ran else math.nan,
+            'full_chosen': sum(r['method'] == 'full' for r in ran),
+            'median_cost_ratio': float(np.median(cost)) if ran else math.nan,
+            'max_cost_ratio': float(cost.max()) if ran else math.nan})
+    return out
+
+
+def table(results: dict) -> str:
+    lines = [f"{'T':>6s} {'scenes':>6s} {'refused':>7s} {'<= T':>6s} {'<= 2T':>6s} "
+             f"{'worst/T':>7s} {'full':>5s} {'cost/full median':>16s} {'max':>6s}"]
+    for s in results['summary']:
+        lines.append(f"{s['tolerance']:6.1%} {s['scenes']:6d} {s['refused']:7d} "
+                     f"{s['within_t']:6.0%} {s['within_2t']:6.0%} {s['worst_ratio']:7.2f} "
+                     f"{s['full_chosen']:5d} {s['median_cost_ratio']:16.2f} "
+                     f"{s['max_cost_ratio']:6.2f}")
+    return '\n'.join(lines)
+
+
+def write_outputs(results: dict, out: Path, progress) -> None:
+    rows = results['rows']
+    keys = sorted({k for r in rows for k in r})
+    with open(out / 'promise.csv', 'w', newline='') as f:
+        writer = csv.DictWriter(f, fieldnames=keys)
+        writer.writeheader()
+        writer.writerows(rows)
+    progress(f"wrote {out / 'promise.csv'} and {chart(rows, out / 'promise.png')}")
+
+
+def chart(rows: list[dict], path: Path) -> Path:
+    """Achieved against printed error, and achieved error against cost, per tolerance."""
+    fig, (left, right) = subplots(1, 2, figsize=(11, 4.5))
+    for k, t in enumerate(sorted({r['tolerance'] for r in rows}, reverse=True)):
+        ran = [r for r in rows if r['tolerance'] == t and not r['refused']]
+        color = f'C{k}'
+        printed = np.array([max(r['printed'], 1e-6) for r in ran])
+        achieved = np.array([max(r['achieved'], 1e-6) for r in ran])
+        cost = np.array([r['cost_ratio'] for r in ran])
+        left.scatter(printed, achieved, s=14, color=color, label=f'T = {t:.1%}')
+        right.scatter(cost, achieved, s=14, color=color, label=f'T = {t:.1%}')
+        for ax in (left, right):
+            ax.axhline(t, color=color, lw=0.8)
+            ax.axhline(2 * t, color=color, lw=0.8, ls='--')
+    lo, hi = 1e-6, 0.1
+    left.plot([lo, hi], [lo, hi], color='0.6', lw=0.8, label='achieved = printed')
+    right.axvline(1.0, color='0.6', lw=0.8, label='cost of the full run')
+    for ax, xlabel, title in (
+            (left, 'error printed by the pilot', 'measured over 3 s against printed'),
+            (right, 'CPU per simulated second / full run at T', 'error against cost')):
+        ax.set_xscale('log')
+        ax.set_yscale('log')
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel('error against the converged full run')
+        ax.set_title(title)
+        ax.legend(fontsize=7)
+    fig.suptitle(f'modal.auto on {len({r["seed"] for r in rows})} random scenes '
+                 '(solid: T, dashed: 2 T)')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path
