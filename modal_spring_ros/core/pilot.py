@@ -227,13 +227,19 @@ class Pilot:
         sim = self.make(plan)
         sample_s = sim.dt * max(1, int(round(self.window_s / SAMPLES / sim.dt)))
         samples = max(1, int(math.ceil(self.window_s / sample_s)))
-        reference, against = self._reference(plan, sample_s, samples)
-        self._sampling = (sample_s, samples, reference, against)
+        reference, against = self._reference(plan, sim, sample_s, samples)
         budget = PILOT_MARGIN * self.tolerance
         error = planned = trajectory_error(trajectory(sim, sample_s, samples), reference)
         refined: list[str] = []
-        for _ in range(MAX_ROUNDS):
-            if error <= budget:
+        stale = False     # the plan was refined since its richer sibling was made
+        for _ in range(2 * MAX_ROUNDS):
+            if error <= budget and stale:
+                # a refined plan is measured against a sibling richer than *it* (one made for
+                # the first plan can be the refined plan itself, and would measure 0)
+                reference, against = self._reference(plan, sim, sample_s, samples)
+                error = trajectory_error(trajectory(sim, sample_s, samples), reference)
+                stale = False
+            if error <= budget or len(refined) >= MAX_ROUNDS:
                 break
             options = []
             for name, candidate in self._refinements(plan):
@@ -250,11 +256,22 @@ class Pilot:
                 break                                # nothing helps any more
             error = measured
             refined.append(name)
+            stale = against != 'the full run'
+        if stale:
+            reference, against = self._reference(plan, sim, sample_s, samples)
+            error = trajectory_error(trajectory(sim, sample_s, samples), reference)
+        self._sampling = (sample_s, samples, reference, against)
         return self._choose(sim, plan, error, planned, against, tuple(refined))
 
     # -- internals -----------------------------------------------------------------------------
-    def _reference(self, plan: PlanSettings, sample_s: float, samples: int
+    def _reference(self, plan: PlanSettings, sim: Simulation, sample_s: float, samples: int
                    ) -> tuple[np.ndarray, str]:
+        """
+        Return the reference for ``plan`` (built as ``sim``): the full run, or a richer sibling.
+
+        The sibling's step is half the step ``sim`` was built with (a plan's step can be cut to
+        its stability limit when built: halving the plan's own could give the same run).
+        """
         if self.full is not None:
             found = self._converged_full_run(plan, sample_s, samples)
             if found is not None:
@@ -262,7 +279,8 @@ class Pilot:
         richer = dataclasses.replace(
             plan, forces='exact', refresh=1, basis_kind='derivatives',
             directions=min(MAX_PILOT_DIRECTIONS, 2 * plan.directions),
-            highest_hz=self.more_modes(plan.highest_hz) or plan.highest_hz, dt=plan.dt / 2)
+            highest_hz=self.more_modes(plan.highest_hz) or plan.highest_hz,
+            dt=min(plan.dt, sim.dt) / 2)
         reference = trajectory(self.make(richer), sample_s, samples)
         if reference is None:
             raise ValueError('modal.auto cannot measure a plan for this scene: the full run is '
