@@ -1,6 +1,7 @@
 """Slow parameter changes off the service thread: answered at once, superseded, reverted."""
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 
@@ -41,6 +42,19 @@ def preparer(recorder: Recorder, answer_within_s: float = 0.5) -> ChangePreparer
                           answer_within_s=answer_within_s)
 
 
+@contextlib.contextmanager
+def gated(answer_within_s: float, refuse: str = ''):
+    """Return a gate holding every preparation, its recorder and the preparer; stop it after."""
+    gate = threading.Event()
+    rec = Recorder(refuse=refuse, gate=gate)
+    p = preparer(rec, answer_within_s)
+    try:
+        yield gate, rec, p
+    finally:
+        gate.set()
+        p.stop()
+
+
 def test_a_quick_change_is_answered_with_its_outcome_after_it_is_committed():
     rec = Recorder()
     p = preparer(rec, answer_within_s=10.0)
@@ -65,10 +79,7 @@ def test_a_quick_refusal_is_answered_as_one_and_changes_nothing():
 
 
 def test_a_slow_change_is_answered_pending_then_committed():
-    gate = threading.Event()
-    rec = Recorder(gate=gate)
-    p = preparer(rec, answer_within_s=0.2)
-    try:
+    with gated(0.2) as (gate, rec, p):
         start = time.monotonic()
         accepted, reason = p.request({'filter.high_hz': 50.0})
         assert accepted and reason.startswith('pending: preparing')
@@ -78,16 +89,10 @@ def test_a_slow_change_is_answered_pending_then_committed():
         gate.set()
         assert p.wait_idle(10.0)
         assert rec.committed == [{'filter.high_hz': 50.0}] and p.state().preparing == ''
-    finally:
-        gate.set()
-        p.stop()
 
 
 def test_a_storm_is_answered_as_it_comes_and_only_the_latest_is_prepared():
-    gate = threading.Event()
-    rec = Recorder(gate=gate)
-    p = preparer(rec, answer_within_s=0.2)
-    try:
+    with gated(0.2) as (gate, rec, p):
         latencies, answers = [], []
         for k in range(50):                      # 50 band changes a second, for a second
             start = time.monotonic()
@@ -104,17 +109,11 @@ def test_a_storm_is_answered_as_it_comes_and_only_the_latest_is_prepared():
         assert rec.prepared == [{'filter.high_hz': 0.0, 'filter.type': 'lowpass'},
                                 {'filter.high_hz': 49.0, 'filter.type': 'lowpass'}]
         assert rec.committed == rec.prepared
-    finally:
-        gate.set()
-        p.stop()
 
 
 def test_a_change_failing_after_its_answer_is_reverted_and_reported():
-    gate = threading.Event()
-    rec = Recorder(refuse='sim.dt (0.0005 s) is at or above the explicit stability limit',
-                   gate=gate)
-    p = preparer(rec, answer_within_s=0.1)
-    try:
+    refuse = 'sim.dt (0.0005 s) is at or above the explicit stability limit'
+    with gated(0.1, refuse) as (gate, rec, p):
         accepted, reason = p.request({'filter.type': 'allpass'})
         assert accepted and reason.startswith('pending')
         gate.set()
@@ -123,9 +122,6 @@ def test_a_change_failing_after_its_answer_is_reverted_and_reported():
         assert rec.reverted == [({'filter.type': 'allpass'}, rec.refuse)]
         reverted = p.state().reverted
         assert "filter.type='allpass' reverted" in reverted and 'stability limit' in reverted
-    finally:
-        gate.set()
-        p.stop()
 
 
 def test_stopping_abandons_a_change_being_prepared():
