@@ -283,7 +283,9 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
         received = np.array([t for t, _ in points])
         times = np.array([stamp_s(m) for _, m in points])
         steady = float(np.diff(times[(received > start - 3.0) & (received < start)]).max())
-        worst = float(np.diff(times[received > start - 0.5]).max())
+        # while the modes are computed and the switch is made (after it, a run of 100 modes
+        # is a heavier run: whether it keeps real time is reported apart, not a stall)
+        worst = float(np.diff(times[(received > start - 0.5) & (received <= done)]).max())
         print(f'longest gap {worst:.3f} s (steady: {steady:.3f} s)')
         # here about 0.05-0.2 s; within five of the same run's longest steady gaps (what the
         # eigensolver in the node's own interpreter once did: 0.07-0.2 s at each hold, every time)
