@@ -118,7 +118,7 @@ class ModalSpringNode(Node):
     # -- parameters ----------------------------------------------------------------------------
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """
-        Validate a request and answer it within :data:`ANSWER_WITHIN_S`.
+        Validate a request and answer it within the change preparer's ``answer_within_s``.
 
         Cheap checks here; the slow part (modes, operators, a new simulation) in the change
         preparer (:mod:`~modal_spring_ros.ros.change_preparer`).
@@ -180,7 +180,8 @@ class ModalSpringNode(Node):
             self._values.update(back)
         self.get_logger().error(f'parameter change {describe(incoming)} failed after it was '
                                 f'accepted: {reason}; back to {describe(back)}')
-        self._set_own([Parameter(k, value=v) for k, v in back.items()])
+        if back:
+            self._set_own([Parameter(k, value=v) for k, v in back.items()])
 
     def _set_own(self, params: list[Parameter]) -> None:
         self._own_update.active = True
