@@ -234,10 +234,7 @@ class Pilot:
         stale = False     # the plan was refined since its richer sibling was made
         for _ in range(2 * MAX_ROUNDS):
             if error <= budget and stale:
-                # a refined plan is measured against a sibling richer than *it* (one made for
-                # the first plan can be the refined plan itself, and would measure 0)
-                reference, against = self._reference(plan, sim, sample_s, samples)
-                error = trajectory_error(trajectory(sim, sample_s, samples), reference)
+                reference, against, error = self._remeasured(plan, sim, sample_s, samples)
                 stale = False
             if error <= budget or len(refined) >= MAX_ROUNDS:
                 break
@@ -258,12 +255,21 @@ class Pilot:
             refined.append(name)
             stale = against != 'the full run'
         if stale:
-            reference, against = self._reference(plan, sim, sample_s, samples)
-            error = trajectory_error(trajectory(sim, sample_s, samples), reference)
+            reference, against, error = self._remeasured(plan, sim, sample_s, samples)
         self._sampling = (sample_s, samples, reference, against)
         return self._choose(sim, plan, error, planned, against, tuple(refined))
 
     # -- internals -----------------------------------------------------------------------------
+    def _remeasured(self, plan: PlanSettings, sim: Simulation, sample_s: float, samples: int
+                    ) -> tuple[np.ndarray, str, float]:
+        """
+        Measure a refined plan against a sibling richer than *it*.
+
+        A sibling made for the first plan can be the refined plan itself, and would measure 0.
+        """
+        reference, against = self._reference(plan, sim, sample_s, samples)
+        return reference, against, trajectory_error(trajectory(sim, sample_s, samples), reference)
+
     def _reference(self, plan: PlanSettings, sim: Simulation, sample_s: float, samples: int
                    ) -> tuple[np.ndarray, str]:
         """

@@ -127,7 +127,7 @@ class RefreshedForces:
                 scale = max(float(np.linalg.norm(spring)), self._scale)
                 self.refresh_error = float(np.linalg.norm(spring - continued)) / scale
                 self.max_refresh_error = max(self.max_refresh_error, self.refresh_error)
-                if not self.refresh_error <= self.tolerance and not self.fell_back:  # NaN too
+                if not self.refresh_error <= self.tolerance:  # NaN too
                     self.fell_back = True
                     self.fell_back_error = self.refresh_error
             self._t, self._q, self._spring = t, q.copy(), spring

@@ -28,7 +28,7 @@ from modal_spring_ros.core.worker import WorkerError, WorkerProcess
 from modal_spring_ros.ros.change_preparer import ChangePreparer, ChangeRefused, describe
 from modal_spring_ros.ros.inputs import NodeInputs
 from modal_spring_ros.ros.outputs import NodeOutputs
-from modal_spring_ros.ros.parameter_changes import ChangePlanner, PlannedChange
+from modal_spring_ros.ros.parameter_changes import ChangePlanner
 from modal_spring_ros.ros.parameters import (config_from_parameters, FREQUENCIES,
                                              FREQUENCIES_DESCRIPTOR, PARAMETERS,
                                              SLOW_PARAMETERS)
@@ -158,7 +158,7 @@ class ModalSpringNode(Node):
         self.get_logger().warning(f'parameter change rejected: {reason}')
         return SetParametersResult(successful=False, reason=reason)
 
-    def _prepare(self, incoming: dict) -> PlannedChange:
+    def _prepare(self, incoming: dict) -> Request | None:
         with self._lock:
             applied = dict(self._applied)
         try:
@@ -166,12 +166,12 @@ class ModalSpringNode(Node):
         except (ValueError, SceneError, WorkerError) as exc:
             raise ChangeRefused(str(exc)) from exc
 
-    def _commit(self, incoming: dict, change: PlannedChange) -> None:
+    def _commit(self, incoming: dict, request: Request | None) -> None:
         with self._lock:
             self._applied.update(incoming)
         self._publish_frequencies()
-        if change.request is not None:
-            self._thread.submit(change.request)
+        if request is not None:
+            self._thread.submit(request)
 
     def _revert(self, incoming: dict, reason: str) -> None:
         """Set back what a change answered as accepted set, unless something newer has."""

@@ -3,14 +3,14 @@ Turn a parameter request into a state change.
 
 Validate it, do its slow part, and say which request the simulation thread must apply.
 
-This runs in the executor (the parameter services' thread). Everything that can fail or take
-long happens here, before the request is queued: checking the band and the step, computing the
-modes a band needs (on large scenes in the worker process), building the new simulation or the
-operators of the switch. The simulation thread then only swaps prepared objects in.
+This runs in the change preparer's thread (:mod:`~modal_spring_ros.ros.change_preparer`),
+never in the parameter services' own. Everything that can fail or take long happens here,
+before the request is queued: checking the band and the step, computing the modes a band needs
+(on large scenes in the worker process), building the new simulation or the operators of the
+switch. The simulation thread then only swaps prepared objects in.
 """
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 from modal_spring_ros.core.basis import ModalBasis
@@ -22,18 +22,6 @@ from modal_spring_ros.ros.parameters import (BAND_PARAMETERS, config_from_parame
 from modal_spring_ros.ros.requests import ChangeBand, ReplaceSimulation, Request
 
 
-@dataclasses.dataclass(frozen=True)
-class PlannedChange:
-    """
-    The parameter values once the request is accepted.
-
-    And the request to apply (if the running simulation changes at all).
-    """
-
-    values: dict[str, Any]
-    request: Request | None
-
-
 class ChangePlanner:
     """Plans parameter changes for one scene (its model and basis are shared by every run)."""
 
@@ -42,12 +30,13 @@ class ChangePlanner:
         self.basis = basis
 
     def plan(self, values: dict[str, Any], incoming: dict[str, Any],
-             running: Simulation) -> PlannedChange:
+             running: Simulation) -> Request | None:
         """
         Validate ``incoming`` on top of ``values`` and prepare the change.
 
         Validate ``incoming`` on top of ``values`` against the ``running`` simulation and prepare
-        the change (the new simulation, or the operators of a band switch).
+        the change (the new simulation, or the operators of a band switch); return the request
+        the simulation thread applies, or None when the run does not change.
 
             ValueError (ConfigError, BandError, UnstableStepError), SceneError, WorkerError:
             the change is refused; nothing has changed.
@@ -59,10 +48,9 @@ class ChangePlanner:
         if changed & REBUILD_PARAMETERS:
             sim = rebuild(self.model, self.basis, config)
             sim.check_stable('sim.dt')
-            return PlannedChange(new_values, ReplaceSimulation(simulation=sim, changed=delta))
+            return ReplaceSimulation(simulation=sim, changed=delta)
         if changed & BAND_PARAMETERS:
             running.prepare_switch(config.band, config.transition_s, 'sim.dt')
-            return PlannedChange(new_values, ChangeBand(band=config.band,
-                                                        transition_s=config.transition_s,
-                                                        changed=delta))
-        return PlannedChange(new_values, None)
+            return ChangeBand(band=config.band, transition_s=config.transition_s,
+                              changed=delta)
+        return None
