@@ -25,7 +25,8 @@ from typing import Callable
 from modal_spring_ros.bench.charts import subplots
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.pilot import converged_trajectory, trajectory, trajectory_error
+from modal_spring_ros.core.measured_error import (converged_trajectory, on_samples, trajectory,
+                                                  trajectory_error)
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.scenes.generator import random_scene
 import numpy as np
@@ -52,10 +53,6 @@ def cpu_per_second(sim: Simulation, simulated_s: float = TIMED_S) -> float:
     return spent / (steps * sim.dt)
 
 
-def _on_samples(sim: Simulation, sample_s: float, dt: float) -> Simulation:
-    return sim.with_dt(sample_s / math.ceil(sample_s / dt - 1e-9))
-
-
 def measure(seed: int, tolerance: float) -> dict:
     """Plan ``random_scene(seed)`` automatically at ``tolerance`` and check the plan."""
     scene = random_scene(seed, MAX_PARTICLES)
@@ -76,7 +73,7 @@ def measure(seed: int, tolerance: float) -> dict:
     sample_s = sim.dt * max(1, int(round(SAMPLE_S / sim.dt)))
     samples = int(round(DURATION_S / sample_s))
     full = build_simulation(scene, SimulationConfig(method='full'))
-    found = converged_trajectory(lambda dt: _on_samples(full, sample_s, dt),
+    found = converged_trajectory(lambda dt: on_samples(full, sample_s, dt),
                                  0.2 * full.stability_limit(), sample_s, samples,
                                  REFERENCE_ACCURACY * tolerance)
     if found is None:
@@ -86,7 +83,7 @@ def measure(seed: int, tolerance: float) -> dict:
     row['achieved'] = trajectory_error(trajectory(sim, sample_s, samples), reference)
     step = 0.9 * full.stability_limit()
     while True:   # the full run at the longest step that meets the tolerance
-        baseline = _on_samples(full, sample_s, step)
+        baseline = on_samples(full, sample_s, step)
         error = trajectory_error(trajectory(baseline, sample_s, samples), reference)
         if error <= tolerance or step < 1e-6:
             break

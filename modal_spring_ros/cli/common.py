@@ -200,7 +200,8 @@ OPTION_NAMES = {'method': '--method', 'auto': '--auto', 'integrator': '--integra
                 'transition_s': '--transition-s', 'max_modes': '--max-modes',
                 'strain_limit': '--strain-limit', 'tolerance': '--tolerance',
                 'force_refresh': '--force-refresh', 'basis': '--basis',
-                'derivative_directions': '--derivative-directions', 'forces': '--forces'}
+                'derivative_directions': '--derivative-directions', 'forces': '--forces',
+                'horizon_s': '--duration'}
 
 
 def config_from_args(args: argparse.Namespace) -> SimulationConfig:

@@ -8,12 +8,15 @@ Example::
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
 import sys
 import time
 
 from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs, config_from_args,
                                          run_main, script_parser, write_output)
+from modal_spring_ros.core.config import MAX_HORIZON_S
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.scenes.resources import load_scene
@@ -43,15 +46,17 @@ def main(argv: list[str] | None = None) -> int:
     def body() -> int:
         if args.frame_every < 1:
             raise ValueError(f'--frame-every ({args.frame_every}) must be at least 1')
-        config = config_from_args(args)
+        scene = load_scene(args.scene)
+        duration = args.duration if args.duration is not None else scene.default_duration
+        if not (math.isfinite(duration) and duration > 0):
+            raise ValueError(f'--duration ({duration}) must be a positive number of seconds')
+        # --auto's tolerance holds over the run asked for (up to a day)
+        config = dataclasses.replace(config_from_args(args),
+                                     horizon_s=min(duration, MAX_HORIZON_S))
         progress = None if args.quiet else (lambda msg: print(f'[{PROG}] {msg}',
                                                               file=sys.stderr))
-        sim = build_simulation(load_scene(args.scene), config, progress=progress,
+        sim = build_simulation(scene, config, progress=progress,
                                allow_unstable=args.allow_unstable)
-        duration = args.duration if args.duration is not None else \
-            sim.model.scene.default_duration
-        if not duration > 0:
-            raise ValueError(f'--duration ({duration}) must be positive')
         with claimed_outputs({'--output': args.output}, {'--bag': args.bag}):
             return run_and_report(sim, config, duration)
 

@@ -39,6 +39,8 @@ SAMPLE_MIN_SPRINGS = 20_000
 ANCHOR_SOURCES = ('scene', 'topic')
 #: Highest bandwidth a clamp follows poses with, Hz.
 MAX_FOLLOW_HZ = 100.0
+#: Longest run the automatic choice promises its tolerance over, s (a day).
+MAX_HORIZON_S = 86_400.0
 
 
 class ConfigError(ValueError):
@@ -64,6 +66,7 @@ class SimulationConfig:
     forces: str = 'exact'              # spring forces: exact, refreshed, or sampled (ECSW)
     anchor: str = 'scene'              # the clamp moves as the scene says, or follows poses
     follow_hz: float = DEFAULT_FOLLOW_HZ  # bandwidth of the filter poses are followed through
+    horizon_s: float | None = None     # the run auto's tolerance holds over; None: the scene's
 
     def validate(self, names: Mapping[str, str] | None = None) -> 'SimulationConfig':
         """
@@ -103,6 +106,10 @@ class SimulationConfig:
         if not (math.isfinite(self.follow_hz) and 0.0 < self.follow_hz <= MAX_FOLLOW_HZ):
             raise ConfigError(f"{name('follow_hz')} ({self.follow_hz}) must be a number of Hz "
                               f'above 0 and at most {MAX_FOLLOW_HZ:g}')
+        if self.horizon_s is not None and not (math.isfinite(self.horizon_s)
+                                               and 0.0 < self.horizon_s <= MAX_HORIZON_S):
+            raise ConfigError(f"{name('horizon_s')} ({self.horizon_s}) must be a number of "
+                              f'seconds above 0 and at most {MAX_HORIZON_S:g}')
         if self.auto and self.method != 'modal':
             raise ConfigError(f"{name('auto')} chooses modes: it needs {name('method')} modal")
         if self.force_refresh < 0:

@@ -16,6 +16,7 @@ from modal_spring_ros.core.clamp_follower import ClampFollower
 from modal_spring_ros.core.config import (AUTO_DT_SAFETY, DEFAULT_REFRESH, SAMPLE_MIN_SPRINGS,
                                           SimulationConfig)
 from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.measured_error import on_samples
 from modal_spring_ros.core.mode_selection import (choose_modes, choose_refresh, choose_step,
                                                   ModeChoice, SHARE, STABILITY_SAFETY)
 from modal_spring_ros.core.model import MassSpringModel
@@ -121,19 +122,20 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
 
     def full(longest_dt: float, sample_s: float) -> Simulation:
         # explicit, within its stability limit and no longer than ``longest_dt`` (the pilot
-        # chooses: the plan's step, shorter ones, a converged one for a reference), landing on
-        # the pilot's samples
+        # chooses: the longest that measures within the tolerance, a converged one for a
+        # reference), landing on the pilot's samples
         sim = FullSimulation(model, basis, config.band, dt=1e-3, integrator='explicit',
                              strain_limit=config.strain_limit)
-        step = min(AUTO_DT_SAFETY * sim.stability_limit(), longest_dt)
-        return sim.with_dt(sample_s / math.ceil(sample_s / step - 1e-9))
+        step = min(STABILITY_SAFETY * sim.stability_limit(), longest_dt)
+        return on_samples(sim, sample_s, step)
 
     def more_modes(hz: float) -> float | None:
         return _more_modes(basis, config.band, hz, limit)
 
     everything = config.band.kind == 'allpass'
     pilot = Pilot(model, config.tolerance, make, full if everything else None, more_modes,
-                  float(basis.frequencies_hz[choice.modes[0]]), can_halve_step=not keep_dt)
+                  float(basis.frequencies_hz[choice.modes[0]]), can_halve_step=not keep_dt,
+                  horizon_s=config.horizon_s or model.scene.default_duration)
     sim, report = pilot.run(plan)
     sim.pilot = report
     return sim

@@ -13,10 +13,18 @@ it is good; this module does the same for a whole plan:
 2. **A reference** for that window: the full physical run (every DOF, every spring, explicit at
    a converged step) where the band keeps everything and its cost is
    within ``REFERENCE_WORK``; otherwise the richer sibling of the plan (an embedded pair: every
-   spring on every step, the derivatives basis with twice the directions, twice the modes the
-   band allows, half the step).
+   spring on every step, the derivatives basis with twice the directions, more modes where the
+   band allows, a quarter of the step). The sibling's step error is a sixteenth of the plan's
+   (second-order schemes), so the difference is divided by ``1 - (h_sibling / h_plan)^2``
+   (Richardson): exact for the plan's step error, a few per cent high for the rest. A sibling
+   still richer than a refined plan in every respect (modes, directions, forces, a step at most
+   half its step: the factor is then 4/3) is kept; otherwise a new one is made.
 3. **The measured error**: relative L2 of the free-DOF displacement in the clamp's frame over
-   the window's samples, against the reference (as the benchmark measures it).
+   the window's samples, against the reference (as the benchmark measures it). The promise is
+   over the run's *horizon* (its duration), which may be longer than the window: an undamped
+   scene's phase error keeps growing after it. Beyond the window the error is extrapolated by
+   a drift model (a constant plus a linear growth) fitted to the window's second half
+   (:func:`horizon_error`).
 4. **Refinement**: while the error is above ``PILOT_MARGIN`` of the tolerance, each refinement
    the plan still has (exact forces, the derivatives basis, more derivative directions, more
    modes, half the step) is tried alone and the one that measures lowest is kept (the cheaper
@@ -36,8 +44,11 @@ import dataclasses
 import math
 from typing import Callable
 
+from modal_spring_ros.core.measured_error import (converged_trajectory, horizon_error,
+                                                  on_samples, trajectory, trajectory_error)
 from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.simulations import DivergenceError, Simulation
+from modal_spring_ros.core.simulations import Simulation
+from modal_spring_ros.core.work_model import work_per_second
 import numpy as np
 
 #: The measured error must be within this share of the tolerance (a margin for what the pilot
@@ -57,16 +68,16 @@ REFERENCE_WORK = 5e6
 REFERENCE_SAFETY, REFERENCE_REFINEMENT = 0.15, 4.0
 #: The reference's own error (by step doubling) must be within this share of the tolerance.
 REFERENCE_ACCURACY = 0.1
+#: The richer sibling's step is made this many times shorter than the plan's, and kept for a
+#: refined plan while it is at least ``SIBLING_KEPT`` times shorter.
+SIBLING_REFINEMENT, SIBLING_KEPT = 4.0, 2.0
+#: Order of the schemes' step error (the Richardson correction against the sibling).
+STEP_ORDER = 2
+#: Longest step a plan is lengthened to, as a share of its explicit stability limit (below
+#: ``mode_selection.STABILITY_SAFETY``, beyond which a plan's step is cut to a safe one).
+LONGEST_STEP = 0.85
 #: Most derivative directions a refinement asks for.
 MAX_PILOT_DIRECTIONS = 96
-#: The work model, in microseconds of one core (fitted to per-step CPU times of full and modal
-#: runs from 2 to 40,000 springs, single-threaded BLAS): a step's fixed cost (full, modal), per
-#: spring evaluated, per free DOF of a full step, per free DOF and stepped coordinate (the two
-#: products with the shapes), and per pair of coordinates (a refreshed step's tangent).
-STEP_US = {'full': 60.0, 'modal': 45.0}
-SPRING_US, DOF_US, PROJECTION_US, TANGENT_US = 0.02, 0.02, 0.001, 0.0005
-#: A turning clamp's step also computes the frame's motion and its inertial loads.
-TURNING_STEP_US = 140.0
 #: A candidate within this factor of another's measured error counts as a tie (cheaper wins).
 TIE = 1.1
 
@@ -94,23 +105,31 @@ class PlanSettings:
 class PilotReport:
     """What the pilot measured, against what, and what it chose."""
 
-    error: float                    # measured relative error of the chosen plan (0: full run)
-    planned_error: float            # measured error of the plan as first predicted
+    error: float                    # relative error of the chosen plan over the horizon
+    planned_error: float            # the same for the plan as first predicted
     window_s: float
     against: str                    # 'the full run' or 'a richer plan'
     refined: tuple[str, ...]        # refinements applied, in order
     method: str                     # 'modal' or 'full'
     cost_ratio: float               # chosen plan's work per simulated second / the full run's
     reason: str = ''                # why the full run was chosen, when it was
+    horizon_s: float = 0.0          # the run the promise is for, s (0: the window)
+    window_error: float = math.nan  # the chosen plan's error measured over the window
+
+    def _over(self) -> str:
+        """Say how the error was found: measured over the window, extrapolated beyond."""
+        if self.horizon_s <= self.window_s * (1.0 + 1e-9):
+            return f'against {self.against} over {self.window_s:.3g} s (pilot)'
+        return (f'over a {self.horizon_s:.3g} s run (measured {self.window_error:.2%} against '
+                f'{self.against} over {self.window_s:.3g} s, drift extrapolated)')
 
     def describe(self) -> str:
         if self.method == 'full':
-            return (f'full run chosen ({self.reason}); the modal plan measured '
-                    f'{self.planned_error:.2%} against {self.against} over {self.window_s:.3g} s')
+            return (f'full run chosen ({self.reason}): error {self.error:.2%} {self._over()}; '
+                    f'the modal plan as first made: {self.planned_error:.2%}')
         steps = f", refined: {', '.join(self.refined)}" if self.refined else ''
-        return (f'measured error {self.error:.2%} against {self.against} over '
-                f'{self.window_s:.3g} s (pilot){steps}; work {self.cost_ratio:.2g} x the full '
-                'run')
+        return (f'measured error {self.error:.2%} {self._over()}{steps}; work '
+                f'{self.cost_ratio:.2g} x the full run')
 
 
 def pilot_window(model: MassSpringModel, lowest_hz: float) -> float:
@@ -121,83 +140,6 @@ def pilot_window(model: MassSpringModel, lowest_hz: float) -> float:
     return float(min(MAX_WINDOW_S, max(MIN_WINDOW_S, window)))
 
 
-def work_per_second(sim: Simulation) -> float:
-    """
-    Return the modelled CPU time ``sim`` takes per simulated second, us (see ``STEP_US``).
-
-    Deterministic (no clock is read), so that the same scene and settings give the same plan on
-    any machine and under any load. A sampled plan is taken to evaluate about four springs per
-    coordinate (its sample is trained only once the plan is chosen).
-    """
-    model = sim.model
-    springs = model.scene.n_springs
-    turning = TURNING_STEP_US if model.rotates else 0.0
-    if sim.method == 'full':
-        per_step = STEP_US['full'] + turning + SPRING_US * springs + DOF_US * model.n_free_dof
-        return per_step / sim.dt
-    coords = sim.coordinates
-    if getattr(sim, 'sample_tolerance', None) is not None:
-        evaluated = float(min(springs, 4 * coords))
-        per_step = (STEP_US['modal'] + turning + SPRING_US * evaluated
-                    + PROJECTION_US * evaluated * 2 * model.dimension * coords)
-    else:
-        evaluation = SPRING_US * springs + PROJECTION_US * model.n_free_dof * coords
-        tangent = TANGENT_US * coords * coords if sim.force_refresh > 1 else 0.0
-        per_step = STEP_US['modal'] + turning + evaluation / sim.force_refresh + tangent
-    return per_step / sim.dt
-
-
-def trajectory(sim: Simulation, sample_s: float, samples: int) -> np.ndarray | None:
-    """Return the displacement every ``sample_s`` from rest, or None where the run diverges."""
-    per = max(1, int(round(sample_s / sim.dt)))
-    out = np.empty((samples, sim.model.n_free_dof))
-    sim.reset()
-    try:
-        for k in range(samples):
-            sim.step(per)
-            out[k] = sim.displacement()
-    except DivergenceError:
-        return None
-    finally:
-        sim.reset()
-    return out if np.isfinite(out).all() else None
-
-
-def trajectory_error(run: np.ndarray | None, reference: np.ndarray) -> float:
-    """Relative L2 error of a trajectory against the reference (inf where it diverged)."""
-    if run is None:
-        return math.inf
-    norm = float(np.linalg.norm(reference))
-    return float(np.linalg.norm(run - reference)) / norm if norm > 0 else 0.0
-
-
-def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sample_s: float,
-                         samples: int, accuracy: float, work_per_s: float = math.inf
-                         ) -> tuple[np.ndarray, float] | None:
-    """
-    Return a run's trajectory converged in its step, and the finer step it was computed at.
-
-    ``run_at(dt)`` builds the run at a step no longer than ``dt`` (landing on the samples).
-    Step doubling: a second-order scheme's error at ``h / 2`` is about a third of the
-    difference between its runs at ``h`` and ``h / 2``; the step is halved from ``step`` until
-    that is within ``accuracy`` (relative), and the Richardson extrapolation of the last two is
-    returned. None when it diverges, or when the modelled work of the runs so far passes
-    ``work_per_s`` (us per simulated second, summed over the runs).
-    """
-    spent, coarse = 0.0, None
-    while True:
-        sim = run_at(step)
-        spent += work_per_second(sim)
-        if spent > work_per_s:
-            return None
-        fine = trajectory(sim, sample_s, samples)
-        if fine is None:
-            return None
-        if coarse is not None and trajectory_error(coarse, fine) / 3.0 <= accuracy:
-            return (4.0 * fine - coarse) / 3.0, sim.dt
-        coarse, step = fine, sim.dt / 2.0
-
-
 class Pilot:
     """
     Refine a plan by measurement and choose between it and the full run.
@@ -206,32 +148,39 @@ class Pilot:
     run at a step no longer than ``longest_dt`` that lands on the samples (None when the band
     does not keep every mode: the full run is then neither reference nor candidate);
     ``more_modes(hz)`` the next mode limit above ``hz`` the band allows (None: none);
-    ``can_halve_step``: the step is the plan's to choose (not given by the user).
+    ``can_halve_step``: the step is the plan's to choose (not given by the user);
+    ``horizon_s``: how long the run is, s (the tolerance holds over it; None: the window).
     """
 
     def __init__(self, model: MassSpringModel, tolerance: float,
                  make: Callable[[PlanSettings], Simulation],
                  full: Callable[[float, float], Simulation] | None,
                  more_modes: Callable[[float], float | None], lowest_hz: float,
-                 can_halve_step: bool = True):
+                 can_halve_step: bool = True, horizon_s: float | None = None):
         self.model = model
         self.can_halve_step = can_halve_step
         self.tolerance = float(tolerance)
         self.make = make
         self.full = full
         self.more_modes = more_modes
-        self.window_s = pilot_window(model, lowest_hz)
+        window = pilot_window(model, lowest_hz)
+        self.horizon_s = float(horizon_s) if horizon_s is not None else window
+        self.window_s = min(window, self.horizon_s)
+        self._sibling: tuple[PlanSettings, float] | None = None   # the richer plan, its step
+        # error over the window of each run measured against the current reference
+        self._measured: dict[int, tuple[Simulation, float]] = {}
 
     def run(self, plan: PlanSettings) -> tuple[Simulation, PilotReport]:
         """Return the simulation chosen and what the pilot measured."""
         sim = self.make(plan)
         sample_s = sim.dt * max(1, int(round(self.window_s / SAMPLES / sim.dt)))
+        self._sample_s = sample_s
         samples = max(1, int(math.ceil(self.window_s / sample_s)))
         reference, against = self._reference(plan, sim, sample_s, samples)
         budget = PILOT_MARGIN * self.tolerance
-        error = planned = trajectory_error(trajectory(sim, sample_s, samples), reference)
+        error = planned = self._error(sim, reference, sample_s)
         refined: list[str] = []
-        stale = False     # the plan was refined since its richer sibling was made
+        stale = False     # the plan was refined as far as its richer sibling in some respect
         for _ in range(2 * MAX_ROUNDS):
             if error <= budget and stale:
                 reference, against, error = self._remeasured(plan, sim, sample_s, samples)
@@ -240,8 +189,8 @@ class Pilot:
                 break
             options = []
             for name, candidate in self._refinements(plan):
-                trial = self.make(candidate)
-                measured = trajectory_error(trajectory(trial, sample_s, samples), reference)
+                trial = self._build(candidate)
+                measured = self._error(trial, reference, sample_s)
                 options.append((measured, work_per_second(trial), name, candidate, trial))
             if not options:
                 break
@@ -253,13 +202,87 @@ class Pilot:
                 break                                # nothing helps any more
             error = measured
             refined.append(name)
-            stale = against != 'the full run'
+            stale = not self._still_poorer(plan, sim)
         if stale:
             reference, against, error = self._remeasured(plan, sim, sample_s, samples)
+        if error <= budget and self.can_halve_step:
+            plan, sim, error, longer = self._lengthened(plan, sim, error, reference, sample_s)
+            refined.extend(['a longer step'] if longer else [])
         self._sampling = (sample_s, samples, reference, against)
-        return self._choose(sim, plan, error, planned, against, tuple(refined))
+        sim, report = self._choose(sim, plan, error, planned, against, tuple(refined))
+        window_error = report.error if report.method == 'full' else self._measured[id(sim)][1]
+        return sim, dataclasses.replace(report, horizon_s=self.horizon_s,
+                                        window_error=window_error)
 
     # -- internals -----------------------------------------------------------------------------
+    def _lengthened(self, plan: PlanSettings, sim: Simulation, error: float,
+                    reference: np.ndarray, sample_s: float
+                    ) -> tuple[PlanSettings, Simulation, float, bool]:
+        """
+        Return the plan at the longest step (up to ``LONGEST_STEP`` of its limit) within budget.
+
+        A plan well within its budget pays for accuracy nobody asked for. Its step is
+        lengthened (at most doubled) to where its step error (second order) would reach 90 % of
+        the budget, and kept where the measured error is within it; twice at most. Whether any
+        longer step was kept is returned last.
+        """
+        budget, longer = PILOT_MARGIN * self.tolerance, False
+        for _ in range(2):
+            reach = (0.9 * budget / error) ** (1.0 / STEP_ORDER) if error > 0.0 else 2.0
+            step = min(min(2.0, reach) * sim.dt, LONGEST_STEP * sim.stability_limit())
+            if step <= sim.dt * 1.1:
+                return plan, sim, error, longer
+            candidate = dataclasses.replace(plan, dt=step)
+            trial = self._build(candidate)
+            if trial.dt <= sim.dt * 1.05:
+                return plan, sim, error, longer
+            measured = self._error(trial, reference, sample_s)
+            if measured > budget:
+                return plan, sim, error, longer
+            plan, sim, error, longer = candidate, trial, measured, True
+        return plan, sim, error, longer
+
+    def _build(self, settings: PlanSettings) -> Simulation:
+        """
+        Build the run of ``settings`` on the pilot's sample grid.
+
+        A step cut to a stability limit lands anywhere; it is shortened to the next divisor of
+        the sampling interval, so that every run is compared at the same instants (and the run
+        measured is the run returned).
+        """
+        return on_samples(self.make(settings), self._sample_s)
+
+    def _error(self, sim: Simulation, reference: np.ndarray, sample_s: float) -> float:
+        """
+        Return ``sim``'s error over the horizon.
+
+        Measured over the window, extrapolated beyond it, and against a sibling corrected for
+        the share of the step error the sibling shares.
+        """
+        run = trajectory(sim, sample_s, len(reference))
+        shared = self._shared(sim)
+        self._measured[id(sim)] = (sim, trajectory_error(run, reference) * shared)
+        return horizon_error(run, reference, sample_s, self.horizon_s) * shared
+
+    def _shared(self, sim: Simulation) -> float:
+        """Return the Richardson factor for ``sim`` against the sibling (1: the full run)."""
+        if self._sibling is None:
+            return 1.0
+        ratio = self._sibling[1] / sim.dt
+        finer = ratio <= (1.0 + 1e-6) / SIBLING_KEPT
+        return 1.0 / (1.0 - ratio ** STEP_ORDER) if finer else 1.0
+
+    def _still_poorer(self, plan: PlanSettings, sim: Simulation) -> bool:
+        """Return whether the sibling is still richer than the refined ``plan`` everywhere."""
+        if self._sibling is None:
+            return True
+        richer, dt = self._sibling
+        return (sim.dt * (1.0 + 1e-6) >= SIBLING_KEPT * dt
+                and (plan.highest_hz < richer.highest_hz
+                     or self.more_modes(plan.highest_hz) is None)
+                and (plan.basis_kind == 'rest' or plan.directions < richer.directions
+                     or plan.directions >= MAX_PILOT_DIRECTIONS))
+
     def _remeasured(self, plan: PlanSettings, sim: Simulation, sample_s: float, samples: int
                     ) -> tuple[np.ndarray, str, float]:
         """
@@ -268,16 +291,18 @@ class Pilot:
         A sibling made for the first plan can be the refined plan itself, and would measure 0.
         """
         reference, against = self._reference(plan, sim, sample_s, samples)
-        return reference, against, trajectory_error(trajectory(sim, sample_s, samples), reference)
+        return reference, against, self._error(sim, reference, sample_s)
 
     def _reference(self, plan: PlanSettings, sim: Simulation, sample_s: float, samples: int
                    ) -> tuple[np.ndarray, str]:
         """
         Return the reference for ``plan`` (built as ``sim``): the full run, or a richer sibling.
 
-        The sibling's step is half the step ``sim`` was built with (a plan's step can be cut to
-        its stability limit when built: halving the plan's own could give the same run).
+        The sibling's step is ``SIBLING_REFINEMENT`` times shorter than the step ``sim`` was
+        built with (a plan's step can be cut to its stability limit when built: refining the
+        plan's own could give the same run).
         """
+        self._sibling, self._measured = None, {}
         if self.full is not None:
             found = self._converged_full_run(plan, sample_s, samples)
             if found is not None:
@@ -286,8 +311,10 @@ class Pilot:
             plan, forces='exact', refresh=1, basis_kind='derivatives',
             directions=min(MAX_PILOT_DIRECTIONS, 2 * plan.directions),
             highest_hz=self.more_modes(plan.highest_hz) or plan.highest_hz,
-            dt=min(plan.dt, sim.dt) / 2)
-        reference = trajectory(self.make(richer), sample_s, samples)
+            dt=min(plan.dt, sim.dt) / SIBLING_REFINEMENT)
+        sibling = self._build(richer)
+        reference = trajectory(sibling, sample_s, samples)
+        self._sibling = (richer, sibling.dt)
         if reference is None:
             raise ValueError('modal.auto cannot measure a plan for this scene: the full run is '
                              'beyond its pilot budget and the richer modal plan diverges; run '
@@ -342,17 +369,17 @@ class Pilot:
         """
         Return the full run at the longest step that measures within budget, and its error.
 
-        Steps from the plan's, halved. Against a richer plan (no full reference), the
-        reference step.
+        Steps from the longest stable one (``full`` caps it), halved. Against a richer plan
+        (no full reference), the plan's step over ``REFERENCE_REFINEMENT``.
         """
-        sample_s, samples, reference, _ = self._sampling
+        sample_s, _, reference, _ = self._sampling
         if against != 'the full run':
             return self.full(plan.dt / REFERENCE_REFINEMENT, sample_s), 0.0
         shortest = self._reference_dt
-        step = plan.dt
+        step = math.inf
         while True:
             full = self.full(step, sample_s)
-            error = trajectory_error(trajectory(full, sample_s, samples), reference)
-            if error <= PILOT_MARGIN * self.tolerance or step <= shortest:
+            error = self._error(full, reference, sample_s)
+            if error <= PILOT_MARGIN * self.tolerance or full.dt <= shortest:
                 return full, error
-            step /= 2.0
+            step = full.dt / 2.0

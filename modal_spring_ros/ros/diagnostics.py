@@ -100,6 +100,7 @@ def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, s
         'coordinates stepped': str(status.coordinates),
         'modes computed': str(status.modes_computed),
         'automatic mode choice': status.mode_choice,
+        'automatic choice measured': status.measured,
         'integrator': status.integrator,
         'dt (s)': f'{status.dt:g}',
         'spring forces': status.forces,

@@ -15,8 +15,8 @@ from typing import Any
 
 from modal_spring_ros.core.clamp_follower import DEFAULT_FOLLOW_HZ
 from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TRANSITION_S, FORCES,
-                                          MAX_DIRECTIONS, MAX_FOLLOW_HZ, MIN_DIRECTIONS,
-                                          SimulationConfig)
+                                          MAX_DIRECTIONS, MAX_FOLLOW_HZ, MAX_HORIZON_S,
+                                          MIN_DIRECTIONS, SimulationConfig)
 from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand, UNITS
 from modal_spring_ros.core.integrators import INTEGRATORS
@@ -129,8 +129,12 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         'basis (rest or derivatives, by predicted error and cost, in place of modal.basis)',
         _B)),
     'modal.tolerance': (DEFAULT_TOLERANCE, _descriptor(
-        'Predicted relative error the automatic mode choice must meet', _D,
-        float_range=(1e-6, 0.5))),
+        'Relative error the automatic choice must meet over modal.horizon, measured by its '
+        'pilot run', _D, float_range=(1e-6, 0.5))),
+    'modal.horizon': (0.0, _descriptor(
+        'Run length, s, that modal.tolerance holds over (an undamped scene drifts further the '
+        "longer it runs); 0 = the scene's simulation.duration", _D,
+        float_range=(0.0, MAX_HORIZON_S))),
     'modal.forces': ('exact', _descriptor(
         'Spring forces: exact (every spring every step, the paper), refreshed (every spring '
         'every modal.force_refresh steps, a tangent between) or sampled (a weighted sample of '
@@ -165,7 +169,8 @@ FREQUENCIES_DESCRIPTOR = _descriptor(
 #: parameters whose change rebuilds the simulation (state and time carried over); the other
 #: ``filter.*`` parameters change the band of the running one
 REBUILD_PARAMETERS = frozenset({'method', 'integrator', 'sim.dt', 'modal.auto',
-                                'modal.tolerance', 'modal.force_refresh', 'modal.basis',
+                                'modal.tolerance', 'modal.horizon', 'modal.force_refresh',
+                                'modal.basis',
                                 'modal.forces',
                                 'modal.derivative_directions'})
 #: parameters of the band
@@ -184,7 +189,7 @@ CONFIG_NAMES = {'method': 'method', 'auto': 'modal.auto', 'integrator': 'integra
                 'tolerance': 'modal.tolerance', 'force_refresh': 'modal.force_refresh',
                 'basis': 'modal.basis', 'derivative_directions': 'modal.derivative_directions',
                 'anchor': 'anchor.source', 'follow_hz': 'anchor.follow_hz',
-                'forces': 'modal.forces'}
+                'forces': 'modal.forces', 'horizon_s': 'modal.horizon'}
 
 
 def band_from_parameters(values: dict[str, Any]) -> FilterBand:
@@ -213,6 +218,7 @@ def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
         basis=values.get('modal.basis', 'rest'),
         derivative_directions=values.get('modal.derivative_directions', DEFAULT_DIRECTIONS),
         forces=values.get('modal.forces', 'exact'),
+        horizon_s=values.get('modal.horizon', 0.0) or None,
         anchor=values.get('anchor.source', 'scene'),
         follow_hz=values.get('anchor.follow_hz', DEFAULT_FOLLOW_HZ),
     ).validate(CONFIG_NAMES)

@@ -146,6 +146,8 @@ def test_preparing_switches_from_another_thread_while_stepping_and_fading(sheet)
     ({'anchor': 'joystick'}, "anchor 'joystick' must be one of scene, topic"),
     ({'follow_hz': 0.0}, 'follow_hz (0.0) must be a number of Hz above 0 and at most 100'),
     ({'follow_hz': float('inf')}, 'follow_hz (inf) must be a number of Hz'),
+    ({'horizon_s': 0.0}, 'horizon_s (0.0) must be a number of seconds above 0 and at most 86400'),
+    ({'horizon_s': float('nan')}, 'horizon_s (nan) must be a number of seconds'),
 ])
 def test_the_configuration_names_what_is_wrong(changes, message):
     with pytest.raises(ConfigError) as info:

@@ -149,6 +149,7 @@ def test_band_change_is_accepted_reported_and_removes_high_frequencies(running, 
     ({'publish_rate_hz': 0.0}, 'publish_rate_hz'),
     ({'scene': 'chain_2'}, 'read-only'),
     ({'modal__force_refresh': -1}, 'modal.force_refresh'),
+    ({'modal__horizon': -1.0}, 'modal.horizon'),
     # values that would freeze the stream without a word: t + dt == t
     ({'sim__dt': 1e-300}, 'sim.dt (1e-300) must be a finite number of seconds, at least 1e-08'),
     ({'realtime_factor': 1e-300}, 'realtime_factor (1e-300) must be 0 (as fast as possible)'),

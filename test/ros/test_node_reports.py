@@ -55,6 +55,9 @@ def test_node_automatic_mode_choice_is_reported():
         expected = build_simulation(load_scene('sheet_10x10'),
                                     SimulationConfig(auto=True, tolerance=0.05))
         assert values['force refresh (steps)'] == str(expected.force_refresh)
+        # the error measured over the scene's run, as modal_spring_sim prints it
+        assert values['automatic choice measured'] == expected.pilot.describe()
+        assert ' over a 5 s run (measured ' in values['automatic choice measured']
         assert expected.force_refresh > 1
         assert wait_for(lambda: float(_values(diags, '/auto/')['force refresh error']) > 0, 10)
         assert float(_values(diags, '/auto/')['force refresh error']) < 0.01

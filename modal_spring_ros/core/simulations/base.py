@@ -87,6 +87,7 @@ class SimulationStatus:
     fading: bool               # a band change is still fading modes in or out
     forces: str = 'exact every step'   # how the spring forces are evaluated
     forces_fell_back: bool = False     # sampled springs fell back to exact ones (error)
+    measured: str = 'off'              # what the automatic choice's pilot measured, and how
 
 
 class Simulation(abc.ABC):
@@ -241,7 +242,8 @@ class Simulation(abc.ABC):
             refresh_error=self.refresh_error, stability_limit=self.stability_limit(),
             time=self.time, steps=self.steps, max_strain=self.max_strain(),
             fading=self.fading, forces=self.describe_forces(),
-            forces_fell_back=self.forces_fell_back)
+            forces_fell_back=self.forces_fell_back,
+            measured=self.pilot.describe() if self.pilot is not None else 'off')
 
     # -- state in physical terms ---------------------------------------------------------------
     @abc.abstractmethod

@@ -1,0 +1,123 @@
+"""
+How a run's error is measured: the same instants, a relative L2 error, beyond the window.
+
+Runs are compared on one grid of sample instants (:func:`on_samples` lands a run's step on
+it), by the relative L2 error of the free-DOF displacement in the clamp's frame
+(:func:`trajectory_error`), against a reference converged in its step
+(:func:`converged_trajectory`). An error measured over a window is extrapolated to a longer
+run by a drift model (:func:`horizon_error`).
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+from modal_spring_ros.core.simulations import DivergenceError, Simulation
+from modal_spring_ros.core.work_model import work_per_second
+import numpy as np
+
+#: Blocks of the window's second half the drift model is fitted to.
+DRIFT_BLOCKS = 4
+
+
+def on_samples(sim: Simulation, sample_s: float, longest_dt: float | None = None
+               ) -> Simulation:
+    """
+    Return ``sim`` at the longest step that divides ``sample_s``, no longer than its own.
+
+    (or than ``longest_dt`` when given); ``sim`` itself where its step already does.
+    """
+    step = sim.dt if longest_dt is None else longest_dt
+    dt = sample_s / max(1, math.ceil(sample_s / step - 1e-9))
+    return sim if abs(dt - sim.dt) <= 1e-9 * dt else sim.with_dt(dt)
+
+
+def trajectory(sim: Simulation, sample_s: float, samples: int) -> np.ndarray | None:
+    """Return the displacement every ``sample_s`` from rest, or None where the run diverges."""
+    per = max(1, int(round(sample_s / sim.dt)))
+    if abs(per * sim.dt - sample_s) > 1e-6 * sample_s:
+        raise ValueError(f'samples every {sample_s:.6g} s do not fall on steps of '
+                         f'{sim.dt:.6g} s')
+    out = np.empty((samples, sim.model.n_free_dof))
+    sim.reset()
+    try:
+        for k in range(samples):
+            sim.step(per)
+            out[k] = sim.displacement()
+    except DivergenceError:
+        return None
+    finally:
+        sim.reset()
+    return out if np.isfinite(out).all() else None
+
+
+def trajectory_error(run: np.ndarray | None, reference: np.ndarray) -> float:
+    """Relative L2 error of a trajectory against the reference (inf where it diverged)."""
+    if run is None:
+        return math.inf
+    norm = float(np.linalg.norm(reference))
+    return float(np.linalg.norm(run - reference)) / norm if norm > 0 else 0.0
+
+
+def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sample_s: float,
+                         samples: int, accuracy: float, work_per_s: float = math.inf
+                         ) -> tuple[np.ndarray, float] | None:
+    """
+    Return a run's trajectory converged in its step, and the finer step it was computed at.
+
+    ``run_at(dt)`` builds the run at a step no longer than ``dt`` (landing on the samples).
+    Step doubling: a second-order scheme's error at ``h / 2`` is about a third of the
+    difference between its runs at ``h`` and ``h / 2``; the step is halved from ``step`` until
+    that is within ``accuracy`` (relative), and the Richardson extrapolation of the last two is
+    returned. None when it diverges, or when the modelled work of the runs so far passes
+    ``work_per_s`` (us per simulated second, summed over the runs).
+    """
+    spent, coarse = 0.0, None
+    while True:
+        sim = run_at(step)
+        spent += work_per_second(sim)
+        if spent > work_per_s:
+            return None
+        fine = trajectory(sim, sample_s, samples)
+        if fine is None:
+            return None
+        if coarse is not None and trajectory_error(coarse, fine) / 3.0 <= accuracy:
+            return (4.0 * fine - coarse) / 3.0, sim.dt
+        coarse, step = fine, sim.dt / 2.0
+
+
+def horizon_error(run: np.ndarray | None, reference: np.ndarray, sample_s: float,
+                  horizon_s: float) -> float:
+    """
+    Return the relative L2 error of ``run`` over ``horizon_s``, measured or extrapolated.
+
+    Within the window (``len(reference)`` samples every ``sample_s``) it is
+    :func:`trajectory_error`. Beyond it, the error model of a stepped oscillation: the size of
+    the error relative to the motion is a constant (truncation) plus a term growing linearly in
+    time (phase drift), ``a + b t``. It is fitted to ``DRIFT_BLOCKS`` blocks of the window's
+    second half (after the start's transient; ``b`` not below 0) and integrated over the rest of
+    the horizon with the motion's mean square of the last block. Never less than the window's.
+    """
+    error = trajectory_error(run, reference)
+    window_s = len(reference) * sample_s
+    if run is None or not math.isfinite(error) or horizon_s <= window_s * (1.0 + 1e-9):
+        return error
+    squared = np.sum((run - reference) ** 2, axis=1)
+    motion = np.sum(reference * reference, axis=1)
+    blocks = [b for b in np.array_split(np.arange(len(reference) // 2, len(reference)),
+                                        DRIFT_BLOCKS) if len(b) and motion[b].sum() > 0.0]
+    if len(blocks) < 2:
+        return error
+    t = np.array([(b.mean() + 1.0) * sample_s for b in blocks])
+    size = np.array([math.sqrt(squared[b].sum() / motion[b].sum()) for b in blocks])
+    growth, at_zero = np.polyfit(t, size, 1)
+    growth = max(float(growth), 0.0)
+    power = float(motion[blocks[-1]].mean()) / sample_s          # per second of the motion
+
+    def integral(x: float) -> float:                             # of (a + b t)^2
+        return ((at_zero + growth * x) ** 3 / (3.0 * growth) if growth > 0.0
+                else at_zero * at_zero * x)
+
+    beyond = power * (horizon_s - window_s)
+    errors = float(squared.sum()) + power * (integral(horizon_s) - integral(window_s))
+    return max(error, math.sqrt(errors / (float(motion.sum()) + beyond)))
