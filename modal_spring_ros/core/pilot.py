@@ -169,6 +169,9 @@ class Pilot:
         self._sibling: tuple[PlanSettings, float] | None = None   # the richer plan, its step
         # error over the window of each run measured against the current reference
         self._measured: dict[int, tuple[Simulation, float]] = {}
+        self._sample_s = 0.0      # the sampling interval every run lands on (set by run)
+        # what the full candidate is measured with: sample_s, samples, reference, against
+        self._sampling: tuple[float, int, np.ndarray, str] | None = None
 
     def run(self, plan: PlanSettings) -> tuple[Simulation, PilotReport]:
         """Return the simulation chosen and what the pilot measured."""
