@@ -7,7 +7,9 @@ fixed ``sim.dt`` and publishes on its own period through the node's outputs
 once; their slow part planned by :mod:`~modal_spring_ros.ros.parameter_changes` in the change
 preparer's thread, :mod:`~modal_spring_ros.ros.change_preparer`, which computes missing modes,
 on large scenes in a worker process, so that no request waits behind a slow one) and the
-``~/reset`` and ``~/pause`` services, in a callback group of their own. Every change reaches
+``~/reset`` and ``~/pause`` services, whose answers are awaited without holding an executor
+thread (requests sent together are answered together, none queued behind a slow one). Every
+change reaches
 the simulation thread as one typed request (:mod:`~modal_spring_ros.ros.requests`).
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
@@ -32,11 +34,12 @@ from modal_spring_ros.ros.parameter_changes import ChangePlanner
 from modal_spring_ros.ros.parameters import (config_from_parameters, FREQUENCIES,
                                              FREQUENCIES_DESCRIPTOR, PARAMETERS,
                                              SLOW_PARAMETERS)
-from modal_spring_ros.ros.requests import Pause, Request, Reset
+from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset
 from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
 from modal_spring_ros.scenes.resources import load_scene
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
@@ -44,6 +47,8 @@ from std_srvs.srv import SetBool, Trigger
 NODE_NAME = 'modal_spring'
 #: longest a service waits for the simulation thread to apply its request, s
 SERVICE_TIMEOUT_S = 5.0
+#: how often the executor wakes while a service awaits its answer (the timeout's resolution), s
+SERVICE_WAKE_S = 0.25
 
 
 class ModalSpringNode(Node):
@@ -86,7 +91,9 @@ class ModalSpringNode(Node):
         follower = scene.anchor_motion if self._values['anchor.source'] == 'topic' else None
         self._inputs = NodeInputs(self, follower, lambda: self._values, self._thread.submit,
                                   MutuallyExclusiveCallbackGroup())
-        services = MutuallyExclusiveCallbackGroup()
+        services = ReentrantCallbackGroup()     # awaiting coroutines: no thread held
+        self._answered = self.create_guard_condition(lambda: None, callback_group=services)
+        self.create_timer(SERVICE_WAKE_S, lambda: None, callback_group=services)
         self.create_service(Trigger, '~/reset', self._on_reset, callback_group=services)
         self.create_service(SetBool, '~/pause', self._on_pause, callback_group=services)
         status = sim.status()
@@ -205,17 +212,25 @@ class ModalSpringNode(Node):
         self._set_own([Parameter(FREQUENCIES, value=freqs)])
 
     # -- services ------------------------------------------------------------------------------
-    def _answer(self, request: Request, response):
+    async def _answer(self, request: Request, response):
+        request.on_finish = self._wake
         self._thread.submit(request)
-        response.success = request.wait(SERVICE_TIMEOUT_S)
+        response.success = await applied_within(request, SERVICE_TIMEOUT_S)
         response.message = request.message or 'not applied in time: the simulation is busy'
         return response
 
-    def _on_reset(self, _request, response):
-        return self._answer(Reset(), response)
+    def _wake(self) -> None:
+        """Wake the executor: an answer a service awaits is ready."""
+        try:
+            self._answered.trigger()
+        except InvalidHandle:   # the node is gone (shutting down): nobody awaits the answer
+            pass
 
-    def _on_pause(self, request, response):
-        return self._answer(Pause(paused=bool(request.data)), response)
+    async def _on_reset(self, _request, response):
+        return await self._answer(Reset(), response)
+
+    async def _on_pause(self, request, response):
+        return await self._answer(Pause(paused=bool(request.data)), response)
 
     def stop(self) -> None:
         """Stop the simulation thread (before destroy_node) and finalise the capture."""

@@ -6,13 +6,15 @@ a pause) is one request. The executor's callbacks do the slow, failing part (val
 computing modes, building operators) before they submit it; the simulation thread applies
 requests one at a time between two steps, in the order they came, so no request sees or leaves
 a half-built state. Each request is answered: :meth:`Request.wait` returns whether it was
-applied, and :attr:`Request.message` says what happened.
+applied (blocking a thread), :func:`applied_within` awaits the same in an executor's coroutine
+(holding no thread), and :attr:`Request.message` says what happened.
 """
 from __future__ import annotations
 
 import dataclasses
 import threading
-from typing import Any
+import time
+from typing import Any, Callable
 
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.simulations import Simulation
@@ -26,10 +28,15 @@ class Request:
     message: str = dataclasses.field(default='', init=False)
     _done: threading.Event = dataclasses.field(default_factory=threading.Event, init=False,
                                                repr=False)
+    #: called (from the simulation thread) once the request is answered, e.g. to wake an executor
+    on_finish: Callable[[], None] | None = dataclasses.field(default=None, init=False,
+                                                             repr=False)
 
     def finish(self, applied: bool, message: str) -> None:
         self.applied, self.message = applied, message
         self._done.set()
+        if self.on_finish is not None:
+            self.on_finish()
 
     def wait(self, timeout: float) -> bool:
         """Return True when the request was applied within ``timeout`` seconds."""
@@ -38,6 +45,28 @@ class Request:
     @property
     def answered(self) -> bool:
         return self._done.is_set()
+
+
+class _NextWake:
+    """Awaitable that hands the thread back to the executor once: resumed at its next wake-up."""
+
+    def __await__(self):
+        yield
+
+
+async def applied_within(request: Request, timeout: float) -> bool:
+    """
+    Await ``request``'s answer for up to ``timeout`` seconds in an rclpy executor's coroutine.
+
+    Unlike :meth:`Request.wait` it holds no executor thread while the simulation thread works,
+    so requests waiting together never queue behind one another. The executor resumes the
+    coroutine whenever it wakes: whoever answers must wake it (``Request.on_finish``), and
+    something periodic must wake it for the timeout to be seen.
+    """
+    deadline = time.monotonic() + timeout
+    while not request.answered and time.monotonic() < deadline:
+        await _NextWake()
+    return request.answered and request.applied
 
 
 @dataclasses.dataclass(eq=False)

@@ -11,7 +11,7 @@ from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.ros.resimulate import resimulate
 import numpy as np
 import pytest
-from ros_harness import Client, console_script, NodeProcess, wait_for
+from ros_harness import Client, console_script, frames_since, NodeProcess, wait_for
 from sensor_msgs.msg import PointCloud2
 
 pytestmark = pytest.mark.ros
@@ -66,11 +66,11 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
         assert wait_for(lambda: any('recording /rec/points' in line for line in log), 30)
         assert wait_for(lambda: any('parameters of node /rec/modal_spring and its scene' in line
                                     for line in log), 30)
-        time.sleep(2.0)
+        frames_since(points, time.monotonic(), 60, timeout=60)
         (result,) = client.set_parameters('rec/modal_spring', atomically=True,
                                           filter__type='lowpass', filter__high_hz=12.0)
         assert result.successful
-        time.sleep(2.5)
+        frames_since(points, time.monotonic(), 75, timeout=60)
         recorder.send_signal(signal.SIGINT)
         recorder.wait(timeout=30)
         reader.join(timeout=5)
@@ -127,12 +127,12 @@ def test_the_nodes_own_capture_resimulates_frame_for_frame(tmp_path):
                                      filter__type='bandpass', filter__low_hz=8.0,
                                      filter__high_hz=40.0)
         assert r.successful
-        time.sleep(1.0)
+        frames_since(points, time.monotonic(), 30, timeout=60)
         (r,) = client.set_parameters('direct/modal_spring', method='full')
         assert r.successful
-        time.sleep(0.7)
+        frames_since(points, time.monotonic(), 20, timeout=60)
         assert client.call(Trigger, '/direct/modal_spring/reset', Trigger.Request()).success
-        time.sleep(0.7)
+        frames_since(points, time.monotonic(), 20, timeout=60)
     bag = BagReader(out)
     assert bag.finalised and bag.topics['/points'].count > 60
     assert bag.topics['/parameter_events'].count == 2
@@ -159,8 +159,10 @@ def test_a_recorder_killed_with_sigkill_leaves_a_readable_bag(tmp_path):
         threading.Thread(target=lambda: log.extend(iter(recorder.stderr.readline, '')),
                          daemon=True).start()
         assert wait_for(lambda: any('recording /kill/points' in line for line in log), 30)
-        time.sleep(3.0)                       # about 180 clouds of 1.7 kB: 300 kB, under one
-        recorder.kill()                       # full chunk (768 kB); chunks close each second
+        # about 180 clouds of 1.7 kB: 300 kB, under one full chunk (768 kB); chunks close
+        # each second
+        frames_since(points, time.monotonic(), 180, timeout=90)
+        recorder.kill()
         recorder.wait(timeout=10)
     bag = BagReader(out)
     assert not bag.finalised and not (out / 'metadata.yaml').exists()
@@ -178,7 +180,7 @@ def test_the_nodes_capture_killed_with_sigkill_keeps_all_but_its_last_second(tmp
     try:
         points = client.collect(PointCloud2, '/capkill/points', qos=500)
         assert wait_for(lambda: len(points) > 10, 30)
-        time.sleep(3.0)
+        frames_since(points, time.monotonic(), 180, timeout=90)
         node.kill()
     finally:
         client.close()
