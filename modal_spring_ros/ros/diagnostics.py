@@ -47,6 +47,8 @@ class StreamReport:
     recording: str = ''                # why the capture (record.bag) stopped, if it did
     parameters_preparing: str = ''     # parameter changes accepted and still being prepared
     parameters_reverted: str = ''      # a change that failed after it was accepted, recently
+    namesakes: int = 0                 # other nodes on the graph with this node's full name
+    name: str = ''                     # this node's fully qualified name (for the namesakes)
 
 
 def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[int, str]:
@@ -77,6 +79,10 @@ def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[i
         warnings.append(stream.recording)
     if stream.parameters_reverted:
         warnings.append(f'parameter change {stream.parameters_reverted}')
+    if stream.namesakes:
+        warnings.append(f'{stream.namesakes} other node{"s" if stream.namesakes > 1 else ""} '
+                        f'named {stream.name} on this domain: their topics, parameters and '
+                        f'services mix with these (give each node its own name or namespace)')
     if status.max_strain > stream.strain_warning and status.basis.startswith('rest'):
         # the rest modes' regime; the derivative basis follows the sway's rotation beyond it
         warnings.append(f'large deformation: spring strain {status.max_strain:.1%} beyond the '
@@ -120,6 +126,7 @@ def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, s
         'longest gap between frames (s)': f'{stream.longest_gap_s:.3f}',
         'computing modes': str(stream.computing_modes).lower(),
         'parameter changes pending': stream.parameters_preparing or 'none',
+        'nodes with this name': str(stream.namesakes + 1),
         **({'anchor pose': stream.anchor} if stream.anchor else {}),
     }
 

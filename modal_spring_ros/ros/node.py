@@ -49,6 +49,8 @@ NODE_NAME = 'modal_spring'
 SERVICE_TIMEOUT_S = 5.0
 #: how often the executor wakes while a service awaits its answer (the timeout's resolution), s
 SERVICE_WAKE_S = 0.25
+#: how often the graph is searched for other nodes of this node's name, s
+NAMESAKE_CHECK_S = 2.0
 
 
 class ModalSpringNode(Node):
@@ -96,6 +98,8 @@ class ModalSpringNode(Node):
         self.create_timer(SERVICE_WAKE_S, lambda: None, callback_group=services)
         self.create_service(Trigger, '~/reset', self._on_reset, callback_group=services)
         self.create_service(SetBool, '~/pause', self._on_pause, callback_group=services)
+        self._namesakes = 0
+        self.create_timer(NAMESAKE_CHECK_S, self._check_namesakes, callback_group=services)
         status = sim.status()
         log.info(f'scene {scene.name}: {scene.n_particles} particles, {status.modes_computed} '
                  f'modes computed; {status.method}, {status.band}, {status.coordinates} '
@@ -202,7 +206,19 @@ class ModalSpringNode(Node):
         anchor, stale = self._inputs.anchor_status()
         state = self._preparer.state()
         return {'anchor': anchor, 'anchor_stale': stale,
-                'parameters_preparing': state.preparing, 'parameters_reverted': state.reverted}
+                'parameters_preparing': state.preparing, 'parameters_reverted': state.reverted,
+                'namesakes': self._namesakes, 'name': self.get_fully_qualified_name()}
+
+    def _check_namesakes(self) -> None:
+        """Warn (once per change) when other nodes on the graph have this node's full name."""
+        me = (self.get_name(), self.get_namespace())
+        found = sum(1 for named in self.get_node_names_and_namespaces() if named == me) - 1
+        if found > 0 and found != self._namesakes:
+            self.get_logger().warning(
+                f'{found} other node{"s" if found > 1 else ""} named '
+                f'{self.get_fully_qualified_name()} on this domain: their topics, parameters '
+                'and services mix with these; give each node its own name or namespace')
+        self._namesakes = max(found, 0)
 
     def _publish_frequencies(self) -> None:
         """Update modal.frequencies_hz when a band made the node compute more modes."""

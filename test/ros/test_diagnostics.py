@@ -40,6 +40,7 @@ def test_a_steady_stream_is_ok_with_every_figure():
     assert values['stability limit (s)'] == '0.0123' and values['step time (us)'] == '31.4'
     assert values['simulation time (s)'] == '2.500' and values['frames published'] == '600'
     assert values['paused'] == 'false' and values['divergence'] == 'none'
+    assert values['nodes with this name'] == '1'
 
 
 def test_refreshed_forces_report_their_error():
@@ -62,6 +63,9 @@ def test_refreshed_forces_report_their_error():
     ({'diverged_recently': True, 'divergences': 1, 'last_divergence': 'diverged at t = 1 s'},
      ERROR,
      'diverged at t = 1 s; recovered: back to the rest state'),
+    ({'namesakes': 1, 'name': '/robot/modal_spring'}, WARN,
+     '1 other node named /robot/modal_spring on this domain: their topics, parameters and '
+     'services mix with these (give each node its own name or namespace)'),
 ])
 def test_each_condition_has_its_level_and_message(changes, level, message):
     entry, _ = _entry(stream=dataclasses.replace(STREAM, **changes))

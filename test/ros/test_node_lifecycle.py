@@ -355,3 +355,28 @@ def test_the_stream_s_qos_can_be_overridden_at_start():
         assert wait_for(lambda: client.node.get_publishers_info_by_topic('/qos/points'), 30)
         (info,) = client.node.get_publishers_info_by_topic('/qos/points')
         assert info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+
+
+def test_two_nodes_of_one_name_on_one_domain_are_both_warned():
+    first = NodeProcess(namespace='twin')
+    second = NodeProcess(namespace='twin')
+    client = Client('twin_client')
+    try:
+        diags = client.collect(DiagnosticArray, '/diagnostics')
+
+        def warned():
+            return [s for _, s in _status(diags, '/twin/') if s.level == DiagnosticStatus.WARN
+                    and '1 other node named /twin/modal_spring on this domain' in s.message]
+        assert wait_for(lambda: len(warned()) >= 2, 60)
+        assert {kv.key: kv.value for kv in warned()[0].values}['nodes with this name'] == '2'
+        code, _, err = second.interrupt()
+        assert code == 0 and err.count('1 other node named /twin/modal_spring') == 1   # once
+        settled = time.monotonic()
+        # the one left says it is alone again once the graph forgets the other
+        assert wait_for(lambda: any(
+            t > settled and {kv.key: kv.value for kv in s.values}['nodes with this name'] == '1'
+            and 'other node' not in s.message for t, s in _status(diags, '/twin/')), 60)
+    finally:
+        client.close()
+        first.kill()
+        second.kill()
