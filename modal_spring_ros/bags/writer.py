@@ -8,13 +8,18 @@ message encoding ``cdr`` and metadata ``offered_qos_profiles`` and ``topic_type_
 ``rosbag2`` metadata records (one at open, one at close) holding the serialized bag
 information; chunks with message indexes, and a summary with statistics.
 
-Messages are written as serialized CDR. A chunk is closed when it is full or a second old
+Messages are written as serialized CDR. A message the program builds itself (a node's capture,
+a re-simulation) is serialized from its schema by mcap-ros2-support's encoder: exactly as long
+as its fields need (rclpy's ``serialize_message`` leaves up to 24 trailing bytes, which rosbags
+refuses) and with zeroed padding (rclpy's holds whatever the buffer held), so one deterministic
+run gives one bag, byte for byte. A chunk is closed when it is full or a second old
 (``chunk_seconds``), and the file is flushed whenever a chunk is closed, so a writer that is
 killed loses at most about the last second.
 """
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import math
 import os
@@ -24,9 +29,10 @@ import time
 from typing import Any
 
 from mcap.writer import CompressionType, IndexType, Writer
+# the encoder mcap_ros2.writer.Writer itself uses: one CDR writer per type from its schema text
+from mcap_ros2._dynamic import serialize_dynamic
 from modal_spring_ros import __version__
 from modal_spring_ros.bags.message_definitions import full_definition, type_hash
-from rclpy.serialization import serialize_message
 import yaml
 
 METADATA_VERSION = 9
@@ -37,6 +43,20 @@ DEFAULT_CHUNK_SIZE = 786_432
 DEFAULT_CHUNK_SECONDS = 1.0
 #: name of the MCAP metadata record with the run's own description (scene, settings)
 RUN_RECORD = 'modal_spring_ros'
+
+
+@functools.lru_cache(maxsize=None)
+def _encoder(type_name: str):
+    return serialize_dynamic(type_name, full_definition(type_name))[type_name]
+
+
+def canonical_cdr(type_name: str, msg) -> bytes:
+    """
+    Return ``msg`` (of ``type_name``, pkg/msg/Type) as CDR: no trailing bytes, zeroed padding.
+
+    Deterministic: the same message gives the same bytes in every process.
+    """
+    return bytes(_encoder(type_name)(msg))
 
 
 class BagError(ValueError):
@@ -194,7 +214,9 @@ class BagWriter:
 
     def write_message(self, topic: str, msg, log_time_ns: int,
                       publish_time_ns: int | None = None) -> None:
-        self.write(topic, serialize_message(msg), log_time_ns, publish_time_ns)
+        """Serialize ``msg`` by its topic's type (canonical CDR: see the module) and write it."""
+        self.write(topic, canonical_cdr(self._topics[topic]['type'], msg), log_time_ns,
+                   publish_time_ns)
 
     def add_run_record(self, data: dict[str, Any]) -> None:
         """

@@ -417,3 +417,60 @@ def test_the_summary_has_no_empty_index_group(tmp_path):
     assert offsets and all(o.group_length > 0 for o in offsets), offsets
     with open(path, 'rb') as fh:
         assert len(list(make_reader(fh).iter_messages())) == 10
+
+
+_CAPTURE = textwrap.dedent('''
+    import sys
+    from geometry_msgs.msg import PointStamped, PoseStamped
+    from modal_spring_ros.bags.capture import RunBagWriter
+    from modal_spring_ros.core.config import SimulationConfig
+    from modal_spring_ros.core.factory import build_simulation
+    from modal_spring_ros.scenes.resources import load_scene
+    sim = build_simulation(load_scene('sheet_10x10'), SimulationConfig())
+    bag = RunBagWriter(sys.argv[1], sim.model.scene, None, dt=sim.dt, frame_every=0,
+                       duration=0.0, parameters={'scene': 'sheet_10x10'},
+                       node='/robot/modal_spring')
+    pose, click = PoseStamped(), PointStamped()
+    pose.header.frame_id = click.header.frame_id = 'world'
+    pose.pose.position.x, click.point.z = 0.45, -0.9
+    for k in range(1, 31):
+        sim.step(40)
+        bag.frame(sim.time, sim.positions())
+        if k % 10 == 0:
+            bag.parameter_event(sim.time, {'filter.type': 'lowpass', 'filter.high_hz': 1.5 * k,
+                                           'filter.by': 'hz', 'modal.max_modes': k})
+            bag.record_input(sim.time, pose)
+            bag.record_input(sim.time, click)
+    bag.close()
+''')
+
+
+def test_a_nodes_capture_is_the_same_bytes_in_every_process_and_strict_readers_take_it(
+        tmp_path):
+    """
+    The messages a capture serializes itself are canonical CDR.
+
+    No trailing bytes (rosbags checks the size of every message) and zeroed padding: the same
+    run captured in two processes gives the same payloads, byte for byte.
+    """
+    from rosbags.typesys import get_typestore, Stores
+    payloads = []
+    for name in ('first', 'second'):
+        subprocess.run([sys.executable, '-c', _CAPTURE, str(tmp_path / name)], check=True,
+                       timeout=120)
+        reader = BagReader(tmp_path / name)
+        payloads.append([(m.topic, bytes(m.data)) for m in reader.messages()])
+    assert payloads[0] == payloads[1]
+    topics = [topic for topic, _ in payloads[0]]
+    assert topics.count('/parameter_events') == 3 and topics.count('/points') == 30
+    assert topics.count('/anchor_pose') == 3 and topics.count('/clicked_point') == 3
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = {t: info.type_name for t, info in reader.topics.items()}
+    for topic, data in payloads[0]:
+        msg = store.deserialize_cdr(data, types[topic])      # raises on any stray byte
+        assert store.serialize_cdr(msg, types[topic]) == data   # and its padding is zeros
+    event = store.deserialize_cdr(next(d for t, d in payloads[0] if t == '/parameter_events'),
+                                  'rcl_interfaces/msg/ParameterEvent')
+    assert event.node == '/robot/modal_spring'
+    assert [p.name for p in event.changed_parameters] == [
+        'filter.type', 'filter.high_hz', 'filter.by', 'modal.max_modes']
