@@ -48,7 +48,7 @@ from modal_spring_ros.core.measured_error import (converged_trajectory, horizon_
                                                   on_samples, trajectory, trajectory_error)
 from modal_spring_ros.core.model import MassSpringModel
 from modal_spring_ros.core.simulations import Simulation
-from modal_spring_ros.core.work_model import work_per_second
+from modal_spring_ros.core.work_model import cost_ratio, work_per_second
 import numpy as np
 
 #: The measured error must be within this share of the tolerance (a margin for what the pilot
@@ -111,10 +111,11 @@ class PilotReport:
     against: str                    # 'the full run' or 'a richer plan'
     refined: tuple[str, ...]        # refinements applied, in order
     method: str                     # 'modal' or 'full'
-    cost_ratio: float               # chosen plan's work per simulated second / the full run's
+    cost_ratio: float               # the plan's cost per simulated second / the full run's
     reason: str = ''                # why the full run was chosen, when it was
     horizon_s: float = 0.0          # the run the promise is for, s (0: the window)
     window_error: float = math.nan  # the chosen plan's error measured over the window
+    cost_timed: bool = False        # the cost ratio was timed here (a near tie), not modelled
 
     def _over(self) -> str:
         """Say how the error was found: measured over the window, extrapolated beyond."""
@@ -128,8 +129,12 @@ class PilotReport:
             return (f'full run chosen ({self.reason}): error {self.error:.2%} {self._over()}; '
                     f'the modal plan as first made: {self.planned_error:.2%}')
         steps = f", refined: {', '.join(self.refined)}" if self.refined else ''
-        return (f'measured error {self.error:.2%} {self._over()}{steps}; work '
+        return (f'measured error {self.error:.2%} {self._over()}{steps}; {self.cost_kind()} '
                 f'{self.cost_ratio:.2g} x the full run')
+
+    def cost_kind(self) -> str:
+        """Say how the cost ratio was found."""
+        return 'CPU time (timed, a near tie)' if self.cost_timed else 'work'
 
 
 def pilot_window(model: MassSpringModel, lowest_hz: float) -> float:
@@ -359,12 +364,14 @@ class Pilot:
             return sim, PilotReport(error, planned, self.window_s, against, refined, 'modal',
                                     math.nan)
         full, full_error = self._full_candidate(plan, against)
-        ratio = work_per_second(sim) / work_per_second(full)
-        report = PilotReport(error, planned, self.window_s, against, refined, 'modal', ratio)
+        ratio, timed = cost_ratio(sim, full) if error <= self.tolerance else (math.nan, False)
+        report = PilotReport(error, planned, self.window_s, against, refined, 'modal', ratio,
+                             cost_timed=timed)
         if error <= self.tolerance and ratio < 1.0:
             return sim, report
         reason = (f'no plan within {self.tolerance:.2%} after refining'
-                  if error > self.tolerance else f'cheaper: the plan needs {ratio:.2g} x its work')
+                  if error > self.tolerance else
+                  f'cheaper: the plan needs {ratio:.2g} x its {report.cost_kind()}')
         return full, dataclasses.replace(report, error=full_error, method='full', cost_ratio=1.0,
                                          reason=reason)
 
@@ -372,8 +379,9 @@ class Pilot:
         """
         Return the full run at the longest step that measures within budget, and its error.
 
-        Steps from the longest stable one (``full`` caps it), halved. Against a richer plan
-        (no full reference), the plan's step over ``REFERENCE_REFINEMENT``.
+        Steps from the longest stable one (``full`` caps it), shortened to where the step error
+        (of order ``STEP_ORDER``) would meet the budget, by a factor of 0.5 to 0.8 each time.
+        Against a richer plan (no full reference), the plan's step over ``REFERENCE_REFINEMENT``.
         """
         sample_s, _, reference, _ = self._sampling
         if against != 'the full run':
@@ -383,6 +391,8 @@ class Pilot:
         while True:
             full = self.full(step, sample_s)
             error = self._error(full, reference, sample_s)
-            if error <= PILOT_MARGIN * self.tolerance or full.dt <= shortest:
+            budget = PILOT_MARGIN * self.tolerance
+            if error <= budget or full.dt <= shortest:
                 return full, error
-            step = full.dt / 2.0
+            reach = 0.95 * (budget / error) ** (1.0 / STEP_ORDER) if error < math.inf else 0.0
+            step = full.dt * min(0.8, max(0.5, reach))

@@ -79,6 +79,8 @@ class RefreshedForces:
     :ivar strain_limit: a step whose strain bound passes it evaluates the springs exactly.
     :ivar fell_back: a refresh measured an error beyond ``tolerance``: every step is exact
         from then on (kept over restarts: the scene and band are what made it fail).
+    :ivar calls: calls so far; ``evaluations`` of them evaluated the springs (both kept over
+        restarts: what the run has cost, for the work model).
     """
 
     def __init__(self, exact: GeneralizedForces, omega2: np.ndarray, interval: int, dt: float,
@@ -91,6 +93,7 @@ class RefreshedForces:
         self.tolerance = float(tolerance)
         self.fell_back = False
         self.fell_back_error = 0.0
+        self.calls = self.evaluations = 0
         self._due = (self.interval - 0.5) * dt
         self._strain_gain = exact.strain_sensitivity()
         q_static, self.static_found = static_equilibrium(exact, omega2)
@@ -114,6 +117,7 @@ class RefreshedForces:
         Exact on an evaluation, else an upper bound of the largest spring strain.
         """
         force = None
+        self.calls += 1
         if not self.fell_back and not (t - self._t >= self._due or t < self._t):
             dq = q - self._q
             bound = self._strain_at_refresh + self._strain_gain * math.sqrt(float(dq @ dq))
@@ -121,6 +125,7 @@ class RefreshedForces:
                 force = self._continued(dq)
                 self.last_max_strain = bound
         if force is None:
+            self.evaluations += 1
             spring = self.exact.spring_forces(q)
             if self._q is not None and t >= self._t and not self.fell_back:
                 continued = self._continued(q - self._q)
@@ -135,6 +140,17 @@ class RefreshedForces:
             force = spring.copy()
         force += self.exact.loads(t)
         return force
+
+    @property
+    def evaluated_share(self) -> float:
+        """
+        Return the share of calls so far that evaluated the springs.
+
+        ``1 / interval`` until the calls span a few intervals (a reset evaluates at once).
+        """
+        if self.calls < 4 * self.interval:
+            return 1.0 / self.interval
+        return self.evaluations / self.calls
 
     def describe(self) -> str:
         """Return how the springs are evaluated, as text."""

@@ -14,6 +14,7 @@ import dataclasses
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from modal_spring_ros.core.simulations import SimulationStatus
+from modal_spring_ros.ros.namesakes import namesakes_warning
 from std_msgs.msg import Header
 
 #: Achieved real-time factor below this share of the requested one is reported.
@@ -80,9 +81,7 @@ def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[i
     if stream.parameters_reverted:
         warnings.append(f'parameter change {stream.parameters_reverted}')
     if stream.namesakes:
-        warnings.append(f'{stream.namesakes} other node{"s" if stream.namesakes > 1 else ""} '
-                        f'named {stream.name} on this domain: their topics, parameters and '
-                        f'services mix with these (give each node its own name or namespace)')
+        warnings.append(namesakes_warning(stream.namesakes, stream.name))
     if status.max_strain > stream.strain_warning and status.basis.startswith('rest'):
         # the rest modes' regime; the derivative basis follows the sway's rotation beyond it
         warnings.append(f'large deformation: spring strain {status.max_strain:.1%} beyond the '

@@ -21,6 +21,7 @@ every parameter.
 """
 from __future__ import annotations
 
+import contextlib
 import threading
 
 from modal_spring_ros.bags.capture import RunBagWriter
@@ -29,6 +30,7 @@ from modal_spring_ros.core.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError, WorkerProcess
 from modal_spring_ros.ros.change_preparer import ChangePreparer, ChangeRefused, describe
 from modal_spring_ros.ros.inputs import NodeInputs
+from modal_spring_ros.ros.namesakes import count_namesakes, namesakes_warning
 from modal_spring_ros.ros.outputs import NodeOutputs
 from modal_spring_ros.ros.parameter_changes import ChangePlanner
 from modal_spring_ros.ros.parameters import (config_from_parameters, FREQUENCIES,
@@ -47,10 +49,9 @@ from std_srvs.srv import SetBool, Trigger
 NODE_NAME = 'modal_spring'
 #: longest a service waits for the simulation thread to apply its request, s
 SERVICE_TIMEOUT_S = 5.0
-#: how often the executor wakes while a service awaits its answer (the timeout's resolution), s
-SERVICE_WAKE_S = 0.25
-#: how often the graph is searched for other nodes of this node's name, s
-NAMESAKE_CHECK_S = 2.0
+#: how often the executor wakes while a service awaits its answer (the timeout's resolution)
+#: and how often the graph is searched for other nodes of this node's name, s
+SERVICE_WAKE_S, NAMESAKE_CHECK_S = 0.25, 2.0
 
 
 class ModalSpringNode(Node):
@@ -210,15 +211,10 @@ class ModalSpringNode(Node):
                 'namesakes': self._namesakes, 'name': self.get_fully_qualified_name()}
 
     def _check_namesakes(self) -> None:
-        """Warn (once per change) when other nodes on the graph have this node's full name."""
-        me = (self.get_name(), self.get_namespace())
-        found = sum(1 for named in self.get_node_names_and_namespaces() if named == me) - 1
-        if found > 0 and found != self._namesakes:
-            self.get_logger().warning(
-                f'{found} other node{"s" if found > 1 else ""} named '
-                f'{self.get_fully_qualified_name()} on this domain: their topics, parameters '
-                'and services mix with these; give each node its own name or namespace')
-        self._namesakes = max(found, 0)
+        found = count_namesakes(self)
+        if found > 0 and found != self._namesakes:   # once per change
+            self.get_logger().warning(namesakes_warning(found, self.get_fully_qualified_name()))
+        self._namesakes = found
 
     def _publish_frequencies(self) -> None:
         """Update modal.frequencies_hz when a band made the node compute more modes."""
@@ -235,12 +231,9 @@ class ModalSpringNode(Node):
         response.message = request.message or 'not applied in time: the simulation is busy'
         return response
 
-    def _wake(self) -> None:
-        """Wake the executor: an answer a service awaits is ready."""
-        try:
+    def _wake(self) -> None:     # an answer a service awaits is ready (unless the node is gone)
+        with contextlib.suppress(InvalidHandle):
             self._answered.trigger()
-        except InvalidHandle:   # the node is gone (shutting down): nobody awaits the answer
-            pass
 
     async def _on_reset(self, _request, response):
         return await self._answer(Reset(), response)

@@ -419,7 +419,7 @@ def test_the_summary_has_no_empty_index_group(tmp_path):
         assert len(list(make_reader(fh).iter_messages())) == 10
 
 
-_CAPTURE = textwrap.dedent('''
+_CAPTURE = textwrap.dedent("""
     import sys
     from geometry_msgs.msg import PointStamped, PoseStamped
     from modal_spring_ros.bags.capture import RunBagWriter
@@ -442,7 +442,7 @@ _CAPTURE = textwrap.dedent('''
             bag.record_input(sim.time, pose)
             bag.record_input(sim.time, click)
     bag.close()
-''')
+""")
 
 
 def test_a_nodes_capture_is_the_same_bytes_in_every_process_and_strict_readers_take_it(

@@ -151,10 +151,13 @@ class ModalSimulation(Simulation):
         return self._force_refresh
 
     @property
+    def evaluated_share(self) -> float:
+        """Return the share of steps that evaluated the springs exactly so far (1: every one)."""
+        return getattr(self._forces, 'evaluated_share', 1.0)
+
+    @property
     def refresh_error(self) -> float | None:
-        if isinstance(self._forces, RefreshedForces):
-            return self._forces.max_refresh_error
-        return None
+        return getattr(self._forces, 'max_refresh_error', None)   # refreshed forces only
 
     @property
     def mode_choice(self):
