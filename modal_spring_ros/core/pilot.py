@@ -388,10 +388,10 @@ class Pilot:
             return self.full(plan.dt / REFERENCE_REFINEMENT, sample_s), 0.0
         shortest = self._reference_dt
         step = math.inf
+        budget = PILOT_MARGIN * self.tolerance
         while True:
             full = self.full(step, sample_s)
             error = self._error(full, reference, sample_s)
-            budget = PILOT_MARGIN * self.tolerance
             if error <= budget or full.dt <= shortest:
                 return full, error
             reach = 0.95 * (budget / error) ** (1.0 / STEP_ORDER) if error < math.inf else 0.0

@@ -41,7 +41,6 @@ from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSetti
 from modal_spring_ros.scenes.resources import load_scene
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
@@ -231,8 +230,8 @@ class ModalSpringNode(Node):
         response.message = request.message or 'not applied in time: the simulation is busy'
         return response
 
-    def _wake(self) -> None:     # an answer a service awaits is ready (unless the node is gone)
-        with contextlib.suppress(InvalidHandle):
+    def _wake(self) -> None:     # an answer a service awaits is ready (unless ROS is gone)
+        with contextlib.suppress(RuntimeError):     # InvalidHandle, RCLError: shutting down
             self._answered.trigger()
 
     async def _on_reset(self, _request, response):
