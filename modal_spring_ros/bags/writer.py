@@ -11,8 +11,8 @@ information; chunks with message indexes, and a summary with statistics.
 Messages are written as serialized CDR. A message the program builds itself (a node's capture,
 a re-simulation) is serialized from its schema by mcap-ros2-support's encoder: exactly as long
 as its fields need (rclpy's ``serialize_message`` leaves up to 24 trailing bytes, which rosbags
-refuses) and with zeroed padding (rclpy's holds whatever the buffer held), so one deterministic
-run gives one bag, byte for byte. A chunk is closed when it is full or a second old
+refuses) and with zeroed padding (rclpy's holds whatever the buffer held), so the same message
+gives the same bytes in every process. A chunk is closed when it is full or a second old
 (``chunk_seconds``), and the file is flushed whenever a chunk is closed, so a writer that is
 killed loses at most about the last second.
 """
