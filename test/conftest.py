@@ -8,8 +8,8 @@ import tempfile
 import threading
 
 from helpers import variant
-from modal_spring_ros.core.basis import ModalBasis
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.scenes.resources import load_scene
 import pytest
 

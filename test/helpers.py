@@ -10,6 +10,7 @@ from pathlib import Path
 
 from modal_spring_ros.scenes.resources import load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict
+from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 
 #: the repository (a source checkout)
@@ -22,7 +23,7 @@ REAL_BAGS = Path(os.environ.get('MODAL_SPRING_REAL_BAGS', REPO.parent / 'shared'
 
 def variant(name: str, **changes):
     """Return a built-in scene's full definition with top-level fields replaced, validated."""
-    data = copy.deepcopy(load_scene(name).to_dict())
+    data = copy.deepcopy(scene_to_dict(load_scene(name)))
     data.update(changes)
     return scene_from_dict(data, source=f'{name} variant')
 

@@ -22,6 +22,7 @@ from modal_spring_ros.bags.qos import profiles_to_yaml
 from modal_spring_ros.bags.stamps import to_nanoseconds, to_time_msg
 from modal_spring_ros.bags.writer import BagWriter
 from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.scenes.writing import scene_to_yaml
 import numpy as np
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.parameter import Parameter
@@ -68,7 +69,7 @@ class RunBagWriter:
         self.node = node
         self.writer = BagWriter(directory)
         self.writer.add_topic(POINTS_TOPIC, 'sensor_msgs/msg/PointCloud2', points_qos_yaml())
-        record = {'source': source, 'scene_yaml': scene.to_yaml(), 'dt': dt,
+        record = {'source': source, 'scene_yaml': scene_to_yaml(scene), 'dt': dt,
                   'frame_every': frame_every, 'duration': duration, 'frame_id': frame_id}
         if config is not None:
             record['config'] = config.to_dict()

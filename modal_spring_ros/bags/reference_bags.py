@@ -19,6 +19,7 @@ from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.runs.run import record
+from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
 
 SCENE = 'sheet_10x10'
@@ -41,7 +42,7 @@ def write_reference_bags(folder: str | Path) -> list[Path]:
         target = folder / name
         if target.exists():
             shutil.rmtree(target)
-        sim = build_simulation(load_scene(SCENE), config)
+        sim = build_simulation(load_scene(SCENE), config, samples=sample_cache())
         bag = RunBagWriter(target, sim.model.scene, config, dt=sim.dt,
                            frame_every=FRAME_EVERY, duration=DURATION_S)
         try:

@@ -23,11 +23,12 @@ import time
 from typing import Callable
 
 from modal_spring_ros.bench.charts import subplots
+from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
+                                                       trajectory, trajectory_error)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.measured_error import (converged_trajectory, on_samples, trajectory,
-                                                  trajectory_error)
 from modal_spring_ros.core.simulations import Simulation
+from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.generator import random_scene
 import numpy as np
 
@@ -61,7 +62,8 @@ def measure(seed: int, tolerance: float) -> dict:
            'damping': float(scene.damping.ratio), 'refused': ''}
     start = time.process_time()
     try:
-        sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=tolerance))
+        sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=tolerance),
+                               samples=sample_cache())
     except ValueError as exc:
         row['refused'] = str(exc)
         return row

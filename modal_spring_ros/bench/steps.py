@@ -18,10 +18,12 @@ import time
 from typing import Callable
 
 from modal_spring_ros.bags.pointcloud import CloudBuffer, to_pointcloud2
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.factory import force_options
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
+from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Header
@@ -50,11 +52,10 @@ def _measure(scene_name: str, method: str, modes: int | None, dt: float, refresh
     model = MassSpringModel(load_scene(scene_name))
     start = time.perf_counter()
     if method in ('modal', 'derivatives', 'sampled'):
-        basis = ModalBasis(model, initial_modes=modes)
+        basis = ModalBasis(model, initial_modes=modes, samples=sample_cache())
         sim = ModalSimulation(model, basis, FilterBand('lowpass', 0, modes - 1, 'index'), dt=dt,
-                              force_refresh=refresh,
-                              basis_kind='derivatives' if method == 'derivatives' else 'rest',
-                              sample_tolerance=0.01 if method == 'sampled' else None)
+                              forces=force_options(method, refresh, 0.01),
+                              basis_kind='derivatives' if method == 'derivatives' else 'rest')
         basis_seconds = time.perf_counter() - start
     else:
         basis = ModalBasis(model, initial_modes=8)  # for the damping and stability limit

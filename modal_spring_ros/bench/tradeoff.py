@@ -24,15 +24,18 @@ from typing import Callable
 from modal_spring_ros.bench.analysis import cheapest_reaching, pareto
 from modal_spring_ros.bench.charts import draw_all
 from modal_spring_ros.bench.failure import failure, turning_clamp
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
+from modal_spring_ros.core.bases.mode_selection import choose_modes, choose_refresh, choose_step
 from modal_spring_ros.core.config import DEFAULT_REFRESH
-from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
+from modal_spring_ros.core.factory import force_options
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.mode_selection import choose_modes, choose_refresh, choose_step
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.forces import ForceOptions
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import (DivergenceError, FullSimulation, ModalSimulation,
                                                Simulation)
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
+from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 
@@ -135,7 +138,8 @@ def largest_stable_step(make: Callable[[float], Simulation], lo: float, hi: floa
 def run_case(case: Case, progress: Callable[[str], None]) -> dict:
     model = MassSpringModel(load_scene(case.scene))
     top = max(case.modal_counts + case.stability_counts)
-    basis = ModalBasis(model, initial_modes=min(top, model.n_free_dof - 2))
+    basis = ModalBasis(model, initial_modes=min(top, model.n_free_dof - 2),
+                       samples=sample_cache())
     omega_max = basis.omega_max_estimate()
     limit = 2.0 / omega_max
 
@@ -147,10 +151,10 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
     def modal(count, dt, integrator='explicit', refresh=1, basis_kind='rest', sampled=False):
         bank = banks.setdefault(count, AddedCoordinateBank(basis, DEFAULT_DIRECTIONS)) \
             if basis_kind == 'derivatives' else None
+        forces = force_options('sampled' if sampled else 'exact', refresh, SAMPLE_TOLERANCE)
         return ModalSimulation(model, basis, FilterBand('lowpass', 0, count - 1, 'index'),
-                               dt=dt, integrator=integrator, force_refresh=refresh,
-                               basis_kind=basis_kind, bank=bank,
-                               sample_tolerance=SAMPLE_TOLERANCE if sampled else None)
+                               dt=dt, integrator=integrator, forces=forces,
+                               basis_kind=basis_kind, bank=bank)
 
     def refresh(count, dt):
         return choose_refresh(float(basis.frequencies_hz[count - 1]), dt)
@@ -192,7 +196,7 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
                     f'springs every {every} steps')
             if count < model.n_free_dof:   # trained once per band (cached), then reused
                 sampled = modal(count, SAMPLE_S / k, sampled=True)
-                add('modal sampled', sampled, count, sampled.describe_forces())
+                add('modal sampled', sampled, count, sampled.force_report().description)
         if count < model.n_free_dof:   # the band's derivatives: their own stability limit
             probe = modal(count, SAMPLE_S, basis_kind='derivatives')
             n = _divisor(0.95 * probe.stability_limit())
@@ -276,14 +280,17 @@ def step_costs(scenes: list[str], dropped: list[int], progress) -> dict:
     for name in scenes:
         progress(f'fig. 7: {name}')
         model = MassSpringModel(load_scene(name))
-        basis = ModalBasis(model, initial_modes=FIG7_MODES, progress=progress)
+        basis = ModalBasis(model, initial_modes=FIG7_MODES, progress=progress,
+                           samples=sample_cache())
         steps = max(20, 4000 // max(1, model.scene.n_particles // 25))
         row = {'scene': name, 'particles': model.scene.n_particles,
                'springs': model.scene.n_springs,
                'full': per_step(FullSimulation(model, dt=1e-5, basis=basis), steps)}
         for label, options in (('modal_exact', {}),
-                               ('modal_refreshed', {'force_refresh': DEFAULT_REFRESH}),
-                               ('modal_sampled', {'sample_tolerance': 0.01})):
+                               ('modal_refreshed', {'forces': ForceOptions(
+                                   'refreshed', DEFAULT_REFRESH)}),
+                               ('modal_sampled', {'forces': ForceOptions('sampled',
+                                                                         tolerance=0.01)})):
             sim = ModalSimulation(model, basis, band, dt=1e-4, basis_kind='rest', **options)
             row[label] = per_step(sim, max(steps, 200))
             if label == 'modal_sampled':

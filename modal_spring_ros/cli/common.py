@@ -8,11 +8,12 @@ from pathlib import Path
 import sys
 from typing import Callable, Iterator, NoReturn
 
-from modal_spring_ros.core.config import FORCES, SimulationConfig
-from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
-from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand, parse_mode_range
+from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand
+from modal_spring_ros.core.forces import FORCES
 from modal_spring_ros.core.integrators import INTEGRATORS
-from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.simulations import DEFAULT_MAX_MODES, METHODS
 from modal_spring_ros.core.simulations.coordinates import BASES
 from modal_spring_ros.scenes.resources import DEFAULT_SCENE
@@ -158,7 +159,7 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument('--derivative-directions', type=int, default=DEFAULT_DIRECTIONS,
                    metavar='N', help='modal-derivative directions a band adds '
                                      f'(default {DEFAULT_DIRECTIONS})')
-    g.add_argument('--forces', choices=FORCES, default='exact',
+    g.add_argument('--forces', choices=tuple(FORCES), default='exact',
                    help='spring forces: exact (every spring, every step: the paper), '
                         'refreshed (every --force-refresh steps, a tangent between) or '
                         'sampled (a weighted sample of the springs within --tolerance, '
@@ -169,6 +170,34 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
                         'or what --auto chooses)')
 
 
+#: configuration field -> option, so that configuration errors name the option
+OPTION_NAMES = {'method': '--method', 'auto': '--auto', 'integrator': '--integrator', 'dt': '--dt',
+                'transition_s': '--transition-s', 'max_modes': '--max-modes',
+                'strain_limit': '--strain-limit', 'tolerance': '--tolerance',
+                'force_refresh': '--force-refresh', 'basis': '--basis',
+                'derivative_directions': '--derivative-directions', 'forces': '--forces',
+                'horizon_s': '--duration', 'type': '--filter', 'low_hz': '--low-hz',
+                'high_hz': '--high-hz'}
+#: the edges of ``--modes FIRST:LAST``
+MODES_NAMES = {'low_mode': 'FIRST', 'high_mode': 'LAST'}
+
+
+def parse_mode_range(text: str) -> FilterBand:
+    """``"FIRST:LAST"`` (inclusive, zero-based) as an index band-pass, e.g. ``"0:14"``."""
+    parts = text.split(':')
+    if len(parts) != 2:
+        raise BandError(f"--modes '{text}' must be FIRST:LAST, e.g. 0:14")
+    try:
+        first = int(parts[0]) if parts[0] else 0
+        last = int(parts[1])
+    except ValueError:
+        raise BandError(f"--modes '{text}' must be two whole numbers FIRST:LAST") from None
+    if first < 0 or last < first:
+        raise BandError(f"--modes '{text}': need 0 <= FIRST <= LAST")
+    kind = 'lowpass' if first == 0 else 'bandpass'
+    return FilterBand(kind, float(first), float(last), 'index').validate(MODES_NAMES)
+
+
 def band_from_args(args: argparse.Namespace) -> FilterBand:
     """Return the filter band the options describe. Raises BandError naming the option."""
     kind = args.filter_type or ('bandpass' if args.modes else 'allpass')
@@ -177,8 +206,7 @@ def band_from_args(args: argparse.Namespace) -> FilterBand:
             raise BandError('--modes and --low-hz/--high-hz exclude each other')
         band = parse_mode_range(args.modes)
         if kind == 'bandstop':
-            return FilterBand('bandstop', band.low, band.high, 'index').validate(
-                ('FIRST', 'LAST'))
+            return FilterBand('bandstop', band.low, band.high, 'index').validate(MODES_NAMES)
         if kind not in ('bandpass', 'lowpass'):
             raise BandError(f'--modes keeps a range of modes: use it with --filter bandpass '
                             f'or bandstop, not {kind}')
@@ -192,16 +220,7 @@ def band_from_args(args: argparse.Namespace) -> FilterBand:
             raise BandError(f'--filter {kind} needs --high-hz')
     low = args.low_hz if args.low_hz is not None else 0.0
     high = args.high_hz if args.high_hz is not None else float('inf')
-    return FilterBand(kind, low, high, 'hz').validate(('--low-hz', '--high-hz'))
-
-
-#: configuration field -> option, so that configuration errors name the option
-OPTION_NAMES = {'method': '--method', 'auto': '--auto', 'integrator': '--integrator', 'dt': '--dt',
-                'transition_s': '--transition-s', 'max_modes': '--max-modes',
-                'strain_limit': '--strain-limit', 'tolerance': '--tolerance',
-                'force_refresh': '--force-refresh', 'basis': '--basis',
-                'derivative_directions': '--derivative-directions', 'forces': '--forces',
-                'horizon_s': '--duration'}
+    return FilterBand(kind, low, high, 'hz').validate(OPTION_NAMES)
 
 
 def config_from_args(args: argparse.Namespace) -> SimulationConfig:

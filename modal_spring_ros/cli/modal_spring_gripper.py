@@ -24,7 +24,7 @@ import time
 
 from geometry_msgs.msg import PoseStamped
 from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args
-from modal_spring_ros.core.clamp_follower import DEFAULT_FOLLOW_HZ
+from modal_spring_ros.core.motion.clamp_follower import DEFAULT_FOLLOW_HZ
 from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.executors import ExternalShutdownException

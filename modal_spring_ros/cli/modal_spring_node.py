@@ -13,7 +13,7 @@ import sys
 
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.cli.common import EXIT_USAGE, split_ros_args
-from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.parameters import PARAMETERS

@@ -16,9 +16,10 @@ import time
 from modal_spring_ros.bags.writer import (BagError, BagWriter, check_new_bag_path,
                                           DEFAULT_CHUNK_SECONDS, DEFAULT_CHUNK_SIZE)
 from modal_spring_ros.cli.common import fail, script_parser, split_ros_args
-from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.ros.recorder import DEFAULT_TOPICS, Recorder, snapshot_parameters
 from modal_spring_ros.scenes.resources import load_scene
+from modal_spring_ros.scenes.writing import scene_to_yaml
 import rclpy
 from rclpy.executors import ExternalShutdownException
 
@@ -73,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             record['parameters'] = params
             try:
-                record['scene_yaml'] = load_scene(params.get('scene', '')).to_yaml()
+                record['scene_yaml'] = scene_to_yaml(load_scene(params.get('scene', '')))
             except SceneError as exc:
                 node.get_logger().warning(f'scene not stored: {exc}')
             node.get_logger().info(f'stored {len(params)} parameters of node {target}'

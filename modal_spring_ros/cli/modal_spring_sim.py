@@ -19,6 +19,7 @@ from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs
 from modal_spring_ros.core.config import MAX_HORIZON_S
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.run import record
+from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
 
 PROG = 'modal_spring_sim'
@@ -56,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         progress = None if args.quiet else (lambda msg: print(f'[{PROG}] {msg}',
                                                               file=sys.stderr))
         sim = build_simulation(scene, config, progress=progress,
-                               allow_unstable=args.allow_unstable)
+                               allow_unstable=args.allow_unstable, samples=sample_cache())
         with claimed_outputs({'--output': args.output}, {'--bag': args.bag}):
             return run_and_report(sim, config, duration)
 
@@ -105,12 +106,12 @@ def summary(sim, diverged: str, seconds_per_step: float, wall: float) -> str:
                      f'computed in {sim.basis_seconds:.3g} s')
     else:
         lines.append(f'method     full physical ({sim.model.n_free_dof} DOF)')
-    if status_forces := (sim.describe_forces() if sim.method == 'modal' else ''):
-        if status_forces.startswith(('sampled', 'exact (the')):
-            lines.append(f'forces     {status_forces}')
-    if sim.refresh_error is not None:
-        lines.append(f'forces     springs evaluated every {sim.force_refresh} steps; largest '
-                     f'measured error of the continued force {sim.refresh_error:.2e}')
+    forces = sim.force_report()
+    if forces.model == 'sampled':
+        lines.append(f'forces     {forces.description}')
+    elif forces.model == 'refreshed':
+        lines.append(f'forces     {forces.description}; largest measured error of the '
+                     f'continued force {forces.error:.2e}')
     choice = sim.mode_choice
     if choice is not None:
         errors = ', '.join(f'{k} {v:.2%}' for k, v in choice.load_errors.items())

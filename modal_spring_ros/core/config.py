@@ -11,11 +11,12 @@ import dataclasses
 import math
 from typing import Any, Mapping
 
-from modal_spring_ros.core.clamp_follower import DEFAULT_FOLLOW_HZ
-from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
+from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
+from modal_spring_ros.core.bases.mode_selection import DEFAULT_TOLERANCE
 from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.forces import FORCES
 from modal_spring_ros.core.integrators import INTEGRATORS
-from modal_spring_ros.core.mode_selection import DEFAULT_TOLERANCE
+from modal_spring_ros.core.motion.clamp_follower import DEFAULT_FOLLOW_HZ
 from modal_spring_ros.core.simulations import DEFAULT_STRAIN_LIMIT, METHODS, MIN_DT_S
 from modal_spring_ros.core.simulations.coordinates import BASES
 
@@ -27,9 +28,6 @@ DEFAULT_STRAIN_WARNING = 0.1
 MIN_DIRECTIONS, MAX_DIRECTIONS = 1, 200
 #: Default fade time of modes leaving or entering the band, s.
 DEFAULT_TRANSITION_S = 0.5
-#: How the spring forces are evaluated: every spring every step (the paper), every spring
-#: every N steps with a tangent between, or a weighted sample of the springs every step.
-FORCES = ('exact', 'refreshed', 'sampled')
 #: Steps between exact evaluations of refreshed forces when neither it nor modal.auto says.
 DEFAULT_REFRESH = 10
 #: Scenes with at least this many springs get sampled forces from the automatic choice (on
@@ -63,7 +61,7 @@ class SimulationConfig:
     force_refresh: int = 0             # steps between spring evaluations; 0: 1, or auto's
     basis: str = 'derivatives'         # modal: rest modes, or rest modes and their derivatives
     derivative_directions: int = DEFAULT_DIRECTIONS
-    forces: str = 'exact'              # spring forces: exact, refreshed, or sampled (ECSW)
+    forces: str = 'exact'              # spring forces: a FORCES model (exact, refreshed, ...)
     anchor: str = 'scene'              # the clamp moves as the scene says, or follows poses
     follow_hz: float = DEFAULT_FOLLOW_HZ  # bandwidth of the filter poses are followed through
     horizon_s: float | None = None     # the run auto's tolerance holds over; None: the scene's
@@ -115,7 +113,7 @@ class SimulationConfig:
         if self.force_refresh < 0:
             raise ConfigError(f"{name('force_refresh')} ({self.force_refresh}) must be at "
                               'least 1 step (or 0: the default)')
-        self.band.validate()
+        self.band.validate(names)
         return self
 
     def to_dict(self) -> dict[str, Any]:

@@ -10,19 +10,22 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from modal_spring_ros.core.basis import ModalBasis, Progress
-from modal_spring_ros.core.basis_choice import choose_basis
-from modal_spring_ros.core.clamp_follower import ClampFollower
+from modal_spring_ros.core.auto.measured_error import on_samples
+from modal_spring_ros.core.auto.pilot import Pilot, PlanSettings
+from modal_spring_ros.core.bases.basis import ModalBasis, Progress
+from modal_spring_ros.core.bases.basis_choice import choose_basis
+from modal_spring_ros.core.bases.mode_selection import (choose_modes, choose_refresh, choose_step,
+                                                        ModeChoice, SHARE, STABILITY_SAFETY)
 from modal_spring_ros.core.config import (AUTO_DT_SAFETY, DEFAULT_REFRESH, SAMPLE_MIN_SPRINGS,
                                           SimulationConfig)
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.measured_error import on_samples
-from modal_spring_ros.core.mode_selection import (choose_modes, choose_refresh, choose_step,
-                                                  ModeChoice, SHARE, STABILITY_SAFETY)
-from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.pilot import Pilot, PlanSettings
-from modal_spring_ros.core.pull import REACH_MIN_M
-from modal_spring_ros.core.scene import Scene
+from modal_spring_ros.core.forces import ForceOptions
+from modal_spring_ros.core.forces.base import SampleStore
+from modal_spring_ros.core.integrators import conditionally_stable
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.model.scene import Scene
+from modal_spring_ros.core.motion.clamp_follower import ClampFollower
+from modal_spring_ros.core.motion.pull import REACH_MIN_M
 from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSimulation,
                                                Simulation)
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
@@ -38,7 +41,7 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
     unless ``config.dt`` is given, the step follows from them, and unless
     ``config.force_refresh`` is given, so does the spring-force refresh; the basis (rest modes
     or their derivatives) is chosen by its predicted error and cost
-    (:mod:`~modal_spring_ros.core.basis_choice`) in place of ``config.basis``, and so are the
+    (:mod:`~modal_spring_ros.core.bases.basis_choice`) in place of ``config.basis``, and so are the
     forces in place of ``config.forces``: sampled springs on large scenes, refreshed ones in
     small deformation, every spring on every step beyond it. The choice is the
     simulation's ``mode_choice``.
@@ -81,16 +84,27 @@ def _modal(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig,
         transition_s=config.transition_s, max_modes=config.max_modes,
         strain_limit=config.strain_limit,
         highest_hz=plan.highest_hz if math.isfinite(plan.highest_hz) else None,
-        force_refresh=plan.refresh, mode_choice=choice, basis_kind=plan.basis_kind,
-        derivative_directions=plan.directions, bank=bank, progress=basis.progress,
-        sample_tolerance=config.tolerance if plan.forces == 'sampled' else None,
-        force_tolerance=config.tolerance)
+        forces=force_options(plan.forces, plan.refresh, config.tolerance), mode_choice=choice,
+        basis_kind=plan.basis_kind, derivative_directions=plan.directions, bank=bank,
+        progress=basis.progress)
     if keep_dt:
         return sim
-    if not plan.dt or (config.integrator == 'explicit'
+    if not plan.dt or (conditionally_stable(config.integrator)
                        and plan.dt >= STABILITY_SAFETY * sim.stability_limit()):
         return _within_stability(sim)
     return sim
+
+
+def force_options(forces: str, refresh: int, tolerance: float) -> ForceOptions:
+    """
+    Return the force model a run's ``forces`` setting and refresh give.
+
+    ``exact`` with a refresh above 1 step is refreshed (``modal.force_refresh`` alone asks for
+    it; refreshed every step is exact); the tolerance is what a model falls back beyond.
+    """
+    if forces == 'exact' and refresh > 1:
+        forces = 'refreshed'
+    return ForceOptions(forces, refresh, tolerance)
 
 
 def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig
@@ -98,7 +112,7 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     """
     ``modal.auto``: the plan the prediction gives, then measured by a pilot run and refined.
 
-    (:mod:`~modal_spring_ros.core.pilot`); the full run where it is cheaper or the plan cannot
+    (:mod:`~modal_spring_ros.core.auto.pilot`); the full run where it is cheaper or the plan cannot
     be brought within the tolerance (bands that keep every mode only).
     """
     limit = min(config.max_modes or DEFAULT_MAX_MODES, basis.n_dof)
@@ -161,12 +175,16 @@ def _more_modes(basis: ModalBasis, band: FilterBand, hz: float, limit: int) -> f
 
 def build_simulation(scene: Scene, config: SimulationConfig, *,
                      progress: Progress | None = None, allow_unstable: bool = False,
-                     worker: WorkerProcess | None = None) -> Simulation:
+                     worker: WorkerProcess | None = None,
+                     samples: SampleStore | None = None) -> Simulation:
     """
-    Scene + options -> a simulation at rest at t = 0 (``worker``: see :class:`ModalBasis`).
+    Scene + options -> a simulation at rest at t = 0.
+
+    ``worker`` and ``samples`` (where spring samples are kept between runs): see
+    :class:`ModalBasis`; a run rebuilt on its basis keeps them.
 
     With ``config.anchor`` ``topic`` the scene's clamp follows poses given to its
-    :class:`~modal_spring_ros.core.clamp_follower.ClampFollower` instead of its own motion.
+    :class:`~modal_spring_ros.core.motion.clamp_follower.ClampFollower` instead of its own motion.
 
     :raises SceneError: a mechanism (the stiffness is singular on the free DOF).
     :raises BandError: impossible filter band.
@@ -182,7 +200,7 @@ def build_simulation(scene: Scene, config: SimulationConfig, *,
         scene = dataclasses.replace(scene, anchor_motion=ClampFollower(
             config.follow_hz, scene.axes, home=clamp.mean(axis=0), reach_m=reach))
     model = MassSpringModel(scene)
-    basis = ModalBasis(model, progress=progress, worker=worker)
+    basis = ModalBasis(model, progress=progress, worker=worker, samples=samples)
     sim = rebuild(model, basis, config)
     if not allow_unstable:
         sim.check_stable()

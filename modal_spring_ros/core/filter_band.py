@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Mapping
 
 import numpy as np
 
@@ -53,18 +54,28 @@ class FilterBand:
         """Keep no mode above ``high`` (so only modes up to it must be computed)."""
         return self.kind in ('lowpass', 'bandpass')
 
-    def field_names(self) -> tuple[str, str]:
+    def edge_fields(self) -> tuple[str, str]:
+        """Return what the two edges are called: ``low_hz, high_hz`` or ``low_mode, high_mode``."""
         if self.by == 'index':
-            return 'filter.low_mode', 'filter.high_mode'
-        return 'filter.low_hz', 'filter.high_hz'
+            return 'low_mode', 'high_mode'
+        return 'low_hz', 'high_hz'
 
-    def validate(self, names: tuple[str, str] | None = None) -> 'FilterBand':
-        """Check the band on its own; returns self. ``names`` label the two edges in errors."""
-        low_name, high_name = names or self.field_names()
+    def validate(self, names: Mapping[str, str] | None = None) -> 'FilterBand':
+        """
+        Check the band on its own; returns self.
+
+        ``names`` map ``type``, ``by`` and the edges (:meth:`edge_fields`) to what the user
+        typed, so that an error names it (``filter.low_hz`` in the node, ``--low-hz`` on the
+        command line); the field names by default.
+        """
+        names = names or {}
+        low_name, high_name = (names.get(field, field) for field in self.edge_fields())
         if self.kind not in FILTER_TYPES:
-            raise BandError(f"filter.type '{self.kind}' is not one of {', '.join(FILTER_TYPES)}")
+            raise BandError(f"{names.get('type', 'filter type')} '{self.kind}' is not one of "
+                            f"{', '.join(FILTER_TYPES)}")
         if self.by not in UNITS:
-            raise BandError(f"filter band units '{self.by}' must be 'hz' or 'index'")
+            raise BandError(f"{names.get('by', 'band units')} '{self.by}' must be 'hz' or "
+                            "'index'")
         for used, name, value in ((self.uses_low, low_name, self.low),
                                   (self.uses_high, high_name, self.high)):
             if not used:
@@ -106,19 +117,3 @@ class FilterBand:
         if self.kind == 'highpass':
             return f'highpass {pre}>= {self.low:g}{unit}'
         return f'{self.kind} {pre}{self.low:g}..{self.high:g}{unit}'
-
-
-def parse_mode_range(text: str) -> FilterBand:
-    """``"FIRST:LAST"`` (inclusive, zero-based) as an index band-pass, e.g. ``"0:14"``."""
-    parts = text.split(':')
-    if len(parts) != 2:
-        raise BandError(f"--modes '{text}' must be FIRST:LAST, e.g. 0:14")
-    try:
-        first = int(parts[0]) if parts[0] else 0
-        last = int(parts[1])
-    except ValueError:
-        raise BandError(f"--modes '{text}' must be two whole numbers FIRST:LAST") from None
-    if first < 0 or last < first:
-        raise BandError(f"--modes '{text}': need 0 <= FIRST <= LAST")
-    kind = 'lowpass' if first == 0 else 'bandpass'
-    return FilterBand(kind, float(first), float(last), 'index').validate(('FIRST', 'LAST'))

@@ -72,8 +72,8 @@ def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[i
             warnings.append(f'stream stalled for {stream.longest_gap_s:.2f} s'
                             + (' while computing modes for a band change'
                                if stream.computing_modes else ''))
-    if status.forces_fell_back:
-        warnings.append(f'spring forces fell back: {status.forces}')
+    if status.forces.fell_back:
+        warnings.append(f'spring forces fell back: {status.forces.description}')
     if stream.anchor_stale:
         warnings.append(f'anchor pose: {stream.anchor}')
     if stream.recording:
@@ -108,10 +108,11 @@ def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, s
         'automatic choice measured': status.measured,
         'integrator': status.integrator,
         'dt (s)': f'{status.dt:g}',
-        'spring forces': status.forces,
+        'spring forces': status.forces.description,
+        'force model': status.forces.model,
         'force refresh (steps)': str(status.force_refresh),
-        'force refresh error': ('exact every step' if status.refresh_error is None
-                                else f'{status.refresh_error:.2e}'),
+        'measured force error': ('exact every step' if status.forces.error is None
+                                 else f'{status.forces.error:.2e}'),
         'stability limit (s)': f'{status.stability_limit:.4g}',
         'step time (us)': f'{stream.step_us:.1f}',
         'requested real-time factor': f'{stream.requested_rtf:g}',

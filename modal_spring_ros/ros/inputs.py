@@ -3,9 +3,9 @@ What the node takes in besides parameters: the clamp's pose and a person's click
 
 ``anchor_pose`` (``geometry_msgs/PoseStamped``, with ``anchor.source`` topic): the clamp
 follows each accepted pose through its filter
-(:class:`~modal_spring_ros.core.clamp_follower.ClampFollower`). ``/clicked_point``
+(:class:`~modal_spring_ros.core.motion.clamp_follower.ClampFollower`). ``/clicked_point``
 (``geometry_msgs/PointStamped``, what RViz's "Publish Point" tool sends): the particle nearest
-to the point is pulled toward it (:mod:`~modal_spring_ros.core.pull`). A message in another
+to the point is pulled toward it (:mod:`~modal_spring_ros.core.motion.pull`). A message in another
 frame than the node's ``frame_id``, with non-finite values, a quaternion that is not a unit
 one, a first pose beyond the clamp's reach, or a pose that jumps further than
 ``anchor.max_jump_m`` or turns more than ``anchor.max_turn_deg`` from the last pose accepted
@@ -23,7 +23,7 @@ import time
 from typing import Any, Callable
 
 from geometry_msgs.msg import PointStamped, PoseStamped
-from modal_spring_ros.core.pull import make_pull, nearest_free_particle
+from modal_spring_ros.core.motion.pull import make_pull, nearest_free_particle
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.requests import FollowPose, PullPoint, Request
 import numpy as np

@@ -26,7 +26,7 @@ import threading
 
 from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.core.factory import build_simulation, rebuild
-from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError, WorkerProcess
 from modal_spring_ros.ros.change_preparer import ChangePreparer, ChangeRefused, describe
 from modal_spring_ros.ros.inputs import NodeInputs
@@ -34,10 +34,10 @@ from modal_spring_ros.ros.namesakes import count_namesakes, namesakes_warning
 from modal_spring_ros.ros.outputs import NodeOutputs
 from modal_spring_ros.ros.parameter_changes import ChangePlanner
 from modal_spring_ros.ros.parameters import (config_from_parameters, FREQUENCIES,
-                                             FREQUENCIES_DESCRIPTOR, PARAMETERS,
-                                             SLOW_PARAMETERS)
+                                             FREQUENCIES_DESCRIPTOR, PARAMETERS, SLOW_PARAMETERS)
 from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset
 from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
+from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
@@ -70,7 +70,8 @@ class ModalSpringNode(Node):
                                      cancelled=lambda: not self.context.ok())
         try:
             sim = build_simulation(load_scene(self._values['scene']), config,
-                                   progress=log.info, worker=self._worker)
+                                   progress=log.info, worker=self._worker,
+                                   samples=sample_cache())
             sim.check_stable('sim.dt')
         except BaseException:
             self._worker.close()

@@ -19,7 +19,7 @@ from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.bags.pointcloud import CloudBuffer, distance_from_rest
 from modal_spring_ros.bags.stamps import to_time_msg
 from modal_spring_ros.bags.writer import BagError
-from modal_spring_ros.core.scene import Scene
+from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import diagnostic_array, StreamReport
 import numpy as np

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.factory import rebuild
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.parameters import (BAND_PARAMETERS, config_from_parameters,
                                              REBUILD_PARAMETERS)

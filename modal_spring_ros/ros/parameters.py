@@ -13,14 +13,15 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from modal_spring_ros.core.clamp_follower import DEFAULT_FOLLOW_HZ
-from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TRANSITION_S, FORCES,
+from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
+from modal_spring_ros.core.bases.mode_selection import DEFAULT_TOLERANCE
+from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TRANSITION_S,
                                           MAX_DIRECTIONS, MAX_FOLLOW_HZ, MAX_HORIZON_S,
                                           MIN_DIRECTIONS, SimulationConfig)
-from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand, UNITS
+from modal_spring_ros.core.forces import FORCES
 from modal_spring_ros.core.integrators import INTEGRATORS
-from modal_spring_ros.core.mode_selection import DEFAULT_TOLERANCE
+from modal_spring_ros.core.motion.clamp_follower import DEFAULT_FOLLOW_HZ
 from modal_spring_ros.core.simulations import DEFAULT_MAX_MODES, DEFAULT_STRAIN_LIMIT, METHODS
 from modal_spring_ros.core.simulations.coordinates import BASES
 from modal_spring_ros.scenes.resources import DEFAULT_SCENE
@@ -189,7 +190,10 @@ CONFIG_NAMES = {'method': 'method', 'auto': 'modal.auto', 'integrator': 'integra
                 'tolerance': 'modal.tolerance', 'force_refresh': 'modal.force_refresh',
                 'basis': 'modal.basis', 'derivative_directions': 'modal.derivative_directions',
                 'anchor': 'anchor.source', 'follow_hz': 'anchor.follow_hz',
-                'forces': 'modal.forces', 'horizon_s': 'modal.horizon'}
+                'forces': 'modal.forces', 'horizon_s': 'modal.horizon',
+                'type': 'filter.type', 'by': 'filter.by', 'low_hz': 'filter.low_hz',
+                'high_hz': 'filter.high_hz', 'low_mode': 'filter.low_mode',
+                'high_mode': 'filter.high_mode'}
 
 
 def band_from_parameters(values: dict[str, Any]) -> FilterBand:

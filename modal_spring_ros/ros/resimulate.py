@@ -19,12 +19,13 @@ from modal_spring_ros.bags.capture import INPUT_TOPICS, POINTS_TOPIC, RunBagWrit
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.stamps import to_seconds
 from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.config import SimulationConfig
-from modal_spring_ros.core.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.simulations import DivergenceError
 from modal_spring_ros.ros.inputs import apply_click, apply_pose
 from modal_spring_ros.ros.parameters import config_from_parameters, REBUILD_PARAMETERS
+from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.schema import scene_from_yaml
 from rclpy.parameter import parameter_value_to_python
 from rclpy.serialization import deserialize_message
@@ -101,7 +102,7 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
         values.setdefault('modal.derivative_directions', DEFAULT_DIRECTIONS)
         config = config_from_parameters(values)
         changes = parameter_changes(bag, rec.get('node', '/modal_spring'))
-    sim = build_simulation(scene, config, allow_unstable=True)
+    sim = build_simulation(scene, config, allow_unstable=True, samples=sample_cache())
     frames = frame_times(bag, topic)
     writer = RunBagWriter(output, scene, config, dt=sim.dt,
                           frame_every=int(rec.get('frame_every', 0)),

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from modal_spring_ros.core.scene import Scene
+from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.scenes.schema import scene_from_yaml
 import numpy as np
 

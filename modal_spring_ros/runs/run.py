@@ -16,8 +16,9 @@ from pathlib import Path
 import time
 from typing import Callable
 
-from modal_spring_ros.core.scene import Scene
+from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import DivergenceError, Simulation
+from modal_spring_ros.scenes.writing import scene_to_yaml
 import numpy as np
 
 #: least wall time between two progress reports of :func:`record`, s (a short run reports none)
@@ -48,7 +49,7 @@ class Run:
                 damping_ratio=s.damping.ratio, rayleigh_alpha=s.damping.rayleigh_alpha,
                 rayleigh_beta=s.damping.rayleigh_beta, frequencies_hz=self.frequencies_hz,
                 kept_modes=self.kept_modes, dt=self.dt, method=self.method,
-                integrator=self.integrator, band=self.band, scene_yaml=s.to_yaml(),
+                integrator=self.integrator, band=self.band, scene_yaml=scene_to_yaml(s),
                 diverged=self.diverged)
 
 

@@ -9,7 +9,7 @@ import math
 import re
 from typing import Any, Mapping
 
-from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.model.scene import SceneError
 import numpy as np
 
 AXES = {'x': 0, 'y': 1, 'z': 2}

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from modal_spring_ros.core.scene import Scene
+from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.scenes.schema import scene_from_dict
 import numpy as np
 

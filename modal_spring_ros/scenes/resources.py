@@ -12,7 +12,7 @@ import sys
 
 from ament_index_python.packages import (get_package_prefix, get_package_share_directory,
                                          PackageNotFoundError)
-from modal_spring_ros.core.scene import Scene, SceneError
+from modal_spring_ros.core.model.scene import Scene, SceneError
 from modal_spring_ros.scenes.schema import scene_from_yaml
 from modal_spring_ros.scenes.yaml_reading import read_scene_text
 

@@ -11,8 +11,9 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
-from modal_spring_ros.core.anchor_motion import AnchorMotion, RotationComponent, SineComponent
-from modal_spring_ros.core.scene import Damping, Scene
+from modal_spring_ros.core.model.scene import Damping, Scene
+from modal_spring_ros.core.motion.anchor_motion import (AnchorMotion, RotationComponent,
+                                                        SineComponent)
 from modal_spring_ros.scenes.fields import AXES, DEFAULT_PLANE, FieldReader, PLANES, short
 from modal_spring_ros.scenes.lattice import lattice_springs
 from modal_spring_ros.scenes.limits import available_memory, BYTES_PER_PARTICLE, LIMITS, MAX_STEPS

@@ -15,7 +15,7 @@ from pathlib import Path
 import stat
 from typing import Any
 
-from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.model.scene import SceneError
 import yaml
 
 #: Largest scene file read, bytes (explicit positions of 100k particles take about 3 MB).

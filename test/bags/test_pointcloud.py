@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from modal_spring_ros.bags.pointcloud import (CloudBuffer, distance_from_rest, from_pointcloud2,
                                               to_pointcloud2, xyz)
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest

@@ -11,9 +11,9 @@ import math
 import subprocess
 import sys
 
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import DivergenceError, FullSimulation, ModalSimulation
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np

@@ -4,14 +4,24 @@ from __future__ import annotations
 import subprocess
 import sys
 
+from modal_spring_ros.cli.common import parse_mode_range
 from modal_spring_ros.cli.modal_spring_sim import main
-from modal_spring_ros.core.basis import ModalBasis
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.filter_band import BandError, FilterBand
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
+
+
+def test_mode_ranges_reproduce_the_papers_figures():
+    assert parse_mode_range('0:14') == FilterBand('lowpass', 0, 14, 'index')
+    assert parse_mode_range('2:48') == FilterBand('bandpass', 2, 48, 'index')
+    for bad in ('14', 'a:b', '5:2', '-1:3'):
+        with pytest.raises(BandError, match='^--modes'):
+            parse_mode_range(bad)
 
 
 def test_run_writes_every_documented_field(tmp_path, capsys):

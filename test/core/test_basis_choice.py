@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import math
 
-from modal_spring_ros.core.basis import ModalBasis
-from modal_spring_ros.core.basis_choice import choose_basis
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.bases.basis_choice import choose_basis
+from modal_spring_ros.core.bases.derivatives import added_coordinates
 from modal_spring_ros.core.config import SimulationConfig
-from modal_spring_ros.core.derivatives import added_coordinates
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np

@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 import pickle
 
-from modal_spring_ros.core.clamp_follower import ClampFollower
+from modal_spring_ros.core.motion.clamp_follower import ClampFollower
 import numpy as np
 
 Q0 = np.array([0.0, 0.0, 0.0, 1.0])

@@ -9,12 +9,13 @@ from __future__ import annotations
 import math
 
 from helpers import max_step_motion, power_above
-from modal_spring_ros.core.basis import ModalBasis
-from modal_spring_ros.core.derivatives import (added_coordinates, static_load_vectors,
-                                               tangent_derivative)
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.bases.derivatives import (added_coordinates, static_load_vectors,
+                                                     tangent_derivative)
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.forces import GeneralizedForces
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.forces import ForceOptions
+from modal_spring_ros.core.forces.exact import ExactForces
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
 from modal_spring_ros.core.worker import WorkerProcess
 from modal_spring_ros.scenes.resources import load_scene
@@ -64,7 +65,7 @@ def errors_against_full(model, basis, sims: dict, duration: float, dt: float,
 
 def test_the_tangent_derivative_matches_a_central_difference(resonance):
     model, basis = resonance
-    physical = GeneralizedForces(model, None)
+    physical = ExactForces(model, None)
     eps = 1e-6
     for i, j in ((0, 0), (0, 3), (2, 7), (5, 14)):
         a, b = basis.vectors[:, i], basis.vectors[:, j]
@@ -224,12 +225,13 @@ def test_refreshed_forces_work_on_the_derivative_basis():
     """
     model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
-    sims = {n: ModalSimulation(model, basis, LOWPASS_0_14, dt=5e-4, force_refresh=n,
-                               basis_kind='derivatives') for n in (1, 10)}
-    assert sims[10].refresh_error is not None and sims[1].refresh_error is None
+    sims = {n: ModalSimulation(model, basis, LOWPASS_0_14, dt=5e-4,
+                               forces=ForceOptions('refreshed', n), basis_kind='derivatives')
+            for n in (1, 10)}
+    assert sims[10].force_report().error is not None and sims[1].force_report().error is None
     errors = errors_against_full(model, basis, sims, 3.0, 5e-4)
     assert errors[1][1] < 0.003 and errors[10][1] < 0.005, errors
-    assert sims[10].refresh_error < 0.01
+    assert sims[10].force_report().error < 0.01
 
 
 def test_band_changes_faster_than_the_fade_keep_the_displacement_and_the_run_stable():

@@ -11,10 +11,11 @@ from __future__ import annotations
 import math
 
 from helpers import variant
-from modal_spring_ros.core.anchor_motion import AnchorMotion, RotationComponent, SineComponent
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.motion.anchor_motion import (AnchorMotion, RotationComponent,
+                                                        SineComponent)
 from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np

@@ -4,9 +4,9 @@ from __future__ import annotations
 import math
 
 from helpers import oscillator
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import DivergenceError, FullSimulation, ModalSimulation
 import numpy as np
 import pytest

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import math
 
+from modal_spring_ros.core.auto.measured_error import (horizon_error, on_samples, trajectory,
+                                                       trajectory_error)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.measured_error import (horizon_error, on_samples, trajectory,
-                                                  trajectory_error)
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest

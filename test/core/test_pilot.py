@@ -6,11 +6,10 @@ error against a converged full run is within the tolerance, or auto refuses with
 """
 from __future__ import annotations
 
-
+from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
+                                                       trajectory, trajectory_error)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.measured_error import (converged_trajectory, on_samples, trajectory,
-                                                  trajectory_error)
 from modal_spring_ros.scenes.generator import random_scene
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np

@@ -1,14 +1,15 @@
 """Reduced force evaluation: tangent stiffness, static equilibrium, springs every N steps."""
 from __future__ import annotations
 
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.bases.mode_selection import choose_refresh
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.forces import GeneralizedForces
-from modal_spring_ros.core.mode_selection import choose_refresh
-from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.refreshed_forces import RefreshedForces, static_equilibrium
+from modal_spring_ros.core.forces import ForceOptions
+from modal_spring_ros.core.forces.exact import ExactForces
+from modal_spring_ros.core.forces.refreshed import RefreshedForces, static_equilibrium
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import DivergenceError, ModalSimulation
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -27,18 +28,18 @@ def cantilever():
 def test_tangent_at_rest_is_the_modal_stiffness(scene, sheet_10x10, cantilever):
     model, basis = sheet_10x10 if scene == 'sheet_10x10' else cantilever
     phi = basis.vectors[:, :12]
-    tangent = GeneralizedForces(model, phi).tangent(np.zeros(12))
+    tangent = ExactForces(model, phi).tangent(np.zeros(12))
     omega2 = basis.omega[:12] ** 2
     np.testing.assert_allclose(tangent, np.diag(omega2), atol=1e-10 * omega2.max())
     # in physical coordinates the tangent at rest is the assembled sparse K
-    physical = GeneralizedForces(model, None).tangent(np.zeros(model.n_free_dof), chunk=97)
+    physical = ExactForces(model, None).tangent(np.zeros(model.n_free_dof), chunk=97)
     np.testing.assert_allclose(physical, model.stiffness_free.toarray(),
                                atol=1e-10 * abs(physical).max())
 
 
 def test_tangent_is_the_derivative_of_the_spring_forces(sheet_10x10):
     model, basis = sheet_10x10
-    forces = GeneralizedForces(model, basis.vectors[:, :10])
+    forces = ExactForces(model, basis.vectors[:, :10])
     rng = np.random.default_rng(3)
     q = rng.normal(scale=0.02, size=10)          # a few % strain: far from the rest tangent
     assert forces.tangent(q, chunk=50) == pytest.approx(forces.tangent(q))  # chunking
@@ -53,7 +54,7 @@ def test_tangent_is_the_derivative_of_the_spring_forces(sheet_10x10):
 
 def test_static_equilibrium_balances_gravity(sheet_10x10):
     model, basis = sheet_10x10
-    forces = GeneralizedForces(model, basis.vectors[:, :16])
+    forces = ExactForces(model, basis.vectors[:, :16])
     q, found = static_equilibrium(forces, basis.omega[:16] ** 2)
     assert found
     residual = forces.spring_forces(q) + forces.gravity()
@@ -63,10 +64,10 @@ def test_static_equilibrium_balances_gravity(sheet_10x10):
 
 def test_springs_are_evaluated_every_n_steps(sheet_10x10, monkeypatch):
     model, basis = sheet_10x10
-    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, force_refresh=8)
+    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, forces=ForceOptions('refreshed', 8))
     calls = []
-    original = GeneralizedForces.spring_forces
-    monkeypatch.setattr(GeneralizedForces, 'spring_forces',
+    original = ExactForces.spring_forces
+    monkeypatch.setattr(ExactForces, 'spring_forces',
                         lambda self, q: calls.append(1) or original(self, q))
     sim.step(80)
     assert len(calls) == 10
@@ -83,7 +84,8 @@ def test_refreshed_run_follows_the_every_step_run(sheet_10x10):
     model, basis = sheet_10x10
 
     def run(refresh):
-        sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, force_refresh=refresh)
+        sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3,
+                              forces=ForceOptions('refreshed', refresh))
         out = []
         for _ in range(200):
             sim.step(10)
@@ -93,14 +95,14 @@ def test_refreshed_run_follows_the_every_step_run(sheet_10x10):
     exact, _ = run(1)
     refreshed, sim = run(8)
     assert np.linalg.norm(refreshed - exact) / np.linalg.norm(exact) < 1e-3
-    assert 0.0 < sim.refresh_error < 1e-2        # measured, and reported
+    assert 0.0 < sim.force_report().error < 1e-2        # measured, and reported
     assert isinstance(sim._forces, RefreshedForces) and sim._forces.static_found
 
 
 def test_refreshed_undamped_energy_stays_bounded(sheet_undamped_still):
     """Holding the nonlinear part between refreshes must not pump energy into the modes."""
     model, basis = sheet_undamped_still
-    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, force_refresh=10)
+    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, forces=ForceOptions('refreshed', 10))
     e0 = sim.energy()['total']
     drift, peak_kinetic, at_10s = 0.0, 0.0, None
     for k in range(3000):                        # 3000 x 10 steps = 30 s
@@ -117,7 +119,7 @@ def test_refreshed_undamped_energy_stays_bounded(sheet_undamped_still):
 
 def test_refreshed_runs_are_bit_identical(sheet_10x10):
     model, basis = sheet_10x10
-    runs = [ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, force_refresh=5)
+    runs = [ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, forces=ForceOptions('refreshed', 5))
             for _ in range(2)]
     for sim in runs:
         sim.step(300)
@@ -126,7 +128,7 @@ def test_refreshed_runs_are_bit_identical(sheet_10x10):
 
 def test_band_change_with_refreshed_forces_is_smooth(sheet_10x10):
     model, basis = sheet_10x10
-    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, force_refresh=8)
+    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, forces=ForceOptions('refreshed', 8))
     sim.step(500)
     before = sim.positions()
     sim.set_band(FilterBand('lowpass', 0, 5, 'index'), transition_s=0.2)
@@ -156,7 +158,7 @@ def test_choose_refresh_holds_half_a_period_of_the_highest_mode():
 @pytest.mark.parametrize('scene', ['sheet_10x10', 'cantilever_3d'])
 def test_strain_sensitivity_bounds_every_springs_strain_change(scene, sheet_10x10, cantilever):
     model, basis = sheet_10x10 if scene == 'sheet_10x10' else cantilever
-    forces = GeneralizedForces(model, basis.vectors[:, :12])
+    forces = ExactForces(model, basis.vectors[:, :12])
     gain = forces.strain_sensitivity()
 
     def strains(q):
@@ -227,7 +229,8 @@ def test_refreshed_forces_fall_back_to_exact_ones_past_the_tolerance():
         sim = build_simulation(scene, SimulationConfig(band=band, force_refresh=refresh,
                                                        tolerance=tolerance or 0.01))
         if tolerance is None:         # the shortcut unchecked, as before it checked itself
-            sim = ModalSimulation(sim.model, sim.basis, band, dt=sim.dt, force_refresh=refresh)
+            sim = ModalSimulation(sim.model, sim.basis, band, dt=sim.dt,
+                                  forces=ForceOptions('refreshed', refresh))
         out = []
         for _ in range(60):
             sim.step(int(round(0.05 / sim.dt)))
@@ -237,9 +240,10 @@ def test_refreshed_forces_fall_back_to_exact_ones_past_the_tolerance():
     exact, _ = run(1)
     unchecked, loose = run(10, None)
     checked, sim = run(10, 0.01)
-    assert not loose.forces_fell_back and loose.refresh_error > 0.1
-    assert sim.forces_fell_back and sim.status().forces_fell_back
-    assert 'fell back: error' in sim.describe_forces() and 'beyond 1.00%' in sim.describe_forces()
+    assert not loose.force_report().fell_back and loose.force_report().error > 0.1
+    report = sim.force_report()
+    assert report.fell_back and sim.status().forces.fell_back and report.interval == 1
+    assert 'fell back: error' in report.description and 'beyond 1.00%' in report.description
 
     def error(run_):
         return np.linalg.norm(run_ - exact) / np.linalg.norm(exact)
@@ -248,8 +252,9 @@ def test_refreshed_forces_fall_back_to_exact_ones_past_the_tolerance():
 
 def test_refreshed_forces_within_the_tolerance_keep_their_shortcut(sheet_10x10):
     model, basis = sheet_10x10
-    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, force_refresh=8,
-                          force_tolerance=0.01)
+    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3,
+                          forces=ForceOptions('refreshed', 8, 0.01))
     sim.step(2000)
-    assert 0.0 < sim.refresh_error < 0.01 and not sim.forces_fell_back
-    assert sim.describe_forces() == 'exact every 8 steps, tangent between'
+    report = sim.force_report()
+    assert 0.0 < report.error < 0.01 and not report.fell_back and report.interval == 8
+    assert report.description == 'exact every 8 steps, tangent between'

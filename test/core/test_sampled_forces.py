@@ -10,12 +10,14 @@ import math
 import time
 
 from helpers import variant
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.sampled_forces import cache_folder, check_spacing, SampledForces
+from modal_spring_ros.core.forces import ForceOptions
+from modal_spring_ros.core.forces.sampled import check_spacing, SampledForces
+from modal_spring_ros.core.forces.sampling import MAX_SAMPLE_SHARE, SpringSample
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import ModalSimulation
-from modal_spring_ros.core.spring_sampling import MAX_SAMPLE_SHARE, SpringSample
+from modal_spring_ros.runs.sample_cache import SampleCache
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -35,18 +37,34 @@ def relative_l2(a_sim, b_sim, steps: int) -> float:
     return math.sqrt(num / den)
 
 
+SAMPLED_2 = ForceOptions('sampled', tolerance=0.02)
+
+
 @pytest.fixture(scope='module')
-def sheet_100x100():
+def samples(tmp_path_factory):
+    """Return the sample cache of this module's runs (a folder of its own)."""
+    return SampleCache(tmp_path_factory.mktemp('samples'))
+
+
+@pytest.fixture(scope='module')
+def sheet_100x100(samples):
     model = MassSpringModel(load_scene('sheet_100x100'))
-    return model, ModalBasis(model)
+    return model, ModalBasis(model, samples=samples)
+
+
+@pytest.fixture(scope='module')
+def sheet_10x10(samples):
+    """sheet_10x10 whose samples are kept in this module's cache."""
+    model = MassSpringModel(load_scene('sheet_10x10'))
+    return model, ModalBasis(model, samples=samples)
 
 
 def test_sheet_100x100_samples_few_springs_and_follows_the_exact_forces(sheet_100x100):
     model, basis = sheet_100x100
     start = time.perf_counter()
     sampled = ModalSimulation(model, basis, LOWPASS_32, dt=2e-3, basis_kind='rest',
-                              sample_tolerance=0.01)
-    print(f'training {time.perf_counter() - start:.1f} s: {sampled.describe_forces()}')
+                              forces=ForceOptions('sampled', tolerance=0.01))
+    print(f'training {time.perf_counter() - start:.1f} s: {sampled.force_report().description}')
     forces = sampled._forces
     assert isinstance(forces, SampledForces) and not forces.fell_back
     assert forces.sample.count <= 0.02 * model.scene.n_springs
@@ -67,7 +85,7 @@ def test_non_negative_weights_keep_an_undamped_run_s_energy(sheet_100x100):
     model = MassSpringModel(still)
     basis = ModalBasis(model)
     sim = ModalSimulation(model, basis, LOWPASS_32, dt=2e-3, basis_kind='rest',
-                          sample_tolerance=0.01)
+                          forces=ForceOptions('sampled', tolerance=0.01))
     e0 = sim.energy()['total']
     totals, kinetic = [], []
     for _ in range(300):
@@ -90,24 +108,24 @@ def test_sampled_forces_hold_in_large_deformation():
     basis = ModalBasis(model)
     band = FilterBand('lowpass', 0, 14, 'index')
     sampled = ModalSimulation(model, basis, band, dt=5e-4, basis_kind='derivatives',
-                              sample_tolerance=0.01)
+                              forces=ForceOptions('sampled', tolerance=0.01))
     exact = ModalSimulation(model, basis, band, dt=5e-4, basis_kind='derivatives')
     assert relative_l2(sampled, exact, 12000) < 0.01
-    assert not sampled.forces_fell_back
+    assert not sampled.force_report().fell_back
 
 
-def test_a_sample_is_cached_and_a_damaged_entry_is_trained_again(sheet_10x10):
+def test_a_sample_is_cached_and_a_damaged_entry_is_trained_again(sheet_10x10, samples):
     model, basis = sheet_10x10
     band = FilterBand('lowpass', 0, 14, 'index')
-    first = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
-    entries = sorted(cache_folder().glob('*.npz'))
+    first = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
+    entries = sorted(samples.folder.glob('*.npz'))
     assert entries
-    again = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
+    again = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
     np.testing.assert_array_equal(again._forces.sample.springs, first._forces.sample.springs)
     assert again._forces.sample.seconds == 0.0                     # loaded, not trained
     newest = max(entries, key=lambda p: p.stat().st_mtime)
     newest.write_bytes(b'not a sample')
-    retrained = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
+    retrained = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
     assert retrained._forces.sample.seconds > 0.0
     np.testing.assert_array_equal(retrained._forces.sample.springs,
                                   first._forces.sample.springs)
@@ -116,7 +134,7 @@ def test_a_sample_is_cached_and_a_damaged_entry_is_trained_again(sheet_10x10):
 def test_a_sample_beyond_its_tolerance_falls_back_to_exact_forces(sheet_10x10):
     model, basis = sheet_10x10
     band = FilterBand('lowpass', 0, 14, 'index')
-    sim = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
+    sim = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
     forces = sim._forces
     crude = SpringSample(forces.sample.springs[:3], forces.sample.weights[:3], 0.5, 0.001, 0.0)
     bad = SampledForces(forces.exact, crude, tolerance=0.02, check_every=10)
@@ -126,7 +144,8 @@ def test_a_sample_beyond_its_tolerance_falls_back_to_exact_forces(sheet_10x10):
     bad.spring_forces(q)                            # the first call is checked
     assert bad.fell_back and bad.sample_error > 0.02
     np.testing.assert_allclose(bad.spring_forces(q), forces.exact.spring_forces(q))
-    assert bad.describe().startswith('exact (the 3-spring sample fell back')
+    assert bad.report().description.startswith('exact (the 3-spring sample fell back')
+    assert bad.report().fell_back and bad.report().error > 0.02
 
 
 @pytest.mark.parametrize('springs, sampled', [(342, 220), (39402, 211), (397530, 212)])
@@ -148,13 +167,14 @@ def _tampered(path, **changes):
 @pytest.mark.parametrize('damage', ['truncated', 'bit flipped', 'index out of range',
                                     'nan weights', 'weights x1000, claimed 0 %',
                                     'springs listed twice'])
-def test_a_tampered_cache_entry_is_refused_removed_and_trained_again(sheet_10x10, damage):
+def test_a_tampered_cache_entry_is_refused_removed_and_trained_again(sheet_10x10, damage,
+                                                                     samples):
     """Every cache entry is input: a bad one costs a report and training, never the run."""
     model, basis = sheet_10x10
     band = FilterBand('lowpass', 0, 14, 'index')
-    first = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
+    first = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
     good = first._forces.sample
-    entry = max(cache_folder().glob('*.npz'), key=lambda p: p.stat().st_mtime)
+    entry = max(samples.folder.glob('*.npz'), key=lambda p: p.stat().st_mtime)
     raw = entry.read_bytes()
     if damage == 'truncated':
         entry.write_bytes(raw[:len(raw) // 2])
@@ -172,16 +192,16 @@ def test_a_tampered_cache_entry_is_refused_removed_and_trained_again(sheet_10x10
     else:
         _tampered(entry, springs=np.concatenate([good.springs[:1], good.springs[:-1]]))
     said = []
-    again = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02,
+    again = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2,
                             progress=said.append)
     assert again._forces.sample.seconds > 0.0                      # trained again
     np.testing.assert_array_equal(again._forces.sample.springs, good.springs)
     assert any('refused' in line and 'removed, training again' in line for line in said) or \
         damage == 'bit flipped', said
     again.step(400)
-    assert np.isfinite(again.positions()).all() and not again.forces_fell_back
+    assert np.isfinite(again.positions()).all() and not again.force_report().fell_back
     # the entry was replaced by a good one: loaded, not trained, next time
-    third = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
+    third = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
     assert third._forces.sample.seconds == 0.0
 
 
@@ -189,7 +209,7 @@ def test_nan_in_a_sample_makes_it_fall_back_at_the_first_check(sheet_10x10):
     """A NaN compares false with everything: the run-time check must still catch it (at rest)."""
     model, basis = sheet_10x10
     band = FilterBand('lowpass', 0, 14, 'index')
-    sim = ModalSimulation(model, basis, band, dt=5e-4, sample_tolerance=0.02)
+    sim = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
     forces = sim._forces
     broken = SpringSample(forces.sample.springs, np.full(forces.sample.count, np.nan), 0.0,
                           0.0, 0.0)
@@ -208,16 +228,17 @@ def test_training_gives_up_early_where_sampling_cannot_pay(sheet_10x10):
     model, basis = sheet_10x10
     said = []
     sim = ModalSimulation(model, basis, FilterBand(), dt=2e-4, basis_kind='rest',
-                          sample_tolerance=0.01, progress=said.append)
+                          forces=ForceOptions('sampled', tolerance=0.01), progress=said.append)
     sample = sim._forces.sample
     assert sample.gave_up.startswith('sampling cannot pay here')
     assert sample.count >= MAX_SAMPLE_SHARE * model.scene.n_springs
-    assert sim.forces_fell_back and sim.describe_forces().startswith('exact (sampling cannot pay')
+    report = sim.force_report()
+    assert report.fell_back and report.description.startswith('exact (sampling cannot pay')
     assert any('sampling cannot pay here' in line for line in said)
     # it took a few training rounds, not the two hundred of before: fewer than ten reported
     assert sum(line.startswith('sampling springs:') for line in said) < 10
     sim.step(200)
     assert np.isfinite(sim.positions()).all()
     again = ModalSimulation(model, basis, FilterBand(), dt=2e-4, basis_kind='rest',
-                            sample_tolerance=0.01)
+                            forces=ForceOptions('sampled', tolerance=0.01))
     assert again._forces.sample.gave_up and again._forces.sample.seconds == 0.0  # cached

@@ -41,7 +41,7 @@ def test_every_method_offers_the_contract(sheet, method):
     assert isinstance(status, SimulationStatus)
     assert status.method == method and status.integrator == 'explicit'
     assert status.time == 0.0 and status.steps == 0 and status.max_strain == 0.0
-    assert sim.band == band and sim.force_refresh == 1 and sim.refresh_error is None
+    assert sim.band == band and sim.force_refresh == 1 and sim.force_report().error is None
     assert sim.mode_choice is None and not sim.fading and not sim.truncated
     f = sim.basis.frequencies_hz[sim.kept_modes]
     if method == 'modal':

@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import math
 
-from modal_spring_ros.core.basis import ModalBasis
-from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.stiffness import (assemble_stiffness, element_stiffness,
-                                             local_stiffness_2d, rotation_matrix_2d)
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.model.stiffness import (assemble_stiffness, element_stiffness,
+                                                   local_stiffness_2d, rotation_matrix_2d)
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -108,7 +108,7 @@ def test_modes_already_computed_stay_as_they_are_when_the_basis_grows(monkeypatc
     whatever the eigensolver's round-off does with the tie: a run carries its state over by
     mode index.
     """
-    from modal_spring_ros.core.basis import ShiftInvertModes
+    from modal_spring_ros.core.bases.basis import ShiftInvertModes
     model = MassSpringModel(load_scene('sheet_32x32'))
     basis = ModalBasis(model, initial_modes=16)
     before = basis.vectors.copy()
@@ -133,7 +133,7 @@ def test_modes_already_computed_stay_as_they_are_when_the_basis_grows(monkeypatc
 
 def test_a_degenerate_pair_cut_by_the_old_count_keeps_its_member_and_adds_its_partner():
     """The fresh modes rotate a degenerate pair; the kept member stays, its partner is added."""
-    from modal_spring_ros.core.basis import _grown
+    from modal_spring_ros.core.bases.basis import _grown
     rng = np.random.default_rng(3)
     mass = rng.uniform(0.5, 2.0, 8)
     lam = np.array([1.0, 2.0, 3.0, 3.0, 5.0, 6.0, 7.0, 8.0])

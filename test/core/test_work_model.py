@@ -6,11 +6,11 @@ with what), by its constants, and by what refreshed forces really evaluated.
 """
 from __future__ import annotations
 
-from modal_spring_ros.core import work_model
+from modal_spring_ros.core.auto import work_model
+from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.work_model import work_per_second
 from modal_spring_ros.scenes.resources import load_scene
 import pytest
 

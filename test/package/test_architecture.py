@@ -1,8 +1,9 @@
 """
 The architecture as the layout shows it.
 
-Layers that import only downward, no import cycle, a numerical core free of ROS, MCAP and plotting,
-and modules of a readable size.
+Layers that import only downward, no import cycle, a numerical core free of ROS, MCAP and plotting
+that neither reads the environment nor writes files, every force model registered, and modules of
+a readable size.
 """
 from __future__ import annotations
 
@@ -109,6 +110,76 @@ def test_the_core_imports_no_ros_mcap_or_matplotlib():
     assert proc.returncode == 0, proc.stderr
     assert len(core) > 15
     assert json.loads(proc.stdout) == []
+
+
+#: names whose use reads the environment or touches files
+ENVIRONMENT_OR_FILES = {'os.environ', 'os.getenv', 'os.putenv', 'os.replace', 'os.rename',
+                        'os.remove', 'os.unlink', 'os.mkdir', 'os.makedirs', 'os.rmdir',
+                        'np.save', 'np.savez', 'np.savez_compressed', 'np.savetxt', 'np.load',
+                        'np.loadtxt', 'np.fromfile', 'numpy.save', 'numpy.load', 'open'}
+#: modules whose import says the same
+FILE_MODULES = {'pathlib', 'shutil', 'tempfile', 'glob', 'io'}
+#: methods of paths and files that write
+WRITING_METHODS = {'write_text', 'write_bytes', 'mkdir', 'unlink', 'touch', 'rmdir', 'tofile'}
+
+
+def _dotted(node) -> str:
+    """Return ``a.b.c`` of a name or attribute chain, else ''."""
+    if isinstance(node, ast.Name):
+        return node.id
+    if isinstance(node, ast.Attribute):
+        base = _dotted(node.value)
+        return f'{base}.{node.attr}' if base else ''
+    return ''
+
+
+def _environment_or_files(source: str) -> list[str]:
+    """Return what in ``source`` reads the environment or touches files (``line: name``)."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        name = ''
+        if isinstance(node, (ast.Name, ast.Attribute)) and _dotted(node) in ENVIRONMENT_OR_FILES:
+            name = _dotted(node)
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                and node.func.attr in WRITING_METHODS:
+            name = f'.{node.func.attr}()'
+        elif isinstance(node, ast.Import):
+            name = ', '.join(a.name for a in node.names if a.name.split('.')[0] in FILE_MODULES)
+        elif isinstance(node, ast.ImportFrom) \
+                and (node.module or '').split('.')[0] in FILE_MODULES:
+            name = node.module
+        if name:
+            found.append(f'{node.lineno}: {name}')
+    return found
+
+
+def test_the_core_neither_reads_the_environment_nor_writes_files():
+    """Environment variables, caches and files are the front ends' (the core is handed them)."""
+    core = {m: p for m, p in _modules().items() if m.startswith(f'{PACKAGE}.core')}
+    found = {m: hits for m, p in core.items() if (hits := _environment_or_files(p.read_text()))}
+    assert not found, f'the core reads the environment or touches files: {found}'
+    # the check sees what it looks for
+    assert _environment_or_files('import os\nx = os.environ.get("A")\n') == ['2: os.environ']
+    assert _environment_or_files('from pathlib import Path\n') == ['1: pathlib']
+    assert _environment_or_files('p.write_bytes(b"")\nopen("f", "w")\n') == [
+        '1: .write_bytes()', '2: open']
+
+
+def test_every_force_model_is_registered():
+    """Every concrete force model of ``core/forces`` is in ``FORCES`` under its own name."""
+    import inspect
+    from modal_spring_ros.core.forces import FORCES, ForceModel
+    models = {}
+    for module in _modules():
+        if module.startswith(f'{PACKAGE}.core.forces'):
+            for _, cls in inspect.getmembers(importlib.import_module(module), inspect.isclass):
+                if issubclass(cls, ForceModel) and not inspect.isabstract(cls) \
+                        and cls.__module__ == module:
+                    models[cls.__name__] = cls
+    assert len(models) >= 3
+    for cls in models.values():
+        assert FORCES.get(cls.name) is cls, f'{cls.__name__} is not registered as {cls.name!r}'
+    assert sorted(FORCES) == sorted(cls.name for cls in models.values())
 
 
 def test_modules_stay_readable():

@@ -5,6 +5,7 @@ import dataclasses
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
+from modal_spring_ros.core.forces import ForceReport
 from modal_spring_ros.core.simulations import SimulationStatus
 from modal_spring_ros.ros.diagnostics import diagnostic_array, StreamReport
 import pytest
@@ -14,7 +15,7 @@ OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.E
 STATUS = SimulationStatus(
     method='modal', band='lowpass <= 20 Hz', basis='rest: 4 modes', basis_seconds=0.012,
     modes=4, coordinates=4, modes_computed=180,
-    mode_choice='off', integrator='explicit', dt=5e-4, force_refresh=1, refresh_error=None,
+    mode_choice='off', integrator='explicit', dt=5e-4, force_refresh=1,
     stability_limit=0.0123, time=2.5, steps=5000, max_strain=0.01, fading=False)
 STREAM = StreamReport(window_s=1.0, achieved_rtf=1.0, requested_rtf=1.0, step_us=31.4,
                       frames=600, frames_in_window=60, longest_gap_s=0.02, strain_warning=0.1)
@@ -36,7 +37,8 @@ def test_a_steady_stream_is_ok_with_every_figure():
     assert values['node'] == '/robot/modal_spring'
     assert values['band'] == 'lowpass <= 20 Hz' and values['modes stepped'] == '4'
     assert values['modes computed'] == '180' and values['dt (s)'] == '0.0005'
-    assert values['force refresh error'] == 'exact every step'
+    assert values['measured force error'] == 'exact every step'
+    assert values['force model'] == 'exact'
     assert values['stability limit (s)'] == '0.0123' and values['step time (us)'] == '31.4'
     assert values['simulation time (s)'] == '2.500' and values['frames published'] == '600'
     assert values['paused'] == 'false' and values['divergence'] == 'none'
@@ -44,9 +46,10 @@ def test_a_steady_stream_is_ok_with_every_figure():
 
 
 def test_refreshed_forces_report_their_error():
-    _, values = _entry(dataclasses.replace(STATUS, force_refresh=10, refresh_error=3.2e-4))
-    assert values['force refresh (steps)'] == '10'
-    assert values['force refresh error'] == '3.20e-04'
+    refreshed = ForceReport('refreshed', 'exact every 10 steps, tangent between', 10, 3.2e-4)
+    _, values = _entry(dataclasses.replace(STATUS, force_refresh=10, forces=refreshed))
+    assert values['force refresh (steps)'] == '10' and values['force model'] == 'refreshed'
+    assert values['measured force error'] == '3.20e-04'
 
 
 @pytest.mark.parametrize('changes, level, message', [
@@ -94,12 +97,15 @@ def test_large_deformation_warns_and_an_error_outranks_it():
 
 
 def test_sampled_springs_are_described_and_a_fallback_warns():
-    sampled = dataclasses.replace(STATUS, forces='sampled: 204 of 39402 springs, held-out '
-                                  'error 0.37%, run-time 0.21%')
+    sampled = dataclasses.replace(STATUS, forces=ForceReport(
+        'sampled', 'sampled: 204 of 39402 springs, held-out error 0.37%, run-time 0.21%', 1,
+        0.0021))
     entry, values = _entry(status=sampled)
     assert entry.level == OK and values['spring forces'].startswith('sampled: 204 of 39402')
-    fell = dataclasses.replace(STATUS, forces='exact (the 3-spring sample fell back: error '
-                               '4.10% beyond 1.00%)', forces_fell_back=True)
+    assert values['measured force error'] == '2.10e-03'
+    fell = dataclasses.replace(STATUS, forces=ForceReport(
+        'sampled', 'exact (the 3-spring sample fell back: error 4.10% beyond 1.00%)', 1, 0.041,
+        fell_back=True))
     entry, _ = _entry(status=fell)
     assert entry.level == WARN
     assert entry.message == ('spring forces fell back: exact (the 3-spring sample fell back: '

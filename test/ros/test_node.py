@@ -217,12 +217,12 @@ def test_force_refresh_is_set_at_runtime_and_reported(running):
     assert wait_for(lambda: (s := latest_status(diagnostics, changed)) is not None
                     and status_values(s)['force refresh (steps)'] == '4', 5.0)
     assert wait_for(lambda: (s := latest_status(diagnostics, time.monotonic() - 0.5))
-                    is not None and status_values(s)['force refresh error'] != '0.00e+00', 5.0)
+                    is not None and status_values(s)['measured force error'] != '0.00e+00', 5.0)
     window = [m for t, m in points if t > changed - 0.4]
     steps = [np.abs(xyz(b) - xyz(a)).max() for a, b in zip(window, window[1:])]
     assert max(steps) < 5e-3                  # the state carries over: no jump
     (result,) = client.set_parameters(NODE, modal__force_refresh=0)
     assert result.successful
     assert wait_for(lambda: (s := latest_status(diagnostics, time.monotonic() - 0.2))
-                    is not None and status_values(s)['force refresh error']
+                    is not None and status_values(s)['measured force error']
                     == 'exact every step', 5.0)

@@ -17,6 +17,7 @@ from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.ros.resimulate import resimulate
 from modal_spring_ros.scenes.resources import load_scene
+from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 import pytest
 from ros_harness import frames_since, node_of, node_with_client, wait_for
@@ -151,7 +152,7 @@ def test_bad_poses_are_refused_change_nothing_and_silence_is_reported():
 
 def test_a_clicked_point_pulls_the_nearest_particle_toward_it(tmp_path):
     scene_file = tmp_path / 'still.yaml'
-    scene_file.write_text(yaml.safe_dump(variant('sheet_10x10', anchor_motion=[]).to_dict()))
+    scene_file.write_text(yaml.safe_dump(scene_to_dict(variant('sheet_10x10', anchor_motion=[]))))
     with node_with_client(f'scene:={scene_file}', 'interaction.max_force_n:=5.0',
                           namespace='click') as (node, client):
         points = client.collect(PointCloud2, '/click/points', qos=500)
@@ -226,7 +227,7 @@ class _NodeStub:
 
 
 def test_a_flood_of_bad_poses_is_counted_and_logged_once_per_period():
-    from modal_spring_ros.core.clamp_follower import ClampFollower
+    from modal_spring_ros.core.motion.clamp_follower import ClampFollower
     from modal_spring_ros.ros.inputs import ANCHOR_TOPIC, NodeInputs, WARN_PERIOD_S
     node, submitted = _NodeStub(), []
     inputs = NodeInputs(node, ClampFollower(5.0, (0, 2)), lambda: {

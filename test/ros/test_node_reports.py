@@ -59,8 +59,8 @@ def test_node_automatic_mode_choice_is_reported():
         assert values['automatic choice measured'] == expected.pilot.describe()
         assert ' over a 5 s run (measured ' in values['automatic choice measured']
         assert expected.force_refresh > 1
-        assert wait_for(lambda: float(_values(diags, '/auto/')['force refresh error']) > 0, 10)
-        assert float(_values(diags, '/auto/')['force refresh error']) < 0.01
+        assert wait_for(lambda: float(_values(diags, '/auto/')['measured force error']) > 0, 10)
+        assert float(_values(diags, '/auto/')['measured force error']) < 0.01
 
 
 def _values(diags, prefix):

@@ -5,12 +5,13 @@ import copy
 import math
 
 from helpers import variant
-from modal_spring_ros.core.basis import ModalBasis
-from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.simulations import FullSimulation
 from modal_spring_ros.scenes.resources import builtin_scene_names, load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
+from modal_spring_ros.scenes.writing import scene_to_dict, scene_to_yaml
 import numpy as np
 import pytest
 
@@ -46,7 +47,7 @@ def test_every_built_in_scene_lives_in_a_z_up_world(name):
 
 @pytest.mark.parametrize('plane', ['xz', 'xy', 'yz'])
 def test_a_2d_sheet_is_a_surface_in_whichever_plane_it_lives_in(plane):
-    data = load_scene('sheet_10x10').to_dict()
+    data = scene_to_dict(load_scene('sheet_10x10'))
     data['plane'] = plane
     data['particles'] = {'lattice': {'counts': [4, 3], 'spacing': 0.1}, 'mass': 0.01}
     data['springs'] = {'connect': ['edges', 'diagonals'], 'stiffness': 1000.0}
@@ -73,7 +74,7 @@ def test_a_2d_scene_says_which_plane_it_lives_in():
     del data['plane']  # the default: the vertical x-z plane
     s = scene_from_dict(data)
     assert s.axes == (0, 2) and s.rest_positions[2].tolist() == [1.0, 0.0, 1.0]
-    assert scene_from_yaml(s.to_yaml()).axes == (0, 2)  # the plane round-trips
+    assert scene_from_yaml(scene_to_yaml(s)).axes == (0, 2)  # the plane round-trips
 
 
 def test_sheet_10x10_stays_in_the_small_deformation_regime():
@@ -101,7 +102,7 @@ def test_3d_scene_has_out_of_plane_motion():
 
 def test_scene_round_trips_through_its_full_definition():
     s = load_scene('sheet_10x10')
-    again = scene_from_yaml(s.to_yaml())
+    again = scene_from_yaml(scene_to_yaml(s))
     for field in ('rest_positions', 'mass', 'springs', 'stiffness', 'rest_length', 'fixed',
                   'gravity'):
         assert np.array_equal(getattr(s, field), getattr(again, field)), field
@@ -191,12 +192,12 @@ def test_a_turning_clamp_round_trips_and_composes_in_order():
     (turn,) = s.anchor_motion.rotations
     assert turn.axis == 1 and turn.pivot == (0.45, 0.0, 0.0)
     assert turn.amplitude == pytest.approx(math.radians(45.0), rel=1e-15)
-    again = scene_from_yaml(s.to_yaml())
+    again = scene_from_yaml(scene_to_yaml(s))
     for t in (0.3, 1.7, 4.1):
         a, b = s.anchor_motion.frame(t), again.anchor_motion.frame(t)
         np.testing.assert_allclose(a.rotation, b.rotation, rtol=0, atol=1e-15)
     # a 3D clamp: a turn about z, then one about x, then the offset
-    data = load_scene('cantilever_3d').to_dict()
+    data = scene_to_dict(load_scene('cantilever_3d'))
     data['anchor_motion'] = [
         {'rotation': 'z', 'amplitude_deg': 90.0, 'frequency_hz': 0.0, 'phase': math.pi / 2,
          'pivot': [0, 0, 0]},
@@ -232,7 +233,7 @@ def test_mechanism_reports_zero_mode_count_and_advice():
 
 
 def test_sheet_without_diagonals_is_a_mechanism_on_the_sparse_path_too():
-    data = copy.deepcopy(load_scene('sheet_32x32').to_dict())
+    data = copy.deepcopy(scene_to_dict(load_scene('sheet_32x32')))
     keep = [p for p in data['springs']['pairs']
             if abs(data['particles']['positions'][p[0]][0]
                    - data['particles']['positions'][p[1]][0]) < 1e-12
@@ -277,7 +278,7 @@ def test_a_ramped_motion_starts_and_ends_its_ramp_without_a_step_in_the_load():
 
     Even for a phase that starts the sine away from zero.
     """
-    from modal_spring_ros.core.anchor_motion import AnchorMotion, SineComponent
+    from modal_spring_ros.core.motion.anchor_motion import AnchorMotion, SineComponent
     motion = AnchorMotion((SineComponent(axis=0, amplitude=0.02, frequency_hz=0.7, phase=1.0,
                                          ramp_s=0.5),))
     for order in ('offset', 'velocity', 'acceleration'):

@@ -12,7 +12,7 @@ import random
 import re
 
 from modal_spring_ros.cli.modal_spring_sim import main
-from modal_spring_ros.core.scene import Scene, SceneError
+from modal_spring_ros.core.model.scene import Scene, SceneError
 from modal_spring_ros.scenes.resources import builtin_scene_dir, builtin_scene_names, load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
 from modal_spring_ros.scenes.yaml_reading import MAX_BYTES

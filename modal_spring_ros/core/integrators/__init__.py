@@ -27,5 +27,11 @@ def integrator(name: str) -> Integrator:
         raise ValueError(f"integrator '{name}' must be one of {', '.join(INTEGRATORS)}") from None
 
 
+def conditionally_stable(name: str) -> bool:
+    """Tell whether the integrator ``name`` is stable only below a step limit."""
+    return INTEGRATORS[name].conditionally_stable
+
+
 __all__ = ['INTEGRATORS', 'AverageAcceleration', 'DiagonalOperators', 'ExplicitNewmark',
-           'Integrator', 'NonConvergence', 'Operators', 'StepResult', 'integrator']
+           'Integrator', 'NonConvergence', 'Operators', 'StepResult', 'conditionally_stable',
+           'integrator']

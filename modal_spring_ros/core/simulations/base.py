@@ -17,14 +17,15 @@ import dataclasses
 import math
 from typing import Callable, ClassVar
 
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.integrators import Integrator
+from modal_spring_ros.core.forces import ForceOptions, ForceReport
+from modal_spring_ros.core.integrators import conditionally_stable, Integrator
 from modal_spring_ros.core.integrators import integrator as make_integrator
 from modal_spring_ros.core.integrators import NonConvergence, Operators
-from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.pull import Pull
-from modal_spring_ros.core.scene import Damping
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.model.scene import Damping
+from modal_spring_ros.core.motion.pull import Pull
 import numpy as np
 
 #: Default spring strain treated as divergence (the simulation has left any meaningful regime).
@@ -50,13 +51,13 @@ class UnstableStepError(ValueError):
 
 def check_step(integrator: str, dt: float, limit: float, method: str, dt_name: str = 'dt'
                ) -> None:
-    """Refuse explicit stepping at or above the stability limit ``limit`` (s)."""
-    if integrator == 'explicit' and dt >= limit:
+    """Refuse a conditionally stable integrator's step at or above ``limit`` (s)."""
+    if conditionally_stable(integrator) and dt >= limit:
         raise UnstableStepError(
             f'{dt_name} ({dt:g} s) is at or above the explicit stability limit '
             f"2/omega_max = {limit:.4g} s of the {method} run's highest mode "
             f'({1.0 / (math.pi * limit):.4g} Hz): lower {dt_name}, keep fewer high modes '
-            f"(a lower filter.high_hz), or use the 'average' integrator")
+            f"(a lower upper band edge), or use the 'average' integrator")
 
 
 def stable_step_limit(omega_max: float) -> float:
@@ -78,15 +79,13 @@ class SimulationStatus:
     mode_choice: str           # the automatic mode choice, or "off"
     integrator: str
     dt: float
-    force_refresh: int         # steps between exact spring-force evaluations
-    refresh_error: float | None  # largest measured error of refreshed forces, or None
+    force_refresh: int         # steps between exact spring-force evaluations (configured)
     stability_limit: float     # explicit limit of the coordinates stepped, s
     time: float
     steps: int
     max_strain: float
     fading: bool               # a band change is still fading modes in or out
-    forces: str = 'exact every step'   # how the spring forces are evaluated
-    forces_fell_back: bool = False     # sampled springs fell back to exact ones (error)
+    forces: ForceReport = ForceReport('exact', 'exact every step')  # how the springs ran
     measured: str = 'off'              # what the automatic choice's pilot measured, and how
 
 
@@ -95,6 +94,8 @@ class Simulation(abc.ABC):
 
     #: registry name
     method: ClassVar[str]
+    #: how the spring forces are evaluated (a full run: every spring on every step)
+    forces: ForceOptions = ForceOptions()
 
     def __init__(self, model: MassSpringModel, basis: ModalBasis | None, *, dt: float,
                  integrator: str, damping: Damping | None, strain_limit: float):
@@ -113,13 +114,13 @@ class Simulation(abc.ABC):
         self._t0 = 0.0
         self.last_iterations = 1
         self.diverged: DivergenceError | None = None
-        #: a particle being pulled toward a point (:mod:`~modal_spring_ros.core.pull`)
+        #: a particle being pulled toward a point (:mod:`~modal_spring_ros.core.motion.pull`)
         self.pull: Pull | None = None
 
     # -- what every method offers --------------------------------------------------------------
     #: the filter band, set by each method's constructor and by :meth:`set_band`
     _band: FilterBand
-    #: what the automatic choice's pilot run measured (:class:`~modal_spring_ros.core.pilot.
+    #: what the automatic choice's pilot run measured (:class:`~modal_spring_ros.core.auto.pilot.
     #: PilotReport`), on a run it chose; None otherwise
     pilot = None
 
@@ -143,21 +144,13 @@ class Simulation(abc.ABC):
         return 1
 
     @property
-    def refresh_error(self) -> float | None:
-        """
-        Largest measured error of refreshed forces since the last state change.
-
-        Or None when the forces are exact on every step.
-        """
-        return None
-
-    @property
     def mode_choice(self):
         """
         Return the automatic mode choice that set this run's modes, or None.
 
-        The automatic mode choice (a :class:`~modal_spring_ros.core.mode_selection.ModeChoice`)
-        that set this run's modes, or None.
+        The automatic mode choice (a
+        :class:`~modal_spring_ros.core.bases.mode_selection.ModeChoice`) that set this run's
+        modes, or None.
         """
         return None
 
@@ -166,15 +159,9 @@ class Simulation(abc.ABC):
         """Tell whether a band change is still fading modes in or out."""
         return False
 
-    def describe_forces(self) -> str:
-        """How the spring forces are evaluated, as text."""
-        every = self.force_refresh
-        return 'exact every step' if every == 1 else f'exact every {every} steps, tangent between'
-
-    @property
-    def forces_fell_back(self) -> bool:
-        """Tell whether sampled springs passed their tolerance and fell back to exact ones."""
-        return False
+    def force_report(self) -> ForceReport:
+        """Return how the spring forces are evaluated, their measured error, a fallback."""
+        return ForceReport('exact', 'exact every step')
 
     @property
     def truncated(self) -> bool:
@@ -239,10 +226,9 @@ class Simulation(abc.ABC):
             modes_computed=self.basis.count if self.basis is not None else 0,
             mode_choice=choice.describe() if choice is not None else 'off',
             integrator=self.integrator, dt=self.dt, force_refresh=self.force_refresh,
-            refresh_error=self.refresh_error, stability_limit=self.stability_limit(),
+            stability_limit=self.stability_limit(),
             time=self.time, steps=self.steps, max_strain=self.max_strain(),
-            fading=self.fading, forces=self.describe_forces(),
-            forces_fell_back=self.forces_fell_back,
+            fading=self.fading, forces=self.force_report(),
             measured=self.pilot.describe() if self.pilot is not None else 'off')
 
     # -- state in physical terms ---------------------------------------------------------------

@@ -12,8 +12,8 @@ from __future__ import annotations
 import dataclasses
 import threading
 
-from modal_spring_ros.core.basis import ModalBasis, Progress
-from modal_spring_ros.core.derivatives import added_coordinates, AddedCoordinates
+from modal_spring_ros.core.bases.basis import ModalBasis, Progress
+from modal_spring_ros.core.bases.derivatives import added_coordinates, AddedCoordinates
 import numpy as np
 
 #: The bases a modal run can step: the paper's rest modes, or rest modes and their derivatives.

@@ -6,11 +6,11 @@ what modal runs are compared with. With every mode kept, the two agree to round-
 """
 from __future__ import annotations
 
-from modal_spring_ros.core.basis import ModalBasis
+from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.forces import GeneralizedForces
-from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.scene import Damping
+from modal_spring_ros.core.forces.exact import ExactForces
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simulation,
                                                     stable_step_limit)
 from modal_spring_ros.core.simulations.modal import ModalSimulation
@@ -118,7 +118,7 @@ class FullSimulation(Simulation):
         self._ops = PhysicalOperators(model, self.damping, self.dt, basis)
         # a turning clamp: world coordinates, the clamp prescribed (see world_frame)
         self._world = WorldFrameRun(model, self._ops) if model.rotates else None
-        self._forces = self._world.forces if self._world else GeneralizedForces(model, None)
+        self._forces = self._world.forces if self._world else ExactForces(model, None)
         self.reset()
 
     @property

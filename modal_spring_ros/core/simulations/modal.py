@@ -15,12 +15,12 @@ eases into place rather than dropping. Modes not computed yet are computed when 
 needs them (at most ``max_modes``).
 
 With ``basis_kind="derivatives"`` each band also steps the coordinates it adds
-(:mod:`modal_spring_ros.core.derivatives`: the kept modes' second-order response and the static
-response to the loads), so that the stream stays right beyond small deformation. Rest modes and
-added coordinates are both "coordinates" here, identified by an id: a rest mode by its index,
-an added coordinate by an id from :data:`ADDED_ID` up (an :class:`AddedCoordinateBank` keeps
-them, per band). A band change fades the leaving band's added coordinates out and the new
-ones in, as it does rest modes.
+(:mod:`modal_spring_ros.core.bases.derivatives`: the kept modes' second-order response and the
+static response to the loads), so that the stream stays right beyond small deformation. Rest
+modes and added coordinates are both "coordinates" here, identified by an id: a rest mode by
+its index, an added coordinate by an id from :data:`ADDED_ID` up (an
+:class:`AddedCoordinateBank` keeps them, per band). A band change fades the leaving band's
+added coordinates out and the new ones in, as it does rest modes.
 
 The coordinates stepped and their fade progress are one immutable :class:`ActiveSet`,
 replaced whole: a thread that prepares a band switch reads a consistent set, and a reset
@@ -30,13 +30,12 @@ from __future__ import annotations
 
 import math
 
-from modal_spring_ros.core.basis import DEFAULT_MAX_MODES, ModalBasis, Progress
-from modal_spring_ros.core.derivatives import AddedCoordinates, DEFAULT_DIRECTIONS
+from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, ModalBasis, Progress
+from modal_spring_ros.core.bases.derivatives import AddedCoordinates, DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import BandError, FilterBand
-from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.refreshed_forces import RefreshedForces
-from modal_spring_ros.core.sampled_forces import SampledForces
-from modal_spring_ros.core.scene import Damping
+from modal_spring_ros.core.forces import force_model, ForceOptions, ForceReport
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.simulations.base import (check_step, DEFAULT_STRAIN_LIMIT, Simulation,
                                                     stable_step_limit)
 from modal_spring_ros.core.simulations.coordinates import (ActiveSet, ADDED_ID,
@@ -50,15 +49,15 @@ class ModalSimulation(Simulation):
     """
     Steps the modes the filter band keeps.
 
-    ``force_refresh`` (steps): 1 evaluates the nonlinear spring forces on every step, exactly
-    as the paper; ``N > 1`` evaluates them every ``N`` steps and continues them along the
-    static tangent in between (:mod:`modal_spring_ros.core.refreshed_forces`), so that most
-    steps cost nothing per spring. ``highest_hz``: modes above it are never stepped (set by the
-    automatic mode choice ``mode_choice``). ``basis_kind``: ``rest`` (the paper's rest modes)
-    or ``derivatives`` (each band also steps ``derivative_directions`` modal-derivative
-    directions and the static load vectors; see the module text). ``sample_tolerance``: the
-    springs of a settled band are sampled within it
-    (:mod:`modal_spring_ros.core.sampled_forces`).
+    ``forces``: how the nonlinear spring forces are evaluated (a force model of
+    :data:`~modal_spring_ros.core.forces.FORCES`): every spring on every step, exactly as the
+    paper (``exact``); every ``refresh`` steps, continued along the static tangent in between
+    (``refreshed``), so that most steps cost nothing per spring; or a sample of the springs
+    trained within ``tolerance`` (``sampled``, for a settled band). ``highest_hz``: modes
+    above it are never stepped (set by the automatic mode choice ``mode_choice``).
+    ``basis_kind``: ``rest`` (the paper's rest modes) or ``derivatives`` (each band also steps
+    ``derivative_directions`` modal-derivative directions and the static load vectors; see the
+    module text).
     """
 
     method = 'modal'
@@ -67,10 +66,9 @@ class ModalSimulation(Simulation):
                  dt: float, integrator: str = 'explicit', damping: Damping | None = None,
                  transition_s: float = 0.5, max_modes: int | None = None,
                  strain_limit: float = DEFAULT_STRAIN_LIMIT, highest_hz: float | None = None,
-                 force_refresh: int = 1, mode_choice=None, basis_kind: str = 'rest',
-                 derivative_directions: int = DEFAULT_DIRECTIONS,
-                 bank: AddedCoordinateBank | None = None, progress: Progress | None = None,
-                 sample_tolerance: float | None = None, force_tolerance: float = math.inf):
+                 forces: ForceOptions = ForceOptions(), mode_choice=None,
+                 basis_kind: str = 'rest', derivative_directions: int = DEFAULT_DIRECTIONS,
+                 bank: AddedCoordinateBank | None = None, progress: Progress | None = None):
         super().__init__(model, basis, dt=dt, integrator=integrator, damping=damping,
                          strain_limit=strain_limit)
         if basis_kind not in BASES:
@@ -82,14 +80,9 @@ class ModalSimulation(Simulation):
         self.basis_kind = basis_kind
         self._bank = bank if bank is not None else AddedCoordinateBank(
             basis, derivative_directions, progress)
-        if not (isinstance(force_refresh, (int, np.integer)) and force_refresh >= 1):
-            raise ValueError(f'force refresh ({force_refresh}) must be a whole number of '
-                             'steps, at least 1')
-        self._force_refresh = int(force_refresh)
-        #: the springs are sampled within this relative force error (None: they are not)
-        self.sample_tolerance = sample_tolerance
-        #: refreshed forces whose measured error passes this fall back to exact ones
-        self.force_tolerance = float(force_tolerance)
+        force_model(forces)  # a known model, options in range
+        #: how the spring forces are evaluated
+        self.forces = forces
         self.highest_hz = highest_hz
         self._mode_choice = mode_choice
         self.max_modes = int(max_modes) if max_modes else (
@@ -148,29 +141,19 @@ class ModalSimulation(Simulation):
 
     @property
     def force_refresh(self) -> int:
-        return self._force_refresh
+        return self.forces.refresh
 
     @property
     def evaluated_share(self) -> float:
         """Return the share of steps that evaluated the springs exactly so far (1: every one)."""
-        return getattr(self._forces, 'evaluated_share', 1.0)
-
-    @property
-    def refresh_error(self) -> float | None:
-        return getattr(self._forces, 'max_refresh_error', None)   # refreshed forces only
+        return self._forces.evaluated_share
 
     @property
     def mode_choice(self):
         return self._mode_choice
 
-    def describe_forces(self) -> str:
-        if isinstance(self._forces, (SampledForces, RefreshedForces)):
-            return self._forces.describe()
-        return super().describe_forces()
-
-    @property
-    def forces_fell_back(self) -> bool:
-        return getattr(self._forces, 'fell_back', False)
+    def force_report(self) -> ForceReport:
+        return self._forces.report()
 
     def describe_band(self) -> str:
         return self._band.describe()
@@ -180,11 +163,9 @@ class ModalSimulation(Simulation):
                                integrator=self.integrator, damping=self.damping,
                                transition_s=self.transition_s, max_modes=self.max_modes,
                                strain_limit=self.strain_limit, highest_hz=self.highest_hz,
-                               force_refresh=self._force_refresh,
-                               mode_choice=self._mode_choice, basis_kind=self.basis_kind,
-                               derivative_directions=self._bank.directions, bank=self._bank,
-                               sample_tolerance=self.sample_tolerance,
-                               force_tolerance=self.force_tolerance)
+                               forces=self.forces, mode_choice=self._mode_choice,
+                               basis_kind=self.basis_kind,
+                               derivative_directions=self._bank.directions, bank=self._bank)
 
     def stability_limit(self) -> float:
         return stable_step_limit(float(self._bank.omega(self._set.modes).max()))
@@ -280,13 +261,14 @@ class ModalSimulation(Simulation):
         """
         Build the operators of stepping ``modes``.
 
-        Sampled springs only for a settled band (a fade is short: training for it would cost more
-        than it saves).
+        A force model that needs training only for a settled band (a fade is short: training
+        for it would cost more than it saves).
         """
-        tolerance = self.sample_tolerance if settled else None
-        return SteppedSet.build(self.model, self._bank, modes, self.damping, self._force_refresh,
-                                self.dt, self.strain_limit, tolerance, self._bank.progress,
-                                self.force_tolerance)
+        forces = self.forces
+        if not settled and force_model(forces).trained:
+            forces = forces.untrained()
+        return SteppedSet.build(self.model, self._bank, modes, self.damping, forces, self.dt,
+                                self.strain_limit)
 
     def _install(self, new: ActiveSet, old: ActiveSet | None) -> None:
         """
@@ -346,8 +328,7 @@ class ModalSimulation(Simulation):
     def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
         """Project a physical state onto the stepped modes (paper eq. 15: ``q = Phi^T M u``)."""
         m = self.model.mass_dof
-        if isinstance(self._forces, (RefreshedForces, SampledForces)):
-            self._forces.restart()
+        self._forces.restart()
         self._q = self._phi.T @ (m * displacement)
         self._v = self._phi.T @ (m * velocity)
         self._a = self._forces(self._q, self.time) - self._damp * self._v

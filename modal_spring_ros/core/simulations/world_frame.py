@@ -2,8 +2,8 @@
 The full run of a turning clamp, in the world: the reference the floating frame is checked against.
 
 The modal run writes a turning body in its clamp's frame and adds the frame's inertial loads
-(:mod:`modal_spring_ros.core.frame_loads`). The full run does none of that: it steps the free
-particles' world positions, and the fixed particles simply sit where the clamp carries them,
+(:mod:`modal_spring_ros.core.motion.frame_loads`). The full run does none of that: it steps the
+free particles' world positions, and the fixed particles simply sit where the clamp carries them,
 so the springs that reach the clamp pull with the clamp's true motion. Being independent of the
 frame's algebra, it checks it.
 
@@ -14,13 +14,14 @@ the modal run): ``-R C R^T (x' - v_frame(x))``, with ``C`` the rest damping and
 """
 from __future__ import annotations
 
-from modal_spring_ros.core.forces import GeneralizedForces, spring_difference_matrix
-from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.rigid_frame import RigidFrame
+from modal_spring_ros.core.forces.exact import ExactForces
+from modal_spring_ros.core.forces.springs import spring_difference_matrix
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.motion.rigid_frame import RigidFrame
 import numpy as np
 
 
-class PrescribedClampForces(GeneralizedForces):
+class PrescribedClampForces(ExactForces):
     """
     Force on the free DOF in world coordinates (``x = X + u``).
 

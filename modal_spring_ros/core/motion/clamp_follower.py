@@ -15,7 +15,7 @@ exactly. The pose is taken relative to the first one received: a gripper at pose
 the clamp by ``P P0^-1``, turning it about the first pose's position.
 
 A 2D scene follows the in-plane position and the turn about its normal; a 1D scene the
-position along its axis. The clamp's frame is what :mod:`~modal_spring_ros.core.frame_loads`
+position along its axis. The clamp's frame is what :mod:`~modal_spring_ros.core.motion.frame_loads`
 turns into inertial loads, as for a scene's own turning clamp.
 """
 from __future__ import annotations
@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import threading
 
-from modal_spring_ros.core.rigid_frame import RigidFrame
+from modal_spring_ros.core.motion.rigid_frame import RigidFrame
 import numpy as np
 
 #: Default bandwidth of the filter the clamp follows poses through, Hz.

@@ -13,7 +13,6 @@ import math
 
 import numpy as np
 
-
 #: Smallest margin of the reach around a scene's rest shape, m (a scene of one point has one).
 REACH_MIN_M = 1.0
 

@@ -4,7 +4,7 @@ The mass-spring model of a scene: DOF layout, nonlinear spring forces (paper eq.
 :class:`MassSpringModel` precomputes everything that does not change while stepping (index
 arrays, the sparse spring-to-particle scatter matrix, lumped masses, the rest stiffness), so
 that a force evaluation is a handful of vectorised numpy operations (see
-:mod:`modal_spring_ros.core.forces`).
+:mod:`modal_spring_ros.core.forces.exact`).
 
 DOF layout: the free (not fixed) particles in scene order, ``dimension`` coordinates each;
 displacement vectors ``u`` are flat arrays of length ``n_free * dimension``.
@@ -13,10 +13,11 @@ from __future__ import annotations
 
 import functools
 
-from modal_spring_ros.core.forces import GeneralizedForces, spring_difference_matrix
-from modal_spring_ros.core.rigid_frame import RigidFrame
-from modal_spring_ros.core.scene import Scene
-from modal_spring_ros.core.stiffness import assemble_stiffness, reduce_to_free
+from modal_spring_ros.core.forces.exact import ExactForces
+from modal_spring_ros.core.forces.springs import spring_difference_matrix
+from modal_spring_ros.core.model.scene import Scene
+from modal_spring_ros.core.model.stiffness import assemble_stiffness, reduce_to_free
+from modal_spring_ros.core.motion.rigid_frame import RigidFrame
 import numpy as np
 import scipy.sparse as sp
 
@@ -168,9 +169,9 @@ class MassSpringModel:
         return delta, length
 
     @functools.cached_property
-    def physical_forces(self) -> GeneralizedForces:
+    def physical_forces(self) -> ExactForces:
         """Force on the free DOF in physical coordinates (no modal projection)."""
-        return GeneralizedForces(self, None)
+        return ExactForces(self, None)
 
     def free_force(self, u: np.ndarray, t: float) -> np.ndarray:
         """Total force on the free DOF (springs, eq. 20, plus gravity) for displacement ``u``."""

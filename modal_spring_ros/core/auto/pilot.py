@@ -1,8 +1,8 @@
 """
 Measure, then trust: the automatic plan's error measured by a pilot run before it is used.
 
-The automatic choice (:mod:`~modal_spring_ros.core.mode_selection`,
-:mod:`~modal_spring_ros.core.basis_choice`) *predicts* the error of a plan (modes, basis,
+The automatic choice (:mod:`~modal_spring_ros.core.bases.mode_selection`,
+:mod:`~modal_spring_ros.core.bases.basis_choice`) *predicts* the error of a plan (modes, basis,
 forces, step). A prediction is a model of the error, and on a scene it was not tuned on it can
 be wrong many times over. Adaptive ODE solvers never trust a step until a second estimate says
 it is good; this module does the same for a whole plan:
@@ -44,11 +44,11 @@ import dataclasses
 import math
 from typing import Callable
 
-from modal_spring_ros.core.measured_error import (converged_trajectory, horizon_error,
-                                                  on_samples, trajectory, trajectory_error)
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.auto.measured_error import (converged_trajectory, horizon_error,
+                                                       on_samples, trajectory, trajectory_error)
+from modal_spring_ros.core.auto.work_model import work_per_second
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import Simulation
-from modal_spring_ros.core.work_model import work_per_second
 import numpy as np
 
 #: The measured error must be within this share of the tolerance (a margin for what the pilot

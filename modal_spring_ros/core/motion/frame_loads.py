@@ -1,8 +1,9 @@
 """
 The inertial loads of a turning clamp's frame (the floating frame of reference).
 
-Written in the clamp's frame, ``x = R (X + u) + b`` (:mod:`~modal_spring_ros.core.rigid_frame`),
-the deformation ``u`` stays small while the body turns, and every particle of mass ``m`` feels
+Written in the clamp's frame, ``x = R (X + u) + b``
+(:mod:`~modal_spring_ros.core.motion.rigid_frame`), the deformation ``u`` stays small while the
+body turns, and every particle of mass ``m`` feels
 
     m u'' = f_spring(X + u) + m R^T g - m R^T b'' - m A (X + u) - 2 m W u'
 

@@ -38,9 +38,9 @@ from __future__ import annotations
 import dataclasses
 import time
 
-from modal_spring_ros.core.basis import ModalBasis, Progress
-from modal_spring_ros.core.frame_loads import frame_load_patterns
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.bases.basis import ModalBasis, Progress
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.motion.frame_loads import frame_load_patterns
 import numpy as np
 
 #: Default number of mass-PCA derivative directions added to a band.

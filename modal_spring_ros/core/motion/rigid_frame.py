@@ -4,7 +4,7 @@ A rigid motion of space and its time derivatives: where a moving clamp carries i
 A point at rest at ``X`` is carried to ``x = R X + b``. With the velocity and acceleration of
 both parts, this is what a floating frame of reference needs: the body's own deformation is
 written in the frame (``y = R^T (x - b)``), and the frame's motion becomes the inertial loads
-of :mod:`modal_spring_ros.core.frame_loads`.
+of :mod:`modal_spring_ros.core.motion.frame_loads`.
 """
 from __future__ import annotations
 

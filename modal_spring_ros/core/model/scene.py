@@ -3,17 +3,15 @@ Scene data: particles, springs, fixed particles, loads and damping of a validate
 
 A :class:`Scene` is what every other part of the engine works from. It is built and checked by
 :mod:`modal_spring_ros.scenes` (YAML schema, lattices, built-in scenes); this module only holds
-the data and what follows from it alone (degrees of freedom, surface triangles, the full
-definition as a mapping or YAML).
+the data and what follows from it alone (degrees of freedom, surface triangles); the scene
+file format, read and written, is :mod:`modal_spring_ros.scenes`'.
 """
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
-from modal_spring_ros.core.anchor_motion import AnchorMotion
+from modal_spring_ros.core.motion.anchor_motion import AnchorMotion
 import numpy as np
-import yaml
 
 
 class SceneError(ValueError):
@@ -102,42 +100,6 @@ class Scene:
         springs' cells); scenes without that structure return an empty array.
         """
         return _lattice_triangles(self)
-
-    def to_dict(self) -> dict[str, Any]:
-        """
-        Return the full explicit definition, every particle and spring listed.
-
-        What :func:`modal_spring_ros.scenes.schema.scene_from_dict` loads back.
-        """
-        return {
-            'name': self.name,
-            'description': self.description,
-            'dimension': self.dimension,
-            **({'axis': 'xyz'[self.axes[0]]} if self.dimension == 1 else {}),
-            **({'plane': ''.join('xyz'[a] for a in self.axes)} if self.dimension == 2 else {}),
-            'particles': {
-                'positions': self.rest_positions.tolist(),
-                'mass': self.mass.tolist(),
-            },
-            'springs': {
-                'pairs': self.springs.tolist(),
-                'stiffness': self.stiffness.tolist(),
-            },
-            'fixed': {'indices': np.flatnonzero(self.fixed).tolist()},
-            'gravity': self.gravity.tolist(),
-            'damping': {
-                'ratio': self.damping.ratio,
-                'rayleigh': {
-                    'alpha': self.damping.rayleigh_alpha,
-                    'beta': self.damping.rayleigh_beta,
-                },
-            },
-            'anchor_motion': self.anchor_motion.to_list(),
-            'simulation': {'dt': self.default_dt, 'duration': self.default_duration},
-        }
-
-    def to_yaml(self) -> str:
-        return yaml.safe_dump(self.to_dict(), sort_keys=False)
 
 
 def _lattice_triangles(scene: Scene) -> np.ndarray:

@@ -3,7 +3,7 @@ Nonlinear spring forces (paper eq. 20) and gravity in generalized coordinates.
 
 For free-DOF displacement ``u = Phi q`` (``Phi`` = the retained modes, or the identity for the
 full physical run), measured from the rigidly moving base (see
-:mod:`modal_spring_ros.core.anchor_motion`), each spring's vector ``x_j - x_i`` is an affine
+:mod:`modal_spring_ros.core.motion.anchor_motion`), each spring's vector ``x_j - x_i`` is an affine
 function of ``q``:
 
     delta = delta_rest + G q,     G = D Phi
@@ -12,7 +12,7 @@ with ``D`` the sparse spring-difference matrix. The force on the free DOF is ``-
 per-spring force vectors, so its projection on the modes (paper fig. 5, step 4) is
 ``Q = -G^T f_spring + Phi^T (f_gravity - M 1 a_base(t))``. When the clamp turns, ``u`` is the
 displacement in its frame and the loads are the frame's
-(:mod:`~modal_spring_ros.core.frame_loads`).
+(:mod:`~modal_spring_ros.core.motion.frame_loads`).
 
 Per step this is one product with ``G``, a few vectorised operations over the springs and one
 product with ``G^T``: no Python loop over particles or springs. ``G`` is stored dense when that
@@ -20,7 +20,9 @@ is cheap (small scenes, few modes) and applied as ``D`` after ``Phi`` otherwise.
 """
 from __future__ import annotations
 
-from modal_spring_ros.core.frame_loads import FrameLoads
+from modal_spring_ros.core.forces.base import ForceContext, ForceModel, ForceOptions, ForceReport
+from modal_spring_ros.core.forces.springs import pull_springs, spring_lengths
+from modal_spring_ros.core.motion.frame_loads import FrameLoads
 import numpy as np
 import scipy.sparse as sp
 
@@ -30,56 +32,17 @@ DENSE_G_LIMIT = 400_000
 TANGENT_CHUNK = 4096
 
 
-def spring_difference_matrix(springs: np.ndarray, free_index: np.ndarray, dimension: int,
-                             n_free: int) -> sp.csr_matrix:
-    """
-    Sparse ``D`` with ``(D u)[a*E + e] = u_j[a] - u_i[a]`` over the free DOF (fixed: 0).
-
-    Rows are component-major (all x components, then all y, ...), so that the per-spring
-    arithmetic runs over contiguous rows of a ``(d, E)`` array.
-    """
-    n_springs = springs.shape[0]
-    rows, cols, vals = [], [], []
-    for end, sign in ((1, 1.0), (0, -1.0)):
-        p = free_index[springs[:, end]]
-        ok = p >= 0
-        for a in range(dimension):
-            rows.append(a * n_springs + np.flatnonzero(ok))
-            cols.append(p[ok] * dimension + a)
-            vals.append(np.full(int(ok.sum()), sign))
-    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(n_springs * dimension, n_free * dimension))
-
-
-def _norms(delta: np.ndarray) -> np.ndarray:
-    """Euclidean lengths of the columns of a (d, E) array."""
-    length = np.einsum('de,de->e', delta, delta)
-    return np.sqrt(length, out=length)
-
-
-def pull_springs(delta: np.ndarray, stiffness: np.ndarray, stiffness_length: np.ndarray,
-                 inv_rest: np.ndarray) -> float:
-    """
-    Turn the (d, E) spring vectors ``delta`` into the springs' force vectors in place (eq.
-
-    20: each pulls with ``k (L - l) / L (x_j - x_i) = (k - k l / L) delta``) and return the largest
-    strain ``|L / l - 1|`` (through the largest and smallest ``L / l``).
-    """
-    length = _norms(delta)
-    ratio = length * inv_rest
-    strain = max(float(np.maximum.reduce(ratio)) - 1.0, 1.0 - float(np.minimum.reduce(ratio)))
-    np.divide(stiffness_length, length, out=length)
-    np.subtract(stiffness, length, out=length)
-    delta *= length
-    return strain
-
-
-class GeneralizedForces:
+class ExactForces(ForceModel):
     """
     ``Q(q, t)``: total force on the free DOF projected on ``Phi`` (identity when None).
 
+    The paper's method: every spring on every step. The other force models are built on it (it
+    is their reference, and where they fall back to).
+
     :ivar last_max_strain: largest ``|L - l| / l`` over all springs at the last evaluation.
     """
+
+    name = 'exact'
 
     def __init__(self, model, basis: np.ndarray | None, load_mask: np.ndarray | None = None):
         """
@@ -127,6 +90,13 @@ class GeneralizedForces:
         self._gravity = self._load_matrix[:, 0].copy()
         self._kl = self._k * self._l
         self.last_max_strain = 0.0
+
+    @classmethod
+    def build(cls, context: ForceContext, options: ForceOptions) -> 'ExactForces':
+        return context.exact
+
+    def report(self) -> ForceReport:
+        return ForceReport(self.name, 'exact every step')
 
     def spring_deltas(self, q: np.ndarray) -> np.ndarray:
         """(d, E) spring vectors ``x_j - x_i`` for generalized coordinates ``q``."""
@@ -187,7 +157,7 @@ class GeneralizedForces:
         springs at a time so that ``G`` is never held whole on large scenes.
         """
         delta = self.spring_deltas(q)
-        length = _norms(delta)
+        length = spring_lengths(delta)
         a = self._k * (1.0 - self._l / length)
         b = self._k * self._l / length
         unit = delta / length

@@ -27,7 +27,7 @@ response); the forced response needs ``(omega_exc dt)^2 / 12`` within it too. Th
 ``SHARE * tolerance`` each, so that together (in quadrature) they stay within the tolerance.
 
 :func:`choose_refresh` sets how often the nonlinear spring forces are evaluated
-(:mod:`modal_spring_ros.core.refreshed_forces`): every ``REFRESH_PERIODS`` of a period of the
+(:mod:`modal_spring_ros.core.forces.refreshed`): every ``REFRESH_PERIODS`` of a period of the
 highest kept mode, so that between evaluations no kept mode moves through more than half an
 oscillation along the static tangent. (The benchmark measures what this costs in accuracy:
 on the sheets at 1 %, nothing measurable against evaluating on every step.)
@@ -37,11 +37,12 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from modal_spring_ros.core.basis import DEFAULT_MAX_MODES, ModalBasis
-from modal_spring_ros.core.basis_choice import BasisChoice
+from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, ModalBasis
+from modal_spring_ros.core.bases.basis_choice import BasisChoice
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.frame_loads import frame_load_patterns
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.integrators import conditionally_stable
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.motion.frame_loads import frame_load_patterns
 import numpy as np
 import scipy.sparse.linalg as spla
 
@@ -186,7 +187,7 @@ def choose_step(choice: ModeChoice, integrator: str, tolerance: float = DEFAULT_
     dt = math.sqrt(48.0 * budget / (w ** 3 * tau))
     if choice.excitation_hz > 0:
         dt = min(dt, math.sqrt(12.0 * budget) / (2 * math.pi * choice.excitation_hz))
-    if integrator == 'explicit':
+    if conditionally_stable(integrator):
         dt = min(dt, STABILITY_SAFETY * 2.0 / choice.omega_max)
     return dt
 

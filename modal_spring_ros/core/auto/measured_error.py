@@ -12,8 +12,8 @@ from __future__ import annotations
 import math
 from typing import Callable
 
+from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.simulations import DivergenceError, Simulation
-from modal_spring_ros.core.work_model import work_per_second
 import numpy as np
 
 #: Blocks of the window's second half the drift model is fitted to.

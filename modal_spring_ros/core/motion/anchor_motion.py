@@ -12,8 +12,8 @@ along with the clamp, ``x = R (X + u) + b``, and the displacement ``u`` in the c
 feels the frame's inertial loads. For a clamp that only translates the load is
 ``-m * p''(t)`` (base excitation; a rigid shift stretches no spring, so this is exact); a
 turning clamp adds the centrifugal, Euler and Coriolis loads and turns gravity
-(:mod:`modal_spring_ros.core.frame_loads`). The modes computed with the clamp held still stay
-valid in its frame while it moves.
+(:mod:`modal_spring_ros.core.motion.frame_loads`). The modes computed with the clamp held still
+stay valid in its frame while it moves.
 """
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ import functools
 import math
 from typing import ClassVar
 
-from modal_spring_ros.core.rigid_frame import axis_rotation, cross_matrix, RigidFrame
+from modal_spring_ros.core.motion.rigid_frame import axis_rotation, cross_matrix, RigidFrame
 import numpy as np
 
 

@@ -15,7 +15,8 @@ stiffening of the sagged shape (tension, rotated springs), so what is held betwe
 only its change with the motion, which keeps a lagged coupling from feeding energy into the
 modes. A step between refreshes costs a few operations on the kept modes, not on the springs.
 
-``interval = 1`` is the paper's method exactly (the simulation then does not use this class).
+``interval = 1`` is the paper's method exactly (:meth:`RefreshedForces.build` then gives the
+exact model).
 At each refresh the continued force is compared with the exact one; the relative difference,
 ``refresh_error`` (and its largest value since the last restart), is the measured cost in
 accuracy, reported by the node on ``/diagnostics``. It checks itself: a refresh whose error
@@ -32,7 +33,8 @@ from __future__ import annotations
 
 import math
 
-from modal_spring_ros.core.forces import GeneralizedForces
+from modal_spring_ros.core.forces.base import ForceContext, ForceModel, ForceOptions, ForceReport
+from modal_spring_ros.core.forces.exact import ExactForces
 import numpy as np
 
 #: iterations of the static solve (modified Newton with the rest stiffness)
@@ -40,7 +42,7 @@ STATIC_ITERATIONS = 200
 STATIC_RTOL = 1e-10
 
 
-def static_equilibrium(forces: GeneralizedForces, omega2: np.ndarray
+def static_equilibrium(forces: ExactForces, omega2: np.ndarray
                        ) -> tuple[np.ndarray, bool]:
     """
     Modal coordinates of the equilibrium under gravity, and whether it was found.
@@ -63,13 +65,12 @@ def static_equilibrium(forces: GeneralizedForces, omega2: np.ndarray
     return np.zeros(omega2.size), False
 
 
-class RefreshedForces:
+class RefreshedForces(ForceModel):
     """
     Generalized forces with the springs evaluated every ``interval`` steps of ``dt``.
 
-    Called like :class:`~modal_spring_ros.core.forces.GeneralizedForces`:
-    ``forces(q, t)``. A call at a time ``interval`` steps or more after the last evaluation
-    (or before it: a restart) evaluates the springs exactly.
+    ``forces(q, t)``, as every force model. A call at a time ``interval`` steps or more after
+    the last evaluation (or before it: a restart) evaluates the springs exactly.
 
     :ivar static_found: the static equilibrium was found (else ``K_s`` is the rest stiffness).
     :ivar refresh_error: relative difference between the continued and the exact spring force
@@ -83,7 +84,17 @@ class RefreshedForces:
         restarts: what the run has cost, for the work model).
     """
 
-    def __init__(self, exact: GeneralizedForces, omega2: np.ndarray, interval: int, dt: float,
+    name = 'refreshed'
+
+    @classmethod
+    def build(cls, context: ForceContext, options: ForceOptions) -> ForceModel:
+        """Return forces refreshed every ``options.refresh`` steps (every step: the exact ones)."""
+        if options.refresh == 1:
+            return context.exact
+        return cls(context.exact, context.omega2, options.refresh, context.dt,
+                   context.strain_limit, options.tolerance)
+
+    def __init__(self, exact: ExactForces, omega2: np.ndarray, interval: int, dt: float,
                  strain_limit: float = math.inf, tolerance: float = math.inf):
         if interval < 1:
             raise ValueError(f'force refresh interval ({interval}) must be at least 1 step')
@@ -152,12 +163,21 @@ class RefreshedForces:
             return 1.0 / self.interval
         return self.evaluations / self.calls
 
-    def describe(self) -> str:
-        """Return how the springs are evaluated, as text."""
+    def report(self) -> ForceReport:
         if self.fell_back:
-            return (f'exact every step (refreshed every {self.interval} steps fell back: error '
+            text = (f'exact every step (refreshed every {self.interval} steps fell back: error '
                     f'{self.fell_back_error:.2%} beyond {self.tolerance:.2%})')
-        return f'exact every {self.interval} steps, tangent between'
+        else:
+            text = f'exact every {self.interval} steps, tangent between'
+        return ForceReport(self.name, text, 1 if self.fell_back else self.interval,
+                           self.max_refresh_error,
+                           self.fell_back)
+
+    def loads(self, t: float) -> np.ndarray:
+        return self.exact.loads(t)
+
+    def gravity(self) -> np.ndarray:
+        return self.exact.gravity()
 
     def _continued(self, dq: np.ndarray) -> np.ndarray:
         """Return the last exact spring force continued along the static tangent by ``dq``."""

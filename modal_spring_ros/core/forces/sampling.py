@@ -91,7 +91,7 @@ def train(forces, snapshots: np.ndarray, held_out: np.ndarray,
     Find the springs and non-negative weights that reproduce the spring force.
 
     The springs and non-negative weights that reproduce the spring force of ``forces`` (a
-    :class:`~modal_spring_ros.core.forces.GeneralizedForces`) on ``snapshots`` (S, m) within
+    :class:`~modal_spring_ros.core.forces.exact.ExactForces`) on ``snapshots`` (S, m) within
     ``tolerance`` (relative, each snapshot), checked on ``held_out``.
     """
     start = time.perf_counter()

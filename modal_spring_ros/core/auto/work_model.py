@@ -50,7 +50,7 @@ def work_per_second(sim: Simulation) -> float:
     coords = sim.coordinates
     fixed += COORDINATE_US * coords + (TURNING_PAIR_US * coords * coords if model.rotates
                                        else 0.0)
-    if getattr(sim, 'sample_tolerance', None) is not None:
+    if sim.forces.model == 'sampled':
         evaluated = float(min(springs, 4 * coords))
         per_step = (fixed + EVALUATION_US + SPRING_US['modal'] * evaluated
                     + PROJECTION_US * evaluated * 2 * model.dimension * coords)

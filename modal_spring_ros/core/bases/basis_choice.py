@@ -36,9 +36,9 @@ import dataclasses
 import math
 from typing import Callable
 
-from modal_spring_ros.core.basis import ModalBasis
-from modal_spring_ros.core.derivatives import AddedCoordinates, tangent_derivative
-from modal_spring_ros.core.model import MassSpringModel
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.bases.derivatives import AddedCoordinates, tangent_derivative
+from modal_spring_ros.core.model.model import MassSpringModel
 import numpy as np
 
 

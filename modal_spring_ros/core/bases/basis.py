@@ -18,8 +18,9 @@ import time
 from typing import Any, Callable
 import uuid
 
-from modal_spring_ros.core.model import MassSpringModel
-from modal_spring_ros.core.scene import SceneError
+from modal_spring_ros.core.forces.base import SampleStore
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerProcess
 import numpy as np
 import scipy.linalg
@@ -55,6 +56,8 @@ class ModalBasis:
     ``worker``: a :class:`~modal_spring_ros.core.worker.WorkerProcess` to run the sparse
     eigensolver in (results are identical), so that computing modes does not hold this
     process's interpreter lock; the node uses one to keep its stream going meanwhile.
+    ``samples``: where spring samples trained on this scene's coordinates are kept between runs
+    (a :class:`~modal_spring_ros.core.forces.base.SampleStore`; None: trained every run).
 
     :ivar omega: (m,) circular frequencies (rad/s) of the computed modes, ascending.
     :ivar vectors: (n_free_dof, m) mass-normalised mode shapes.
@@ -63,8 +66,9 @@ class ModalBasis:
 
     def __init__(self, model: MassSpringModel, *, initial_modes: int = 32,
                  progress: Progress | None = None, dense_limit: int = DENSE_LIMIT,
-                 worker: WorkerProcess | None = None):
+                 worker: WorkerProcess | None = None, samples: SampleStore | None = None):
         self.model = model
+        self.samples = samples
         self.n_dof = model.n_free_dof
         self.progress = progress or _no_progress
         self.dense = self.n_dof <= dense_limit
