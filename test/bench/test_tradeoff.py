@@ -31,6 +31,7 @@ def quick_bench(tmp_path_factory):
     return out, json.loads((out / 'tradeoff.json').read_text()), proc
 
 
+@pytest.mark.slow
 def test_quick_bench_writes_every_output(quick_bench):
     out, result, proc = quick_bench
     for name in ('tradeoff.json', 'tradeoff.csv', 'error_vs_cost_sheet_10x10.png',
@@ -48,6 +49,7 @@ def test_quick_bench_writes_every_output(quick_bench):
     assert case['pareto']
 
 
+@pytest.mark.slow  # the quick benchmark, run once for all of them
 def test_bench_accuracy_figures_are_consistent(quick_bench):
     _, result, _ = quick_bench
     (case,) = result['cases']
@@ -67,6 +69,7 @@ def test_bench_accuracy_figures_are_consistent(quick_bench):
         assert r['predicted_error'] <= r['tolerance']
 
 
+@pytest.mark.slow  # the quick benchmark, run once for all of them
 def test_bench_stability_limits_match_theory(quick_bench):
     _, result, _ = quick_bench
     (case,) = result['cases']
@@ -79,6 +82,7 @@ def test_bench_stability_limits_match_theory(quick_bench):
             assert s['largest_stable'] == pytest.approx(100 * 2.0 / case['omega_max']), s
 
 
+@pytest.mark.slow  # the quick benchmark, run once for all of them
 def test_bench_reproduces_the_papers_cost_trends(quick_bench):
     _, result, _ = quick_bench
     fig8 = result['step_costs']['fig8']
@@ -88,6 +92,7 @@ def test_bench_reproduces_the_papers_cost_trends(quick_bench):
     assert [r['particles'] for r in fig7] == [100, 1024]
 
 
+@pytest.mark.slow  # the quick benchmark, run once for all of them
 def test_large_deformation_failure_is_found_and_flagged_first(quick_bench):
     _, result, _ = quick_bench
     f = result['failure']

@@ -18,6 +18,7 @@ from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
+import pytest
 
 BUDGET = 0.007   # the share of a 1 % tolerance the mode choice gives each error
 
@@ -50,6 +51,7 @@ def test_the_predicted_error_of_rest_modes_matches_the_measured_one():
     assert 20 < choice.amplification < 30           # driven at resonance, h = 0.02: 1 / 2h
 
 
+@pytest.mark.slow
 def test_small_deformation_keeps_the_cheaper_rest_modes():
     for name in ('sheet_10x10', 'sheet_10x10_swing'):
         sim = build_simulation(load_scene(name), SimulationConfig(auto=True))

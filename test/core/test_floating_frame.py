@@ -117,6 +117,7 @@ def test_a_clamp_that_only_translates_runs_as_base_excitation_to_round_off(monke
     np.testing.assert_allclose(framed.positions(), today.positions(), rtol=0, atol=1e-14)
 
 
+@pytest.mark.slow
 def test_sheet_swing_in_the_band_stays_within_two_percent_of_the_full_run():
     """
     The acceptance scene: the top row turning +-45 degrees at 0.5 Hz for 10 s.

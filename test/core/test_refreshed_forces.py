@@ -138,6 +138,7 @@ def test_band_change_with_refreshed_forces_is_smooth(sheet_10x10):
     assert not sim.fading and sim.stepped_modes.size == 6
 
 
+@pytest.mark.slow
 def test_auto_chooses_the_refresh_and_an_explicit_value_wins():
     auto = build_simulation(load_scene('sheet_10x10'), SimulationConfig(auto=True))
     assert auto.force_refresh == choose_refresh(auto.mode_choice.highest_hz, auto.dt) > 1

@@ -59,6 +59,7 @@ def sheet_10x10(samples):
     return model, ModalBasis(model, samples=samples)
 
 
+@pytest.mark.slow
 def test_sheet_100x100_samples_few_springs_and_follows_the_exact_forces(sheet_100x100):
     model, basis = sheet_100x100
     start = time.perf_counter()
@@ -75,6 +76,7 @@ def test_sheet_100x100_samples_few_springs_and_follows_the_exact_forces(sheet_10
     assert not forces.fell_back and forces.max_sample_error < 0.01
 
 
+@pytest.mark.slow
 def test_non_negative_weights_keep_an_undamped_run_s_energy(sheet_100x100):
     """
     Released from rest under gravity with no damping, 30 s.

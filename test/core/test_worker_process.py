@@ -83,6 +83,7 @@ def test_a_cancelled_call_ends_its_child_and_the_next_call_gets_a_new_one():
         assert worker.call(os.getpid) not in (child, os.getpid())
 
 
+@pytest.mark.slow
 def test_springs_sampled_in_the_worker_are_the_same_sample():
     from modal_spring_ros.core.config import SimulationConfig
     from modal_spring_ros.core.factory import build_simulation

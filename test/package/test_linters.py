@@ -34,6 +34,7 @@ def _pep257(paths: list[str]) -> tuple[int, str]:
 
 @pytest.mark.flake8
 @pytest.mark.linter
+@pytest.mark.slow
 def test_flake8():
     rc, errors = flake8_main(argv=CHECKED)
     assert rc == 0, f'Found {len(errors)} code style errors / warnings:\n' + '\n'.join(errors)
