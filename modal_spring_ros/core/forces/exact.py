@@ -30,6 +30,8 @@ import scipy.sparse as sp
 DENSE_G_LIMIT = 400_000
 #: springs per block when the tangent stiffness is summed (bounds its memory)
 TANGENT_CHUNK = 4096
+#: what the exact model says about itself: nothing to measure, nothing to fall back from
+EXACT_REPORT = ForceReport('exact', 'exact every step')
 
 
 class ExactForces(ForceModel):
@@ -96,7 +98,7 @@ class ExactForces(ForceModel):
         return context.exact
 
     def report(self) -> ForceReport:
-        return ForceReport(self.name, 'exact every step')
+        return EXACT_REPORT
 
     def spring_deltas(self, q: np.ndarray) -> np.ndarray:
         """(d, E) spring vectors ``x_j - x_i`` for generalized coordinates ``q``."""

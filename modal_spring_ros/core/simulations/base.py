@@ -19,7 +19,8 @@ from typing import Callable, ClassVar
 
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.forces import ForceOptions, ForceReport
+from modal_spring_ros.core.forces import ForceModel, ForceOptions, ForceReport
+from modal_spring_ros.core.forces.exact import EXACT_REPORT
 from modal_spring_ros.core.integrators import conditionally_stable, Integrator
 from modal_spring_ros.core.integrators import integrator as make_integrator
 from modal_spring_ros.core.integrators import NonConvergence, Operators
@@ -85,7 +86,7 @@ class SimulationStatus:
     steps: int
     max_strain: float
     fading: bool               # a band change is still fading modes in or out
-    forces: ForceReport = ForceReport('exact', 'exact every step')  # how the springs ran
+    forces: ForceReport = EXACT_REPORT  # how the spring forces were evaluated
     measured: str = 'off'              # what the automatic choice's pilot measured, and how
 
 
@@ -96,6 +97,8 @@ class Simulation(abc.ABC):
     method: ClassVar[str]
     #: how the spring forces are evaluated (a full run: every spring on every step)
     forces: ForceOptions = ForceOptions()
+    #: the force model of the coordinates stepped, set by each method
+    _forces: ForceModel
 
     def __init__(self, model: MassSpringModel, basis: ModalBasis | None, *, dt: float,
                  integrator: str, damping: Damping | None, strain_limit: float):
@@ -161,7 +164,7 @@ class Simulation(abc.ABC):
 
     def force_report(self) -> ForceReport:
         """Return how the spring forces are evaluated, their measured error, a fallback."""
-        return ForceReport('exact', 'exact every step')
+        return self._forces.report()
 
     @property
     def truncated(self) -> bool:

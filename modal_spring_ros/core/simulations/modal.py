@@ -33,7 +33,7 @@ import math
 from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, ModalBasis, Progress
 from modal_spring_ros.core.bases.derivatives import AddedCoordinates, DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import BandError, FilterBand
-from modal_spring_ros.core.forces import force_model, ForceOptions, ForceReport
+from modal_spring_ros.core.forces import force_model, ForceOptions
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.simulations.base import (check_step, DEFAULT_STRAIN_LIMIT, Simulation,
@@ -151,9 +151,6 @@ class ModalSimulation(Simulation):
     @property
     def mode_choice(self):
         return self._mode_choice
-
-    def force_report(self) -> ForceReport:
-        return self._forces.report()
 
     def describe_band(self) -> str:
         return self._band.describe()
