@@ -53,8 +53,9 @@ def _measure(scene_name: str, method: str, modes: int | None, dt: float, refresh
     start = time.perf_counter()
     if method in ('modal', 'derivatives', 'sampled'):
         basis = ModalBasis(model, initial_modes=modes, samples=sample_cache())
+        forces = force_options('sampled' if method == 'sampled' else 'exact', refresh, 0.01)
         sim = ModalSimulation(model, basis, FilterBand('lowpass', 0, modes - 1, 'index'), dt=dt,
-                              forces=force_options(method, refresh, 0.01),
+                              forces=forces,
                               basis_kind='derivatives' if method == 'derivatives' else 'rest')
         basis_seconds = time.perf_counter() - start
     else:

@@ -109,7 +109,7 @@ def cached_sample(exact: ExactForces, phi: np.ndarray, omega2: np.ndarray,
     With ``worker``, training runs in that process (its progress is not reported then): the
     caller's other threads, a node's stream, keep the interpreter to themselves.
     """
-    key = sample_key(exact, phi, tolerance) if store is not None else ''
+    key = sample_key(exact, phi, tolerance)
     if store is not None:
         try:
             entry = store.load(key)
