@@ -17,10 +17,11 @@ setup(
          glob('config/*.yaml') + glob('config/*.rviz') + glob('config/*.xml')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.yaml')),
         ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
+        ('share/' + package_name + '/config/meshes', glob('config/meshes/*')),
     ],
     python_requires='>=3.10',
     install_requires=['setuptools', 'numpy', 'scipy', 'PyYAML', 'matplotlib', 'mcap',
-                      'mcap-ros2-support'],
+                      'mcap-ros2-support', 'trimesh', 'meshio'],
     extras_require={
         # ROS 2 Jazzy from PyPI wheels, for machines without a ROS install.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],

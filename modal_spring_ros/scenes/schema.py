@@ -11,14 +11,22 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
-from modal_spring_ros.core.model.scene import Damping, Scene
+from modal_spring_ros.core.model.loaded_shape import needs_loaded_shape, settle
+from modal_spring_ros.core.model.scene import Damping, Scene, SceneError
 from modal_spring_ros.core.motion.anchor_motion import (AnchorMotion, RotationComponent,
                                                         SineComponent)
 from modal_spring_ros.scenes.fields import AXES, DEFAULT_PLANE, FieldReader, PLANES, short
+from modal_spring_ros.scenes.fixed_regions import fixed_particles
 from modal_spring_ros.scenes.lattice import lattice_springs
 from modal_spring_ros.scenes.limits import available_memory, BYTES_PER_PARTICLE, LIMITS, MAX_STEPS
+from modal_spring_ros.scenes.mesh_fields import mesh_network
 from modal_spring_ros.scenes.yaml_reading import load_yaml
 import numpy as np
+
+#: what a scene's modes are taken about: ``rest`` (the shape as built), ``loaded`` (the static
+#: equilibrium under gravity, see :mod:`~modal_spring_ros.core.model.loaded_shape`) or ``auto``
+#: (loaded when the rest stiffness is singular for want of tension, rest otherwise)
+REFERENCES = ('auto', 'rest', 'loaded')
 
 
 def scene_from_yaml(text: str, source: str = '<scene>', default_name: str = 'scene') -> Scene:
@@ -40,7 +48,8 @@ class _SceneParser(FieldReader):
     def parse(self, data: Any, default_name: str) -> Scene:
         data = self.mapping(data, 'scene')
         known = {'name', 'description', 'dimension', 'axis', 'plane', 'particles', 'springs',
-                 'fixed', 'gravity', 'damping', 'anchor_motion', 'simulation'}
+                 'fixed', 'gravity', 'damping', 'anchor_motion', 'simulation', 'reference',
+                 'mesh', 'material', 'triangles'}
         unknown = sorted(set(data) - known, key=str)
         if unknown:
             raise self.fail(unknown[0], f"unknown key (known keys: {', '.join(sorted(known))})")
@@ -61,20 +70,14 @@ class _SceneParser(FieldReader):
         else:
             axes = (0, 1, 2)
 
-        particles = self.mapping(self.required(data, 'particles', 'scene'), 'particles')
-        positions, lattice = self.positions(particles, axes)
-        n = positions.shape[0]
-        mass = self.per_item(self.required(particles, 'mass', 'particles'), n,
-                             'particles.mass', 'particles', LIMITS['mass'])
-
-        springs_spec = self.mapping(self.required(data, 'springs', 'scene'), 'springs')
-        pairs = self.pairs(springs_spec, n, lattice)
-        stiffness = self.per_item(self.required(springs_spec, 'stiffness', 'springs'),
-                                  len(pairs), 'springs.stiffness', 'springs',
-                                  LIMITS['stiffness'])
+        if 'mesh' in data:
+            positions, mass, pairs, stiffness, triangles = self.mesh(data, dimension)
+        else:
+            positions, mass, pairs, stiffness = self.listed(data, axes)
+            triangles = self.triangles(data.get('triangles'), positions.shape[0])
         rest_length = self.check_springs(pairs, positions)
-        fixed = self.fixed(data.get('fixed'), positions)
-        self.check_connected(pairs, n)
+        fixed = fixed_particles(self, data.get('fixed'), positions)
+        self.check_connected(pairs, positions.shape[0])
 
         gravity = self.vector3(data.get('gravity', [0.0, 0.0, 0.0]), 'gravity',
                                LIMITS['gravity'])
@@ -105,7 +108,11 @@ class _SceneParser(FieldReader):
             a.setflags(write=False)
             return a
 
-        return Scene(
+        reference = data.get('reference', 'auto')
+        if not isinstance(reference, str) or reference not in REFERENCES:
+            raise self.fail('reference', f"must be one of {', '.join(REFERENCES)}, got "
+                            f'{short(reference)}')
+        scene = Scene(
             name=name,
             dimension=int(dimension),
             axes=axes,
@@ -121,7 +128,58 @@ class _SceneParser(FieldReader):
             default_dt=default_dt,
             default_duration=duration,
             description=str(data.get('description', '')),
+            triangles=None if triangles is None else frozen(triangles),
         )
+        if reference == 'loaded' or (reference == 'auto' and needs_loaded_shape(scene)):
+            try:
+                scene = settle(scene)
+            except SceneError as error:
+                raise self.fail('reference', str(error)) from None
+        return scene
+
+    def listed(self, data: Mapping[str, Any], axes: tuple[int, ...]):
+        """Return positions, masses, spring pairs and stiffness given by lattice or by list."""
+        if 'material' in data:
+            raise self.fail('material', 'only a mesh scene has a material (particles and '
+                            'springs carry their own mass and stiffness)')
+        particles = self.mapping(self.required(data, 'particles', 'scene'), 'particles')
+        positions, lattice = self.positions(particles, axes)
+        n = positions.shape[0]
+        mass = self.per_item(self.required(particles, 'mass', 'particles'), n,
+                             'particles.mass', 'particles', LIMITS['mass'])
+        springs_spec = self.mapping(self.required(data, 'springs', 'scene'), 'springs')
+        pairs = self.pairs(springs_spec, n, lattice)
+        stiffness = self.per_item(self.required(springs_spec, 'stiffness', 'springs'),
+                                  len(pairs), 'springs.stiffness', 'springs',
+                                  LIMITS['stiffness'])
+        return positions, mass, pairs, stiffness
+
+    def mesh(self, data: Mapping[str, Any], dimension: int):
+        """Return what :meth:`listed` does, and the skin's triangles, built from a mesh."""
+        if dimension != 3:
+            raise self.fail('mesh', 'a mesh scene is 3D: give dimension: 3')
+        for key in ('particles', 'springs', 'triangles'):
+            if key in data:
+                raise self.fail(key, 'a mesh scene takes its particles, springs and '
+                                f'triangles from its mesh: leave {key} out')
+        network = mesh_network(self, data['mesh'], data.get('material'), self.check_size)
+        bad = np.flatnonzero(~(network.mass > 0.0))
+        if bad.size:
+            raise self.fail('mesh', f'vertex {int(bad[0])} has no mass (on no cell)')
+        return (network.positions, network.mass, network.springs, network.stiffness,
+                network.triangles)
+
+    def triangles(self, value: Any, n: int) -> np.ndarray | None:
+        """Read the triangles a listed scene shows as its mesh; None when not given."""
+        if value is None:
+            return None
+        tri = np.asarray(value) if isinstance(value, (list, tuple)) else None
+        if (tri is None or tri.ndim != 2 or tri.shape[1] != 3 or tri.shape[0] == 0
+                or tri.dtype.kind not in 'iu'):
+            raise self.fail('triangles', 'must be a list of [i, j, k] particle indices')
+        if tri.min() < 0 or tri.max() >= n:
+            raise self.fail('triangles', f'particle index out of range (0..{n - 1})')
+        return tri.astype(np.int64)
 
     def plane(self, value: Any) -> tuple[int, int]:
         """Return the world axes of the plane a 2D scene lives in: ``xz`` is x across, z up."""
@@ -234,41 +292,6 @@ class _SceneParser(FieldReader):
             raise self.fail(f'springs.pairs[{e}]',
                             f'zero-length spring: particles {i} and {j} are at the same position')
         return lengths
-
-    def fixed(self, spec: Any, positions: np.ndarray) -> np.ndarray:
-        n = positions.shape[0]
-        if spec is None:
-            raise self.fail('fixed', 'missing: at least one particle must be fixed, otherwise '
-                            'the stiffness has rigid-body zero modes')
-        spec = self.mapping(spec, 'fixed')
-        fixed = np.zeros(n, dtype=bool)
-        if 'indices' in spec:
-            idx = spec['indices']
-            if not isinstance(idx, (list, tuple)):
-                raise self.fail('fixed.indices', 'must be a list of particle indices')
-            for k, v in enumerate(idx):
-                if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < n:
-                    raise self.fail(f'fixed.indices[{k}]',
-                                    f'particle index {v!r} out of range (0..{n - 1})')
-                fixed[v] = True
-        if 'face' in spec:
-            face = spec['face']
-            if not isinstance(face, str) or len(face) != 2 or face[0] not in '+-' \
-                    or face[1] not in AXES:
-                raise self.fail('fixed.face', f'must be one of +x -x +y -y +z -z, got {face!r}')
-            coord = positions[:, AXES[face[1]]]
-            edge = coord.max() if face[0] == '+' else coord.min()
-            tol = 1e-9 * max(1.0, float(np.ptp(positions)))
-            fixed |= np.abs(coord - edge) <= tol
-        unknown = sorted(set(spec) - {'indices', 'face'}, key=str)
-        if unknown:
-            raise self.fail(f'fixed.{unknown[0]}', "unknown key (use 'indices' or 'face')")
-        if not fixed.any():
-            raise self.fail('fixed', 'no particle is fixed: at least one must be, otherwise the '
-                            'stiffness has rigid-body zero modes')
-        if fixed.all():
-            raise self.fail('fixed', 'every particle is fixed: nothing can move')
-        return fixed
 
     def check_size(self, particles: int, field: str) -> None:
         """Refuse a scene that would not fit in the memory available, before building it."""

@@ -26,14 +26,18 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
         'dimension': scene.dimension,
         **({'axis': 'xyz'[scene.axes[0]]} if scene.dimension == 1 else {}),
         **({'plane': ''.join('xyz'[a] for a in scene.axes)} if scene.dimension == 2 else {}),
+        # the shape as built: a scene about its loaded shape finds it again on load
+        'reference': 'loaded' if scene.loaded else 'rest',
         'particles': {
-            'positions': scene.rest_positions.tolist(),
+            'positions': (scene.unloaded_positions if scene.loaded
+                          else scene.rest_positions).tolist(),
             'mass': scene.mass.tolist(),
         },
         'springs': {
             'pairs': scene.springs.tolist(),
             'stiffness': scene.stiffness.tolist(),
         },
+        **({'triangles': scene.triangles.tolist()} if scene.triangles is not None else {}),
         'fixed': {'indices': np.flatnonzero(scene.fixed).tolist()},
         'gravity': scene.gravity.tolist(),
         'damping': {

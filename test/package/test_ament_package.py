@@ -39,6 +39,8 @@ IMPORT_KEYS = {
     'matplotlib': 'python3-matplotlib',
     'mcap': 'python3-mcap-pip',
     'mcap_ros2': 'python3-mcap-ros2-support-pip',
+    'trimesh': 'python3-trimesh-pip',
+    'meshio': 'python3-meshio-pip',
     'rclpy': 'rclpy',
     'builtin_interfaces': 'builtin_interfaces',
     'rcl_interfaces': 'rcl_interfaces',

@@ -74,7 +74,7 @@ class AddedCoordinates:
 
 def tangent_derivative(model: MassSpringModel, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """
-    ``(dK/du along b) a`` at the rest shape.
+    ``(dK/du along b) a`` at the reference shape (at rest, or the loaded shape).
 
     For free-DOF displacement fields ``a`` and ``b`` given as columns (n_free_dof, P): the change
     of the springs' tangent stiffness applied to ``a`` per unit displacement along ``b``.
@@ -110,12 +110,21 @@ def _per_spring(alpha: np.ndarray, beta: np.ndarray, unit: np.ndarray, lengths: 
 
 
 def _spring_geometry(model: MassSpringModel):
-    """Dimension, rest lengths, stiffness, rest unit vectors (d, E), and ``D``."""
+    """
+    Dimension, lengths ``L``, ``k l / L``, unit vectors (d, E) at the reference shape, and ``D``.
+
+    With ``k l / L`` in place of ``k`` and the lengths at the reference, the derivative of the
+    rest tangent (:func:`_per_spring`, written for ``L = l``) is that of a stretched spring's,
+    ``k [(1 - l/L) I + (l/L) n n^T]``, about a loaded shape: its ``(l/L)`` part changes as the
+    rest one does with ``k l / L``, and its ``(1 - l/L) I`` part changes by ``k l (n.beta) / L^2``,
+    the term :func:`_per_spring` already adds with ``1 / L``.
+    """
     s = model.scene
     rest = model.rest
-    unit = (rest[s.springs[:, 1]] - rest[s.springs[:, 0]]).T / s.rest_length
-    return (model.dimension, np.asarray(s.rest_length, dtype=float),
-            np.asarray(s.stiffness, dtype=float), unit, model.spring_difference)
+    delta = (rest[s.springs[:, 1]] - rest[s.springs[:, 0]]).T
+    lengths = np.sqrt(np.einsum('de,de->e', delta, delta))
+    stiffness = np.asarray(s.stiffness, dtype=float) * np.asarray(s.rest_length) / lengths
+    return model.dimension, lengths, stiffness, delta / lengths, model.spring_difference
 
 
 def loads_in_band(model: MassSpringModel, low_hz: float = 0.0,

@@ -46,7 +46,7 @@ class AverageAcceleration(Integrator):
             a1 = a_new
             if not np.isfinite(change):
                 break
-            if change <= self.rtol * max(size, 1e-300) or change == 0.0:
+            if change <= max(self.rtol * size, ops.acceleration_floor) or change == 0.0:
                 return StepResult(u_pred + h2 * a1, v_pred + (0.5 * dt) * a1, a1, iteration)
         raise NonConvergence(
             f'average-acceleration iteration did not converge in {self.max_iterations} '

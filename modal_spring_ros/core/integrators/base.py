@@ -13,6 +13,8 @@ from typing import Callable, ClassVar, NamedTuple, Protocol
 import numpy as np
 
 Force = Callable[[np.ndarray], np.ndarray]
+#: an acceleration floor's share of the gravity acceleration (see ``Operators``)
+ROUNDOFF_SHARE = 1e-11
 
 
 class Operators(Protocol):
@@ -29,6 +31,10 @@ class Operators(Protocol):
 
     def solve_average(self, rhs: np.ndarray) -> np.ndarray:
         """``(M + dt/2 C + dt^2/4 K)^-1 rhs``."""
+
+    #: accelerations below this are the forces' round-off (an iteration has converged there):
+    #: a loaded shape is an equilibrium to round-off, not exactly
+    acceleration_floor: float
 
 
 class NonConvergence(RuntimeError):

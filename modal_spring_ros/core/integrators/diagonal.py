@@ -8,8 +8,9 @@ class DiagonalOperators:
     """:class:`~modal_spring_ros.core.integrators.base.Operators` of diagonal ``M, C, K``."""
 
     def __init__(self, mass: np.ndarray | float, damping: np.ndarray | float,
-                 stiffness: np.ndarray, dt: float):
+                 stiffness: np.ndarray, dt: float, acceleration_floor: float = 0.0):
         self.mass = mass
+        self.acceleration_floor = acceleration_floor
         self.damping = damping
         self.stiffness = stiffness
         self._inv_explicit = 1.0 / (mass + 0.5 * dt * damping)

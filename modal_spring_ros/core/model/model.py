@@ -51,10 +51,15 @@ class MassSpringModel:
     # -- stiffness and mass at rest ------------------------------------------------------------
     @functools.cached_property
     def stiffness_free(self) -> sp.csr_matrix:
-        """Sparse rest stiffness reduced to the free DOF (symmetric positive semi-definite)."""
+        """
+        Sparse stiffness at the reference shape, reduced to the free DOF (symmetric).
+
+        The rest stiffness (positive semi-definite); about a loaded shape, the tangent stiffness
+        with the springs' tension (:func:`~.stiffness.assemble_stiffness`).
+        """
         s = self.scene
         full = assemble_stiffness(s.rest_positions[:, self.axes], s.springs, s.stiffness,
-                                  s.dimension)
+                                  s.dimension, s.rest_length if s.loaded else None)
         return reduce_to_free(full, self.free_dof)
 
     @functools.cached_property

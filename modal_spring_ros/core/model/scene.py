@@ -50,7 +50,9 @@ class Scene:
     :ivar dimension: 1 (motion along ``axis`` only, the paper's chain), 2 (motion in a plane,
         by default the vertical x-z plane of a z-up world; y stays at rest) or 3.
     :ivar axes: the world axes that move (0 = x, 1 = y, 2 = z), ``dimension`` of them.
-    :ivar rest_positions: (n, 3) particle positions at rest (springs at their rest length).
+    :ivar rest_positions: (n, 3) particle positions the motion is measured from and the modes
+        are taken about: at rest (springs at their rest length), or the loaded shape (see
+        ``unloaded_positions``).
     :ivar mass: (n,) particle masses, kg.
     :ivar springs: (E, 2) particle index pairs, i < j.
     :ivar stiffness: (E,) spring stiffness, N/m.
@@ -62,6 +64,11 @@ class Scene:
     :ivar default_dt: suggested time step, s (None: chosen from the modes).
     :ivar default_duration: suggested run length, s.
     :ivar description: free text.
+    :ivar unloaded_positions: (n, 3) the shape as built (every spring at its rest length) when
+        ``rest_positions`` is the loaded shape (the static equilibrium under gravity and the
+        clamp, :mod:`~modal_spring_ros.core.model.loaded_shape`); None when they are the same.
+    :ivar triangles: (T, 3) particle triangles of the object's surface (a mesh's own), or None
+        (a lattice sheet's are found from its springs, :meth:`surface_triangles`).
     """
 
     name: str
@@ -79,6 +86,8 @@ class Scene:
     default_dt: float | None = None
     default_duration: float = 5.0
     description: str = ''
+    unloaded_positions: np.ndarray | None = None
+    triangles: np.ndarray | None = None
 
     @property
     def n_particles(self) -> int:
@@ -89,6 +98,11 @@ class Scene:
         return int(self.springs.shape[0])
 
     @property
+    def loaded(self) -> bool:
+        """Tell whether the motion is about the loaded shape (springs stretched at rest)."""
+        return self.unloaded_positions is not None
+
+    @property
     def n_free_dof(self) -> int:
         return int((~self.fixed).sum()) * self.dimension
 
@@ -96,9 +110,11 @@ class Scene:
         """
         Return the (T, 3) particle triangles of the surface, empty when it has none.
 
-        A 2D lattice sheet is a surface (two triangles per cell, taken from its diagonal
-        springs' cells); scenes without that structure return an empty array.
+        A mesh's own triangles; a 2D lattice sheet is a surface (two triangles per cell, taken
+        from its diagonal springs' cells); scenes without that structure return an empty array.
         """
+        if self.triangles is not None:
+            return self.triangles
         return _lattice_triangles(self)
 
 

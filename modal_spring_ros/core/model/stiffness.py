@@ -41,18 +41,30 @@ def element_stiffness(k: float, direction: np.ndarray) -> np.ndarray:
     return np.block([[block, -block], [-block, block]])
 
 
-def assemble_stiffness(rest_positions: np.ndarray, springs: np.ndarray, stiffness: np.ndarray,
-                       dimension: int) -> sp.csr_matrix:
+def assemble_stiffness(positions: np.ndarray, springs: np.ndarray, stiffness: np.ndarray,
+                       dimension: int, rest_length: np.ndarray | None = None,
+                       compression: bool = True) -> sp.csr_matrix:
     """
-    Global ``(n d) x (n d)`` stiffness at rest; DOF ``p * d + axis``. Vectorised COO build.
+    Global ``(n d) x (n d)`` stiffness at ``positions``; DOF ``p * d + axis``; vectorised COO.
 
-    ``rest_positions`` holds the ``dimension`` moving coordinates of each particle.
+    ``positions`` holds the ``dimension`` moving coordinates of each particle. Without
+    ``rest_length`` every spring is at its rest length there (the paper's rest stiffness, eq. 13:
+    blocks ``k u u^T``). With it, the tangent stiffness of stretched springs: each block gains the
+    geometric term ``k (1 - l/L) (I - u u^T)`` of its tension, what gives a hanging cloth or cable
+    its stiffness across itself. ``compression=False`` leaves that term out of compressed springs
+    (a positive semi-definite stiffness, for the descent of :mod:`.loaded_shape`).
     """
-    x = np.asarray(rest_positions, dtype=float)[:, :dimension]
+    x = np.asarray(positions, dtype=float)[:, :dimension]
     i, j = springs[:, 0], springs[:, 1]
     delta = x[j] - x[i]
-    u = delta / np.linalg.norm(delta, axis=1)[:, None]
+    length = np.linalg.norm(delta, axis=1)
+    u = delta / length[:, None]
     blocks = stiffness[:, None, None] * u[:, :, None] * u[:, None, :]  # (E, d, d)
+    if rest_length is not None:
+        tension = stiffness * (1.0 - rest_length / length)
+        if not compression:
+            tension = np.maximum(tension, 0.0)
+        blocks += tension[:, None, None] * (np.eye(dimension) - u[:, :, None] * u[:, None, :])
     a = np.arange(dimension)
     # DOF indices of each block entry (E, d, d)
     ri = (i[:, None] * dimension + a)[:, :, None].repeat(dimension, 2)

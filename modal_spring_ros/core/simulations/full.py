@@ -9,6 +9,7 @@ from __future__ import annotations
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces.exact import ExactForces
+from modal_spring_ros.core.integrators.base import ROUNDOFF_SHARE
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simulation,
@@ -33,6 +34,8 @@ class PhysicalOperators:
                  basis: ModalBasis | None):
         self.m = model.mass_dof
         self.k = model.stiffness_free
+        self.acceleration_floor = ROUNDOFF_SHARE * float(
+            np.max(np.abs(model.gravity_force / self.m), initial=0.0))
         self.dt = dt
         self.damping = damping
         self._modal = None

@@ -6,6 +6,7 @@ import dataclasses
 from modal_spring_ros.core.forces import (build_forces, ExactForces, ForceContext, ForceModel,
                                           ForceOptions)
 from modal_spring_ros.core.integrators import DiagonalOperators
+from modal_spring_ros.core.integrators.base import ROUNDOFF_SHARE
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.motion.frame_loads import FrameLoads
@@ -41,5 +42,6 @@ class SteppedSet:
         basis = bank.basis
         context = ForceContext(exact, phi, omega**2, damp, dt, strain_limit, bank.progress,
                                basis.worker, basis.samples)
-        return cls(phi, omega**2, damp, DiagonalOperators(1.0, damp, omega**2, dt),
+        floor = ROUNDOFF_SHARE * float(np.max(np.abs(exact.gravity()), initial=0.0))
+        return cls(phi, omega**2, damp, DiagonalOperators(1.0, damp, omega**2, dt, floor),
                    build_forces(context, forces), exact.frame, phi.astype(np.float32))

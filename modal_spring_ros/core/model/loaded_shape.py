@@ -1,0 +1,218 @@
+"""
+The loaded shape: the static equilibrium a scene hangs in, and whether its modes need it.
+
+A cloth modelled flat in 3D, or a cable, has no stiffness across itself at rest: its rest
+stiffness is singular (each particle can move out of the cloth's plane, each joint of the cable
+can hinge, at no cost), so rest modes call it a mechanism. Hanging under gravity it does have
+that stiffness, from the tension of its springs: about the shape it hangs in, the tangent
+stiffness (material plus geometric, :func:`~.stiffness.assemble_stiffness`) is definite, and its
+modes are the cloth's swaying and the cable's swinging. :func:`settle` finds that shape, with the
+fixed particles where the clamp holds them at rest, and returns the scene about it.
+
+The solve minimises the potential energy (springs plus gravity) over the free particles by a
+projected Newton method: the compressed springs' negative geometric term is left out of the
+Hessian so that every step is a descent direction, and a Levenberg term ``mu M`` bridges the
+directions with no stiffness yet (the flat start); a backtracking line search on the energy keeps
+each step downhill, and a small, seeded out-of-plane nudge at the start lets the descent leave a
+flat saddle (a cloth hanging from its corners wrinkles). It ends where the force on every free
+particle is below :data:`FORCE_RTOL` of its weight and the tangent has no negative mode: an
+equilibrium that would buckle is left along its buckling mode, and the descent goes on.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+from modal_spring_ros.core.model.scene import Scene, SceneError
+from modal_spring_ros.core.model.stiffness import assemble_stiffness, reduce_to_free
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+#: the equilibrium is found when no free particle's residual force exceeds this share of the
+#: largest weight
+FORCE_RTOL = 1e-8
+#: most Newton steps before the search is given up
+MAX_ITERATIONS = 400
+#: the start is nudged across the object by this share of its size (seeded: reproducible)
+NUDGE = 1e-5
+#: equilibria left along a buckling mode before the last one found is taken
+MAX_ESCAPES = 8
+#: how far along it, as a share of the object's size
+ESCAPE = 1e-3
+#: a tangent eigenvalue below minus this share of the mean diagonal is a buckling mode
+UNSTABLE_RTOL = 1e-9
+#: a tangent this size or smaller is checked with dense eigh
+DENSE_LIMIT = 1500
+#: a shape spans fewer directions than the scene has when its next singular value is below this
+#: share of its largest
+FLAT_RTOL = 1e-9
+
+
+def needs_loaded_shape(scene: Scene) -> bool:
+    """
+    Tell whether the rest stiffness is singular for want of tension, and gravity gives it.
+
+    Two signs, either enough: the shape spans fewer directions than the scene moves in (a flat
+    cloth in 3D, a straight cable in a plane), or it has fewer springs than free coordinates (a
+    chain, however bent, hinges). Without gravity there is no loaded shape to take.
+    """
+    if not np.any(scene.gravity[list(scene.axes)]):
+        return False
+    return (scene.n_springs < scene.n_free_dof
+            or spanned_directions(scene.rest_positions[:, list(scene.axes)]) < scene.dimension)
+
+
+def spanned_directions(points: np.ndarray) -> int:
+    """Return how many directions the points span (1: on a line, 2: in a plane)."""
+    centred = points - points.mean(axis=0)
+    values = np.linalg.svd(centred, compute_uv=False)
+    if values.size == 0 or values[0] == 0.0:
+        return 0
+    return int(np.sum(values > FLAT_RTOL * values[0]))
+
+
+def settle(scene: Scene, progress: Callable[[str], None] | None = None) -> Scene:
+    """
+    Return ``scene`` about its static equilibrium under gravity (the shape it hangs in).
+
+    Its ``rest_positions`` become the loaded shape, ``unloaded_positions`` keep the shape as
+    built; rest lengths, masses and everything else stay.
+
+    :raises SceneError: no gravity to hang from, or no equilibrium found.
+    """
+    if scene.loaded:
+        return scene
+    if not np.any(scene.gravity):
+        raise SceneError(f"scene '{scene.name}': a loaded shape needs gravity to hang from")
+    axes = list(scene.axes)
+    d = scene.dimension
+    free = np.flatnonzero(~scene.fixed)
+    free_dof = (free[:, None] * d + np.arange(d)).ravel()
+    mass = np.repeat(scene.mass[free], d)
+    weight = (scene.mass[free][:, None] * scene.gravity[None, axes]).ravel()
+    shape = _Energy(scene, axes, free_dof, weight)
+    x = np.ascontiguousarray(scene.rest_positions[:, axes], dtype=float)
+    size = max(float(np.max(np.ptp(x, axis=0))), 1e-12)
+    x.reshape(-1)[free_dof] += NUDGE * size * np.random.default_rng(0).standard_normal(
+        free_dof.size)
+    tolerance = FORCE_RTOL * float(np.max(np.abs(weight)))
+    energy, force = shape.evaluate(x)
+    mass_term = sp.diags(mass)
+    mu = mu_floor = 0.0
+    exact = False  # the full tangent, once the convex one makes full steps
+    escapes = 0
+    for iteration in range(1, MAX_ITERATIONS + 1):
+        residual = float(np.max(np.abs(force)))
+        if residual <= tolerance:
+            # Newton's steps stop at any equilibrium: one that buckles (a compressed cloth
+            # with a softer shape beside it) is left along its buckling mode
+            direction = _unstable_direction(shape.hessian(x, compression=True), mass_term)
+            if direction is None or escapes == MAX_ESCAPES:
+                break
+            escapes += 1
+            x.reshape(-1)[free_dof] += ESCAPE * size * direction
+            energy, force = shape.evaluate(x)
+            exact = False
+            continue
+        hessian = shape.hessian(x, compression=exact)
+        if not mu:
+            scale = float(np.mean(hessian.diagonal() / mass))
+            mu, mu_floor = 1e-3 * scale, 1e-12 * scale
+        step = spla.spsolve((hessian + mu * mass_term).tocsc(), force)
+        if exact and not float(np.dot(force, step)) > 0.0:  # not downhill: the convex one
+            exact = False
+            continue
+        x, energy, force, taken = shape.line_search(x, energy, force, step)
+        mu = max(mu * (0.3 if taken == 1.0 else 10.0), mu_floor)
+        exact = taken == 1.0
+        if progress is not None and iteration % 10 == 0:
+            progress(f'loaded shape: step {iteration}, largest force '
+                     f'{residual / tolerance * FORCE_RTOL:.2e} of the largest weight')
+    else:
+        raise SceneError(
+            f"scene '{scene.name}': no static equilibrium under gravity found in "
+            f'{MAX_ITERATIONS} steps (a force of {residual:.3g} N is left): is the object held?')
+    loaded = np.array(scene.rest_positions, dtype=float)
+    loaded[:, axes] = x
+    loaded.setflags(write=False)
+    if progress is not None:
+        moved = float(np.max(np.linalg.norm(loaded - scene.rest_positions, axis=1)))
+        progress(f'loaded shape found in {iteration} steps: it hangs up to {moved:.4g} m '
+                 'from its shape as built')
+    return dataclasses.replace(scene, rest_positions=loaded,
+                               unloaded_positions=scene.rest_positions)
+
+
+def _unstable_direction(tangent: sp.csr_matrix, mass: sp.dia_matrix) -> np.ndarray | None:
+    """Return the tangent's most negative mode (largest entry 1), or None when it has none."""
+    scale = float(np.mean(tangent.diagonal() / mass.diagonal()))
+    if tangent.shape[0] <= DENSE_LIMIT:
+        values, vectors = scipy.linalg.eigh(tangent.toarray(), mass.toarray(),
+                                            subset_by_index=(0, 0))
+    else:
+        values, vectors = spla.eigsh(tangent.tocsc(), k=1, M=mass.tocsc(),
+                                     sigma=-1e-3 * scale, which='LM')
+    if values[0] >= -UNSTABLE_RTOL * scale:
+        return None
+    return vectors[:, 0] / np.max(np.abs(vectors[:, 0]))
+
+
+class _Energy:
+    """Potential energy of a scene's springs and weight, its force and its convex Hessian."""
+
+    def __init__(self, scene: Scene, axes: list[int], free_dof: np.ndarray,
+                 weight: np.ndarray):
+        self.scene = scene
+        self.free_dof = free_dof
+        self.weight = weight
+        self.i, self.j = scene.springs[:, 0], scene.springs[:, 1]
+        self.k = np.asarray(scene.stiffness, dtype=float)
+        self.rest = np.asarray(scene.rest_length, dtype=float)
+        #: an energy scale: the work of the weight over the object's size
+        self.scale = float(np.sum(np.abs(weight))) * max(
+            float(np.max(np.ptp(scene.rest_positions, axis=0))), 1e-12)
+
+    def evaluate(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """Energy, and the force on the free DOF (minus its gradient), at positions ``x``."""
+        delta = x[self.j] - x[self.i]
+        length = np.linalg.norm(delta, axis=1)
+        stretch = length - self.rest
+        pull = (self.k * stretch / length)[:, None] * delta  # on i, towards j
+        total = np.zeros_like(x)
+        np.add.at(total, self.i, pull)
+        np.add.at(total, self.j, -pull)
+        force = total.reshape(-1)[self.free_dof] + self.weight
+        energy = 0.5 * float(np.dot(self.k, stretch ** 2)) - float(
+            np.dot(self.weight, x.reshape(-1)[self.free_dof]))
+        return energy, force
+
+    def hessian(self, x: np.ndarray, compression: bool) -> sp.csr_matrix:
+        """
+        Return the energy's Hessian on the free DOF (the tangent stiffness).
+
+        Without compressed springs' geometric term unless ``compression``: then it may be
+        indefinite.
+        """
+        full = assemble_stiffness(x, self.scene.springs, self.k, x.shape[1], self.rest,
+                                  compression=compression)
+        return reduce_to_free(full, self.free_dof)
+
+    def line_search(self, x: np.ndarray, energy: float, force: np.ndarray, step: np.ndarray
+                    ) -> tuple[np.ndarray, float, np.ndarray, float]:
+        """Return the first of full, half, quarter ... steps that lowers the energy enough."""
+        slope = float(np.dot(force, step))  # the energy's decrease rate along the step
+        taken = 1.0
+        for _ in range(40):
+            trial = x.copy()
+            trial.reshape(-1)[self.free_dof] += taken * step
+            trial_energy, trial_force = self.evaluate(trial)
+            # near the end the energy changes by less than its round-off: there the force
+            # falling is the measure
+            if trial_energy <= energy - 1e-4 * taken * slope or (
+                    abs(trial_energy - energy) <= 1e-11 * (abs(energy) + self.scale)
+                    and np.max(np.abs(trial_force)) < np.max(np.abs(force))):
+                return trial, trial_energy, trial_force, taken
+            taken *= 0.5
+        return x, energy, force, 0.0

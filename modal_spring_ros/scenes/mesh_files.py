@@ -1,0 +1,145 @@
+"""
+Mesh files read into vertices and cells: surfaces (OBJ, STL, PLY, glTF/GLB) and tetrahedra.
+
+Surfaces are read with trimesh, tetrahedral volume meshes (Gmsh ``.msh``, VTK ``.vtk``/``.vtu``)
+with meshio: both well kept, MIT-licensed and pure Python over numpy, and between them the formats
+a robot's assets come in (a URDF's visual meshes are STL, OBJ or COLLADA exported to glTF; a
+volume mesh from Gmsh or TetGen is ``.msh`` or ``.vtk``). Vertices that touch the same point are
+merged (an STL lists each triangle's corners on their own), and vertices no cell uses are left
+out. ``package://pkg/path`` is resolved through the ament index, as URDF meshes are.
+
+Every problem is a :class:`~modal_spring_ros.core.model.scene.SceneError` naming the file.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
+import meshio
+from modal_spring_ros.core.model.scene import SceneError
+import numpy as np
+
+#: formats read as surfaces (trimesh), and as volume meshes (meshio)
+SURFACE_SUFFIXES = ('.obj', '.stl', '.ply', '.glb', '.gltf', '.off')
+VOLUME_SUFFIXES = ('.msh', '.vtk', '.vtu')
+#: largest mesh file read, bytes
+MAX_BYTES = 256 * 1024 * 1024
+#: vertices closer than this share of the mesh's size are one vertex
+MERGE_RTOL = 1e-9
+
+
+@dataclasses.dataclass(frozen=True)
+class MeshData:
+    """Vertices (n, 3) and the cells that use them: triangles (T, 3) or tetrahedra (K, 4)."""
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    tetrahedra: np.ndarray
+
+
+def resolve_mesh_path(name: str, scene_source: str) -> Path:
+    """
+    Return the file a scene's ``mesh.file`` names.
+
+    ``package://pkg/rest`` (the package's share folder), an absolute path, or a path relative
+    to the scene file's folder (the working folder for a scene given as text).
+
+    :raises SceneError: an unknown package.
+    """
+    if name.startswith('package://'):
+        package, _, rest = name[len('package://'):].partition('/')
+        try:
+            return Path(get_package_share_directory(package)) / rest
+        except (PackageNotFoundError, LookupError, ValueError, OSError):  # OSError: no index
+            raise SceneError(f"package '{package}' of {name} is not installed (not in the "
+                             'ament index)') from None
+    path = Path(os.path.expanduser(name))
+    if path.is_absolute():
+        return path
+    base = Path(scene_source).parent if Path(scene_source).is_file() else Path.cwd()
+    return base / path
+
+
+def read_mesh(path: Path) -> MeshData:
+    """
+    Read a mesh file: its vertices, triangles and tetrahedra (either may be empty).
+
+    :raises SceneError: not a regular file, too large, an unknown format, or unreadable.
+    """
+    suffix = path.suffix.lower()
+    if suffix not in SURFACE_SUFFIXES + VOLUME_SUFFIXES:
+        raise SceneError(f'{path}: unknown mesh format {suffix or "(none)"} (read: '
+                         f"{', '.join(SURFACE_SUFFIXES + VOLUME_SUFFIXES)})")
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise SceneError(f'{path}: cannot read mesh file: {exc.strerror or exc}') from None
+    if not path.is_file():
+        raise SceneError(f'{path}: cannot read mesh file: not a regular file')
+    if size > MAX_BYTES:
+        raise SceneError(f'{path}: mesh file of {size / 2**20:.0f} MiB is larger than the '
+                         f'{MAX_BYTES / 2**20:.0f} MiB read')
+    try:
+        if suffix in VOLUME_SUFFIXES:
+            vertices, triangles, tetrahedra = _read_volume(path)
+        else:
+            vertices, triangles = _read_surface(path)
+            tetrahedra = np.empty((0, 4), dtype=np.int64)
+    except SceneError:
+        raise
+    except Exception as exc:  # noqa: B902 - a parser's any failure is the file's
+        raise SceneError(f'{path}: cannot read mesh file: {type(exc).__name__}: '
+                         f'{str(exc).splitlines()[0] if str(exc) else "unreadable"}') from None
+    if not np.all(np.isfinite(vertices)):
+        raise SceneError(f'{path}: mesh has vertices that are not finite numbers')
+    return _merged(vertices, triangles, tetrahedra)
+
+
+def _read_surface(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    # trimesh takes 0.6 s to import: paid by scenes that read a surface, not by every start
+    import trimesh  # noqa: I100
+    loaded = trimesh.load(str(path), force='mesh', process=False)
+    faces = np.asarray(getattr(loaded, 'faces', np.empty((0, 3))), dtype=np.int64)
+    vertices = np.asarray(getattr(loaded, 'vertices', np.empty((0, 3))), dtype=float)
+    return vertices.reshape(-1, 3), faces.reshape(-1, 3)
+
+
+def _read_volume(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    mesh = meshio.read(str(path))
+    vertices = np.asarray(mesh.points, dtype=float)
+    if vertices.ndim != 2 or vertices.shape[1] not in (2, 3):
+        raise SceneError(f'{path}: mesh points must have 3 coordinates')
+    if vertices.shape[1] == 2:
+        vertices = np.column_stack([vertices, np.zeros(len(vertices))])
+    cells = {'triangle': [], 'tetra': []}
+    for block in mesh.cells:
+        if block.type in cells:
+            cells[block.type].append(np.asarray(block.data, dtype=np.int64))
+    tri = np.concatenate(cells['triangle']) if cells['triangle'] else np.empty((0, 3), int)
+    tet = np.concatenate(cells['tetra']) if cells['tetra'] else np.empty((0, 4), int)
+    return vertices, tri, tet
+
+
+def _merged(vertices: np.ndarray, triangles: np.ndarray, tetrahedra: np.ndarray) -> MeshData:
+    """Merge coincident vertices, drop the unused, renumber the cells (in the file's order)."""
+    n = vertices.shape[0]
+    for cells in (triangles, tetrahedra):
+        if cells.size and (cells.min() < 0 or cells.max() >= n):
+            raise SceneError(f'mesh refers to vertex {int(cells.max())} of {n}')
+    size = float(np.max(np.ptp(vertices, axis=0))) if n else 0.0
+    key = np.round(vertices / max(size * MERGE_RTOL, 1e-300)).astype(np.int64) if n else \
+        np.empty((0, 3), dtype=np.int64)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    # numbered in the file's order (fixed indices name the file's vertices)
+    rank = np.empty(first.size, dtype=np.int64)
+    rank[np.argsort(first, kind='stable')] = np.arange(first.size)
+    inverse, first = rank[inverse.ravel()], np.sort(first)
+    triangles, tetrahedra = inverse[triangles], inverse[tetrahedra]
+    used = np.zeros(first.size, dtype=bool)
+    used[triangles.ravel()] = True
+    used[tetrahedra.ravel()] = True
+    number = np.cumsum(used) - 1
+    return MeshData(vertices[first][used], number[triangles].reshape(-1, 3),
+                    number[tetrahedra].reshape(-1, 4))

@@ -1,0 +1,113 @@
+"""Modes about the loaded shape: a hanging cloth or cable, slack as built, stiff as it hangs."""
+from __future__ import annotations
+
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.bases.derivatives import tangent_derivative
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.forces.exact import ExactForces
+from modal_spring_ros.core.model.loaded_shape import needs_loaded_shape
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.model.scene import SceneError
+from modal_spring_ros.scenes.schema import scene_from_dict
+import numpy as np
+import pytest
+
+G = 9.81
+
+
+def pendulum(k: float = 50.0, m: float = 0.2, length: float = 0.5, **changes):
+    scene = {'dimension': 3, 'particles': {'positions': [[0, 0, 0], [0, 0, -length]],
+                                           'mass': m},
+             'springs': {'pairs': [[0, 1]], 'stiffness': k}, 'fixed': {'indices': [0]},
+             'gravity': [0.0, 0.0, -G]}
+    scene.update(changes)
+    return scene_from_dict(scene)
+
+
+def hanging_cloth(count: int = 6, **changes):
+    """Return a flat sheet in 3D hanging from the two corners of its top edge."""
+    scene = {'dimension': 3,
+             'particles': {'lattice': {'counts': [count, 1, count], 'spacing': 0.05},
+                           'mass': 0.002},
+             'springs': {'connect': ['edges', 'diagonals'], 'stiffness': 50.0},
+             'fixed': {'indices': [count * count - count, count * count - 1]},
+             'gravity': [0.0, 0.0, -G], 'damping': {'rayleigh': {'alpha': 0.0}}}
+    scene.update(changes)
+    return scene_from_dict(scene)
+
+
+def test_a_spring_pendulum_swings_at_g_over_its_stretched_length():
+    """Analytic: stretched by m g / k, it swings at g / L across and k / m along itself."""
+    k, m, length = 50.0, 0.2, 0.5
+    scene = pendulum(k, m, length)
+    assert scene.loaded
+    stretched = length + m * G / k
+    np.testing.assert_allclose(scene.rest_positions[1], [0, 0, -stretched], atol=1e-9)
+    basis = ModalBasis(MassSpringModel(scene))
+    basis.ensure_count(3)
+    np.testing.assert_allclose(basis.omega ** 2, [G / stretched, G / stretched, k / m],
+                               rtol=1e-9)
+
+
+def test_a_flat_cloth_in_3d_hangs_in_equilibrium_with_a_definite_tangent():
+    scene = hanging_cloth()
+    assert scene.loaded and needs_loaded_shape(scene_from_dict({
+        'dimension': 3, 'reference': 'rest',
+        'particles': {'lattice': {'counts': [3, 1, 3], 'spacing': 0.1}, 'mass': 0.01},
+        'springs': {'connect': ['edges', 'diagonals'], 'stiffness': 10.0},
+        'fixed': {'indices': [6, 8]}, 'gravity': [0, 0, -G]}))
+    model = MassSpringModel(scene)
+    weight = float(np.max(np.abs(model.gravity_force)))
+    residual = model.free_force(np.zeros(model.n_free_dof), 0.0)
+    assert np.max(np.abs(residual)) <= 1e-7 * weight               # an equilibrium
+    # the tangent is the forces' derivative (material and geometric stiffness)
+    forces = ExactForces(model, None)
+    eps = 1e-7
+    probe = np.random.default_rng(0).standard_normal(model.n_free_dof)
+    numeric = (forces.spring_forces(eps * probe) - forces.spring_forces(-eps * probe)) / (2 * eps)
+    np.testing.assert_allclose(-numeric, model.stiffness_free @ probe,
+                               atol=1e-5 * np.max(np.abs(numeric)))
+    basis = ModalBasis(MassSpringModel(scene))
+    basis.ensure_count(4)
+    assert basis.omega[0] > 0.0                                    # no mechanism left
+
+
+def test_the_lowest_frequency_about_the_loaded_shape_is_the_full_runs():
+    """A small swing along mode 1 in the full nonlinear run keeps mode 1's period (2 %)."""
+    scene = hanging_cloth()
+    sim = build_simulation(scene, SimulationConfig(method='full', integrator='explicit'))
+    basis = sim.basis
+    basis.ensure_count(1)
+    period = 1.0 / float(basis.frequencies_hz[0])
+    sim.reset()
+    sim._u = 1e-5 * basis.vectors[:, 0] / np.max(np.abs(basis.vectors[:, 0]))
+    along = []
+    steps = int(round(2.5 * period / sim.dt))
+    for _ in range(steps):
+        sim.step()
+        along.append(float(basis.vectors[:, 0] @ (sim.model.mass_dof * sim.displacement())))
+    along = np.array(along)
+    crossings = np.flatnonzero(np.diff(np.sign(along)) != 0)
+    measured = 2.0 * float(np.mean(np.diff(crossings))) * sim.dt
+    assert measured == pytest.approx(period, rel=0.02)
+
+
+def test_the_derivative_of_the_tangent_about_the_loaded_shape():
+    """Modal derivatives need ``dK/du`` where the springs are stretched: finite differences."""
+    scene = hanging_cloth(4)
+    model = MassSpringModel(scene)
+    forces = ExactForces(model, None)
+    rng = np.random.default_rng(1)
+    a, b = rng.standard_normal((2, model.n_free_dof))
+    eps = 1e-6
+    numeric = (forces.tangent(eps * b) - forces.tangent(-eps * b)) @ a / (2 * eps)
+    analytic = tangent_derivative(model, a[:, None], b[:, None])[:, 0]
+    np.testing.assert_allclose(analytic, numeric, atol=1e-5 * np.max(np.abs(numeric)))
+
+
+def test_no_loaded_shape_without_gravity_and_a_slack_scene_at_rest_is_a_mechanism():
+    with pytest.raises(SceneError, match='reference: .*needs gravity'):
+        hanging_cloth(reference='loaded', gravity=[0.0, 0.0, 0.0])
+    with pytest.raises(SceneError, match='zero-stiffness mode'):
+        ModalBasis(MassSpringModel(hanging_cloth(reference='rest'))).ensure_count(4)
