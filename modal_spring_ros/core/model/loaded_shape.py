@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Scene, SceneError
 from modal_spring_ros.core.model.stiffness import assemble_stiffness, reduce_to_free
 import numpy as np
@@ -86,14 +87,9 @@ def settle(scene: Scene, progress: Callable[[str], None] | None = None) -> Scene
         return scene
     if not np.any(scene.gravity):
         raise SceneError(f"scene '{scene.name}': a loaded shape needs gravity to hang from")
-    axes = list(scene.axes)
-    d = scene.dimension
-    free = np.flatnonzero(~scene.fixed)
-    free_dof = (free[:, None] * d + np.arange(d)).ravel()
-    mass = np.repeat(scene.mass[free], d)
-    weight = (scene.mass[free][:, None] * scene.gravity[None, axes]).ravel()
-    shape = _Energy(scene, axes, free_dof, weight)
-    x = np.ascontiguousarray(scene.rest_positions[:, axes], dtype=float)
+    shape = _Energy(MassSpringModel(scene))
+    axes, free_dof, mass, weight = shape.model.axes, shape.free_dof, shape.mass, shape.weight
+    x = shape.model.rest.copy()
     size = max(float(np.max(np.ptp(x, axis=0))), 1e-12)
     x.reshape(-1)[free_dof] += NUDGE * size * np.random.default_rng(0).standard_normal(
         free_dof.size)
@@ -162,31 +158,22 @@ def _unstable_direction(tangent: sp.csr_matrix, mass: sp.dia_matrix) -> np.ndarr
 class _Energy:
     """Potential energy of a scene's springs and weight, its force and its convex Hessian."""
 
-    def __init__(self, scene: Scene, axes: list[int], free_dof: np.ndarray,
-                 weight: np.ndarray):
-        self.scene = scene
-        self.free_dof = free_dof
-        self.weight = weight
-        self.i, self.j = scene.springs[:, 0], scene.springs[:, 1]
-        self.k = np.asarray(scene.stiffness, dtype=float)
-        self.rest = np.asarray(scene.rest_length, dtype=float)
+    def __init__(self, model: MassSpringModel):
+        self.model = model
+        self.scene = model.scene
+        self.free_dof, self.mass, self.weight = model.free_dof, model.mass_dof, model.gravity_force
+        self.k = np.asarray(self.scene.stiffness, dtype=float)
+        self.rest = np.asarray(self.scene.rest_length, dtype=float)
         #: an energy scale: the work of the weight over the object's size
-        self.scale = float(np.sum(np.abs(weight))) * max(
-            float(np.max(np.ptp(scene.rest_positions, axis=0))), 1e-12)
+        self.scale = float(np.sum(np.abs(self.weight))) * max(
+            float(np.max(np.ptp(self.scene.rest_positions, axis=0))), 1e-12)
 
     def evaluate(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         """Energy, and the force on the free DOF (minus its gradient), at positions ``x``."""
-        delta = x[self.j] - x[self.i]
-        length = np.linalg.norm(delta, axis=1)
-        stretch = length - self.rest
-        pull = (self.k * stretch / length)[:, None] * delta  # on i, towards j
-        total = np.zeros_like(x)
-        np.add.at(total, self.i, pull)
-        np.add.at(total, self.j, -pull)
-        force = total.reshape(-1)[self.free_dof] + self.weight
-        energy = 0.5 * float(np.dot(self.k, stretch ** 2)) - float(
-            np.dot(self.weight, x.reshape(-1)[self.free_dof]))
-        return energy, force
+        u = x.reshape(-1)[self.free_dof] - self.model.rest.reshape(-1)[self.free_dof]
+        force = self.model.physical_forces.spring_forces(u) + self.weight
+        energy = self.model.energy(x, np.zeros(u.size))
+        return energy['spring'] + energy['gravity'], force
 
     def hessian(self, x: np.ndarray, compression: bool) -> sp.csr_matrix:
         """
