@@ -17,7 +17,6 @@ import os
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
-import meshio
 from modal_spring_ros.core.model.scene import SceneError
 import numpy as np
 
@@ -107,6 +106,8 @@ def _read_surface(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _read_volume(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    # as trimesh: meshio (and the rich it brings) is loaded by the scenes that read a volume
+    import meshio  # noqa: I100
     mesh = meshio.read(str(path))
     vertices = np.asarray(mesh.points, dtype=float)
     if vertices.ndim != 2 or vertices.shape[1] not in (2, 3):
