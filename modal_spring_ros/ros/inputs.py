@@ -119,7 +119,7 @@ class NodeInputs:
             self._refuse(ANCHOR_TOPIC, problem)
             return
         self._last_pose = time.monotonic()
-        self._submit(FollowPose(message=message))
+        self._submit(FollowPose(received=message))
 
     def _on_click(self, message: PointStamped) -> None:
         problem = self._frame_problem(message.header.frame_id)
@@ -130,6 +130,6 @@ class NodeInputs:
             self._refuse(CLICK_TOPIC, problem)
             return
         v = self._values()
-        self._submit(PullPoint(message=message, stiffness=v['interaction.stiffness'],
+        self._submit(PullPoint(received=message, stiffness=v['interaction.stiffness'],
                                max_force=v['interaction.max_force_n'],
                                hold_s=v['interaction.hold_s']))

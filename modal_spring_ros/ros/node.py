@@ -2,22 +2,19 @@
 ``modal_spring_node``: steps the modal simulation and streams it as ``sensor_msgs/PointCloud2``.
 
 Wiring only. The simulation thread (:mod:`~modal_spring_ros.ros.simulation_thread`) steps at a
-fixed ``sim.dt`` and publishes on its own period through the node's outputs
-(:mod:`~modal_spring_ros.ros.outputs`). The executor serves parameter requests (validated at
-once; their slow part planned by :mod:`~modal_spring_ros.ros.parameter_changes` in the change
-preparer's thread, :mod:`~modal_spring_ros.ros.change_preparer`, which computes missing modes,
-on large scenes in a worker process, so that no request waits behind a slow one) and the
-``~/reset`` and ``~/pause`` services, whose answers are awaited without holding an executor
-thread (requests sent together are answered together, none queued behind a slow one). Every
-change reaches
-the simulation thread as one typed request (:mod:`~modal_spring_ros.ros.requests`).
+fixed ``sim.dt`` and publishes on its own period (:mod:`~modal_spring_ros.ros.outputs`). The
+executor serves parameter requests (validated at once; their slow part, such as modes computed
+in a worker process, planned by :mod:`~modal_spring_ros.ros.parameter_changes` in the change
+preparer's thread, :mod:`~modal_spring_ros.ros.change_preparer`, so no request waits behind a
+slow one) and ``~/reset`` and ``~/pause``, awaited without holding an executor thread. Every
+change reaches the simulation thread as one typed request (:mod:`~modal_spring_ros.ros.requests`).
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
 (Marker TRIANGLE_LIST, for scenes with a surface, when subscribed), ``/diagnostics``, and
-``/clock`` when ``publish_clock`` is true. Subscriptions (:mod:`~modal_spring_ros.ros.inputs`):
+``/clock`` when ``publish_clock`` is true. Subscriptions (:mod:`~modal_spring_ros.ros.inputs`,
+on the companion node ``<name>_inputs``, :mod:`~modal_spring_ros.ros.input_node`):
 ``anchor_pose`` (PoseStamped, with ``anchor.source`` topic) and ``/clicked_point``
-(PointStamped). Services: ``~/reset`` (Trigger), ``~/pause`` (SetBool). See docs/node.md for
-every parameter.
+(PointStamped). Services: ``~/reset`` (Trigger), ``~/pause`` (SetBool). See docs/node.md.
 """
 from __future__ import annotations
 
@@ -29,6 +26,7 @@ from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError, WorkerProcess
 from modal_spring_ros.ros.change_preparer import ChangePreparer, ChangeRefused, describe
+from modal_spring_ros.ros.input_node import InputNode
 from modal_spring_ros.ros.inputs import NodeInputs
 from modal_spring_ros.ros.namesakes import count_namesakes, namesakes_warning
 from modal_spring_ros.ros.outputs import NodeOutputs
@@ -40,7 +38,7 @@ from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSetti
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
@@ -48,8 +46,8 @@ from std_srvs.srv import SetBool, Trigger
 NODE_NAME = 'modal_spring'
 #: longest a service waits for the simulation thread to apply its request, s
 SERVICE_TIMEOUT_S = 5.0
-#: how often the executor wakes while a service awaits its answer (the timeout's resolution)
-#: and how often the graph is searched for other nodes of this node's name, s
+#: how often the executor wakes while a service awaits its answer (the timeout's resolution),
+#: how often the graph is searched for other nodes of this node's name, s
 SERVICE_WAKE_S, NAMESAKE_CHECK_S = 0.25, 2.0
 
 
@@ -92,8 +90,9 @@ class ModalSpringNode(Node):
             computing_modes=lambda: self._preparer.busy, running=self.context.ok,
             node_report=self._report)
         follower = scene.anchor_motion if self._values['anchor.source'] == 'topic' else None
-        self._inputs = NodeInputs(self, follower, lambda: self._values, self._thread.submit,
-                                  MutuallyExclusiveCallbackGroup())
+        self._input_node = InputNode(self)      # its own thread: a flood never starves the run
+        self._inputs = NodeInputs(self._input_node.node, follower, lambda: self._values,
+                                  self._thread.submit)
         services = ReentrantCallbackGroup()     # awaiting coroutines: no thread held
         self._answered = self.create_guard_condition(lambda: None, callback_group=services)
         self.create_timer(SERVICE_WAKE_S, lambda: None, callback_group=services)
@@ -106,6 +105,7 @@ class ModalSpringNode(Node):
                  f'modes computed; {status.method}, {status.band}, {status.coordinates} '
                  f"{'modes' if status.method == 'modal' else 'DOF'} stepped; dt {sim.dt:g} s")
         self._thread.start()
+        self._input_node.start()
 
     @property
     def sim(self):
@@ -132,8 +132,7 @@ class ModalSpringNode(Node):
         """
         Validate a request and answer it within the change preparer's ``answer_within_s``.
 
-        Cheap checks here; the slow part (modes, operators, a new simulation) in the change
-        preparer (:mod:`~modal_spring_ros.ros.change_preparer`).
+        Cheap checks here; the slow part (modes, operators, a new simulation) in the preparer.
         """
         if getattr(self._own_update, 'active', False):   # the node itself: frequencies, reverts
             return SetParametersResult(successful=True)
@@ -242,8 +241,9 @@ class ModalSpringNode(Node):
         return await self._answer(Pause(paused=bool(request.data)), response)
 
     def stop(self) -> None:
-        """Stop the simulation thread (before destroy_node) and finalise the capture."""
-        self._worker.close()
+        """Stop the threads (before destroy_node) and finalise the capture."""
+        for part in (self._input_node, self._worker):
+            part.close()
         self._preparer.stop()
         self._thread.stop()
         self._outputs.close()

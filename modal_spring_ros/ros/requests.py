@@ -102,14 +102,43 @@ class Pause(Request):
 class FollowPose(Request):
     """The clamp follows a new pose from now on (``anchor.source`` topic)."""
 
-    message: Any = None            # geometry_msgs/PoseStamped, already checked
+    received: Any = None           # geometry_msgs/PoseStamped, already checked
 
 
 @dataclasses.dataclass(eq=False)
 class PullPoint(Request):
     """Pull the particle nearest to a clicked point toward it."""
 
-    message: Any = None            # geometry_msgs/PointStamped, already checked
+    received: Any = None           # geometry_msgs/PointStamped, already checked
     stiffness: float = 0.0
     max_force: float = 0.0
     hold_s: float = 0.0
+
+
+#: requests a newer one of the same kind replaces outright (the run keeps one band, one pose
+#: target and one pull)
+_REPLACED_BY_NEXT = (ChangeBand, FollowPose, PullPoint)
+
+
+def without_superseded(batch: list[Request]) -> list[Request]:
+    """
+    Answer each request of ``batch`` that the next one replaces; return the others, in order.
+
+    A band, a pose to follow or a point to pull toward directly followed by a newer one of its
+    kind would never be stepped. It is answered as applied and superseded; a band change's
+    parameters pass to the later one (so a capture records them), and a skipped pose or click is
+    not recorded, as it never acted.
+    """
+    kept = []
+    for request, following in zip(batch, batch[1:] + [None]):
+        if type(request) in _REPLACED_BY_NEXT and type(following) is type(request):
+            if isinstance(request, ChangeBand):
+                following.changed = {**request.changed, **following.changed}
+                request.finish(True, f'band {request.band.describe()}, superseded by '
+                                     f'{following.band.describe()}')
+            else:
+                request.finish(True, f'superseded by a newer {type(request).__name__} before '
+                                     'the next step')
+            continue
+        kept.append(request)
+    return kept

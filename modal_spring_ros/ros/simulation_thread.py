@@ -26,7 +26,8 @@ from modal_spring_ros.ros.divergence_streak import DivergenceStreak, HeldError
 from modal_spring_ros.ros.inputs import apply_click, apply_pose
 from modal_spring_ros.ros.outputs import Outputs
 from modal_spring_ros.ros.requests import (ChangeBand, FollowPose, Pause, PullPoint,
-                                           ReplaceSimulation, Request, Reset)
+                                           ReplaceSimulation, Request, Reset,
+                                           without_superseded)
 
 #: wall time between two diagnostics messages, s
 DIAGNOSTICS_PERIOD_S = 1.0
@@ -208,8 +209,8 @@ class SimulationThread:
         """
         Apply every queued request, in order; True when one was applied.
 
-        A band change directly followed by another is not built: the later one takes its changed
-        parameters over (so a capture records them) and both are answered.
+        One a newer one of its kind directly follows is answered, not applied
+        (:func:`~modal_spring_ros.ros.requests.without_superseded`).
         """
         batch: list[Request] = []
         while True:
@@ -218,13 +219,7 @@ class SimulationThread:
             except queue.Empty:
                 break
         applied = False
-        for k, request in enumerate(batch):
-            following = batch[k + 1] if k + 1 < len(batch) else None
-            if isinstance(request, ChangeBand) and isinstance(following, ChangeBand):
-                following.changed = {**request.changed, **following.changed}
-                request.finish(True, f'band {request.band.describe()}, superseded by '
-                                     f'{following.band.describe()}')
-                continue
+        for request in without_superseded(batch):
             try:
                 message = self._apply(request)
             except HeldError as exc:  # said once when the run was held: not again per input
@@ -250,15 +245,15 @@ class SimulationThread:
 
     def _follow(self, request: FollowPose) -> str:
         self._streak.refuse_while_held()
-        message = apply_pose(self.sim, request.message)
-        self._outputs.received(self.sim, request.message)
+        message = apply_pose(self.sim, request.received)
+        self._outputs.received(self.sim, request.received)
         return message
 
     def _pull(self, request: PullPoint) -> str:
         self._streak.refuse_while_held()
-        message = apply_click(self.sim, request.message, request.stiffness, request.max_force,
+        message = apply_click(self.sim, request.received, request.stiffness, request.max_force,
                               request.hold_s)
-        self._outputs.received(self.sim, request.message)
+        self._outputs.received(self.sim, request.received)
         return message
 
     def _change_band(self, request: ChangeBand) -> str:

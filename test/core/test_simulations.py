@@ -6,6 +6,7 @@ half-built state (a reset during a band fade).
 """
 from __future__ import annotations
 
+import math
 import threading
 
 from modal_spring_ros.core.config import ConfigError, SimulationConfig
@@ -167,6 +168,26 @@ def test_a_step_that_cannot_advance_time_is_refused(sheet):
     sim = build_simulation(sheet, SimulationConfig())
     with pytest.raises(ValueError, match='does not advance time'):
         sim.with_dt(1e-300)
+
+
+def test_a_band_unstable_at_dt_is_refused_having_computed_modes_only_up_to_the_limit():
+    """
+    ``sheet_32x32`` from 32 modes (to 66 Hz), dt 4 ms: the limit 1 / (pi dt) is 79.6 Hz.
+
+    All-pass would need 256 modes; the refusal names the first computed mode past the limit and
+    costs only the modes up to it.
+    """
+    sim = build_simulation(load_scene('sheet_32x32'), SimulationConfig(
+        band=FilterBand('lowpass', 0, 5, 'hz'), dt=0.004))
+    assert sim.basis.count == 32
+    limit_hz = 1.0 / (math.pi * 0.004)
+    with pytest.raises(UnstableStepError, match=r'sim\.dt \(0\.004 s\) is at or above') as refused:
+        sim.check_band(FilterBand(), dt_name='sim.dt')
+    f = sim.basis.frequencies_hz
+    assert f[-1] >= limit_hz and f[-2] < 2 * limit_hz
+    assert sim.basis.count < 128                   # not the 256 all-pass asks for
+    first_over = f[f >= limit_hz].max()
+    assert f'({first_over:.4g} Hz)' in str(refused.value)
 
 
 def test_an_unstable_band_is_refused_before_it_is_applied(sheet):

@@ -20,7 +20,7 @@ from modal_spring_ros.scenes.resources import load_scene
 from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 import pytest
-from ros_harness import frames_since, node_of, node_with_client, wait_for
+from ros_harness import console_script, frames_since, node_of, node_with_client, wait_for
 from sensor_msgs.msg import PointCloud2
 import yaml
 
@@ -169,6 +169,64 @@ def test_a_clicked_point_pulls_the_nearest_particle_toward_it(tmp_path):
         moved = latest(points) - before
         # the pulled corner moves the most, toward the point
         assert int(np.argmax(np.linalg.norm(moved, axis=1))) == corner
+
+
+def test_a_flood_of_clicks_keeps_the_stream_at_its_rate(tmp_path):
+    """
+    A thousand clicks a second for three seconds: the stream keeps its rate and its clock.
+
+    Both are measured against the same run's three seconds before the flood; every click is
+    answered (applied, or superseded by a newer one before the next step), and the last one pulls.
+    """
+    scene_file = tmp_path / 'still.yaml'
+    scene_file.write_text(yaml.safe_dump(scene_to_dict(variant('sheet_10x10', anchor_motion=[]))))
+    with node_with_client(f'scene:={scene_file}', 'interaction.max_force_n:=5.0',
+                          'publish_rate_hz:=30.0', namespace='flood') as (node, client):
+        points = client.collect(PointCloud2, '/flood/points', qos=500)
+        pub = client.node.create_publisher(PointStamped, '/clicked_point', 10)
+        assert wait_for(lambda: len(points) > 5 and pub.get_subscription_count() > 0, 30)
+        time.sleep(3.0)
+        start = time.monotonic()
+        sagged = latest(points)
+        clicks = 0
+        while time.monotonic() - start < 3.0:
+            click = PointStamped()
+            click.header.frame_id = 'world'
+            click.point.x, click.point.z = 1.5 + 0.1 * (clicks % 2), -0.9
+            pub.publish(click)
+            clicks += 1
+            time.sleep(0.001)
+        end = time.monotonic()
+        frames_since(points, end, 5, timeout=30)
+    received = [(t, m) for t, m in list(points)]
+
+    def window(lo: float, hi: float) -> tuple[int, float]:
+        """Frames received in [lo, hi) and the simulated time they span."""
+        inside = [m for t, m in received if lo <= t < hi]
+        stamps = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in inside]
+        return len(inside), (stamps[-1] - stamps[0]) if len(stamps) > 1 else 0.0
+
+    before, sim_before = window(start - 3.0, start)
+    during, sim_during = window(start, end)
+    assert clicks > 1000
+    assert during >= 0.8 * before * (end - start) / 3.0, (before, during)
+    assert sim_during >= 0.8 * sim_before * (end - start) / 3.0, (sim_before, sim_during)
+    # the clicks pulled: the sheet left its sag toward +x
+    assert (latest(points)[:, 0] - sagged[:, 0]).max() > 0.01
+
+
+def test_the_inputs_subscribe_on_a_companion_named_after_the_node_even_when_renamed():
+    argv = [console_script('modal_spring_node'), '--ros-args', '-p', 'anchor.source:=topic',
+            '-r', '__ns:=/comp', '-r', '__node:=arm_cloth']
+    with node_with_client(namespace='comp', argv=argv) as (node, client):
+        names = {('arm_cloth', '/comp'), ('arm_cloth_inputs', '/comp')}
+        assert wait_for(lambda: names <= set(client.node.get_node_names_and_namespaces()), 30)
+
+        def subscribers(topic):
+            return sorted((s.node_name, s.node_namespace)
+                          for s in client.node.get_subscriptions_info_by_topic(topic))
+        assert wait_for(lambda: subscribers('/comp/anchor_pose') == [('arm_cloth_inputs', '/comp')]
+                        and subscribers('/clicked_point') == [('arm_cloth_inputs', '/comp')], 20)
 
 
 def test_the_capture_of_a_driven_run_resimulates_frame_for_frame(tmp_path):

@@ -30,6 +30,7 @@ class Recorder:
         self.reports = []
         self.logs = []
         self.changes: list[dict] = []
+        self.inputs: list = []
 
     def frame(self, sim, cloud, mesh):
         self.frames.append((time.monotonic(), sim.time, cloud.points[:, :3].astype(float)))
@@ -39,6 +40,9 @@ class Recorder:
 
     def changed(self, sim, changed):
         self.changes.append(dict(changed))
+
+    def received(self, sim, message):
+        self.inputs.append(message)
 
     def log(self, level, message):
         self.logs.append((level, message))
@@ -161,7 +165,10 @@ def test_every_request_is_answered_under_a_storm_of_them(running):
     for w in workers:
         w.join()
     thread.submit(Pause(paused=False))
-    assert wait_for(lambda: all(r.answered for r in requests), 5.0)
+    # a busy machine may take long over a storm: answered is what counts (the node's services
+    # answer in time however long this takes: test_node_services)
+    assert wait_for(lambda: all(r.answered for r in requests), 60.0), (
+        sum(not r.answered for r in requests), out.logs[:5])
     assert all(r.applied for r in requests), [r.message for r in requests if not r.applied]
     after = time.monotonic()
     assert wait_for(lambda: len(out.frames_after(after)) > 10, 5.0)
@@ -217,6 +224,23 @@ def test_band_changes_queued_together_build_only_the_last():
         thread.stop()
 
 
+def test_clicks_queued_together_pull_toward_the_last_only_and_record_only_it():
+    sim = build_simulation(variant('sheet_10x10', anchor_motion=[]), SimulationConfig())
+    out = Recorder()
+    thread = SimulationThread(sim, out, StreamSettings, rebuild=lambda: sim)
+    clicks = [thread.submit(PullPoint(received=_click(x, -0.85), stiffness=50.0, max_force=5.0,
+                                      hold_s=1.0)) for x in (0.0, 0.45, 0.9)]
+    thread.start()
+    try:
+        assert all(click.wait(5.0) for click in clicks)
+        assert all('superseded by a newer PullPoint' in c.message for c in clicks[:2])
+        assert clicks[2].message.startswith('pulling particle')
+        assert thread.sim.pull.target[0] == 0.9
+        assert out.inputs == [clicks[2].received]      # what acted, and only that
+    finally:
+        thread.stop()
+
+
 def test_a_faster_publish_rate_takes_effect_at_once():
     """0.1 Hz then 60 Hz: frames at the new rate now, not after the old ten-second period."""
     sim = build_simulation(load_scene('sheet_10x10'), SimulationConfig())
@@ -259,7 +283,7 @@ def test_a_divergence_that_comes_back_every_time_is_held_and_reported_once(
     assert [m for level, m in out.logs if level == 'error'] == held_logs
     assert len(held_logs) == MAX_RECOVERIES and 'holding at rest' in held_logs[-1]
     assert out.errors()[-1] == thread.held    # /diagnostics keeps saying it
-    click = PullPoint(message=_click(0.3, -0.5), stiffness=50.0, max_force=5.0, hold_s=1.0)
+    click = PullPoint(received=_click(0.3, -0.5), stiffness=50.0, max_force=5.0, hold_s=1.0)
     thread.submit(click)
     assert click.wait(2.0) is False and 'refused' in click.message
     monkeypatch.setattr(sim, '_step_once', real)

@@ -5,8 +5,7 @@ Each step advances the modal coordinates ``q`` (Newmark), maps them to positions
 ``x = x_rest + Phi_R q`` (fixed particles follow their prescribed motion), evaluates the
 nonlinear spring forces and gravity in physical space (eq. 20), projects them back,
 ``Q = Phi_R^T f``, and solves the uncoupled modal equations ``q'' + C q' = Q``. ``K`` only
-gives the basis; the dynamics stay nonlinear. With every mode kept it agrees with the full run
-to round-off.
+gives the basis; the dynamics stay nonlinear. All modes kept = the full run, to round-off.
 
 Changing the band while running is smooth: a mode that leaves the band fades out over
 ``transition_s`` (its amplitude follows a raised-cosine envelope to zero, so positions do not
@@ -34,6 +33,7 @@ from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, ModalBasis, Pro
 from modal_spring_ros.core.bases.derivatives import AddedCoordinates, DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.forces import force_model, ForceOptions
+from modal_spring_ros.core.integrators import conditionally_stable
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.simulations.base import (check_step, DEFAULT_STRAIN_LIMIT, Simulation,
@@ -238,11 +238,33 @@ class ModalSimulation(Simulation):
         :raises BandError: it keeps no mode.
         :raises UnstableStepError: its highest mode is unstable at ``dt`` (explicit).
         """
+        self._check_step_before_modes(band, dt_name)
         coordinates = self.coordinates_for(self.select_modes(band))
         omega = self._bank.omega(coordinates)
         check_step(self.integrator, self.dt, stable_step_limit(float(omega.max())),
                    self.method, dt_name)
         return coordinates
+
+    def _check_step_before_modes(self, band: FilterBand, dt_name: str) -> None:
+        """
+        Refuse a band keeping a rest mode unstable at ``dt``, computing modes only up to it.
+
+        Never more modes than the band needs: a wide band on a large scene is refused without
+        the minutes its other modes would take.
+        """
+        limit_hz = 1.0 / (math.pi * self.dt)           # 2 / omega = dt
+        top = min(band.high if band.by == 'hz' and band.bounded_above else math.inf,
+                  math.inf if self.highest_hz is None else self.highest_hz)
+        if not conditionally_stable(self.integrator) or top < limit_hz:
+            return
+        count = int(band.high) + 1 if band.by == 'index' and band.bounded_above else math.inf
+        self.basis.ensure_frequency(limit_hz, min(count, self.max_modes, self.basis.n_dof))
+        f = self.basis.frequencies_hz
+        over = band.keeps(f) & (f >= limit_hz) & (f <= top * (1.0 + 1e-12))
+        over[self.max_modes:] = False
+        if over.any():  # refused with the highest computed mode's limit
+            check_step(self.integrator, self.dt, 1.0 / (math.pi * f[over].max()), self.method,
+                       dt_name)
 
     def prepare_switch(self, band: FilterBand, transition_s: float | None = None,
                        dt_name: str = 'dt') -> None:
