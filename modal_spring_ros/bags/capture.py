@@ -9,8 +9,9 @@ time); a fixed run's log times are the wall time it was recorded at plus that st
 tools show when it was made. A ``modal_spring_ros`` metadata record holds the scene (full
 definition) and either the fixed settings (``modal_spring_sim --bag``) or the node's
 parameters at the start, with every later change on ``/parameter_events`` and every input it
-followed (the clamp's poses on ``/anchor_pose``, clicked points on ``/clicked_point``) stamped
-with the simulation time it took effect at (``modal_spring_node`` with ``record.bag``).
+took (the clamp's poses on ``/anchor_pose``, clicked points on ``/clicked_point``, each on the
+topic its caller names) stamped with the simulation time it took effect at
+(``modal_spring_node`` with ``record.bag``).
 """
 from __future__ import annotations
 
@@ -30,9 +31,6 @@ from rclpy.qos import QoSPresetProfiles, QoSProfile
 from std_msgs.msg import Header
 
 POINTS_TOPIC = '/points'
-#: where a node's capture keeps its inputs, by message type
-INPUT_TOPICS = {'geometry_msgs/msg/PoseStamped': '/anchor_pose',
-                'geometry_msgs/msg/PointStamped': '/clicked_point'}
 
 
 def _type_name(message) -> str:
@@ -97,15 +95,15 @@ class RunBagWriter:
         self.writer.write_message('/parameter_events', event, self._log_time(),
                                   to_nanoseconds(stamp))
 
-    def record_input(self, t: float, message) -> None:
+    def record_input(self, t: float, topic: str, message) -> None:
         """
-        Record an input that took effect at simulation time ``t``.
+        Record an input that took effect at simulation time ``t`` on ``topic``.
 
-        An input is a pose the clamp followed or a clicked point: the message as received, its
-        header stamped with ``t``.
+        An input is a stamped message the node took (a pose the clamp followed, a clicked point:
+        :mod:`~modal_spring_ros.ros.input_kinds`), kept as received but for its header, stamped
+        with ``t``.
         """
         type_name = _type_name(message)
-        topic = INPUT_TOPICS[type_name]
         self.writer.add_topic(topic, type_name, points_qos_yaml())
         message = copy.deepcopy(message)
         message.header.stamp = to_time_msg(t)

@@ -63,7 +63,7 @@ class Outputs(Protocol):
 
     def changed(self, sim: Simulation, changed: dict) -> None: ...
 
-    def received(self, sim: Simulation, message) -> None: ...
+    def received(self, sim: Simulation, topic: str, message) -> None: ...
 
     def log(self, level: str, message: str) -> None: ...
 
@@ -152,10 +152,10 @@ class NodeOutputs:
         if self._bag is not None and changed:
             self._capture(lambda: self._bag.parameter_event(sim.time, changed))
 
-    def received(self, sim: Simulation, message) -> None:
-        """Keep an input (pose, clicked point) that took effect at ``sim.time`` in the capture."""
+    def received(self, sim: Simulation, topic: str, message) -> None:
+        """Keep an input that took effect at ``sim.time`` in the capture, on ``topic``."""
         if self._bag is not None:
-            self._capture(lambda: self._bag.record_input(sim.time, message))
+            self._capture(lambda: self._bag.record_input(sim.time, topic, message))
 
     def log(self, level: str, message: str) -> None:
         logger = self._node.get_logger()

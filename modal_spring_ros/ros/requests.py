@@ -99,46 +99,44 @@ class Pause(Request):
 
 
 @dataclasses.dataclass(eq=False)
-class FollowPose(Request):
-    """The clamp follows a new pose from now on (``anchor.source`` topic)."""
+class TakeInput(Request):
+    """An accepted input message (:mod:`~modal_spring_ros.ros.input_kinds`) to apply."""
 
-    received: Any = None           # geometry_msgs/PoseStamped, already checked
-
-
-@dataclasses.dataclass(eq=False)
-class PullPoint(Request):
-    """Pull the particle nearest to a clicked point toward it."""
-
-    received: Any = None           # geometry_msgs/PointStamped, already checked
-    stiffness: float = 0.0
-    max_force: float = 0.0
-    hold_s: float = 0.0
+    kind: Any = None               # its InputKind
+    received: Any = None           # the message, already checked
+    values: dict[str, Any] = dataclasses.field(default_factory=dict)   # parameters it came with
 
 
-#: requests a newer one of the same kind replaces outright (the run keeps one band, one pose
-#: target and one pull)
-_REPLACED_BY_NEXT = (ChangeBand, FollowPose, PullPoint)
+def _replaces(request: Request, following: Request | None) -> bool:
+    """
+    Tell whether ``following`` replaces ``request`` outright.
+
+    The run keeps one band, and one of each input's effects (the clamp follows the last pose,
+    one point pulls): a band change a band change follows, an input one of its kind follows.
+    """
+    if type(following) is not type(request):
+        return False
+    return isinstance(request, ChangeBand) or (isinstance(request, TakeInput)
+                                               and request.kind is following.kind)
 
 
 def without_superseded(batch: list[Request]) -> list[Request]:
     """
     Answer each request of ``batch`` that the next one replaces; return the others, in order.
 
-    A band, a pose to follow or a point to pull toward directly followed by a newer one of its
-    kind would never be stepped. It is answered as applied and superseded; a band change's
-    parameters pass to the later one (so a capture records them), and a skipped pose or click is
-    not recorded, as it never acted.
+    A replaced request would never be stepped. It is answered as applied and superseded; a band
+    change's parameters pass to the later one (so a capture records them), and a skipped input
+    is not recorded, as it never acted.
     """
     kept = []
     for request, following in zip(batch, batch[1:] + [None]):
-        if type(request) in _REPLACED_BY_NEXT and type(following) is type(request):
-            if isinstance(request, ChangeBand):
-                following.changed = {**request.changed, **following.changed}
-                request.finish(True, f'band {request.band.describe()}, superseded by '
-                                     f'{following.band.describe()}')
-            else:
-                request.finish(True, f'superseded by a newer {type(request).__name__} before '
-                                     'the next step')
-            continue
-        kept.append(request)
+        if not _replaces(request, following):
+            kept.append(request)
+        elif isinstance(request, ChangeBand):
+            following.changed = {**request.changed, **following.changed}
+            request.finish(True, f'band {request.band.describe()}, superseded by '
+                                 f'{following.band.describe()}')
+        else:
+            request.finish(True, f'superseded by a newer {request.kind.name} before the next '
+                                 'step')
     return kept

@@ -14,8 +14,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from geometry_msgs.msg import PointStamped, PoseStamped
-from modal_spring_ros.bags.capture import INPUT_TOPICS, POINTS_TOPIC, RunBagWriter
+from modal_spring_ros.bags.capture import POINTS_TOPIC, RunBagWriter
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.stamps import to_seconds
 from modal_spring_ros.bags.writer import BagError
@@ -23,7 +22,7 @@ from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.simulations import DivergenceError
-from modal_spring_ros.ros.inputs import apply_click, apply_pose
+from modal_spring_ros.ros.input_kinds import InputKind, INPUTS
 from modal_spring_ros.ros.parameters import config_from_parameters, REBUILD_PARAMETERS
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.schema import scene_from_yaml
@@ -53,21 +52,23 @@ def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, int, dict]]:
     return out
 
 
-def recorded_inputs(bag: BagReader) -> list[tuple[int, int, object]]:
+def recorded_inputs(bag: BagReader, kinds: tuple[InputKind, ...] = INPUTS
+                    ) -> list[tuple[int, int, tuple[InputKind, object]]]:
     """
-    Return the inputs a node's capture kept, as (log time ns, stamp ns, message).
+    Return the inputs a node's capture kept, as (log time ns, stamp ns, (kind, message)).
 
-    Inputs are poses the clamp followed and clicked points, each stamped with the simulation time
-    it took effect at.
+    Each kind's ``recorded_topic`` (poses the clamp followed, clicked points, ...), each message
+    stamped with the simulation time it took effect at.
     """
-    topics = [t for t in INPUT_TOPICS.values() if t in bag.topics]
-    if not topics:
+    by_topic = {kind.recorded_topic: kind for kind in kinds if kind.recorded_topic in bag.topics}
+    if not by_topic:
         return []
     out = []
-    for m in bag.messages(topics):
+    for m in bag.messages(list(by_topic)):
         message = bag.decode(m)
         stamp = message.header.stamp
-        out.append((m.log_time_ns, stamp.sec * 1_000_000_000 + stamp.nanosec, message))
+        out.append((m.log_time_ns, stamp.sec * 1_000_000_000 + stamp.nanosec,
+                    (by_topic[m.topic], message)))
     return out
 
 
@@ -119,11 +120,9 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
                 if exact:   # step to the simulation time the node applied it at
                     while sim.time < event_stamp * 1e-9 - 0.5 * sim.dt:
                         sim.step()
-                if isinstance(change, PoseStamped):
-                    apply_pose(sim, change)
-                elif isinstance(change, PointStamped):
-                    apply_click(sim, change, values['interaction.stiffness'],
-                                values['interaction.max_force_n'], values['interaction.hold_s'])
+                if isinstance(change, tuple):      # an input: (kind, message)
+                    kind, message = change
+                    kind.apply(sim, message, values)
                 else:
                     sim, values = _apply(sim, values, change)
             if stamp < sim.time - 0.5 * sim.dt:   # the recording was reset

@@ -23,11 +23,9 @@ from modal_spring_ros.bags.pointcloud import CloudBuffer
 from modal_spring_ros.core.simulations import DivergenceError, Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import StreamReport
 from modal_spring_ros.ros.divergence_streak import DivergenceStreak, HeldError
-from modal_spring_ros.ros.inputs import apply_click, apply_pose
 from modal_spring_ros.ros.outputs import Outputs
-from modal_spring_ros.ros.requests import (ChangeBand, FollowPose, Pause, PullPoint,
-                                           ReplaceSimulation, Request, Reset,
-                                           without_superseded)
+from modal_spring_ros.ros.requests import (ChangeBand, Pause, ReplaceSimulation, Request, Reset,
+                                           TakeInput, without_superseded)
 
 #: wall time between two diagnostics messages, s
 DIAGNOSTICS_PERIOD_S = 1.0
@@ -237,23 +235,15 @@ class SimulationThread:
         """Apply one request; returns what happened. Raises with the run unchanged."""
         handlers: dict[type, Callable[[Request], str]] = {
             ChangeBand: self._change_band, ReplaceSimulation: self._replace,
-            Reset: self._reset, Pause: self._pause, FollowPose: self._follow,
-            PullPoint: self._pull}
+            Reset: self._reset, Pause: self._pause, TakeInput: self._take_input}
         return handlers[type(request)](request)
 
     held = property(lambda self: self._streak.held, doc='Why the run is held, or empty.')
 
-    def _follow(self, request: FollowPose) -> str:
+    def _take_input(self, request: TakeInput) -> str:
         self._streak.refuse_while_held()
-        message = apply_pose(self.sim, request.received)
-        self._outputs.received(self.sim, request.received)
-        return message
-
-    def _pull(self, request: PullPoint) -> str:
-        self._streak.refuse_while_held()
-        message = apply_click(self.sim, request.received, request.stiffness, request.max_force,
-                              request.hold_s)
-        self._outputs.received(self.sim, request.received)
+        message = request.kind.apply(self.sim, request.received, request.values)
+        self._outputs.received(self.sim, request.kind.recorded_topic, request.received)
         return message
 
     def _change_band(self, request: ChangeBand) -> str:

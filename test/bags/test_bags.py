@@ -439,8 +439,8 @@ _CAPTURE = textwrap.dedent("""
         if k % 10 == 0:
             bag.parameter_event(sim.time, {'filter.type': 'lowpass', 'filter.high_hz': 1.5 * k,
                                            'filter.by': 'hz', 'modal.max_modes': k})
-            bag.record_input(sim.time, pose)
-            bag.record_input(sim.time, click)
+            bag.record_input(sim.time, '/anchor_pose', pose)
+            bag.record_input(sim.time, '/clicked_point', click)
     bag.close()
 """)
 

@@ -286,16 +286,81 @@ class _NodeStub:
 
 def test_a_flood_of_bad_poses_is_counted_and_logged_once_per_period():
     from modal_spring_ros.core.motion.clamp_follower import ClampFollower
-    from modal_spring_ros.ros.inputs import ANCHOR_TOPIC, NodeInputs, WARN_PERIOD_S
+    from modal_spring_ros.ros.input_kinds import ANCHOR_POSE
+    from modal_spring_ros.ros.inputs import NodeInputs, WARN_PERIOD_S
     node, submitted = _NodeStub(), []
     inputs = NodeInputs(node, ClampFollower(5.0, (0, 2)), lambda: {
-        'frame_id': 'world', 'anchor.max_jump_m': 0.2, 'anchor.max_turn_deg': 30.0},
-        submitted.append)
+        'frame_id': 'world', 'anchor.source': 'topic', 'anchor.max_jump_m': 0.2,
+        'anchor.max_turn_deg': 30.0}, submitted.append)
     start = time.monotonic()
     for _ in range(2000):
-        node.callbacks[ANCHOR_TOPIC](pose(0.0, frame_id='map'))
+        node.callbacks[ANCHOR_POSE.topic](pose(0.0, frame_id='map'))
     elapsed = time.monotonic() - start
     assert inputs.refused == 2000 and submitted == []
     # one line per period, however many messages were refused
     assert 1 <= len(node.logger.warnings) <= 1 + elapsed / WARN_PERIOD_S
     assert "frame_id 'map'" in node.logger.warnings[0]
+
+
+def test_a_new_input_is_one_entry_of_the_table_subscribed_applied_recorded_and_resimulated(
+        tmp_path):
+    """
+    A toy input (a point that moves the clamp's pull anchor) declared once.
+
+    The node's subscriptions take it, the simulation thread applies it and hands it to the
+    capture on its topic, and re-simulation finds it there and applies it the same way.
+    """
+    from modal_spring_ros.bags.capture import RunBagWriter
+    from modal_spring_ros.core.config import SimulationConfig
+    from modal_spring_ros.core.factory import build_simulation
+    from modal_spring_ros.ros.input_kinds import INPUTS, InputKind
+    from modal_spring_ros.ros.inputs import NodeInputs
+    from modal_spring_ros.ros.resimulate import recorded_inputs
+    from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
+    applied = []
+
+    def nudge(sim, message, values):
+        applied.append((sim.time, message.point.x, values['nudge.gain']))
+        return 'nudged'
+    toy = InputKind('nudge', 'nudge_point', PointStamped, '/nudge_point',
+                    wanted=lambda values: values['nudge.gain'] > 0,
+                    refusal=lambda message, values, clamp: (
+                        'negative x' if message.point.x < 0 else None),
+                    apply=nudge)
+    kinds = INPUTS + (toy,)
+    values = {'frame_id': 'world', 'anchor.source': 'scene', 'nudge.gain': 2.0}
+    node, submitted = _NodeStub(), []
+    NodeInputs(node, None, lambda: values, submitted.append, kinds=kinds)
+    assert set(node.callbacks) == {'/clicked_point', 'nudge_point'}   # no pose: source scene
+    point = PointStamped()
+    point.header.frame_id = 'world'
+    for x in (-1.0, 0.25):
+        point.point.x = x
+        node.callbacks['nudge_point'](point)
+    (request,) = submitted                          # the negative one was refused
+    assert request.kind is toy and request.values['nudge.gain'] == 2.0
+    sim = build_simulation(load_scene('sheet_10x10'), SimulationConfig())
+    bag = RunBagWriter(tmp_path / 'toy', sim.model.scene, None, dt=sim.dt, frame_every=0,
+                       duration=0.0, parameters={'scene': 'sheet_10x10'})
+
+    class Capture:
+        """Outputs that keep only the inputs, in the bag."""
+
+        def __getattr__(self, name):        # frames, diagnostics, changes, logs: dropped
+            return lambda *args: None
+
+        def received(self, sim, topic, message):
+            bag.record_input(sim.time, topic, message)
+
+    thread = SimulationThread(sim, Capture(), StreamSettings, rebuild=lambda: sim)
+    thread.submit(request)
+    thread.start()
+    try:
+        assert request.wait(5.0) and request.message == 'nudged'
+    finally:
+        thread.stop()
+    bag.close()
+    assert applied == [(applied[0][0], 0.25, 2.0)]
+    ((_, stamp_ns, (kind, message)),) = recorded_inputs(BagReader(tmp_path / 'toy'), kinds)
+    assert kind is toy and message.point.x == 0.25
+    assert stamp_ns == round(applied[0][0] * 1e9)

@@ -13,7 +13,8 @@ from helpers import variant
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.ros.requests import ChangeBand, Pause, PullPoint, ReplaceSimulation, Reset
+from modal_spring_ros.ros.input_kinds import CLICKED_POINT
+from modal_spring_ros.ros.requests import ChangeBand, Pause, ReplaceSimulation, Reset, TakeInput
 from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -41,8 +42,8 @@ class Recorder:
     def changed(self, sim, changed):
         self.changes.append(dict(changed))
 
-    def received(self, sim, message):
-        self.inputs.append(message)
+    def received(self, sim, topic, message):
+        self.inputs.append((topic, message))
 
     def log(self, level, message):
         self.logs.append((level, message))
@@ -228,15 +229,15 @@ def test_clicks_queued_together_pull_toward_the_last_only_and_record_only_it():
     sim = build_simulation(variant('sheet_10x10', anchor_motion=[]), SimulationConfig())
     out = Recorder()
     thread = SimulationThread(sim, out, StreamSettings, rebuild=lambda: sim)
-    clicks = [thread.submit(PullPoint(received=_click(x, -0.85), stiffness=50.0, max_force=5.0,
-                                      hold_s=1.0)) for x in (0.0, 0.45, 0.9)]
+    clicks = [thread.submit(_click_input(x, -0.85)) for x in (0.0, 0.45, 0.9)]
     thread.start()
     try:
         assert all(click.wait(5.0) for click in clicks)
-        assert all('superseded by a newer PullPoint' in c.message for c in clicks[:2])
+        assert all('superseded by a newer clicked_point' in c.message for c in clicks[:2])
         assert clicks[2].message.startswith('pulling particle')
         assert thread.sim.pull.target[0] == 0.9
-        assert out.inputs == [clicks[2].received]      # what acted, and only that
+        # what acted, and only that
+        assert out.inputs == [('/clicked_point', clicks[2].received)]
     finally:
         thread.stop()
 
@@ -283,7 +284,7 @@ def test_a_divergence_that_comes_back_every_time_is_held_and_reported_once(
     assert [m for level, m in out.logs if level == 'error'] == held_logs
     assert len(held_logs) == MAX_RECOVERIES and 'holding at rest' in held_logs[-1]
     assert out.errors()[-1] == thread.held    # /diagnostics keeps saying it
-    click = PullPoint(received=_click(0.3, -0.5), stiffness=50.0, max_force=5.0, hold_s=1.0)
+    click = _click_input(0.3, -0.5)
     thread.submit(click)
     assert click.wait(2.0) is False and 'refused' in click.message
     monkeypatch.setattr(sim, '_step_once', real)
@@ -299,3 +300,8 @@ def _click(x: float, z: float):
     message.header.frame_id = 'world'
     message.point.x, message.point.z = x, z
     return message
+
+
+def _click_input(x: float, z: float) -> TakeInput:
+    return TakeInput(kind=CLICKED_POINT, received=_click(x, z), values={
+        'interaction.stiffness': 50.0, 'interaction.max_force_n': 5.0, 'interaction.hold_s': 1.0})
