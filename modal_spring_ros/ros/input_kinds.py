@@ -88,8 +88,3 @@ CLICKED_POINT = InputKind('clicked_point', '/clicked_point', PointStamped, '/cli
                           wanted=lambda values: True, refusal=_click_refusal, apply=_apply_click)
 #: the node's inputs
 INPUTS: tuple[InputKind, ...] = (ANCHOR_POSE, CLICKED_POINT)
-
-
-def recorded_kind(topic: str) -> InputKind | None:
-    """Return the input a capture keeps on ``topic``, or None."""
-    return next((kind for kind in INPUTS if kind.recorded_topic == topic), None)

@@ -29,8 +29,7 @@ class NodeInputs:
     """The node's subscriptions; accepted messages go to ``submit`` as requests."""
 
     def __init__(self, node, clamp, values: Callable[[], dict[str, Any]],
-                 submit: Callable[[Request], Request], callback_group=None,
-                 kinds: tuple[InputKind, ...] = INPUTS):
+                 submit: Callable[[Request], Request], kinds: tuple[InputKind, ...] = INPUTS):
         """``clamp``: the scene's clamp follower when ``anchor.source`` is topic, else None."""
         self._node = node
         self._clamp = clamp
@@ -44,7 +43,7 @@ class NodeInputs:
         for kind in kinds:
             if kind.wanted(wanted):
                 node.create_subscription(kind.message_type, kind.topic, self._taker(kind),
-                                         QUEUE_DEPTH, callback_group=callback_group)
+                                         QUEUE_DEPTH)
 
     def anchor_status(self) -> tuple[str, bool]:
         """Return what the clamp follows, and whether that is stale (no pose for a while)."""

@@ -262,9 +262,9 @@ class ModalSimulation(Simulation):
         f = self.basis.frequencies_hz
         over = band.keeps(f) & (f >= limit_hz) & (f <= top * (1.0 + 1e-12))
         over[self.max_modes:] = False
-        if over.any():  # refused with the highest computed mode's limit
-            check_step(self.integrator, self.dt, 1.0 / (math.pi * f[over].max()), self.method,
-                       dt_name)
+        if over.any():
+            check_step(self.integrator, self.dt, stable_step_limit(2 * math.pi * f[over].max()),
+                       self.method, dt_name)
 
     def prepare_switch(self, band: FilterBand, transition_s: float | None = None,
                        dt_name: str = 'dt') -> None:
