@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import sys
 import tempfile
 import threading
@@ -16,6 +17,12 @@ import pytest
 # Spring samples are cached per run of the suite, never in the user's cache folder (the
 # node's processes inherit it).
 os.environ['MODAL_SPRING_ROS_CACHE'] = tempfile.mkdtemp(prefix='modal_spring_samples_')
+
+# A suite started as a shell's background job (``pytest &`` in a script, nohup) has SIGINT
+# ignored, and every process it starts would inherit that: the tests that press Ctrl-C at a
+# node still importing would find it deaf. The suite interrupts as a terminal does.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope='session')

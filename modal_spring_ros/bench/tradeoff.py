@@ -11,19 +11,18 @@ from a broadband-perturbed state. Results go to ``tradeoff.json``/``tradeoff.csv
 """
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
 import multiprocessing as mp
-from pathlib import Path
 import resource
 import sys
 import time
 from typing import Callable
 
 from modal_spring_ros.bench.analysis import cheapest_reaching, pareto
-from modal_spring_ros.bench.charts import draw_all
 from modal_spring_ros.bench.failure import failure, turning_clamp
+# the suite's outputs (the bench command calls each suite's run, table and write_outputs)
+from modal_spring_ros.bench.tradeoff_report import table, write_outputs  # noqa: F401
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.bases.mode_selection import choose_modes, choose_refresh, choose_step
@@ -35,6 +34,7 @@ from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import (DivergenceError, FullSimulation, ModalSimulation,
                                                Simulation)
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
+from modal_spring_ros.core.threads import stepping_threads
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -71,34 +71,38 @@ def _divisor(dt: float) -> int:
     return max(1, math.ceil(SAMPLE_S / dt - 1e-9))
 
 
+@stepping_threads()         # as the node and modal_spring_sim step (core.threads)
 def _run(sim: Simulation, duration: float, repeats: int = 1) -> dict:
     """
     Step ``sim`` for ``duration`` (after a warm-up), ``repeats`` times from rest.
 
     Samples of the relative displacement from the last run, and the median wall time of stepping
-    and reading the displacement (the energy, a measurement, is not timed).
+    and reading the displacement (the energy, a measurement, is not timed), with the CPU time the
+    process burnt meanwhile (every thread: what a busy machine pays).
     """
     per = int(round(SAMPLE_S / sim.dt))
     samples = int(round(duration / SAMPLE_S))
     out = np.empty((samples, sim.model.n_free_dof))
     energy = np.empty(samples)
     sim.step(min(per, 20))  # warm-up (caches, first allocations)
-    walls = []
+    walls, cpus = [], []
     for _ in range(repeats):
         sim.reset()
-        wall = 0.0
+        wall = cpu = 0.0
         try:
             for k in range(samples):
-                start = time.perf_counter()
+                start, start_cpu = time.perf_counter(), time.process_time()
                 sim.step(per)
                 out[k] = sim.displacement()
                 wall += time.perf_counter() - start
+                cpu += time.process_time() - start_cpu
                 energy[k] = sim.energy()['total']  # a measurement, not part of the cost
         except DivergenceError as exc:
             return {'diverged': str(exc), 'wall': wall}
         walls.append(wall)
+        cpus.append(cpu)
     return {'u': out, 'energy': energy, 'wall': float(np.median(walls)),
-            'steps': samples * per}
+            'cpu': float(np.median(cpus)), 'steps': samples * per}
 
 
 def _errors(run: dict, ref: dict) -> dict:
@@ -174,6 +178,7 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
                'stability_limit': sim.stability_limit(), **_errors(r, ref),
                'seconds_per_sim_second': r['wall'] / case.duration if 'steps' in r else None,
                'seconds_per_step': r['wall'] / r['steps'] if 'steps' in r else None,
+               'cpu_seconds_per_sim_second': r['cpu'] / case.duration if 'steps' in r else None,
                'diverged': r.get('diverged', ''), 'note': note}
         configs.append(row)
         return row
@@ -353,46 +358,3 @@ def run(quick: bool, progress: Callable[[str], None]) -> dict:
     result['failure'] = failure(progress, 2.5 if quick else 6.0)
     result['turning_clamp'] = turning_clamp(progress, 3.0 if quick else 10.0)
     return result
-
-
-def write_outputs(result: dict, out: Path, progress) -> None:
-    fields = ['scene', 'method', 'modes', 'dt', 'stability_limit', 'rel_l2', 'max_err',
-              'energy_drift', 'seconds_per_sim_second', 'seconds_per_step', 'diverged', 'note']
-    with open(out / 'tradeoff.csv', 'w', newline='') as fh:
-        w = csv.DictWriter(fh, fieldnames=fields, extrasaction='ignore')
-        w.writeheader()
-        for case in result['cases']:
-            w.writerows(case['configs'])
-    for path in draw_all(result, out):
-        progress(f'chart {path}')
-
-
-def table(result: dict) -> str:
-    lines = []
-    for case in result['cases']:
-        lines.append(f"{case['scene']}: reference check {case['reference_check_rel_l2']:.1e}, "
-                     f"peak memory {case['peak_memory_mb']:.0f} MB, median of "
-                     f"{case['repeats']} timed run(s)")
-        lines.append(f"  {'method':15s} {'modes':>5s} {'dt ms':>7s} {'rel L2':>9s} "
-                     f"{'s/sim s':>9s}")
-        for r in case['configs']:
-            cost = f"{r['seconds_per_sim_second']:.3g}" if r['seconds_per_sim_second'] else '-'
-            lines.append(f"  {r['method']:15s} {r['modes']:5d} {1e3 * r['dt']:7.3f} "
-                         f"{r['rel_l2']:9.2e} {cost:>9s}")
-        t = case['cheapest_at_1pct']
-        lines.append(f'  cheapest at 1 %: {t}')
-    f = result['failure']
-    lines.append(f"failure: error passes 10 % at {f['error_passes_10pct_at']} s, strain "
-                 f"warning at {f['strain_warning_at']} s; with derivatives "
-                 f"({f['derivatives_coordinates']} coordinates) the largest window is "
-                 f"{max(f['derivatives_rel_l2_window']):.2%}, {f['derivatives_rel_l2']:.2%} over "
-                 'the run')
-    c = result['turning_clamp']
-    cost = c['seconds_per_step']
-    lines.append(f'turning clamp (sheet_10x10_swing, 15 modes): derivatives '
-                 f"{c['rel_l2']['derivatives']:.3%}, rest modes {c['rel_l2']['rest']:.2%} in the "
-                 f"clamp's frame; turn left out {c['rel_l2']['turn left out']:.0%} (world); "
-                 f"step {1e6 * cost['sheet_10x10_swing']:.0f} us, "
-                 f"{cost['sheet_10x10_swing'] / cost['sheet_10x10']:.2f} x the translating "
-                 "sheet's")
-    return '\n'.join(lines)

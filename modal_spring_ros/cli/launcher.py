@@ -7,11 +7,18 @@ itself. Each function here imports its script's module (``modal_spring_ros.cli.<
 one place this package imports lazily: the import is what is guarded) and runs its ``main``;
 an interrupt before ``main`` has installed its own handling ends quietly with status 130, as
 a shell reports a Ctrl-C.
+
+The interrupt is also remembered: Python raises ``KeyboardInterrupt`` wherever the interpreter
+happens to be, and code that swallows every exception there (an extension's initialisation, a
+library's ``except BaseException``) would lose it, and the node would start streaming after
+the user pressed Ctrl-C. A remembered interrupt ends the run before ``main``. Where SIGINT is
+ignored (a shell's background job), it stays ignored, as for any program.
 """
 from __future__ import annotations
 
 import functools
 import importlib
+import signal
 
 #: Exit status of a run ended by Ctrl-C before it started (128 + SIGINT), as a shell reports it.
 EXIT_INTERRUPTED = 130
@@ -24,8 +31,16 @@ SCRIPTS = ('modal_spring_sim', 'modal_spring_node', 'modal_spring_bench', 'modal
 
 def run(script: str) -> int:
     """Import the module of console script ``script`` and run its ``main``."""
+    return run_module(f'{__package__}.{script}')
+
+
+def run_module(name: str) -> int:
+    """Import module ``name`` under Ctrl-C's guard and run its ``main``."""
+    interrupts = _remember_interrupts()
     try:
-        module = importlib.import_module(f'{__package__}.{script}')
+        module = importlib.import_module(name)
+        if interrupts:                  # pressed during the imports, and swallowed there
+            return EXIT_INTERRUPTED
         return module.main()
     except KeyboardInterrupt:
         return EXIT_INTERRUPTED
@@ -33,6 +48,22 @@ def run(script: str) -> int:
         if _interrupted(exc):
             return EXIT_INTERRUPTED
         raise
+
+
+def _remember_interrupts() -> list[int]:
+    """
+    Handle SIGINT as Python does (``KeyboardInterrupt``), and remember each one.
+
+    Only where SIGINT has Python's own handler (a shell's background job ignores it: kept so).
+    """
+    seen: list[int] = []
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+
+        def remember(signum, frame):
+            seen.append(signum)
+            raise KeyboardInterrupt
+        signal.signal(signal.SIGINT, remember)
+    return seen
 
 
 def _interrupted(exc: BaseException) -> bool:

@@ -15,7 +15,6 @@ person's clicks or a robot's poses at up to a few hundred hertz are taken as the
 """
 from __future__ import annotations
 
-import contextlib
 import threading
 import time
 
@@ -50,11 +49,19 @@ class InputNode:
 
     def _run(self) -> None:
         # one callback at most per gap: a flood waits in DDS, not in this interpreter
-        with contextlib.suppress(ExternalShutdownException):
-            while not self._stop.is_set() and self._executor.context.ok():
-                returned = time.monotonic()
+        while not self._stop.is_set() and self._executor.context.ok():
+            returned = time.monotonic()
+            try:
                 self._executor.spin_once(timeout_sec=WAIT_SLICE_S)
-                self._stop.wait(max(0.0, returned + self._gap - time.monotonic()))
+            except ExternalShutdownException:
+                return
+            except Exception:
+                # Ctrl-C shuts the context down from rclpy's signal handler, at any moment:
+                # after the check above, the wait itself fails (RCLError, invalid handles)
+                if self._executor.context.ok():
+                    raise
+                return
+            self._stop.wait(max(0.0, returned + self._gap - time.monotonic()))
 
     def close(self, timeout: float = 2.0) -> None:
         """Stop taking messages, and destroy the companion node."""

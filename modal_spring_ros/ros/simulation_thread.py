@@ -21,6 +21,7 @@ from typing import Callable
 
 from modal_spring_ros.bags.pointcloud import CloudBuffer
 from modal_spring_ros.core.simulations import DivergenceError, Simulation, SimulationStatus
+from modal_spring_ros.core.threads import stepping_threads
 from modal_spring_ros.ros.diagnostics import StreamReport
 from modal_spring_ros.ros.divergence_streak import DivergenceStreak, HeldError
 from modal_spring_ros.ros.outputs import Outputs
@@ -133,6 +134,7 @@ class SimulationThread:
     def _active(self) -> bool:
         return not self._stop.is_set() and self._running()
 
+    @stepping_threads()         # steps and frames on one BLAS thread (core.threads)
     def _run(self) -> None:
         while self._active():
             try:

@@ -18,6 +18,7 @@ from typing import Callable
 
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import DivergenceError, Simulation
+from modal_spring_ros.core.threads import stepping_threads
 from modal_spring_ros.scenes.writing import scene_to_yaml
 import numpy as np
 
@@ -53,6 +54,7 @@ class Run:
                 diverged=self.diverged)
 
 
+@stepping_threads()         # steps and frames on one BLAS thread (core.threads)
 def record(sim: Simulation, duration: float, *, frame_every: int = 1,
            on_progress: Callable[[float], None] | None = None,
            on_frame: Callable[[float, np.ndarray], None] | None = None,

@@ -55,6 +55,15 @@ def test_spinning_ends_when_ros_shuts_down_without_waking_the_executor():
     node.destroy_node()
 
 
+def _signal_state(pid: int) -> str:
+    """Return the signal state of process ``pid`` (shown when a test timed out)."""
+    try:
+        with open(f'/proc/{pid}/status') as fh:
+            return ' '.join(line.strip() for line in fh if line.startswith('Sig'))
+    except OSError:
+        return 'gone'
+
+
 def _mapped(pid: int, name: str) -> bool:
     """Whether process ``pid`` has a shared object whose path contains ``name`` loaded."""
     try:
@@ -88,6 +97,7 @@ def test_ctrl_c_while_the_node_starts_ends_it_quietly(moment):
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=30)
     except BaseException:
+        print('the node:', _signal_state(proc.pid))
         proc.kill()
         raise
     assert proc.returncode in (0, EXIT_INTERRUPTED), (proc.returncode, err[-2000:])

@@ -41,6 +41,7 @@ IMPORT_KEYS = {
     'mcap_ros2': 'python3-mcap-ros2-support-pip',
     'trimesh': 'python3-trimesh-pip',
     'meshio': 'python3-meshio-pip',
+    'threadpoolctl': 'python3-threadpoolctl-pip',
     'rclpy': 'rclpy',
     'builtin_interfaces': 'builtin_interfaces',
     'rcl_interfaces': 'rcl_interfaces',
@@ -154,7 +155,8 @@ def test_the_shipped_rosdep_file_resolves_every_pip_key_to_a_package_setup_py_re
     pip_keys = sorted({d.name for d in package.exec_depends + package.test_depends
                        if d.name.endswith('-pip')})
     assert pip_keys == ['python3-mcap-pip', 'python3-mcap-ros2-support-pip',
-                        'python3-meshio-pip', 'python3-rosbags-pip', 'python3-trimesh-pip']
+                        'python3-meshio-pip', 'python3-rosbags-pip', 'python3-threadpoolctl-pip',
+                        'python3-trimesh-pip']
     requirements = _pip_requirements()
     for key in pip_keys:
         done = subprocess.run(rosdep + ['resolve', key, '--os=ubuntu:noble',

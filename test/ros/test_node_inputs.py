@@ -15,12 +15,16 @@ from geometry_msgs.msg import PointStamped, PoseStamped
 from helpers import variant
 from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.ros.input_node import InputNode
 from modal_spring_ros.ros.resimulate import resimulate
 from modal_spring_ros.scenes.resources import load_scene
 from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 import pytest
-from ros_harness import console_script, frames_since, node_of, node_with_client, wait_for
+import rclpy
+from rclpy.context import Context
+from ros_harness import (console_script, DOMAIN_ID, frames_since, node_of, node_with_client,
+                         wait_for)
 from sensor_msgs.msg import PointCloud2
 import yaml
 
@@ -227,6 +231,36 @@ def test_the_inputs_subscribe_on_a_companion_named_after_the_node_even_when_rena
                           for s in client.node.get_subscriptions_info_by_topic(topic))
         assert wait_for(lambda: subscribers('/comp/anchor_pose') == [('arm_cloth_inputs', '/comp')]
                         and subscribers('/clicked_point') == [('arm_cloth_inputs', '/comp')], 20)
+
+
+def test_the_input_thread_ends_quietly_when_ctrl_c_shuts_ros_down_between_its_check_and_wait(
+        monkeypatch):
+    """
+    Ctrl-C shuts the context down at any moment (rclpy's SIGINT handler).
+
+    Between the thread's check that ROS is up and its wait, the wait itself fails
+    (``RCLError: the given context is not valid``): that is the end of the thread, not a traceback.
+    """
+    context = Context()
+    rclpy.init(context=context, domain_id=DOMAIN_ID)
+    node = rclpy.create_node('shutdown_race', context=context)
+    inputs = InputNode(node)
+    checks = []
+
+    def stale_ok():                     # the first check saw ROS up; then Ctrl-C took it down
+        checks.append(1)
+        if len(checks) == 1:
+            rclpy.shutdown(context=context)
+            return True
+        return Context.ok(context)
+    monkeypatch.setattr(context, 'ok', stale_ok)
+    raised = []
+    monkeypatch.setattr(threading, 'excepthook', raised.append)
+    inputs.start()
+    inputs._thread.join(10)
+    assert not inputs._thread.is_alive() and raised == [] and len(checks) >= 2
+    inputs.close()
+    node.destroy_node()
 
 
 def test_the_capture_of_a_driven_run_resimulates_frame_for_frame(tmp_path):

@@ -26,6 +26,7 @@ import math
 import time
 from typing import Callable
 
+from modal_spring_ros.core.threads import stepping_threads
 import numpy as np
 import scipy.optimize
 
@@ -84,6 +85,7 @@ def relative_error(forces, sample: SpringSample, snapshots: np.ndarray) -> float
     return worst
 
 
+@stepping_threads()
 def train(forces, snapshots: np.ndarray, held_out: np.ndarray,
           tolerance: float = DEFAULT_TOLERANCE,
           progress: Callable[[str], None] | None = None) -> SpringSample:

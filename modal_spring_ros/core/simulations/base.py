@@ -27,6 +27,7 @@ from modal_spring_ros.core.integrators import NonConvergence, Operators
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.motion.pull import Pull
+from modal_spring_ros.core.threads import stepping_threads
 import numpy as np
 
 #: Default spring strain treated as divergence (the simulation has left any meaningful regime).
@@ -334,9 +335,15 @@ class Simulation(abc.ABC):
 
     # -- stepping ------------------------------------------------------------------------------
     def step(self, count: int = 1) -> None:
-        """Advance ``count`` steps. Raises :class:`DivergenceError` (state kept at last good)."""
-        for _ in range(count):
-            self._step_once()
+        """
+        Advance ``count`` steps. Raises :class:`DivergenceError` (state kept at last good).
+
+        On one BLAS thread (:func:`~modal_spring_ros.core.threads.stepping_threads`; a caller
+        stepping one at a time holds it around its loop).
+        """
+        with stepping_threads():
+            for _ in range(count):
+                self._step_once()
 
     @abc.abstractmethod
     def _step_once(self) -> None:

@@ -1,0 +1,52 @@
+"""Every console script starts in the launcher: a Ctrl-C before ``main`` ends the run quietly."""
+from __future__ import annotations
+
+import os
+import shlex
+import subprocess
+import sys
+
+from modal_spring_ros.cli.launcher import EXIT_INTERRUPTED
+
+SWALLOWING = """
+import os, signal, time
+try:                        # as an extension's initialisation or a library's broad except does
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(1.0)
+except BaseException:
+    pass
+
+
+def main():
+    print('main ran', [line.split()[1] for line in open('/proc/self/status')
+                       if line.startswith(('SigBlk', 'SigIgn', 'SigPnd'))])
+    return 0
+"""
+RUN = ('import sys; from modal_spring_ros.cli.launcher import run_module; '
+       'sys.exit(run_module(sys.argv[1]))')
+
+
+def _run(tmp_path, name: str, source: str, sigint: str = '-') -> subprocess.CompletedProcess:
+    """Run module ``name`` in the launcher, from a shell that sets SIGINT (``trap``'s word)."""
+    (tmp_path / f'{name}.py').write_text(source)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), *sys.path]))
+    command = f'trap {shlex.quote(sigint)} INT; exec "$0" -c "$1" "$2"'
+    return subprocess.run(['sh', '-c', command, sys.executable, RUN, name], capture_output=True,
+                          text=True, env=env, timeout=60)
+
+
+def test_a_ctrl_c_swallowed_during_the_imports_still_ends_the_run_before_main(tmp_path):
+    done = _run(tmp_path, 'swallowing', SWALLOWING)
+    assert done.returncode == EXIT_INTERRUPTED, (done.returncode, done.stderr)
+    assert 'main ran' not in done.stdout and 'Traceback' not in done.stderr, done.stdout
+
+
+def test_without_an_interrupt_main_runs_and_its_status_is_the_run_s(tmp_path):
+    done = _run(tmp_path, 'plain', 'def main():\n    print("main ran")\n    return 3\n')
+    assert (done.returncode, done.stdout) == (3, 'main ran\n')
+
+
+def test_an_ignored_sigint_stays_ignored(tmp_path):
+    """A shell's background job ignores SIGINT: the launcher keeps it so."""
+    done = _run(tmp_path, 'swallowing', SWALLOWING, sigint='')
+    assert done.returncode == 0 and done.stdout.startswith('main ran')
