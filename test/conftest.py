@@ -25,6 +25,39 @@ if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+def pytest_addoption(parser):
+    parser.addoption('--runslow', action='store_true',
+                     help='run the tests marked slow even when -m does not name them')
+
+
+def _leaves_slow_out(config) -> bool:
+    """Tell whether a marker expression was given that does not name ``slow`` (nor --runslow)."""
+    expression = config.option.markexpr or ''
+    return (bool(expression.strip()) and 'slow' not in expression
+            and not config.getoption('--runslow'))
+
+
+def pytest_report_header(config):
+    if _leaves_slow_out(config):
+        return 'tests marked slow left out (-m does not name them): add --runslow to run them'
+    return None
+
+
+def pytest_collection_modifyitems(config, items):
+    """
+    Leave the tests marked ``slow`` out when ``-m`` is given and does not name them.
+
+    ``pytest`` alone runs everything (as CI and ``colcon test`` do); ``-m "not ros"`` is the
+    fast loop; ``-m "not ros" --runslow`` adds the slow ones, ``-m slow`` runs only them.
+    """
+    if not _leaves_slow_out(config):
+        return
+    slow = [item for item in items if item.get_closest_marker('slow') is not None]
+    if slow:
+        config.hook.pytest_deselected(items=slow)
+        items[:] = [item for item in items if item.get_closest_marker('slow') is None]
+
+
 @pytest.fixture(scope='session')
 def sheet_undamped_still():
     """sheet_10x10 without damping and without anchor motion (a conservative system)."""

@@ -29,13 +29,18 @@ from modal_spring_ros.core.motion.pull import REACH_MIN_M
 from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSimulation,
                                                Simulation)
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
+from modal_spring_ros.core.simulations.early_step_check import check_step_before_modes, mode_cap
 from modal_spring_ros.core.worker import WorkerProcess
 import numpy as np
 
 
-def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig) -> Simulation:
+def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig,
+            dt_name: str = 'dt') -> Simulation:
     """
     Return a new simulation (at rest) of the same scene and basis with other settings.
+
+    A modal run with a given explicit step is refused (:class:`UnstableStepError`, naming the
+    step ``dt_name``) before the modes its band needs are computed past the stability limit.
 
     With ``config.auto`` (modal), the fewest modes meeting ``config.tolerance`` are kept and,
     unless ``config.dt`` is given, the step follows from them, and unless
@@ -56,6 +61,10 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig)
         bank = AddedCoordinateBank(basis, config.derivative_directions, basis.progress)
         plan = PlanSettings(math.inf, config.basis, config.derivative_directions, forces,
                             refresh, dt or 0.0)
+        if config.dt is not None:
+            check_step_before_modes(basis, config.band, dt=config.dt,
+                                    integrator=config.integrator, highest_hz=None,
+                                    max_modes=mode_cap(basis, config.max_modes), dt_name=dt_name)
         return _modal(model, basis, config, bank, None, plan, keep_dt=config.dt is not None)
     sim = FullSimulation(model, basis, config.band, dt=dt or 1e-3,
                          integrator=config.integrator, strain_limit=config.strain_limit)

@@ -46,7 +46,7 @@ class ChangePlanner:
         changed = {name for name, value in incoming.items() if value != values[name]}
         delta = {name: new_values[name] for name in changed}
         if changed & REBUILD_PARAMETERS:
-            sim = rebuild(self.model, self.basis, config)
+            sim = rebuild(self.model, self.basis, config, 'sim.dt')
             sim.check_stable('sim.dt')
             return ReplaceSimulation(simulation=sim, changed=delta)
         if changed & BAND_PARAMETERS:

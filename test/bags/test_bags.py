@@ -277,6 +277,7 @@ def test_bad_bags_and_outputs_fail_clearly_and_overwrite_nothing(tmp_path):
         BagWriter(existing)
 
 
+@pytest.mark.slow
 def test_compare_reports_zero_for_the_same_run_and_refuses_different_scenes(tmp_path):
     same = _cli('modal_spring_ros.cli.modal_spring_compare', str(BAGS / 'sheet_10x10_full'),
                 str(BAGS / 'sheet_10x10_full'), '--json', str(tmp_path / 'c.json'),
@@ -445,6 +446,7 @@ _CAPTURE = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_a_nodes_capture_is_the_same_bytes_in_every_process_and_strict_readers_take_it(
         tmp_path):
     """

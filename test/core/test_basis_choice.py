@@ -61,6 +61,7 @@ def test_small_deformation_keeps_the_cheaper_rest_modes():
         assert sim.basis_kind == 'rest' and sim.coordinates == sim.modes
 
 
+@pytest.mark.slow
 def test_auto_on_the_failure_scene_meets_its_tolerance():
     """
     The automatic choice takes the derivatives basis and exact springs.

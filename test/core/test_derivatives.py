@@ -93,6 +93,7 @@ def test_added_coordinates_leave_the_band_alone_and_keep_k0_diagonal(resonance):
     assert every.count == 0                      # a band of every mode has nothing to add
 
 
+@pytest.mark.slow
 def test_the_resonance_scene_stays_right_where_rest_modes_drift(resonance):
     """The paper's fig. 10 failure: rest modes 0..14 drift to 46 % error in a window."""
     model, basis = resonance
@@ -104,6 +105,7 @@ def test_the_resonance_scene_stays_right_where_rest_modes_drift(resonance):
     assert errors['rest'][0] > 0.3 and errors['rest'][1] > 0.2, errors
 
 
+@pytest.mark.slow
 def test_small_deformation_gets_more_accurate_too():
     model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)

@@ -80,6 +80,7 @@ def test_a_turning_clamp_carries_its_particles_rigidly():
                                rtol=1e-13)
 
 
+@pytest.mark.slow
 def test_every_mode_in_the_clamps_frame_converges_to_the_full_run_in_the_world():
     """
     Two independent discretisations of one motion.

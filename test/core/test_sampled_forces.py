@@ -100,6 +100,7 @@ def test_non_negative_weights_keep_an_undamped_run_s_energy(sheet_100x100):
     assert drift[150:].max() < 1.5 * drift[:150].max()               # bounded, not growing
 
 
+@pytest.mark.slow
 def test_sampled_forces_hold_in_large_deformation():
     """
     The resonance scene with the derivatives basis.

@@ -10,7 +10,7 @@ import math
 import threading
 
 from modal_spring_ros.core.config import ConfigError, SimulationConfig
-from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.integrators import integrator, INTEGRATORS
 from modal_spring_ros.core.simulations import (FullSimulation, METHODS, MIN_DT_S, ModalSimulation,
@@ -188,6 +188,25 @@ def test_a_band_unstable_at_dt_is_refused_having_computed_modes_only_up_to_the_l
     assert sim.basis.count < 128                   # not the 256 all-pass asks for
     first_over = f[f >= limit_hz].max()
     assert f'({first_over:.4g} Hz)' in str(refused.value)
+
+
+def test_a_new_run_unstable_at_its_given_step_is_refused_before_the_modes_of_its_band():
+    """
+    A rebuild (``sim.dt`` set with the band all-pass) costs only the modes up to the limit.
+
+    ``sheet_32x32`` at dt 4 ms: the limit is 79.6 Hz; all-pass would need 256 modes.
+    """
+    scene = load_scene('sheet_32x32')
+    sim = build_simulation(scene, SimulationConfig(band=FilterBand('lowpass', 0, 5, 'hz'),
+                                                   dt=0.004))
+    basis = sim.basis
+    assert basis.count == 32
+    with pytest.raises(UnstableStepError, match=r'^sim\.dt \(0\.004 s\) is at or above'):
+        rebuild(sim.model, basis, SimulationConfig(dt=0.004), 'sim.dt')
+    assert basis.frequencies_hz[-1] >= 1.0 / (math.pi * 0.004)
+    assert basis.count < 128
+    stable = rebuild(sim.model, basis, SimulationConfig(dt=0.0005))     # all of it is stable
+    assert stable.dt == 0.0005 and stable.kept_modes.size == basis.count
 
 
 def test_an_unstable_band_is_refused_before_it_is_applied(sheet):

@@ -8,12 +8,13 @@ A contract (:class:`Simulation`), a name-to-class registry (:data:`METHODS`), on
 """
 from __future__ import annotations
 
+from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES
 from modal_spring_ros.core.simulations.base import (check_step, DEFAULT_STRAIN_LIMIT,
                                                     DivergenceError, MIN_DT_S, Simulation,
                                                     SimulationStatus, stable_step_limit,
                                                     UnstableStepError)
 from modal_spring_ros.core.simulations.full import FullSimulation
-from modal_spring_ros.core.simulations.modal import DEFAULT_MAX_MODES, ModalSimulation
+from modal_spring_ros.core.simulations.modal import ModalSimulation
 
 #: method name -> class
 METHODS: dict[str, type[Simulation]] = {

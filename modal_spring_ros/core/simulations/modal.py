@@ -29,17 +29,17 @@ from __future__ import annotations
 
 import math
 
-from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, ModalBasis, Progress
+from modal_spring_ros.core.bases.basis import ModalBasis, Progress
 from modal_spring_ros.core.bases.derivatives import AddedCoordinates, DEFAULT_DIRECTIONS
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.forces import force_model, ForceOptions
-from modal_spring_ros.core.integrators import conditionally_stable
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.simulations.base import (check_step, DEFAULT_STRAIN_LIMIT, Simulation,
                                                     stable_step_limit)
 from modal_spring_ros.core.simulations.coordinates import (ActiveSet, ADDED_ID,
                                                            AddedCoordinateBank, BASES, EMPTY_SET)
+from modal_spring_ros.core.simulations.early_step_check import check_step_before_modes, mode_cap
 from modal_spring_ros.core.simulations.prepared_sets import PreparedSets
 from modal_spring_ros.core.simulations.stepped_set import SteppedSet
 import numpy as np
@@ -85,8 +85,7 @@ class ModalSimulation(Simulation):
         self.forces = forces
         self.highest_hz = highest_hz
         self._mode_choice = mode_choice
-        self.max_modes = int(max_modes) if max_modes else (
-            basis.n_dof if basis.dense else DEFAULT_MAX_MODES)
+        self.max_modes = mode_cap(basis, max_modes)
         self.transition_s = float(transition_s)
         self._band = band.validate()
         self._set = EMPTY_SET
@@ -238,33 +237,14 @@ class ModalSimulation(Simulation):
         :raises BandError: it keeps no mode.
         :raises UnstableStepError: its highest mode is unstable at ``dt`` (explicit).
         """
-        self._check_step_before_modes(band, dt_name)
+        check_step_before_modes(self.basis, band, dt=self.dt, integrator=self.integrator,
+                                highest_hz=self.highest_hz, max_modes=self.max_modes,
+                                method=self.method, dt_name=dt_name)
         coordinates = self.coordinates_for(self.select_modes(band))
         omega = self._bank.omega(coordinates)
         check_step(self.integrator, self.dt, stable_step_limit(float(omega.max())),
                    self.method, dt_name)
         return coordinates
-
-    def _check_step_before_modes(self, band: FilterBand, dt_name: str) -> None:
-        """
-        Refuse a band keeping a rest mode unstable at ``dt``, computing modes only up to it.
-
-        Never more modes than the band needs: a wide band on a large scene is refused without
-        the minutes its other modes would take.
-        """
-        limit_hz = 1.0 / (math.pi * self.dt)           # 2 / omega = dt
-        top = min(band.high if band.by == 'hz' and band.bounded_above else math.inf,
-                  math.inf if self.highest_hz is None else self.highest_hz)
-        if not conditionally_stable(self.integrator) or top < limit_hz:
-            return
-        count = int(band.high) + 1 if band.by == 'index' and band.bounded_above else math.inf
-        self.basis.ensure_frequency(limit_hz, min(count, self.max_modes, self.basis.n_dof))
-        f = self.basis.frequencies_hz
-        over = band.keeps(f) & (f >= limit_hz) & (f <= top * (1.0 + 1e-12))
-        over[self.max_modes:] = False
-        if over.any():
-            check_step(self.integrator, self.dt, stable_step_limit(2 * math.pi * f[over].max()),
-                       self.method, dt_name)
 
     def prepare_switch(self, band: FilterBand, transition_s: float | None = None,
                        dt_name: str = 'dt') -> None:
