@@ -8,10 +8,11 @@ import subprocess
 import threading
 import time
 
+from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
 # One DDS domain per test session, loopback discovery only: parallel sessions stay apart.
@@ -212,3 +213,34 @@ def node_with_client(*params: str, namespace: str, argv: list[str] | None = None
         raise
     code, _, err = node.interrupt()
     assert code == 0 and 'Traceback' not in err, err[-2000:]
+
+
+@contextlib.contextmanager
+def node_in_process(namespace: str, parameters: list[Parameter] | None = None):
+    """
+    Yield a ``ModalSpringNode`` run in this process, spun as ``modal_spring_node`` spins it.
+
+    Its own context, two executor threads; stopped and destroyed after.
+    """
+    context = Context()
+    rclpy.init(context=context, domain_id=DOMAIN_ID)
+    node = ModalSpringNode(context=context, namespace=namespace,
+                           parameter_overrides=parameters or [])
+    executor = MultiThreadedExecutor(num_threads=2, context=context)
+    executor.add_node(node)
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set() and context.ok():
+            executor.spin_once(timeout_sec=0.05)
+    thread = threading.Thread(target=spin, daemon=True)
+    thread.start()
+    try:
+        yield node
+    finally:
+        stop.set()
+        thread.join(10.0)
+        node.stop()
+        executor.shutdown(timeout_sec=0.0)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)

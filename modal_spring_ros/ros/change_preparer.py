@@ -17,7 +17,15 @@ part to one :class:`ChangePreparer` thread:
   at once: a storm of band changes is answered as fast as it comes, and only the latest is built;
 - a pending change that fails after its answer is *reverted*: the parameters it set that nothing
   newer has set since go back to the values the run has, with an ERROR in the log and a warning
-  on ``/diagnostics``.
+  on ``/diagnostics``;
+- a prepared change is *committed* (handed to the run) only once the parameters of every request
+  it holds are set: the node's on-set callback only validates and prepares, and its post-set
+  callback says :meth:`ChangePreparer.parameters_set` (rclcpp's rule for on-set callbacks: no
+  side effect, since a later callback or the set itself may still refuse the change). The
+  parameter services take one request at a time, so a request that comes before the previous
+  accepted one was said to be set means that one was refused after the node accepted it: its
+  change is dropped (and reverted like a failed one), as is a change whose parameters are not
+  set within ``SET_WITHIN_S``.
 """
 from __future__ import annotations
 
@@ -31,6 +39,8 @@ from typing import Any, Callable
 ANSWER_WITHIN_S = 0.5
 #: how long /diagnostics reports a reverted change, s
 REVERT_REPORT_S = 10.0
+#: how long a prepared change waits for its parameters to be set before it is dropped, s
+SET_WITHIN_S = 10.0
 
 
 class ChangeRefused(Exception):
@@ -44,6 +54,8 @@ class _Change:
     refusal: str = ''
     finished: bool = False     # prepared (or refused): its outcome is decided
     answered: bool = False     # answered as pending before it was prepared
+    unset: int = 0             # accepted requests whose parameters are not set yet
+    dropped: str = ''          # why it must not be committed (a request of it was not set)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,9 +75,10 @@ class ChangePreparer:
     Prepares slow parameter changes one at a time in its own thread.
 
     ``prepare(incoming)`` does the slow part and raises :class:`ChangeRefused` (or returns) with
-    nothing changed; ``commit(incoming, prepared)`` hands the prepared change to the run;
-    ``revert(incoming, reason)`` undoes the parameters of a change answered as accepted that then
-    failed. The three are called from the preparer's thread.
+    nothing changed; ``commit(incoming, prepared)`` hands the prepared change to the run, once
+    :meth:`parameters_set` said its parameters are set; ``revert(incoming, reason)`` undoes the
+    parameters of a change answered as accepted that then failed. The three are called from the
+    preparer's thread.
     """
 
     def __init__(self, prepare: Callable[[dict[str, Any]], Any],
@@ -81,6 +94,7 @@ class ChangePreparer:
         self._pending: _Change | None = None     # next, collecting newer requests
         self._stopped = False
         self._reverted = ('', -float('inf'))     # (what and why, monotonic time)
+        self._awaiting: _Change | None = None    # the last accepted request's, until it is set
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
 
@@ -89,29 +103,57 @@ class ChangePreparer:
         """
         Hand a validated change over; return (accepted, reason) to answer the request with.
 
-        Accepted with an empty reason: applied (prepared in time); with a reason starting
-        ``pending``: accepted, still being prepared (or queued behind another change).
+        Accepted with an empty reason: prepared in time (committed once this thread calls
+        :meth:`parameters_set`); with a reason starting ``pending``: accepted, still being
+        prepared (or queued behind another change). An accepted request must be followed by
+        :meth:`parameters_set` from the same thread once its parameters are set.
         """
         with self._cond:
             if self._stopped:
                 return False, 'the node is shutting down'
+            self._never_set()
             if self._current is not None or self._pending is not None:
                 if self._pending is None:
                     self._pending = _Change(dict(incoming))
                 else:
                     self._pending.incoming.update(incoming)    # newer values supersede
                 self._pending.answered = True
-                self._cond.notify_all()
+                self._accept(self._pending)
                 return True, f'pending: queued behind {describe(self._busy_with())}'
             change = _Change(dict(incoming))
             self._pending = change
-            self._cond.notify_all()
+            self._accept(change)
         change.done.wait(self.answer_within_s)
         with self._cond:
+            if change.finished and change.refusal:
+                change.unset -= 1
+                self._awaiting = None
+                return False, change.refusal
             if not change.finished:
                 change.answered = True
                 return True, f'pending: preparing {describe(change.incoming)}'
-        return (False, change.refusal) if change.refusal else (True, '')
+        return True, ''
+
+    def _accept(self, change: _Change) -> None:
+        change.unset += 1
+        self._awaiting = change
+        self._cond.notify_all()
+
+    def _never_set(self) -> None:
+        """Drop the change of an accepted request refused after it (a new request came first)."""
+        change, self._awaiting = self._awaiting, None
+        if change is not None:
+            change.unset -= 1
+            change.dropped = 'refused after the node accepted it (its parameters were not set)'
+            self._cond.notify_all()
+
+    def parameters_set(self) -> None:
+        """Say that the parameters of the last accepted request are set."""
+        with self._cond:
+            change, self._awaiting = self._awaiting, None
+            if change is not None:
+                change.unset -= 1
+                self._cond.notify_all()
 
     @property
     def busy(self) -> bool:
@@ -173,13 +215,9 @@ class ChangePreparer:
                     self._cond.notify_all()
 
     def _prepare_one(self, change: _Change) -> None:
-        refusal = ''
+        refusal, prepared = '', None
         try:
             prepared = self._prepare(change.incoming)
-            with self._cond:
-                stopped = self._stopped
-            if not stopped:     # committed before the outcome is told: an answer is the truth
-                self._commit(change.incoming, prepared)
         except ChangeRefused as exc:
             refusal = str(exc)
         except Exception as exc:  # a failure is a refusal: the run stays as it is
@@ -192,8 +230,31 @@ class ChangePreparer:
             if revert:
                 self._reverted = (f'{describe(change.incoming)} reverted: {refusal}',
                                   time.monotonic())
-        try:
-            if revert:
-                self._revert(change.incoming, refusal)
-        finally:
-            change.done.set()
+        change.done.set()           # the outcome is told; a refused one sets nothing
+        if revert:
+            self._revert(change.incoming, refusal)
+        elif not change.refusal:
+            dropped = self._wait_set(change)
+            if dropped:
+                self._revert(change.incoming, dropped)
+            elif dropped is not None:
+                self._commit(change.incoming, prepared)
+
+    def _wait_set(self, change: _Change) -> str | None:
+        """
+        Wait until every request of ``change`` has its parameters set.
+
+        Return '' (commit it), why it is dropped, or None (the preparer stopped).
+        """
+        end = time.monotonic() + SET_WITHIN_S
+        with self._cond:
+            while change.unset > 0 and not self._stopped and time.monotonic() < end:
+                self._cond.wait(end - time.monotonic())
+            if self._stopped:
+                return None
+            if change.unset > 0:
+                change.dropped = f'its parameters were not set within {SET_WITHIN_S:g} s'
+            if change.dropped:
+                self._reverted = (f'{describe(change.incoming)} dropped: {change.dropped}',
+                                  time.monotonic())
+            return change.dropped

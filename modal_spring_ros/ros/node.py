@@ -3,11 +3,13 @@
 
 Wiring only. The simulation thread (:mod:`~modal_spring_ros.ros.simulation_thread`) steps at a
 fixed ``sim.dt`` and publishes on its own period (:mod:`~modal_spring_ros.ros.outputs`). The
-executor serves parameter requests (validated at once; their slow part, such as modes computed
-in a worker process, planned by :mod:`~modal_spring_ros.ros.parameter_changes` in the change
-preparer's thread, :mod:`~modal_spring_ros.ros.change_preparer`, so no request waits behind a
-slow one) and ``~/reset`` and ``~/pause``, awaited without holding an executor thread. Every
-change reaches the simulation thread as one typed request (:mod:`~modal_spring_ros.ros.requests`).
+executor serves parameter requests (:mod:`~modal_spring_ros.ros.node_parameters`: validated on
+set, their slow part, such as modes computed in a worker process, planned by
+:mod:`~modal_spring_ros.ros.parameter_changes` in the change preparer's thread,
+:mod:`~modal_spring_ros.ros.change_preparer`, so no request waits behind a slow one, and
+committed after the set) and ``~/reset`` and ``~/pause``, awaited without holding an executor
+thread. Every change reaches the simulation thread as one typed request
+(:mod:`~modal_spring_ros.ros.requests`).
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
 (Marker TRIANGLE_LIST, for scenes with a surface, when subscribed), ``/diagnostics``, and
@@ -19,28 +21,24 @@ on the companion node ``<name>_inputs``, :mod:`~modal_spring_ros.ros.input_node`
 from __future__ import annotations
 
 import contextlib
-import threading
 
 from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.core.factory import build_simulation, rebuild
-from modal_spring_ros.core.model.scene import SceneError
-from modal_spring_ros.core.worker import WorkerError, WorkerProcess
-from modal_spring_ros.ros.change_preparer import ChangePreparer, ChangeRefused, describe
+from modal_spring_ros.core.worker import WorkerProcess
 from modal_spring_ros.ros.input_node import InputNode
 from modal_spring_ros.ros.inputs import NodeInputs
 from modal_spring_ros.ros.namesakes import count_namesakes, namesakes_warning
+from modal_spring_ros.ros.node_parameters import NodeParameters
 from modal_spring_ros.ros.outputs import NodeOutputs
 from modal_spring_ros.ros.parameter_changes import ChangePlanner
 from modal_spring_ros.ros.parameters import (config_from_parameters, FREQUENCIES,
-                                             FREQUENCIES_DESCRIPTOR, PARAMETERS, SLOW_PARAMETERS)
+                                             FREQUENCIES_DESCRIPTOR, PARAMETERS)
 from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset
 from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
 
 NODE_NAME = 'modal_spring'
@@ -58,8 +56,8 @@ class ModalSpringNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         for name, (default, descriptor) in PARAMETERS.items():
             self.declare_parameter(name, default, descriptor)
-        self._values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        config = config_from_parameters(self._values)
+        values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        config = config_from_parameters(values)
         log = self.get_logger()
         # Sparse mode computations (large scenes) run in a worker process, so that they never
         # hold this process's interpreter lock while the stream runs; shutting down (Ctrl-C)
@@ -67,31 +65,34 @@ class ModalSpringNode(Node):
         self._worker = WorkerProcess('modal_spring_modes',
                                      cancelled=lambda: not self.context.ok())
         try:
-            sim = build_simulation(load_scene(self._values['scene']), config,
+            sim = build_simulation(load_scene(values['scene']), config,
                                    progress=log.info, worker=self._worker,
                                    samples=sample_cache())
             sim.check_stable('sim.dt')
         except BaseException:
             self._worker.close()
             raise
-        self._planner = ChangePlanner(sim.model, sim.basis)
-        self._lock = threading.Lock()  # guards the two views of the parameters below
-        self._applied = dict(self._values)  # what the run has (a pending change not yet)
-        self._own_update = threading.local()  # the node setting parameters itself
-        self._preparer = ChangePreparer(self._prepare, self._commit, self._revert)
+        self._params = NodeParameters(
+            self, ChangePlanner(sim.model, sim.basis), running=lambda: self._thread.sim,
+            submit=lambda request: self._thread.submit(request),
+            settings_changed=lambda: self._thread.settings_changed(),
+            enable_clock=lambda: self._outputs.enable_clock())
+        self._preparer = self._params.preparer
         self.declare_parameter(FREQUENCIES, sim.basis.frequencies_hz.tolist(),
                                FREQUENCIES_DESCRIPTOR)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
         scene = sim.model.scene
-        self._outputs = NodeOutputs(self, scene, lambda: self._values, self._open_capture(sim))
+        self._outputs = NodeOutputs(self, scene, lambda: self._params.values,
+                                    self._open_capture(sim))
         self._thread = SimulationThread(
             sim, self._outputs, self._stream_settings,
-            rebuild=lambda: rebuild(sim.model, sim.basis, config_from_parameters(self._applied)),
+            rebuild=lambda: rebuild(sim.model, sim.basis,
+                                    config_from_parameters(self._params.applied())),
             computing_modes=lambda: self._preparer.busy, running=self.context.ok,
             node_report=self._report)
-        follower = scene.anchor_motion if self._values['anchor.source'] == 'topic' else None
+        self._params.listen()
+        follower = scene.anchor_motion if values['anchor.source'] == 'topic' else None
         self._input_node = InputNode(self)      # its own thread: a flood never starves the run
-        self._inputs = NodeInputs(self._input_node.node, follower, lambda: self._values,
+        self._inputs = NodeInputs(self._input_node.node, follower, lambda: self._params.values,
                                   self._thread.submit)
         services = ReentrantCallbackGroup()     # awaiting coroutines: no thread held
         self._answered = self.create_guard_condition(lambda: None, callback_group=services)
@@ -113,93 +114,20 @@ class ModalSpringNode(Node):
         return self._thread.sim
 
     def _open_capture(self, sim) -> RunBagWriter | None:
-        path = self._values['record.bag']
+        values = self._params.values
+        path = values['record.bag']
         if not path:
             return None
         bag = RunBagWriter(path, sim.model.scene, None, dt=sim.dt, frame_every=0, duration=0.0,
-                           frame_id=self._values['frame_id'], source='modal_spring_node',
-                           parameters=dict(self._values), node=self.get_fully_qualified_name())
+                           frame_id=values['frame_id'], source='modal_spring_node',
+                           parameters=dict(values), node=self.get_fully_qualified_name())
         self.get_logger().info(f'writing every frame to {path}')
         return bag
 
     def _stream_settings(self) -> StreamSettings:
-        v = self._values
+        v = self._params.values
         return StreamSettings(v['publish_rate_hz'], v['mesh_rate_hz'], v['realtime_factor'],
                               v['sim.strain_warning'])
-
-    # -- parameters ----------------------------------------------------------------------------
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """
-        Validate a request and answer it within the change preparer's ``answer_within_s``.
-
-        Cheap checks here; the slow part (modes, operators, a new simulation) in the preparer.
-        """
-        if getattr(self._own_update, 'active', False):   # the node itself: frequencies, reverts
-            return SetParametersResult(successful=True)
-        if any(p.name == FREQUENCIES for p in params):
-            return SetParametersResult(
-                successful=False, reason=f'{FREQUENCIES} is read-only: the node reports the '
-                'frequencies of the modes it has computed')
-        incoming = {p.name: p.value for p in params if p.name in PARAMETERS}
-        if not incoming:
-            return SetParametersResult(successful=True)
-        with self._lock:
-            requested = dict(self._values, **incoming)
-        try:
-            config_from_parameters(requested)       # values, ranges, the band's edges
-        except ValueError as exc:
-            return self._refused(str(exc))
-        slow = {k: v for k, v in incoming.items() if k in SLOW_PARAMETERS}
-        reason = ''
-        if slow:
-            accepted, reason = self._preparer.request(slow)
-            if not accepted:
-                return self._refused(reason)
-            if reason:      # rclpy answers a success without its reason: said in the log
-                self.get_logger().info(f'parameter change accepted, {reason}')
-        with self._lock:
-            self._values = dict(self._values, **incoming)
-            self._applied.update({k: v for k, v in incoming.items() if k not in slow})
-            if self._values['publish_clock']:
-                self._outputs.enable_clock()
-        self._thread.settings_changed()
-        return SetParametersResult(successful=True, reason=reason)
-
-    def _refused(self, reason: str) -> SetParametersResult:
-        self.get_logger().warning(f'parameter change rejected: {reason}')
-        return SetParametersResult(successful=False, reason=reason)
-
-    def _prepare(self, incoming: dict) -> Request | None:
-        with self._lock:
-            applied = dict(self._applied)
-        try:
-            return self._planner.plan(applied, incoming, self._thread.sim)
-        except (ValueError, SceneError, WorkerError) as exc:
-            raise ChangeRefused(str(exc)) from exc
-
-    def _commit(self, incoming: dict, request: Request | None) -> None:
-        with self._lock:
-            self._applied.update(incoming)
-        self._publish_frequencies()
-        if request is not None:
-            self._thread.submit(request)
-
-    def _revert(self, incoming: dict, reason: str) -> None:
-        """Set back what a change answered as accepted set, unless something newer has."""
-        with self._lock:
-            back = {k: self._applied[k] for k, v in incoming.items() if self._values[k] == v}
-            self._values.update(back)
-        self.get_logger().error(f'parameter change {describe(incoming)} failed after it was '
-                                f'accepted: {reason}; back to {describe(back)}')
-        if back:
-            self._set_own([Parameter(k, value=v) for k, v in back.items()])
-
-    def _set_own(self, params: list[Parameter]) -> None:
-        self._own_update.active = True
-        try:
-            self.set_parameters(params)
-        finally:
-            self._own_update.active = False
 
     def _report(self) -> dict:
         """Return what the node adds to the simulation thread's report on /diagnostics."""
@@ -214,13 +142,6 @@ class ModalSpringNode(Node):
         if found > 0 and found != self._namesakes:   # once per change
             self.get_logger().warning(namesakes_warning(found, self.get_fully_qualified_name()))
         self._namesakes = found
-
-    def _publish_frequencies(self) -> None:
-        """Update modal.frequencies_hz when a band made the node compute more modes."""
-        freqs = self._planner.basis.frequencies_hz.tolist()
-        if len(freqs) == len(self.get_parameter(FREQUENCIES).value):
-            return
-        self._set_own([Parameter(FREQUENCIES, value=freqs)])
 
     # -- services ------------------------------------------------------------------------------
     async def _answer(self, request: Request, response):

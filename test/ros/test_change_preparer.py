@@ -42,6 +42,14 @@ def preparer(recorder: Recorder, answer_within_s: float = 0.5) -> ChangePreparer
                           answer_within_s=answer_within_s)
 
 
+def ask(p: ChangePreparer, incoming: dict) -> tuple[bool, str]:
+    """Request ``incoming`` as the node does: its parameters are set once it is accepted."""
+    accepted, reason = p.request(incoming)
+    if accepted:
+        p.parameters_set()
+    return accepted, reason
+
+
 @contextlib.contextmanager
 def gated(answer_within_s: float, refuse: str = ''):
     """Return a gate holding every preparation, its recorder and the preparer; stop it after."""
@@ -55,13 +63,48 @@ def gated(answer_within_s: float, refuse: str = ''):
         p.stop()
 
 
-def test_a_quick_change_is_answered_with_its_outcome_after_it_is_committed():
+def test_a_quick_change_is_answered_with_its_outcome_and_committed_once_it_is_set():
     rec = Recorder()
     p = preparer(rec, answer_within_s=10.0)
     try:
         assert p.request({'filter.high_hz': 7.0}) == (True, '')
-        assert rec.committed == [{'filter.high_hz': 7.0}]      # committed before the answer
+        assert rec.prepared == [{'filter.high_hz': 7.0}]       # prepared before the answer
+        assert not p.wait_idle(0.3) and rec.committed == []    # not before the set
+        p.parameters_set()
         assert p.wait_idle(5.0) and not p.busy
+        assert rec.committed == [{'filter.high_hz': 7.0}]
+    finally:
+        p.stop()
+
+
+def test_a_change_whose_parameters_are_never_set_is_dropped_and_reported(monkeypatch):
+    monkeypatch.setattr('modal_spring_ros.ros.change_preparer.SET_WITHIN_S', 0.3)
+    rec = Recorder()
+    p = preparer(rec, answer_within_s=10.0)
+    try:
+        assert p.request({'filter.high_hz': 7.0}) == (True, '')     # and no set follows
+        assert p.wait_idle(5.0)
+        assert rec.committed == []
+        assert rec.reverted == [({'filter.high_hz': 7.0},
+                                 'its parameters were not set within 0.3 s')]
+        assert 'filter.high_hz=7.0 dropped: its parameters were not set' in p.state().reverted
+        assert ask(p, {'filter.high_hz': 8.0}) == (True, '')        # the next one goes on
+        assert p.wait_idle(5.0) and rec.committed == [{'filter.high_hz': 8.0}]
+    finally:
+        p.stop()
+
+
+def test_a_request_refused_after_it_was_accepted_is_dropped_when_the_next_one_comes():
+    """The services take one request at a time: a new one means the last was never set."""
+    rec = Recorder()
+    p = preparer(rec, answer_within_s=10.0)
+    try:
+        assert p.request({'filter.high_hz': 7.0}) == (True, '')     # then refused elsewhere
+        assert ask(p, {'filter.high_hz': 8.0})[0]
+        assert p.wait_idle(5.0)
+        assert rec.committed == [{'filter.high_hz': 8.0}]
+        (incoming, reason), = rec.reverted
+        assert incoming == {'filter.high_hz': 7.0} and reason.startswith('refused after')
     finally:
         p.stop()
 
@@ -70,7 +113,7 @@ def test_a_quick_refusal_is_answered_as_one_and_changes_nothing():
     rec = Recorder(refuse='sim.dt (0.01 s) is at or above the explicit stability limit')
     p = preparer(rec, answer_within_s=10.0)
     try:
-        accepted, reason = p.request({'sim.dt': 0.01})
+        accepted, reason = ask(p, {'sim.dt': 0.01})
         assert not accepted and 'stability limit' in reason
         assert rec.committed == [] and rec.reverted == []
         assert p.state().reverted == ''
@@ -81,7 +124,7 @@ def test_a_quick_refusal_is_answered_as_one_and_changes_nothing():
 def test_a_slow_change_is_answered_pending_then_committed():
     with gated(0.2) as (gate, rec, p):
         start = time.monotonic()
-        accepted, reason = p.request({'filter.high_hz': 50.0})
+        accepted, reason = ask(p, {'filter.high_hz': 50.0})
         assert accepted and reason.startswith('pending: preparing')
         assert time.monotonic() - start < 5.0
         assert p.busy and 'filter.high_hz=50.0' in p.state().preparing
@@ -96,7 +139,7 @@ def test_a_storm_is_answered_as_it_comes_and_only_the_latest_is_prepared():
         latencies, answers = [], []
         for k in range(50):                      # 50 band changes a second, for a second
             start = time.monotonic()
-            answers.append(p.request({'filter.high_hz': float(k), 'filter.type': 'lowpass'}))
+            answers.append(ask(p, {'filter.high_hz': float(k), 'filter.type': 'lowpass'}))
             latencies.append(time.monotonic() - start)
             time.sleep(0.02)
         assert all(accepted for accepted, _ in answers)
@@ -114,7 +157,7 @@ def test_a_storm_is_answered_as_it_comes_and_only_the_latest_is_prepared():
 def test_a_change_failing_after_its_answer_is_reverted_and_reported():
     refuse = 'sim.dt (0.0005 s) is at or above the explicit stability limit'
     with gated(0.1, refuse) as (gate, rec, p):
-        accepted, reason = p.request({'filter.type': 'allpass'})
+        accepted, reason = ask(p, {'filter.type': 'allpass'})
         assert accepted and reason.startswith('pending')
         gate.set()
         assert p.wait_idle(10.0)
@@ -128,7 +171,7 @@ def test_stopping_abandons_a_change_being_prepared():
     gate = threading.Event()
     rec = Recorder(gate=gate)
     p = preparer(rec, answer_within_s=0.1)
-    p.request({'filter.high_hz': 5.0})
+    ask(p, {'filter.high_hz': 5.0})
     assert rec.entered.wait(5.0)
     stopper = threading.Thread(target=p.stop)
     stopper.start()
@@ -152,9 +195,9 @@ def test_an_unexpected_failure_is_a_refusal_and_the_preparer_goes_on(failure):
     p = ChangePreparer(prepare, lambda i, plan: committed.append(i), lambda i, r: None,
                        answer_within_s=10.0)
     try:
-        accepted, reason = p.request({'method': 'full'})
+        accepted, reason = ask(p, {'method': 'full'})
         assert not accepted and reason.startswith('could not prepare the change')
-        assert p.request({'method': 'modal'}) == (True, '')
-        assert committed == [{'method': 'modal'}]
+        assert ask(p, {'method': 'modal'}) == (True, '')
+        assert p.wait_idle(5.0) and committed == [{'method': 'modal'}]
     finally:
         p.stop()

@@ -340,7 +340,7 @@ def test_no_clock_unless_asked_and_one_line_once_streaming():
     finally:
         client.close()
         code, _, err = node.interrupt()
-    assert code == 0
+    assert code == 0, err[-3000:]
     lines = [x for x in err.splitlines() if 'streaming sheet_10x10' in x]
     assert len(lines) == 1, err[-2000:]
     assert ('streaming sheet_10x10 (100 particles; modal, allpass) on /quiet/points at 60 Hz, '

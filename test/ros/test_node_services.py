@@ -10,13 +10,10 @@ from __future__ import annotations
 import threading
 import time
 
-from modal_spring_ros.ros.node import ModalSpringNode, SERVICE_TIMEOUT_S
+from modal_spring_ros.ros.node import SERVICE_TIMEOUT_S
 from modal_spring_ros.ros.requests import Pause, Reset
 import pytest
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
-from ros_harness import Client, DOMAIN_ID, wait_for
+from ros_harness import Client, node_in_process, wait_for
 from std_srvs.srv import SetBool, Trigger
 
 pytestmark = pytest.mark.ros
@@ -51,32 +48,13 @@ class HeldQueue:
 
 
 @pytest.fixture
-def node_in_process():
-    context = Context()
-    rclpy.init(context=context, domain_id=DOMAIN_ID)
-    node = ModalSpringNode(context=context, namespace='together')
-    executor = MultiThreadedExecutor(num_threads=2, context=context)
-    executor.add_node(node)
-    stop = threading.Event()
-
-    def spin():
-        while not stop.is_set() and context.ok():
-            executor.spin_once(timeout_sec=0.05)
-    thread = threading.Thread(target=spin, daemon=True)
-    thread.start()
-    try:
+def together():
+    with node_in_process('together') as node:
         yield node
-    finally:
-        stop.set()
-        thread.join(10.0)
-        node.stop()
-        executor.shutdown(timeout_sec=0.0)
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
 
 
-def test_pause_and_reset_requests_sent_together_wait_side_by_side(node_in_process):
-    node = node_in_process
+def test_pause_and_reset_requests_sent_together_wait_side_by_side(together):
+    node = together
     client = Client('together_client')
     try:
         # matched, and answered by the real simulation thread
@@ -101,8 +79,8 @@ def test_pause_and_reset_requests_sent_together_wait_side_by_side(node_in_proces
         client.close()
 
 
-def test_a_request_the_simulation_never_answers_times_out_with_a_reason(node_in_process):
-    node = node_in_process
+def test_a_request_the_simulation_never_answers_times_out_with_a_reason(together):
+    node = together
     client = Client('silent_client')
     try:
         assert client.call(Trigger, '/together/modal_spring/reset', Trigger.Request()).success
