@@ -103,10 +103,11 @@ class ChangePreparer:
         """
         Hand a validated change over; return (accepted, reason) to answer the request with.
 
-        Accepted with an empty reason: prepared in time (committed once this thread calls
-        :meth:`parameters_set`); with a reason starting ``pending``: accepted, still being
-        prepared (or queued behind another change). An accepted request must be followed by
-        :meth:`parameters_set` from the same thread once its parameters are set.
+        Accepted with an empty reason: prepared in time (committed once
+        :meth:`parameters_set` is called); with a reason starting ``pending``: accepted, still
+        being prepared (or queued behind another change). Requests come one at a time: an
+        accepted one is followed by :meth:`parameters_set` once its parameters are set, before
+        the next request (one that comes first drops it).
         """
         with self._cond:
             if self._stopped:
