@@ -15,7 +15,8 @@ from modal_spring_ros.core.config import DEFAULT_STRAIN_WARNING
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.motion.anchor_motion import AnchorMotion
-from modal_spring_ros.core.simulations import DivergenceError, FullSimulation, ModalSimulation
+from modal_spring_ros.core.simulations import (DivergenceError, FullSimulation, ModalSettings,
+                                               ModalSimulation)
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 
@@ -33,8 +34,8 @@ def failure(progress, duration: float) -> dict:
     dt = model.scene.default_dt
     full = FullSimulation(model, dt=dt, basis=basis)
     band = FilterBand('lowpass', 0, 14, 'index')
-    modal = ModalSimulation(model, basis, band, dt=dt)
-    derived = ModalSimulation(model, basis, band, dt=dt, basis_kind='derivatives')
+    modal = ModalSimulation(model, basis, band, ModalSettings(dt=dt))
+    derived = ModalSimulation(model, basis, band, ModalSettings(dt=dt, basis_kind='derivatives'))
     window = int(round(0.25 / dt))
     t, err, strain, full_strain, derived_err = [], [], [], [], []
     derived_num = derived_all_num = all_den = 0.0
@@ -90,10 +91,12 @@ def turning_clamp(progress, duration: float) -> dict:
     dt = scene.default_dt
     band = FilterBand('lowpass', 0, 14, 'index')
     full = FullSimulation(model, basis, dt=dt)
-    runs = {'derivatives': ModalSimulation(model, basis, band, dt=dt, basis_kind='derivatives'),
-            'rest': ModalSimulation(model, basis, band, dt=dt, basis_kind='rest')}
+    runs = {'derivatives': ModalSimulation(model, basis, band,
+                                           ModalSettings(dt=dt, basis_kind='derivatives')),
+            'rest': ModalSimulation(model, basis, band, ModalSettings(dt=dt, basis_kind='rest'))}
     still = MassSpringModel(dataclasses.replace(scene, anchor_motion=AnchorMotion(())))
-    left_out = ModalSimulation(still, ModalBasis(still), band, dt=dt, basis_kind='derivatives')
+    left_out = ModalSimulation(still, ModalBasis(still), band,
+                               ModalSettings(dt=dt, basis_kind='derivatives'))
     window = int(round(0.25 / dt))
     names = [*runs, 'turn left out']
     windows = {name: [] for name in names}
@@ -131,7 +134,8 @@ def _step_costs(swing, band: FilterBand, dt: float, steps: int = 2000) -> dict:
     costs = {}
     for scene in (swing, load_scene('sheet_10x10')):
         model = MassSpringModel(scene)
-        sim = ModalSimulation(model, ModalBasis(model), band, dt=dt, basis_kind='derivatives')
+        sim = ModalSimulation(model, ModalBasis(model), band,
+                              ModalSettings(dt=dt, basis_kind='derivatives'))
         sim.step(200)
         samples = []
         for _ in range(5):

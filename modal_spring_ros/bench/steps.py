@@ -22,7 +22,7 @@ from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.factory import force_options
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
+from modal_spring_ros.core.simulations import FullSimulation, ModalSettings, ModalSimulation
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
 from rclpy.serialization import serialize_message
@@ -54,9 +54,9 @@ def _measure(scene_name: str, method: str, modes: int | None, dt: float, refresh
     if method in ('modal', 'derivatives', 'sampled'):
         basis = ModalBasis(model, initial_modes=modes, samples=sample_cache())
         forces = force_options('sampled' if method == 'sampled' else 'exact', refresh, 0.01)
-        sim = ModalSimulation(model, basis, FilterBand('lowpass', 0, modes - 1, 'index'), dt=dt,
-                              forces=forces,
-                              basis_kind='derivatives' if method == 'derivatives' else 'rest')
+        kind = 'derivatives' if method == 'derivatives' else 'rest'
+        sim = ModalSimulation(model, basis, FilterBand('lowpass', 0, modes - 1, 'index'),
+                              ModalSettings(dt=dt, forces=forces, basis_kind=kind))
         basis_seconds = time.perf_counter() - start
     else:
         basis = ModalBasis(model, initial_modes=8)  # for the damping and stability limit

@@ -31,8 +31,8 @@ from modal_spring_ros.core.factory import force_options
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces import ForceOptions
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.simulations import (DivergenceError, FullSimulation, ModalSimulation,
-                                               Simulation)
+from modal_spring_ros.core.simulations import (DivergenceError, FullSimulation, ModalSettings,
+                                               ModalSimulation, Simulation)
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
 from modal_spring_ros.core.threads import stepping_threads
 from modal_spring_ros.runs.sample_cache import sample_cache
@@ -157,8 +157,8 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
             if basis_kind == 'derivatives' else None
         forces = force_options('sampled' if sampled else 'exact', refresh, SAMPLE_TOLERANCE)
         return ModalSimulation(model, basis, FilterBand('lowpass', 0, count - 1, 'index'),
-                               dt=dt, integrator=integrator, forces=forces,
-                               basis_kind=basis_kind, bank=bank)
+                               ModalSettings(dt=dt, integrator=integrator, forces=forces,
+                                             basis_kind=basis_kind), bank=bank)
 
     def refresh(count, dt):
         return choose_refresh(float(basis.frequencies_hz[count - 1]), dt)
@@ -296,7 +296,8 @@ def step_costs(scenes: list[str], dropped: list[int], progress) -> dict:
                                    'refreshed', DEFAULT_REFRESH)}),
                                ('modal_sampled', {'forces': ForceOptions('sampled',
                                                                          tolerance=0.01)})):
-            sim = ModalSimulation(model, basis, band, dt=1e-4, basis_kind='rest', **options)
+            sim = ModalSimulation(model, basis, band,
+                                  ModalSettings(dt=1e-4, basis_kind='rest', **options))
             row[label] = per_step(sim, max(steps, 200))
             if label == 'modal_sampled':
                 row['sampled_springs'] = sim._forces.sample.count
@@ -306,7 +307,7 @@ def step_costs(scenes: list[str], dropped: list[int], progress) -> dict:
     model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
     fig8 = [{'dropped': d, 'seconds_per_step': per_step(ModalSimulation(
-        model, basis, FilterBand('lowpass', 0, 179 - d, 'index'), dt=1e-4), 500)}
+        model, basis, FilterBand('lowpass', 0, 179 - d, 'index'), ModalSettings(dt=1e-4)), 500)}
         for d in dropped]
     return {'fig7': fig7, 'fig8': fig8}
 

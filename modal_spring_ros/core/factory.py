@@ -26,8 +26,8 @@ from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.motion.clamp_follower import ClampFollower
 from modal_spring_ros.core.motion.pull import REACH_MIN_M
-from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSimulation,
-                                               Simulation)
+from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSettings,
+                                               ModalSimulation, Simulation)
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
 from modal_spring_ros.core.simulations.early_step_check import check_step_before_modes, mode_cap
 from modal_spring_ros.core.worker import WorkerProcess
@@ -88,14 +88,14 @@ def _modal(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig,
     An explicit step the plan suggests beyond the stability limit of what it steps (the added
     coordinates included) gives way to ``AUTO_DT_SAFETY`` of that limit, unless it was given.
     """
-    sim: Simulation = ModalSimulation(
-        model, basis, config.band, dt=plan.dt or 1e-3, integrator=config.integrator,
-        transition_s=config.transition_s, max_modes=config.max_modes,
-        strain_limit=config.strain_limit,
+    settings = ModalSettings(
+        dt=plan.dt or 1e-3, integrator=config.integrator, transition_s=config.transition_s,
+        max_modes=config.max_modes, strain_limit=config.strain_limit,
         highest_hz=plan.highest_hz if math.isfinite(plan.highest_hz) else None,
-        forces=force_options(plan.forces, plan.refresh, config.tolerance), mode_choice=choice,
-        basis_kind=plan.basis_kind, derivative_directions=plan.directions, bank=bank,
-        progress=basis.progress)
+        forces=force_options(plan.forces, plan.refresh, config.tolerance),
+        basis_kind=plan.basis_kind, derivative_directions=plan.directions)
+    sim: Simulation = ModalSimulation(model, basis, config.band, settings, mode_choice=choice,
+                                      bank=bank, progress=basis.progress)
     if keep_dt:
         return sim
     if not plan.dt or (conditionally_stable(config.integrator)

@@ -14,7 +14,8 @@ import sys
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.simulations import DivergenceError, FullSimulation, ModalSimulation
+from modal_spring_ros.core.simulations import (DivergenceError, FullSimulation, ModalSettings,
+                                               ModalSimulation)
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -117,7 +118,8 @@ def test_explicit_full_diverges_within_one_step_where_modal_lowpass_stays_accura
     # detected on the very step the limit was crossed: the state before it was still sane
     assert err.value.step == full.steps + 1
     assert last_good_strain <= full.strain_limit and np.isfinite(full.positions()).all()
-    modal = ModalSimulation(model, basis, FilterBand('lowpass', 0, 14, 'index'), dt=dt)
+    modal = ModalSimulation(model, basis, FilterBand('lowpass', 0, 14, 'index'),
+                            ModalSettings(dt=dt))
     sub = int(np.ceil(dt / 2e-4))
     ref = FullSimulation(model, dt=dt / sub, basis=basis)
     steps = int(round(1.0 / dt))

@@ -15,7 +15,7 @@ from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
+from modal_spring_ros.core.simulations import FullSimulation, ModalSettings, ModalSimulation
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -43,7 +43,8 @@ def test_the_predicted_error_of_rest_modes_matches_the_measured_one():
     basis = ModalBasis(model)
     keep = np.arange(15)
     choice = choose_basis(model, basis, keep, BUDGET, lambda k: added_coordinates(basis, k))
-    rest = ModalSimulation(model, basis, FilterBand('lowpass', 0, 14, 'index'), dt=5e-4)
+    rest = ModalSimulation(model, basis, FilterBand('lowpass', 0, 14, 'index'),
+                           ModalSettings(dt=5e-4))
     measured = error_over_run(rest, 6.0)
     assert choice.kind == 'derivatives' and not choice.small
     assert 0.5 < choice.predicted['rest'] / measured < 2.0, (choice.predicted, measured)

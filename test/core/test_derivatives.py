@@ -16,7 +16,7 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces import ForceOptions
 from modal_spring_ros.core.forces.exact import ExactForces
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
+from modal_spring_ros.core.simulations import FullSimulation, ModalSettings, ModalSimulation
 from modal_spring_ros.core.worker import WorkerProcess
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -97,7 +97,8 @@ def test_added_coordinates_leave_the_band_alone_and_keep_k0_diagonal(resonance):
 def test_the_resonance_scene_stays_right_where_rest_modes_drift(resonance):
     """The paper's fig. 10 failure: rest modes 0..14 drift to 46 % error in a window."""
     model, basis = resonance
-    sims = {kind: ModalSimulation(model, basis, LOWPASS_0_14, dt=5e-4, basis_kind=kind)
+    sims = {kind: ModalSimulation(model, basis, LOWPASS_0_14,
+                                  ModalSettings(dt=5e-4, basis_kind=kind))
             for kind in ('rest', 'derivatives')}
     errors = errors_against_full(model, basis, sims, 6.0, 5e-4)
     worst, overall = errors['derivatives']
@@ -109,7 +110,8 @@ def test_the_resonance_scene_stays_right_where_rest_modes_drift(resonance):
 def test_small_deformation_gets_more_accurate_too():
     model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
-    sims = {kind: ModalSimulation(model, basis, LOWPASS_0_14, dt=5e-4, basis_kind=kind)
+    sims = {kind: ModalSimulation(model, basis, LOWPASS_0_14,
+                                  ModalSettings(dt=5e-4, basis_kind=kind))
             for kind in ('rest', 'derivatives')}
     errors = errors_against_full(model, basis, sims, 5.0, 5e-4)
     assert errors['derivatives'][1] < 0.003, errors
@@ -118,8 +120,8 @@ def test_small_deformation_gets_more_accurate_too():
 
 def test_a_band_pass_puts_nothing_back_into_the_modes_it_removes(resonance):
     model, basis = resonance
-    sim = ModalSimulation(model, basis, FilterBand('bandpass', 2, 48, 'index'), dt=5e-4,
-                          basis_kind='derivatives')
+    sim = ModalSimulation(model, basis, FilterBand('bandpass', 2, 48, 'index'),
+                          ModalSettings(dt=5e-4, basis_kind='derivatives'))
     removed = basis.vectors[:, :2]
     mass = model.mass_dof
     inside = total = 0.0
@@ -137,8 +139,8 @@ def test_the_32x32_resonance_scene_stays_within_one_and_a_half_percent():
     model = MassSpringModel(load_scene('sheet_32x32_resonance'))
     basis = ModalBasis(model)
     full_dt = 0.5 * 2.0 / basis.omega_max_estimate()     # the full run's half limit
-    sim = ModalSimulation(model, basis, LOWPASS_0_14, dt=2 * full_dt,
-                          basis_kind='derivatives')
+    sim = ModalSimulation(model, basis, LOWPASS_0_14,
+                          ModalSettings(dt=2 * full_dt, basis_kind='derivatives'))
     (_, overall), = errors_against_full(model, basis, {'d': sim}, 6.0, 2 * full_dt,
                                         full_dt).values()
     assert overall < 0.015
@@ -160,8 +162,8 @@ def test_a_large_scene_computes_the_same_coordinates_in_the_worker():
 def test_a_band_change_fades_the_added_coordinates_without_a_jump():
     model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
-    sim = ModalSimulation(model, basis, FilterBand('lowpass', 0, 20, 'index'), dt=5e-4,
-                          basis_kind='derivatives')
+    sim = ModalSimulation(model, basis, FilterBand('lowpass', 0, 20, 'index'),
+                          ModalSettings(dt=5e-4, basis_kind='derivatives'))
     sim.step(4000)                                         # 2 s: swaying steadily
 
     ordinary = max_step_motion(sim, 2000)
@@ -208,8 +210,8 @@ def test_a_low_pass_with_derivatives_does_not_pass_a_load_above_it():
     shake = {}
     for kind in ('rest', 'derivatives', 'every mode'):
         band = FilterBand() if kind == 'every mode' else FilterBand('lowpass', 0, 7.0)
-        sim = ModalSimulation(model, basis, band, dt=5e-4,
-                              basis_kind='rest' if kind == 'rest' else 'derivatives')
+        basis_kind = 'rest' if kind == 'rest' else 'derivatives'
+        sim = ModalSimulation(model, basis, band, ModalSettings(dt=5e-4, basis_kind=basis_kind))
         sim.step(2000)
         steps = 8000                                   # 4 s: 0.25 Hz bins
         shake[kind] = power_above(sim, 7.5, steps, below_hz=8.5)
@@ -227,8 +229,9 @@ def test_refreshed_forces_work_on_the_derivative_basis():
     """
     model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
-    sims = {n: ModalSimulation(model, basis, LOWPASS_0_14, dt=5e-4,
-                               forces=ForceOptions('refreshed', n), basis_kind='derivatives')
+    sims = {n: ModalSimulation(model, basis, LOWPASS_0_14,
+                               ModalSettings(dt=5e-4, forces=ForceOptions('refreshed', n),
+                                             basis_kind='derivatives'))
             for n in (1, 10)}
     assert sims[10].force_report().error is not None and sims[1].force_report().error is None
     errors = errors_against_full(model, basis, sims, 3.0, 5e-4)
@@ -247,8 +250,8 @@ def test_band_changes_faster_than_the_fade_keep_the_displacement_and_the_run_sta
     """
     model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
-    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4, basis_kind='derivatives',
-                          transition_s=0.2)
+    sim = ModalSimulation(model, basis, FilterBand(),
+                          ModalSettings(dt=5e-4, basis_kind='derivatives', transition_s=0.2))
     bands = [FilterBand('lowpass', 0, 12, 'hz'), FilterBand('bandpass', 5, 40, 'hz'),
              FilterBand('lowpass', 0, 20, 'index')]
     sim.step(400)

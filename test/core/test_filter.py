@@ -8,7 +8,7 @@ from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.forces import ForceOptions
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.simulations import ModalSimulation
+from modal_spring_ros.core.simulations import ModalSettings, ModalSimulation
 import modal_spring_ros.core.simulations.stepped_set as stepped_set
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -56,9 +56,11 @@ def test_a_front_end_s_names_are_the_ones_an_error_says():
 
 def test_fig_10_bands_keep_the_papers_mode_counts(sheet_10x10):
     model, basis = sheet_10x10
-    low = ModalSimulation(model, basis, FilterBand('lowpass', 0, 14, 'index'), dt=5e-4)
+    low = ModalSimulation(model, basis, FilterBand('lowpass', 0, 14, 'index'),
+                          ModalSettings(dt=5e-4))
     assert low.kept_modes.tolist() == list(range(15))           # 165 of 180 dropped
-    band = ModalSimulation(model, basis, FilterBand('bandpass', 2, 48, 'index'), dt=5e-4)
+    band = ModalSimulation(model, basis, FilterBand('bandpass', 2, 48, 'index'),
+                           ModalSettings(dt=5e-4))
     assert band.kept_modes.tolist() == list(range(2, 49))      # 2 low + 131 high dropped
     assert 180 - band.kept_modes.size - 2 == 131
 
@@ -66,8 +68,8 @@ def test_fig_10_bands_keep_the_papers_mode_counts(sheet_10x10):
 def test_a_band_that_keeps_no_mode_is_rejected(sheet_10x10):
     model, basis = sheet_10x10
     with pytest.raises(BandError, match=r'keeps no mode \(the computed modes span 4.7'):
-        ModalSimulation(model, basis, FilterBand('lowpass', high=1.0), dt=5e-4)
-    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4)
+        ModalSimulation(model, basis, FilterBand('lowpass', high=1.0), ModalSettings(dt=5e-4))
+    sim = ModalSimulation(model, basis, FilterBand(), ModalSettings(dt=5e-4))
     with pytest.raises(BandError):
         sim.set_band(FilterBand('bandpass', 5.0, 6.0))
     assert sim.band == FilterBand() and sim.kept_modes.size == 180  # nothing changed
@@ -78,9 +80,9 @@ def test_lowpass_leaves_under_one_percent_of_power_above_the_cutoff(sheet_undamp
     # Broadband excitation: every mode displaced by the same modal amplitude (white).
     u0 = basis.vectors @ np.random.default_rng(1).normal(scale=2e-4, size=basis.count)
     cutoff = 20.0
-    low = ModalSimulation(model, basis, FilterBand('lowpass', high=cutoff), dt=5e-4)
+    low = ModalSimulation(model, basis, FilterBand('lowpass', high=cutoff), ModalSettings(dt=5e-4))
     low.set_state(u0, np.zeros(model.n_free_dof))
-    every = ModalSimulation(model, basis, FilterBand(), dt=5e-4)
+    every = ModalSimulation(model, basis, FilterBand(), ModalSettings(dt=5e-4))
     every.set_state(u0, np.zeros(model.n_free_dof))
     assert power_above(low, cutoff, 6000) < 0.01
     assert power_above(every, cutoff, 6000) > 0.2     # the excitation really is broadband
@@ -88,7 +90,8 @@ def test_lowpass_leaves_under_one_percent_of_power_above_the_cutoff(sheet_undamp
 
 def test_changing_the_band_mid_run_moves_no_particle_more_than_ordinary_motion(sheet_10x10):
     model, basis = sheet_10x10
-    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4)   # default 0.5 s transition
+    sim = ModalSimulation(model, basis, FilterBand(),
+                          ModalSettings(dt=5e-4))   # default 0.5 s transition
     sim.step(4000)                                        # 2 s: swaying steadily
 
     ordinary = max_step_motion(sim, 2000)
@@ -101,7 +104,7 @@ def test_changing_the_band_mid_run_moves_no_particle_more_than_ordinary_motion(s
 
 def test_a_leaving_mode_fades_out_and_is_then_dropped(sheet_10x10):
     model, basis = sheet_10x10
-    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4, transition_s=0.1)
+    sim = ModalSimulation(model, basis, FilterBand(), ModalSettings(dt=5e-4, transition_s=0.1))
     sim.step(1000)
     q_before = sim.modal_coordinates[0]
     sim.set_band(FilterBand('highpass', low=6.0))      # drops mode 0 (4.7 Hz)
@@ -115,7 +118,7 @@ def test_a_leaving_mode_fades_out_and_is_then_dropped(sheet_10x10):
 
 def test_an_entering_mode_starts_from_rest(sheet_10x10):
     model, basis = sheet_10x10
-    sim = ModalSimulation(model, basis, FilterBand('highpass', low=6.0), dt=5e-4)
+    sim = ModalSimulation(model, basis, FilterBand('highpass', low=6.0), ModalSettings(dt=5e-4))
     sim.step(1000)
     sim.set_band(FilterBand())
     k = int(np.flatnonzero(sim.stepped_modes == 0)[0])
@@ -125,7 +128,8 @@ def test_an_entering_mode_starts_from_rest(sheet_10x10):
 def test_modes_not_computed_yet_are_computed_when_a_band_needs_them():
     model = MassSpringModel(load_scene('sheet_32x32'))
     basis = ModalBasis(model, initial_modes=16)
-    sim = ModalSimulation(model, basis, FilterBand('lowpass', high=15, by='index'), dt=5e-4)
+    sim = ModalSimulation(model, basis, FilterBand('lowpass', high=15, by='index'),
+                          ModalSettings(dt=5e-4))
     sim.step(400)
     before = sim.positions()
     high = float(basis.frequencies_hz[-1]) * 2.0
@@ -189,8 +193,9 @@ def test_a_switch_prepared_ahead_builds_nothing_when_applied_and_changes_no_resu
     band = FilterBand('bandpass', 10, 40, by='index')   # from 0..30: steps 0..40, then 10..40
     runs = []
     for prepare in (False, True):
-        sim = ModalSimulation(model, basis, FilterBand('bandpass', 0, 30, by='index'), dt=5e-4,
-                              transition_s=0.05, forces=ForceOptions('refreshed', 5))
+        sim = ModalSimulation(model, basis, FilterBand('bandpass', 0, 30, by='index'),
+                              ModalSettings(dt=5e-4, transition_s=0.05,
+                                            forces=ForceOptions('refreshed', 5)))
         sim.step(300)
         if prepare:
             sim.prepare_switch(band)

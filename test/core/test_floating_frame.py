@@ -16,7 +16,7 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.motion.anchor_motion import (AnchorMotion, RotationComponent,
                                                         SineComponent)
-from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
+from modal_spring_ros.core.simulations import FullSimulation, ModalSettings, ModalSimulation
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -92,7 +92,7 @@ def test_every_mode_in_the_clamps_frame_converges_to_the_full_run_in_the_world()
     basis = ModalBasis(model)
     errors = []
     for dt in (1e-3, 5e-4):
-        every = ModalSimulation(model, basis, FilterBand(), dt=dt)
+        every = ModalSimulation(model, basis, FilterBand(), ModalSettings(dt=dt))
         errors.append(deformation_errors(model, basis, {'all': every}, 2.0, dt)['all'])
     assert errors[1] < 2e-4
     assert errors[1] < 0.6 * errors[0], errors
@@ -106,9 +106,9 @@ def test_a_clamp_that_only_translates_runs_as_base_excitation_to_round_off(monke
     """
     model = MassSpringModel(load_scene('sheet_10x10'))
     basis = ModalBasis(model)
-    today = ModalSimulation(model, basis, LOWPASS_0_14, dt=5e-4, basis_kind='rest')
+    today = ModalSimulation(model, basis, LOWPASS_0_14, ModalSettings(dt=5e-4, basis_kind='rest'))
     monkeypatch.setattr(MassSpringModel, 'rotates', property(lambda self: True))
-    framed = ModalSimulation(model, basis, LOWPASS_0_14, dt=5e-4, basis_kind='rest')
+    framed = ModalSimulation(model, basis, LOWPASS_0_14, ModalSettings(dt=5e-4, basis_kind='rest'))
     assert framed._frame is not None and today._frame is None
     for _ in range(10):
         today.step(200)
@@ -130,9 +130,10 @@ def test_sheet_swing_in_the_band_stays_within_two_percent_of_the_full_run():
     model = MassSpringModel(load_scene('sheet_10x10_swing'))
     basis = ModalBasis(model)
     dt, duration = 5e-4, 10.0
-    framed = ModalSimulation(model, basis, LOWPASS_0_14, dt=dt, basis_kind='derivatives')
+    framed = ModalSimulation(model, basis, LOWPASS_0_14,
+                             ModalSettings(dt=dt, basis_kind='derivatives'))
     still = MassSpringModel(variant('sheet_10x10_swing', anchor_motion=[]))
-    left_out = ModalSimulation(still, ModalBasis(still), LOWPASS_0_14, dt=dt)
+    left_out = ModalSimulation(still, ModalBasis(still), LOWPASS_0_14, ModalSettings(dt=dt))
     full = FullSimulation(model, basis, dt=dt)
     sums = np.zeros(5)
     for _ in range(int(round(duration / dt))):
@@ -160,10 +161,10 @@ def test_cantilever_turning_about_y_stays_within_two_percent():
     model = MassSpringModel(scene)
     basis = ModalBasis(model)
     errors = deformation_errors(model, basis, {
-        'derivatives': ModalSimulation(model, basis, LOWPASS_0_14, dt=2e-4,
-                                       basis_kind='derivatives'),
-        'rest': ModalSimulation(model, basis, LOWPASS_0_14, dt=2e-4, basis_kind='rest')},
-        4.0, 2e-4)
+        'derivatives': ModalSimulation(model, basis, LOWPASS_0_14,
+                                       ModalSettings(dt=2e-4, basis_kind='derivatives')),
+        'rest': ModalSimulation(model, basis, LOWPASS_0_14,
+                                ModalSettings(dt=2e-4, basis_kind='rest'))}, 4.0, 2e-4)
     print(f"cantilever turning: derivatives {errors['derivatives']:.3%}, "
           f"rest {errors['rest']:.1%}")
     assert errors['derivatives'] < 0.02

@@ -7,7 +7,8 @@ from helpers import oscillator
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.simulations import DivergenceError, FullSimulation, ModalSimulation
+from modal_spring_ros.core.simulations import (DivergenceError, FullSimulation, ModalSettings,
+                                               ModalSimulation)
 import numpy as np
 import pytest
 
@@ -50,7 +51,7 @@ def test_measured_convergence_order_is_two(integrator):
 def test_modal_with_all_modes_equals_the_full_physical_run(sheet_10x10):
     """Same integrator, equivalent damping: equal to round-off over 2 s of sheet_10x10."""
     model, basis = sheet_10x10
-    modal = ModalSimulation(model, basis, FilterBand(), dt=5e-4)
+    modal = ModalSimulation(model, basis, FilterBand(), ModalSettings(dt=5e-4))
     full = FullSimulation(model, dt=5e-4, basis=basis)
     worst = 0.0
     for _ in range(40):                          # 40 x 100 steps = 2 s
@@ -65,7 +66,8 @@ def test_modal_with_all_modes_equals_the_full_physical_run(sheet_10x10):
 
 def test_average_acceleration_modal_equals_full_too(sheet_10x10):
     model, basis = sheet_10x10
-    modal = ModalSimulation(model, basis, FilterBand(), dt=2e-3, integrator='average')
+    modal = ModalSimulation(model, basis, FilterBand(),
+                            ModalSettings(dt=2e-3, integrator='average'))
     full = FullSimulation(model, dt=2e-3, integrator='average', basis=basis)
     modal.step(250)
     full.step(250)
@@ -75,7 +77,7 @@ def test_average_acceleration_modal_equals_full_too(sheet_10x10):
 
 def test_undamped_energy_is_conserved_below_the_stability_limit(sheet_undamped_still):
     model, basis = sheet_undamped_still
-    sim = ModalSimulation(model, basis, FilterBand(), dt=5e-4)
+    sim = ModalSimulation(model, basis, FilterBand(), ModalSettings(dt=5e-4))
     assert sim.dt < 0.5 * sim.stability_limit()
     e0 = sim.energy()['total']
     drift, peak_kinetic = 0.0, 0.0
@@ -110,7 +112,8 @@ def test_modal_lowpass_is_stable_where_the_full_explicit_run_diverges(sheet_unda
     dt = 1.5 * 2.0 / basis.omega[-1]
     with pytest.raises(DivergenceError):
         FullSimulation(model, dt=dt, basis=basis).step(3000)
-    modal = ModalSimulation(model, basis, FilterBand('lowpass', high=14, by='index'), dt=dt)
+    modal = ModalSimulation(model, basis, FilterBand('lowpass', high=14, by='index'),
+                            ModalSettings(dt=dt))
     modal.step(3000)
     assert modal.max_strain() < 0.05
 
@@ -129,7 +132,8 @@ def test_average_acceleration_is_stable_far_beyond_the_explicit_limit(sheet_10x1
     if method == 'full':
         sim = FullSimulation(model, dt=dt, integrator='average', basis=basis)
     else:
-        sim = ModalSimulation(model, basis, FilterBand(), dt=dt, integrator='average')
+        sim = ModalSimulation(model, basis, FilterBand(),
+                              ModalSettings(dt=dt, integrator='average'))
     u0 = basis.vectors @ np.random.default_rng(7).normal(scale=1e-4, size=basis.count)
     sim.set_state(u0, np.zeros_like(u0))
     iterations = []
@@ -142,9 +146,10 @@ def test_average_acceleration_is_stable_far_beyond_the_explicit_limit(sheet_10x1
 
 def test_runs_are_bit_identical(sheet_10x10):
     model, basis = sheet_10x10
-    a = ModalSimulation(model, basis, FilterBand('bandpass', 2, 48, 'index'), dt=5e-4)
+    a = ModalSimulation(model, basis, FilterBand('bandpass', 2, 48, 'index'),
+                        ModalSettings(dt=5e-4))
     b = ModalSimulation(model, ModalBasis(model), FilterBand('bandpass', 2, 48, 'index'),
-                        dt=5e-4)
+                        ModalSettings(dt=5e-4))
     a.step(500)
     b.step(500)
     assert np.array_equal(a.positions(), b.positions())

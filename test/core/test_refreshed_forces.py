@@ -10,7 +10,7 @@ from modal_spring_ros.core.forces import ForceOptions
 from modal_spring_ros.core.forces.exact import ExactForces
 from modal_spring_ros.core.forces.refreshed import RefreshedForces, static_equilibrium
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.simulations import DivergenceError, ModalSimulation
+from modal_spring_ros.core.simulations import DivergenceError, ModalSettings, ModalSimulation
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -64,7 +64,8 @@ def test_static_equilibrium_balances_gravity(sheet_10x10):
 
 def test_springs_are_evaluated_every_n_steps(sheet_10x10, monkeypatch):
     model, basis = sheet_10x10
-    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, forces=ForceOptions('refreshed', 8))
+    sim = ModalSimulation(model, basis, LOWPASS_16,
+                          ModalSettings(dt=1e-3, forces=ForceOptions('refreshed', 8)))
     calls = []
     original = ExactForces.spring_forces
     monkeypatch.setattr(ExactForces, 'spring_forces',
@@ -84,8 +85,8 @@ def test_refreshed_run_follows_the_every_step_run(sheet_10x10):
     model, basis = sheet_10x10
 
     def run(refresh):
-        sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3,
-                              forces=ForceOptions('refreshed', refresh))
+        sim = ModalSimulation(model, basis, LOWPASS_16,
+                              ModalSettings(dt=1e-3, forces=ForceOptions('refreshed', refresh)))
         out = []
         for _ in range(200):
             sim.step(10)
@@ -102,7 +103,8 @@ def test_refreshed_run_follows_the_every_step_run(sheet_10x10):
 def test_refreshed_undamped_energy_stays_bounded(sheet_undamped_still):
     """Holding the nonlinear part between refreshes must not pump energy into the modes."""
     model, basis = sheet_undamped_still
-    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, forces=ForceOptions('refreshed', 10))
+    sim = ModalSimulation(model, basis, LOWPASS_16,
+                          ModalSettings(dt=1e-3, forces=ForceOptions('refreshed', 10)))
     e0 = sim.energy()['total']
     drift, peak_kinetic, at_10s = 0.0, 0.0, None
     for k in range(3000):                        # 3000 x 10 steps = 30 s
@@ -119,7 +121,8 @@ def test_refreshed_undamped_energy_stays_bounded(sheet_undamped_still):
 
 def test_refreshed_runs_are_bit_identical(sheet_10x10):
     model, basis = sheet_10x10
-    runs = [ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, forces=ForceOptions('refreshed', 5))
+    runs = [ModalSimulation(model, basis, LOWPASS_16,
+                            ModalSettings(dt=1e-3, forces=ForceOptions('refreshed', 5)))
             for _ in range(2)]
     for sim in runs:
         sim.step(300)
@@ -128,7 +131,8 @@ def test_refreshed_runs_are_bit_identical(sheet_10x10):
 
 def test_band_change_with_refreshed_forces_is_smooth(sheet_10x10):
     model, basis = sheet_10x10
-    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3, forces=ForceOptions('refreshed', 8))
+    sim = ModalSimulation(model, basis, LOWPASS_16,
+                          ModalSettings(dt=1e-3, forces=ForceOptions('refreshed', 8)))
     sim.step(500)
     before = sim.positions()
     sim.set_band(FilterBand('lowpass', 0, 5, 'index'), transition_s=0.2)
@@ -230,8 +234,9 @@ def test_refreshed_forces_fall_back_to_exact_ones_past_the_tolerance():
         sim = build_simulation(scene, SimulationConfig(band=band, force_refresh=refresh,
                                                        tolerance=tolerance or 0.01))
         if tolerance is None:         # the shortcut unchecked, as before it checked itself
-            sim = ModalSimulation(sim.model, sim.basis, band, dt=sim.dt,
-                                  forces=ForceOptions('refreshed', refresh))
+            sim = ModalSimulation(sim.model, sim.basis, band,
+                                  ModalSettings(dt=sim.dt,
+                                                forces=ForceOptions('refreshed', refresh)))
         out = []
         for _ in range(60):
             sim.step(int(round(0.05 / sim.dt)))
@@ -253,8 +258,8 @@ def test_refreshed_forces_fall_back_to_exact_ones_past_the_tolerance():
 
 def test_refreshed_forces_within_the_tolerance_keep_their_shortcut(sheet_10x10):
     model, basis = sheet_10x10
-    sim = ModalSimulation(model, basis, LOWPASS_16, dt=1e-3,
-                          forces=ForceOptions('refreshed', 8, 0.01))
+    sim = ModalSimulation(model, basis, LOWPASS_16,
+                          ModalSettings(dt=1e-3, forces=ForceOptions('refreshed', 8, 0.01)))
     sim.step(2000)
     report = sim.force_report()
     assert 0.0 < report.error < 0.01 and not report.fell_back and report.interval == 8

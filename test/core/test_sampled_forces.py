@@ -16,7 +16,7 @@ from modal_spring_ros.core.forces import ForceOptions
 from modal_spring_ros.core.forces.sampled import check_spacing, SampledForces
 from modal_spring_ros.core.forces.sampling import MAX_SAMPLE_SHARE, SpringSample
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.simulations import ModalSimulation
+from modal_spring_ros.core.simulations import ModalSettings, ModalSimulation
 from modal_spring_ros.runs.sample_cache import SampleCache
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -63,15 +63,16 @@ def sheet_10x10(samples):
 def test_sheet_100x100_samples_few_springs_and_follows_the_exact_forces(sheet_100x100):
     model, basis = sheet_100x100
     start = time.perf_counter()
-    sampled = ModalSimulation(model, basis, LOWPASS_32, dt=2e-3, basis_kind='rest',
-                              forces=ForceOptions('sampled', tolerance=0.01))
+    sampled = ModalSimulation(model, basis, LOWPASS_32,
+                              ModalSettings(dt=2e-3, basis_kind='rest',
+                                            forces=ForceOptions('sampled', tolerance=0.01)))
     print(f'training {time.perf_counter() - start:.1f} s: {sampled.force_report().description}')
     forces = sampled._forces
     assert isinstance(forces, SampledForces) and not forces.fell_back
     assert forces.sample.count <= 0.02 * model.scene.n_springs
     assert forces.sample.held_out_error < 0.01
     assert np.all(forces.sample.weights > 0.0)
-    exact = ModalSimulation(model, basis, LOWPASS_32, dt=2e-3, basis_kind='rest')
+    exact = ModalSimulation(model, basis, LOWPASS_32, ModalSettings(dt=2e-3, basis_kind='rest'))
     assert relative_l2(sampled, exact, 2500) < 0.005             # 5 s
     assert not forces.fell_back and forces.max_sample_error < 0.01
 
@@ -86,8 +87,9 @@ def test_non_negative_weights_keep_an_undamped_run_s_energy(sheet_100x100):
     still = variant('sheet_100x100', anchor_motion=[], damping={'ratio': 0.0})
     model = MassSpringModel(still)
     basis = ModalBasis(model)
-    sim = ModalSimulation(model, basis, LOWPASS_32, dt=2e-3, basis_kind='rest',
-                          forces=ForceOptions('sampled', tolerance=0.01))
+    sim = ModalSimulation(model, basis, LOWPASS_32,
+                          ModalSettings(dt=2e-3, basis_kind='rest',
+                                        forces=ForceOptions('sampled', tolerance=0.01)))
     e0 = sim.energy()['total']
     totals, kinetic = [], []
     for _ in range(300):
@@ -110,9 +112,10 @@ def test_sampled_forces_hold_in_large_deformation():
     model = MassSpringModel(load_scene('sheet_10x10_resonance'))
     basis = ModalBasis(model)
     band = FilterBand('lowpass', 0, 14, 'index')
-    sampled = ModalSimulation(model, basis, band, dt=5e-4, basis_kind='derivatives',
-                              forces=ForceOptions('sampled', tolerance=0.01))
-    exact = ModalSimulation(model, basis, band, dt=5e-4, basis_kind='derivatives')
+    sampled = ModalSimulation(model, basis, band,
+                              ModalSettings(dt=5e-4, basis_kind='derivatives',
+                                            forces=ForceOptions('sampled', tolerance=0.01)))
+    exact = ModalSimulation(model, basis, band, ModalSettings(dt=5e-4, basis_kind='derivatives'))
     assert relative_l2(sampled, exact, 12000) < 0.01
     assert not sampled.force_report().fell_back
 
@@ -120,15 +123,15 @@ def test_sampled_forces_hold_in_large_deformation():
 def test_a_sample_is_cached_and_a_damaged_entry_is_trained_again(sheet_10x10, samples):
     model, basis = sheet_10x10
     band = FilterBand('lowpass', 0, 14, 'index')
-    first = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
+    first = ModalSimulation(model, basis, band, ModalSettings(dt=5e-4, forces=SAMPLED_2))
     entries = sorted(samples.folder.glob('*.npz'))
     assert entries
-    again = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
+    again = ModalSimulation(model, basis, band, ModalSettings(dt=5e-4, forces=SAMPLED_2))
     np.testing.assert_array_equal(again._forces.sample.springs, first._forces.sample.springs)
     assert again._forces.sample.seconds == 0.0                     # loaded, not trained
     newest = max(entries, key=lambda p: p.stat().st_mtime)
     newest.write_bytes(b'not a sample')
-    retrained = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
+    retrained = ModalSimulation(model, basis, band, ModalSettings(dt=5e-4, forces=SAMPLED_2))
     assert retrained._forces.sample.seconds > 0.0
     np.testing.assert_array_equal(retrained._forces.sample.springs,
                                   first._forces.sample.springs)
@@ -137,7 +140,7 @@ def test_a_sample_is_cached_and_a_damaged_entry_is_trained_again(sheet_10x10, sa
 def test_a_sample_beyond_its_tolerance_falls_back_to_exact_forces(sheet_10x10):
     model, basis = sheet_10x10
     band = FilterBand('lowpass', 0, 14, 'index')
-    sim = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
+    sim = ModalSimulation(model, basis, band, ModalSettings(dt=5e-4, forces=SAMPLED_2))
     forces = sim._forces
     crude = SpringSample(forces.sample.springs[:3], forces.sample.weights[:3], 0.5, 0.001, 0.0)
     bad = SampledForces(forces.exact, crude, tolerance=0.02, check_every=10)
@@ -175,7 +178,7 @@ def test_a_tampered_cache_entry_is_refused_removed_and_trained_again(sheet_10x10
     """Every cache entry is input: a bad one costs a report and training, never the run."""
     model, basis = sheet_10x10
     band = FilterBand('lowpass', 0, 14, 'index')
-    first = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
+    first = ModalSimulation(model, basis, band, ModalSettings(dt=5e-4, forces=SAMPLED_2))
     good = first._forces.sample
     entry = max(samples.folder.glob('*.npz'), key=lambda p: p.stat().st_mtime)
     raw = entry.read_bytes()
@@ -195,8 +198,8 @@ def test_a_tampered_cache_entry_is_refused_removed_and_trained_again(sheet_10x10
     else:
         _tampered(entry, springs=np.concatenate([good.springs[:1], good.springs[:-1]]))
     said = []
-    again = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2,
-                            progress=said.append)
+    again = ModalSimulation(model, basis, band,
+                            ModalSettings(dt=5e-4, forces=SAMPLED_2), progress=said.append)
     assert again._forces.sample.seconds > 0.0                      # trained again
     np.testing.assert_array_equal(again._forces.sample.springs, good.springs)
     assert any('refused' in line and 'removed, training again' in line for line in said) or \
@@ -204,7 +207,7 @@ def test_a_tampered_cache_entry_is_refused_removed_and_trained_again(sheet_10x10
     again.step(400)
     assert np.isfinite(again.positions()).all() and not again.force_report().fell_back
     # the entry was replaced by a good one: loaded, not trained, next time
-    third = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
+    third = ModalSimulation(model, basis, band, ModalSettings(dt=5e-4, forces=SAMPLED_2))
     assert third._forces.sample.seconds == 0.0
 
 
@@ -212,7 +215,7 @@ def test_nan_in_a_sample_makes_it_fall_back_at_the_first_check(sheet_10x10):
     """A NaN compares false with everything: the run-time check must still catch it (at rest)."""
     model, basis = sheet_10x10
     band = FilterBand('lowpass', 0, 14, 'index')
-    sim = ModalSimulation(model, basis, band, dt=5e-4, forces=SAMPLED_2)
+    sim = ModalSimulation(model, basis, band, ModalSettings(dt=5e-4, forces=SAMPLED_2))
     forces = sim._forces
     broken = SpringSample(forces.sample.springs, np.full(forces.sample.count, np.nan), 0.0,
                           0.0, 0.0)
@@ -230,8 +233,10 @@ def test_training_gives_up_early_where_sampling_cannot_pay(sheet_10x10):
     """
     model, basis = sheet_10x10
     said = []
-    sim = ModalSimulation(model, basis, FilterBand(), dt=2e-4, basis_kind='rest',
-                          forces=ForceOptions('sampled', tolerance=0.01), progress=said.append)
+    sim = ModalSimulation(model, basis, FilterBand(),
+                          ModalSettings(dt=2e-4, basis_kind='rest',
+                                        forces=ForceOptions('sampled', tolerance=0.01)),
+                          progress=said.append)
     sample = sim._forces.sample
     assert sample.gave_up.startswith('sampling cannot pay here')
     assert sample.count >= MAX_SAMPLE_SHARE * model.scene.n_springs
@@ -242,6 +247,7 @@ def test_training_gives_up_early_where_sampling_cannot_pay(sheet_10x10):
     assert sum(line.startswith('sampling springs:') for line in said) < 10
     sim.step(200)
     assert np.isfinite(sim.positions()).all()
-    again = ModalSimulation(model, basis, FilterBand(), dt=2e-4, basis_kind='rest',
-                            forces=ForceOptions('sampled', tolerance=0.01))
+    again = ModalSimulation(model, basis, FilterBand(),
+                            ModalSettings(dt=2e-4, basis_kind='rest',
+                                          forces=ForceOptions('sampled', tolerance=0.01)))
     assert again._forces.sample.gave_up and again._forces.sample.seconds == 0.0  # cached

@@ -6,7 +6,7 @@ import threading
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces import ForceOptions
 from modal_spring_ros.core.forces import sampling
-from modal_spring_ros.core.simulations import FullSimulation, ModalSimulation
+from modal_spring_ros.core.simulations import FullSimulation, ModalSettings, ModalSimulation
 from modal_spring_ros.core.threads import blas_threads, STEP_THREADS, stepping_threads
 import numpy as np
 import pytest
@@ -51,7 +51,8 @@ def test_steps_of_every_simulation_and_the_spring_training_run_on_one_thread(
     model, basis = sheet_10x10
     seen = []
     for sim in (FullSimulation(model, dt=2e-4, basis=basis),
-                ModalSimulation(model, basis, FilterBand(), dt=2e-4, basis_kind='rest')):
+                ModalSimulation(model, basis, FilterBand(),
+                                ModalSettings(dt=2e-4, basis_kind='rest'))):
         step_once = sim._step_once
 
         def counted(step_once=step_once):
@@ -66,7 +67,8 @@ def test_steps_of_every_simulation_and_the_spring_training_run_on_one_thread(
         seen.append(blas_threads())
         return nnls(*args, **kwargs)
     monkeypatch.setattr(sampling.scipy.optimize, 'nnls', counted_nnls)
-    ModalSimulation(model, basis, FilterBand('lowpass', 0, 5, 'index'), dt=2e-4,
-                    basis_kind='rest', forces=ForceOptions('sampled', tolerance=0.05))
+    ModalSimulation(model, basis, FilterBand('lowpass', 0, 5, 'index'),
+                    ModalSettings(dt=2e-4, basis_kind='rest',
+                                  forces=ForceOptions('sampled', tolerance=0.05)))
     assert len(seen) > 6 and set(seen) == {1}
     assert blas_threads() == 2

@@ -15,11 +15,12 @@ from modal_spring_ros.core.simulations.base import (check_step, DEFAULT_STRAIN_L
                                                     UnstableStepError)
 from modal_spring_ros.core.simulations.full import FullSimulation
 from modal_spring_ros.core.simulations.modal import ModalSimulation
+from modal_spring_ros.core.simulations.modal_settings import ModalSettings
 
 #: method name -> class
 METHODS: dict[str, type[Simulation]] = {
     cls.method: cls for cls in (ModalSimulation, FullSimulation)}
 
 __all__ = ['DEFAULT_MAX_MODES', 'DEFAULT_STRAIN_LIMIT', 'METHODS', 'MIN_DT_S',
-           'DivergenceError', 'FullSimulation', 'ModalSimulation', 'Simulation',
+           'DivergenceError', 'FullSimulation', 'ModalSettings', 'ModalSimulation', 'Simulation',
            'SimulationStatus', 'UnstableStepError', 'check_step', 'stable_step_limit']

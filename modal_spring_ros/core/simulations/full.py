@@ -15,6 +15,7 @@ from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simulation,
                                                     stable_step_limit)
 from modal_spring_ros.core.simulations.modal import ModalSimulation
+from modal_spring_ros.core.simulations.modal_settings import ModalSettings
 from modal_spring_ros.core.simulations.world_frame import WorldFrameRun
 import numpy as np
 import scipy.sparse as sp
@@ -143,9 +144,9 @@ class FullSimulation(Simulation):
                        dt_name: str = 'dt') -> None:
         """Check that the band is one a modal run of this step could take over."""
         if self._probe is None:
-            self._probe = ModalSimulation(self.model, self.basis, FilterBand(), dt=self.dt,
-                                          integrator=self.integrator,
-                                          strain_limit=self.strain_limit)
+            self._probe = ModalSimulation(self.model, self.basis, FilterBand(),
+                                          ModalSettings(dt=self.dt, integrator=self.integrator,
+                                                        strain_limit=self.strain_limit))
         self._probe.check_band(band, dt_name)
 
     def with_dt(self, dt: float) -> 'FullSimulation':

@@ -27,19 +27,19 @@ during a fade starts from the settled band instead of a half-changed one.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from modal_spring_ros.core.bases.basis import ModalBasis, Progress
-from modal_spring_ros.core.bases.derivatives import AddedCoordinates, DEFAULT_DIRECTIONS
+from modal_spring_ros.core.bases.derivatives import AddedCoordinates
 from modal_spring_ros.core.filter_band import BandError, FilterBand
-from modal_spring_ros.core.forces import force_model, ForceOptions
+from modal_spring_ros.core.forces import force_model
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.model.scene import Damping
-from modal_spring_ros.core.simulations.base import (check_step, DEFAULT_STRAIN_LIMIT, Simulation,
-                                                    stable_step_limit)
+from modal_spring_ros.core.simulations.base import check_step, Simulation, stable_step_limit
 from modal_spring_ros.core.simulations.coordinates import (ActiveSet, ADDED_ID,
                                                            AddedCoordinateBank, BASES, EMPTY_SET)
 from modal_spring_ros.core.simulations.early_step_check import check_step_before_modes, mode_cap
+from modal_spring_ros.core.simulations.modal_settings import ModalSettings
 from modal_spring_ros.core.simulations.prepared_sets import PreparedSets
 from modal_spring_ros.core.simulations.stepped_set import SteppedSet
 import numpy as np
@@ -47,30 +47,28 @@ import numpy as np
 
 class ModalSimulation(Simulation):
     """
-    Steps the modes the filter band keeps.
+    Steps the modes the filter band keeps, as ``settings`` say (:class:`ModalSettings`).
 
-    ``forces``: how the nonlinear spring forces are evaluated (a force model of
+    ``settings.forces``: how the nonlinear spring forces are evaluated (a force model of
     :data:`~modal_spring_ros.core.forces.FORCES`): every spring on every step, exactly as the
     paper (``exact``); every ``refresh`` steps, continued along the static tangent in between
     (``refreshed``), so that most steps cost nothing per spring; or a sample of the springs
-    trained within ``tolerance`` (``sampled``, for a settled band). ``highest_hz``: modes
-    above it are never stepped (set by the automatic mode choice ``mode_choice``).
-    ``basis_kind``: ``rest`` (the paper's rest modes) or ``derivatives`` (each band also steps
-    ``derivative_directions`` modal-derivative directions and the static load vectors; see the
-    module text).
+    trained within ``tolerance`` (``sampled``, for a settled band). ``mode_choice``: the
+    automatic mode choice that made the run (its ``highest_hz``); ``bank``: the added
+    coordinates computed so far (shared by the runs of one basis); ``progress``: told about
+    long computations.
     """
 
     method = 'modal'
 
-    def __init__(self, model: MassSpringModel, basis: ModalBasis, band: FilterBand, *,
-                 dt: float, integrator: str = 'explicit', damping: Damping | None = None,
-                 transition_s: float = 0.5, max_modes: int | None = None,
-                 strain_limit: float = DEFAULT_STRAIN_LIMIT, highest_hz: float | None = None,
-                 forces: ForceOptions = ForceOptions(), mode_choice=None,
-                 basis_kind: str = 'rest', derivative_directions: int = DEFAULT_DIRECTIONS,
+    def __init__(self, model: MassSpringModel, basis: ModalBasis, band: FilterBand,
+                 settings: ModalSettings, *, mode_choice=None,
                  bank: AddedCoordinateBank | None = None, progress: Progress | None = None):
-        super().__init__(model, basis, dt=dt, integrator=integrator, damping=damping,
-                         strain_limit=strain_limit)
+        super().__init__(model, basis, dt=settings.dt, integrator=settings.integrator,
+                         damping=settings.damping, strain_limit=settings.strain_limit)
+        #: what the run was built with
+        self.settings = settings
+        basis_kind, derivative_directions = settings.basis_kind, settings.derivative_directions
         if basis_kind not in BASES:
             raise ValueError(f"basis '{basis_kind}' must be one of {', '.join(BASES)}")
         if not (isinstance(derivative_directions, (int, np.integer))
@@ -80,13 +78,13 @@ class ModalSimulation(Simulation):
         self.basis_kind = basis_kind
         self._bank = bank if bank is not None else AddedCoordinateBank(
             basis, derivative_directions, progress)
-        force_model(forces)  # a known model, options in range
+        force_model(settings.forces)  # a known model, options in range
         #: how the spring forces are evaluated
-        self.forces = forces
-        self.highest_hz = highest_hz
+        self.forces = settings.forces
+        self.highest_hz = settings.highest_hz
         self._mode_choice = mode_choice
-        self.max_modes = mode_cap(basis, max_modes)
-        self.transition_s = float(transition_s)
+        self.max_modes = mode_cap(basis, settings.max_modes)
+        self.transition_s = float(settings.transition_s)
         self._band = band.validate()
         self._set = EMPTY_SET
         self._q = self._v = self._a = np.empty(0)
@@ -155,13 +153,9 @@ class ModalSimulation(Simulation):
         return self._band.describe()
 
     def with_dt(self, dt: float) -> 'ModalSimulation':
-        return ModalSimulation(self.model, self.basis, self._band, dt=dt,
-                               integrator=self.integrator, damping=self.damping,
-                               transition_s=self.transition_s, max_modes=self.max_modes,
-                               strain_limit=self.strain_limit, highest_hz=self.highest_hz,
-                               forces=self.forces, mode_choice=self._mode_choice,
-                               basis_kind=self.basis_kind,
-                               derivative_directions=self._bank.directions, bank=self._bank)
+        settings = dataclasses.replace(self.settings, dt=dt, transition_s=self.transition_s)
+        return ModalSimulation(self.model, self.basis, self._band, settings,
+                               mode_choice=self._mode_choice, bank=self._bank)
 
     def stability_limit(self) -> float:
         return stable_step_limit(float(self._bank.omega(self._set.modes).max()))
