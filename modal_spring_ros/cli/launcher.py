@@ -13,9 +13,13 @@ happens to be, and code that swallows every exception there (an extension's init
 library's ``except BaseException``) would lose it, and the node would start streaming after
 the user pressed Ctrl-C. A remembered interrupt ends the run before ``main``. Where SIGINT is
 ignored (a shell's background job), it stays ignored, as for any program.
+
+A crash in native code (the middleware, a BLAS) prints every thread's Python stack on stderr
+(:mod:`faulthandler`) before the process ends, so a report says where it happened.
 """
 from __future__ import annotations
 
+import faulthandler
 import functools
 import importlib
 import signal
@@ -36,6 +40,7 @@ def run(script: str) -> int:
 
 def run_module(name: str) -> int:
     """Import module ``name`` under Ctrl-C's guard and run its ``main``."""
+    faulthandler.enable(all_threads=True)
     interrupts = _remember_interrupts()
     try:
         module = importlib.import_module(name)

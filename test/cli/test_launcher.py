@@ -50,3 +50,19 @@ def test_an_ignored_sigint_stays_ignored(tmp_path):
     """A shell's background job ignores SIGINT: the launcher keeps it so."""
     done = _run(tmp_path, 'swallowing', SWALLOWING, sigint='')
     assert done.returncode == 0 and done.stdout.startswith('main ran')
+
+
+CRASHING = """
+import ctypes
+
+
+def main():
+    ctypes.string_at(0)      # a crash in native code
+"""
+
+
+def test_a_crash_in_native_code_prints_where_each_thread_was(tmp_path):
+    done = _run(tmp_path, 'crashing', CRASHING)
+    assert done.returncode == -11, (done.returncode, done.stderr)
+    assert 'Fatal Python error: Segmentation fault' in done.stderr
+    assert 'crashing.py", line 6 in main' in done.stderr, done.stderr
