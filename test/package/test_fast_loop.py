@@ -6,6 +6,7 @@ runs every test, the slow ones included.
 """
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -13,10 +14,16 @@ from helpers import REPO
 
 
 def _collected(*args: str) -> set[str]:
-    """Return the test ids pytest collects with ``args``."""
+    """
+    Return the test ids pytest collects with ``args``.
+
+    Without the options of the pytest running this test: ``colcon test`` passes its own
+    (``-q``, ``--junit-xml``) in ``PYTEST_ADDOPTS``.
+    """
+    env = {k: v for k, v in os.environ.items() if k != 'PYTEST_ADDOPTS'}
     proc = subprocess.run([sys.executable, '-m', 'pytest', '--collect-only', '-q',
                            '-p', 'no:cacheprovider', *args], cwd=REPO, capture_output=True,
-                          text=True, timeout=120)
+                          text=True, timeout=120, env=env)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     return {line for line in proc.stdout.splitlines() if '::' in line}
 
