@@ -17,6 +17,7 @@ from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.parameters import PARAMETERS
+from modal_spring_ros.ros.publication_mode import prefer_asynchronous_publication
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
@@ -33,7 +34,8 @@ USAGE = """usage: modal_spring_node [-h] [--ros-args -p NAME:=VALUE ... --params
 Steps a mass-spring scene in modal coordinates and streams it as sensor_msgs/PointCloud2 on
 'points', with /diagnostics. Every setting is a ROS parameter: give it at start with
 --ros-args -p NAME:=VALUE (or a parameter file), change it at runtime with ros2 param set or
-SetParameters(Atomically). Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool).
+SetParameters(Atomically). Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool),
+~/step (std_srvs/Trigger: one frame, while paused).
 
 parameters (read-only ones only at start):"""
 
@@ -81,6 +83,7 @@ def main(args: list[str] | None = None) -> int:
         print(usage())
         return 0
     signal.signal(signal.SIGTERM, _ignore_after_rclpy)
+    prefer_asynchronous_publication()  # a frame's sending never holds the stepping thread
     rclpy.init(args=args)
     node = None
     try:

@@ -7,8 +7,8 @@ executor serves parameter requests (:mod:`~modal_spring_ros.ros.node_parameters`
 set, their slow part, such as modes computed in a worker process, planned by
 :mod:`~modal_spring_ros.ros.parameter_changes` in the change preparer's thread,
 :mod:`~modal_spring_ros.ros.change_preparer`, so no request waits behind a slow one, and
-committed after the set) and ``~/reset`` and ``~/pause``, awaited without holding an executor
-thread. Every change reaches the simulation thread as one typed request
+committed after the set) and ``~/reset``, ``~/pause`` and ``~/step``, awaited without holding
+an executor thread. Every change reaches the simulation thread as one typed request
 (:mod:`~modal_spring_ros.ros.requests`).
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
@@ -16,7 +16,8 @@ Topics (relative names, so namespaces and remapping work): ``points`` (PointClou
 ``/clock`` when ``publish_clock`` is true. Subscriptions (:mod:`~modal_spring_ros.ros.inputs`,
 on the companion node ``<name>_inputs``, :mod:`~modal_spring_ros.ros.input_node`):
 ``anchor_pose`` (PoseStamped, with ``anchor.source`` topic) and ``/clicked_point``
-(PointStamped). Services: ``~/reset`` (Trigger), ``~/pause`` (SetBool). See docs/node.md.
+(PointStamped). Services: ``~/reset`` (Trigger), ``~/pause`` (SetBool), ``~/step`` (Trigger,
+while paused). See docs/node.md.
 """
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ from modal_spring_ros.ros.outputs import NodeOutputs
 from modal_spring_ros.ros.parameter_changes import ChangePlanner
 from modal_spring_ros.ros.parameters import (config_from_parameters, FREQUENCIES,
                                              FREQUENCIES_DESCRIPTOR, PARAMETERS)
-from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset
+from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset, Step
 from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
@@ -99,6 +100,7 @@ class ModalSpringNode(Node):
         self.create_timer(SERVICE_WAKE_S, lambda: None, callback_group=services)
         self.create_service(Trigger, '~/reset', self._on_reset, callback_group=services)
         self.create_service(SetBool, '~/pause', self._on_pause, callback_group=services)
+        self.create_service(Trigger, '~/step', self._on_step, callback_group=services)
         self._namesakes = 0
         self.create_timer(NAMESAKE_CHECK_S, self._check_namesakes, callback_group=services)
         status = sim.status()
@@ -160,6 +162,9 @@ class ModalSpringNode(Node):
 
     async def _on_pause(self, request, response):
         return await self._answer(Pause(paused=bool(request.data)), response)
+
+    async def _on_step(self, _request, response):
+        return await self._answer(Step(), response)
 
     def stop(self) -> None:
         """Stop the threads (before destroy_node) and finalise the capture."""

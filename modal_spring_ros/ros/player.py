@@ -11,6 +11,7 @@ import time
 from modal_spring_ros.bags.qos import playback_profile, profiles_from_yaml
 from modal_spring_ros.bags.reader import BagReader, message_class
 from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.ros.publication_mode import prefer_asynchronous_publication
 import rclpy
 from rclpy.executors import ExternalShutdownException
 
@@ -37,6 +38,7 @@ def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool
     bag.check(installed)  # every message decodes and no cloud is damaged, before playing
     signal.signal(signal.SIGTERM, lambda *_: None)  # rclpy shuts down first, then this
     count = 0
+    prefer_asynchronous_publication()  # a slow reader never holds the replay's clock
     rclpy.init(args=ros_args)
     node = rclpy.create_node('modal_spring_replay')
     try:

@@ -99,6 +99,15 @@ class Pause(Request):
 
 
 @dataclasses.dataclass(eq=False)
+class Step(Request):
+    """While paused: advance one frame's worth of simulated time and publish that frame."""
+
+
+class StepRefused(RuntimeError):
+    """A step that cannot be made (the run is not paused), or that diverged (reported apart)."""
+
+
+@dataclasses.dataclass(eq=False)
 class TakeInput(Request):
     """An accepted input message (:mod:`~modal_spring_ros.ros.input_kinds`) to apply."""
 

@@ -26,7 +26,8 @@ from modal_spring_ros.ros.diagnostics import StreamReport
 from modal_spring_ros.ros.divergence_streak import DivergenceStreak, HeldError
 from modal_spring_ros.ros.outputs import Outputs
 from modal_spring_ros.ros.requests import (ChangeBand, Pause, ReplaceSimulation, Request, Reset,
-                                           TakeInput, without_superseded)
+                                           Step, StepRefused, TakeInput,
+                                           without_superseded)
 
 #: wall time between two diagnostics messages, s
 DIAGNOSTICS_PERIOD_S = 1.0
@@ -222,7 +223,7 @@ class SimulationThread:
         for request in without_superseded(batch):
             try:
                 message = self._apply(request)
-            except HeldError as exc:  # said once when the run was held: not again per input
+            except (HeldError, StepRefused) as exc:  # said once (held), or not an error
                 request.finish(False, str(exc))
                 continue
             except Exception as exc:  # refused: the run is as it was before the request
@@ -237,7 +238,7 @@ class SimulationThread:
         """Apply one request; returns what happened. Raises with the run unchanged."""
         handlers: dict[type, Callable[[Request], str]] = {
             ChangeBand: self._change_band, ReplaceSimulation: self._replace,
-            Reset: self._reset, Pause: self._pause, TakeInput: self._take_input}
+            Reset: self._reset, Pause: self._pause, Step: self._step, TakeInput: self._take_input}
         return handlers[type(request)](request)
 
     held = property(lambda self: self._streak.held, doc='Why the run is held, or empty.')
@@ -271,6 +272,20 @@ class SimulationThread:
         self.paused = request.paused
         self._reanchor(window_valid=False)
         return 'paused' if request.paused else 'running'
+
+    def _step(self, request: Step) -> str:
+        """Advance one frame period (times the real-time factor, when set) and publish it."""
+        if not self.paused:
+            raise StepRefused('stepping is for a paused run: call ~/pause with true first')
+        self._streak.refuse_while_held()
+        settings, steps, divergences = self._settings(), self._window.steps, self._divergences
+        self._step_until(self.sim.time + (settings.realtime_factor or 1.0)
+                         / settings.publish_rate_hz, float('inf'))
+        if self._divergences != divergences:
+            raise StepRefused(f'{self._last_divergence} (reported on /diagnostics)')
+        self._last_frame = 0.0      # a stepped frame after a pause: no gap in the stream
+        self._publish_frame(settings.mesh_rate_hz > 0)
+        return f'stepped {self._window.steps - steps} steps to t = {self.sim.time:.6g} s'
 
     def _fail_pending(self, why: str) -> None:
         while True:

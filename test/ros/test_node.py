@@ -180,6 +180,28 @@ def test_pause_stops_the_stream_and_resume_restarts_it(running):
     assert wait_for(lambda: any(t > start + 1.0 for t, _ in points), 2.0)
 
 
+def test_step_advances_a_paused_run_by_one_frame_and_publishes_it(running):
+    _, client, points, _ = running
+    res = client.call(Trigger, f'/{NODE}/step', Trigger.Request())
+    assert not res.success and 'paused' in res.message, res.message   # only a paused run
+    assert client.call(SetBool, f'/{NODE}/pause', SetBool.Request(data=True)).success
+    try:
+        time.sleep(0.3)
+        start = time.monotonic()
+        for _ in range(3):
+            res = client.call(Trigger, f'/{NODE}/step', Trigger.Request())
+            assert res.success and res.message.startswith('stepped'), res.message
+        time.sleep(0.5)                                  # and nothing more while paused
+        stepped = [m for t, m in points if t > start]
+        assert len(stepped) == 3
+        times = np.array([stamp(m) for m in stepped])
+        # one frame period of simulated time each (real-time factor 1), to the step
+        assert np.allclose(np.diff(times), 1.0 / RATE, atol=2e-3), np.diff(times)
+        assert not np.allclose(xyz(stepped[0]), xyz(stepped[2]))   # the sheet moved
+    finally:
+        client.call(SetBool, f'/{NODE}/pause', SetBool.Request(data=False))
+
+
 def test_reset_returns_to_the_rest_state(running):
     _, client, points, _ = running
     assert stamp(points[-1][1]) > 5.0

@@ -246,8 +246,8 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
     """
     sheet_100x100 starts with 32 modes.
 
-    A band up to mode 99 makes the node compute more (its change preparer, in the worker
-    process) and build the switch there. The stream must go on meanwhile: in-process, the
+    A band up to mode 99 makes the node compute more (in the worker process) and build the
+    switch (in its change preparer's thread). The stream must go on meanwhile: in-process, the
     eigensolver held the interpreter for 0.07-0.2 s at a time. (Rest modes: what the worker keeps
     off the stream is measured here; the derivative basis adds the band's derivatives to the
     request.)
@@ -274,23 +274,27 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
         assert wait_for(applied, 180)
         done = time.monotonic()
         assert any(t > start and t < done for t, _ in points)   # frames during the work
-        mine = [(t, d.status[0]) for t, d in diags
-                if node_of(d.status[0]).startswith('/grow/') and t > start]
-        values = {kv.key: kv.value for kv in mine[-1][1].values}
-        assert int(values['modes computed']) >= 100
-        # gaps by the node's own stamps (when it published), not by when this busy test
-        # process got to receive them
-        received = np.array([t for t, _ in points])
-        times = np.array([stamp_s(m) for _, m in points])
-        steady = float(np.diff(times[(received > start - 3.0) & (received < start)]).max())
-        # while the modes are computed and the switch is made (after it, a run of 100 modes
-        # is a heavier run: whether it keeps real time is reported apart, not a stall)
-        worst = float(np.diff(times[(received > start - 0.5) & (received <= done)]).max())
-        print(f'longest gap {worst:.3f} s (steady: {steady:.3f} s)')
+        mine = [(t, {kv.key: kv.value for kv in d.status[0].values}) for t, d in diags
+                if node_of(d.status[0]).startswith('/grow/')]
+        assert int(mine[-1][1]['modes computed']) >= 100
+
+        def longest_gap(since: float, until: float) -> float:
+            """Return the longest gap between two frames the node reported in a window."""
+            return max(float(v['longest gap between frames (s)']) for t, v in mine
+                       if since < t <= until)
+        # the node's own account of its frames (a frame a busy test process is too slow to
+        # take is overwritten in the publisher's history: a gap here, not in the stream)
+        steady = longest_gap(start - 3.0, start)
+        # while the modes are computed and the switch is made (after it, a run of 100 modes is a
+        # heavier run: whether it keeps real time is reported apart, not a stall)
+        worst = longest_gap(start, done)
+        received = np.array([stamp_s(m) for t, m in points if start < t <= done])
+        print(f'longest gap {worst:.3f} s (steady: {steady:.3f} s; between frames received: '
+              f'{np.diff(received).max():.3f} s)')
         # here about 0.05-0.2 s; within five of the same run's longest steady gaps (what the
         # eigensolver in the node's own interpreter once did: 0.07-0.2 s at each hold, every time)
-        assert worst < 5.0 * max(steady, 1.0 / 60.0), (worst, steady,
-                                                       [s.message for _, s in mine])
+        assert worst < 5.0 * max(steady, 1.0 / 60.0), (
+            worst, steady, [d.status[0].message for t, d in diags if start < t <= done])
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
