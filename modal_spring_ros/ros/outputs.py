@@ -24,6 +24,7 @@ from modal_spring_ros.core.simulations import Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import diagnostic_array, StreamReport
 import numpy as np
 from rclpy.node import Node
+from rclpy.qos import QoSPolicyKind
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
@@ -35,6 +36,10 @@ POINTS_TOPIC = 'points'
 MESH_TOPIC = 'mesh'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 CLOCK_TOPIC = '/clock'
+#: what a user may override in the stream's QoS at start (rclpy's default set leaves durability
+#: out: a late viewer asking for transient-local frames could not have them)
+OVERRIDABLE_POLICIES = (QoSPolicyKind.HISTORY, QoSPolicyKind.DEPTH, QoSPolicyKind.RELIABILITY,
+                        QoSPolicyKind.DURABILITY)
 #: depth of the publishers' history (keep last)
 QUEUE_DEPTH = 10
 
@@ -81,9 +86,8 @@ class NodeOutputs:
         #: why the capture stopped ('' while it records, or when there is none)
         self.recording_stopped = ''
         # the stream's QoS can be overridden at start, as rclpy nodes commonly allow:
-        # -p qos_overrides./<namespace>/points.publisher.reliability:=best_effort (also
-        # history, depth, durability)
-        overrides = QoSOverridingOptions.with_default_policies()
+        # -p qos_overrides./<namespace>/points.publisher.reliability:=best_effort
+        overrides = QoSOverridingOptions(policy_kinds=OVERRIDABLE_POLICIES)
         self._points = node.create_publisher(PointCloud2, POINTS_TOPIC, QUEUE_DEPTH,
                                              qos_overriding_options=overrides)
         self._mesh = node.create_publisher(Marker, MESH_TOPIC, QUEUE_DEPTH,

@@ -16,6 +16,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from helpers import REPO
 import numpy as np
 import pytest
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from ros_harness import Client, frames_since, node_of, node_with_client, NodeProcess, wait_for
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
@@ -351,14 +352,20 @@ def test_no_clock_unless_asked_and_one_line_once_streaming():
             "frame 'world'") in lines[0]
 
 
-def test_the_stream_s_qos_can_be_overridden_at_start():
-    from rclpy.qos import ReliabilityPolicy
-    from ros_harness import node_with_client
-    with node_with_client('qos_overrides./qos/points.publisher.reliability:=best_effort',
+@pytest.mark.parametrize('policy, value, field, expected', [
+    ('reliability', 'best_effort', 'reliability', ReliabilityPolicy.BEST_EFFORT),
+    ('durability', 'transient_local', 'durability', DurabilityPolicy.TRANSIENT_LOCAL)])
+def test_the_stream_s_qos_can_be_overridden_at_start(policy, value, field, expected):
+    """
+    A policy the node documents as overridable is offered as given (durability was ignored).
+
+    History and depth are overridable too, but the graph does not show a writer's depth.
+    """
+    with node_with_client(f'qos_overrides./qos/points.publisher.{policy}:={value}',
                           namespace='qos') as (node, client):
         assert wait_for(lambda: client.node.get_publishers_info_by_topic('/qos/points'), 30)
         (info,) = client.node.get_publishers_info_by_topic('/qos/points')
-        assert info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+        assert getattr(info.qos_profile, field) == expected
 
 
 def test_two_nodes_of_one_name_on_one_domain_are_both_warned():
