@@ -47,15 +47,15 @@ def main(argv: list[str] | None = None) -> int:
     def body() -> int:
         if args.frame_every < 1:
             raise ValueError(f'--frame-every ({args.frame_every}) must be at least 1')
-        scene = load_scene(args.scene)
+        progress = None if args.quiet else (lambda msg: print(f'[{PROG}] {msg}',
+                                                              file=sys.stderr))
+        scene = load_scene(args.scene, progress)
         duration = args.duration if args.duration is not None else scene.default_duration
         if not (math.isfinite(duration) and duration > 0):
             raise ValueError(f'--duration ({duration}) must be a positive number of seconds')
         # --auto's tolerance holds over the run asked for (up to a day)
         config = dataclasses.replace(config_from_args(args),
                                      horizon_s=min(duration, MAX_HORIZON_S))
-        progress = None if args.quiet else (lambda msg: print(f'[{PROG}] {msg}',
-                                                              file=sys.stderr))
         sim = build_simulation(scene, config, progress=progress,
                                allow_unstable=args.allow_unstable, samples=sample_cache())
         with claimed_outputs({'--output': args.output}, {'--bag': args.bag}):

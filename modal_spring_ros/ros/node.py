@@ -66,7 +66,7 @@ class ModalSpringNode(Node):
         self._worker = WorkerProcess('modal_spring_modes',
                                      cancelled=lambda: not self.context.ok())
         try:
-            sim = build_simulation(load_scene(values['scene']), config,
+            sim = build_simulation(load_scene(values['scene'], log.info), config,
                                    progress=log.info, worker=self._worker,
                                    samples=sample_cache())
             sim.check_stable('sim.dt')

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 import sys
+from typing import Callable
 
 from ament_index_python.packages import (get_package_prefix, get_package_share_directory,
                                          PackageNotFoundError)
@@ -71,9 +72,10 @@ def builtin_scene_names() -> list[str]:
     return sorted(p.stem for p in builtin_scene_dir().glob('*.yaml'))
 
 
-def load_scene(name_or_path: str | Path) -> Scene:
+def load_scene(name_or_path: str | Path,
+               progress: Callable[[str], None] | None = None) -> Scene:
     """
-    Load a built-in scene by name, or a scene file by path.
+    Load a built-in scene by name, or a scene file by path (``progress`` hears of long work).
 
     :raises SceneError: unknown name, unreadable file, invalid YAML or an invalid scene.
     """
@@ -87,4 +89,5 @@ def load_scene(name_or_path: str | Path) -> Scene:
                 f"(built-in: {', '.join(builtin_scene_names())})"
             )
         path = candidate
-    return scene_from_yaml(read_scene_text(path), source=str(path), default_name=path.stem)
+    return scene_from_yaml(read_scene_text(path), source=str(path), default_name=path.stem,
+                           progress=progress)

@@ -9,7 +9,7 @@ command-line tools can print it instead of a traceback.
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 from modal_spring_ros.core.model.loaded_shape import needs_loaded_shape, settle
 from modal_spring_ros.core.model.scene import Damping, Scene, SceneError
@@ -29,23 +29,28 @@ import numpy as np
 REFERENCES = ('auto', 'rest', 'loaded')
 
 
-def scene_from_yaml(text: str, source: str = '<scene>', default_name: str = 'scene') -> Scene:
+def scene_from_yaml(text: str, source: str = '<scene>', default_name: str = 'scene',
+                    progress: Callable[[str], None] | None = None) -> Scene:
     """
     Parse and validate a scene from YAML text.
 
     Parsing stays within the bounds of :mod:`~modal_spring_ros.scenes.yaml_reading`.
+    ``progress`` hears of long work (finding the shape a cloth hangs in).
     """
-    return scene_from_dict(load_yaml(text, source), source=source, default_name=default_name)
+    return scene_from_dict(load_yaml(text, source), source=source, default_name=default_name,
+                           progress=progress)
 
 
-def scene_from_dict(data: Any, source: str = '<scene>', default_name: str = 'scene') -> Scene:
-    """Validate a scene given as a mapping (the parsed YAML)."""
-    return _SceneParser(source).parse(data, default_name)
+def scene_from_dict(data: Any, source: str = '<scene>', default_name: str = 'scene',
+                    progress: Callable[[str], None] | None = None) -> Scene:
+    """Validate a scene given as a mapping (the parsed YAML); ``progress`` as above."""
+    return _SceneParser(source).parse(data, default_name, progress)
 
 
 class _SceneParser(FieldReader):
     # -- the scene ----------------------------------------------------------------------------
-    def parse(self, data: Any, default_name: str) -> Scene:
+    def parse(self, data: Any, default_name: str,
+              progress: Callable[[str], None] | None = None) -> Scene:
         data = self.mapping(data, 'scene')
         known = {'name', 'description', 'dimension', 'axis', 'plane', 'particles', 'springs',
                  'fixed', 'gravity', 'damping', 'anchor_motion', 'simulation', 'reference',
@@ -132,7 +137,7 @@ class _SceneParser(FieldReader):
         )
         if reference == 'loaded' or (reference == 'auto' and needs_loaded_shape(scene)):
             try:
-                scene = settle(scene)
+                scene = settle(scene, progress)
             except SceneError as error:
                 raise self.fail('reference', str(error)) from None
         return scene

@@ -124,3 +124,13 @@ def test_a_short_run_prints_no_progress_lines(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert '%' not in proc.stderr
+
+
+def test_finding_the_shape_a_cloth_hangs_in_shows_progress(tmp_path, capsys):
+    """cloth_3d is taken about the shape it hangs in (seconds of Newton steps on larger cloths)."""
+    assert main(['--scene', 'cloth_3d', '--duration', '0.01', '--basis', 'rest', '--modes', '0:9',
+                 '--output', str(tmp_path / 'cloth.npz')]) == 0
+    err = capsys.readouterr().err
+    assert '[modal_spring_sim] loaded shape: step 10,' in err
+    assert '[modal_spring_sim] loaded shape found in' in err
+    assert err.index('loaded shape found in') < err.index('modes')   # before the modes
