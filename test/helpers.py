@@ -20,6 +20,21 @@ BAGS = REPO / 'bags'
 #: the real rosbag2 recordings beside the repository (CI has them)
 REAL_BAGS = Path(os.environ.get('MODAL_SPRING_REAL_BAGS', REPO.parent / 'shared' / 'real_bags'))
 
+#: ROS packages made unimportable (as in a venv without the ROS wheels)
+HIDDEN = ('rclpy', 'rosidl', 'rpyutils', 'ament_index_python', 'builtin_interfaces',
+          'std_msgs', 'sensor_msgs', 'geometry_msgs', 'std_srvs', 'rcl_interfaces',
+          'diagnostic_msgs', 'visualization_msgs', 'rosgraph_msgs', 'tf2_msgs', 'rosbags')
+
+#: Python that hides them from what runs after it (``python -c HIDE_ROS + code``)
+HIDE_ROS = f"""
+import importlib.abc, sys
+class Hidden(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name.split('.')[0].startswith({HIDDEN!r}):
+            raise ModuleNotFoundError(f'No module named {{name!r}} (hidden)', name=name)
+sys.meta_path.insert(0, Hidden())
+"""
+
 
 def variant(name: str, **changes):
     """Return a built-in scene's full definition with top-level fields replaced, validated."""

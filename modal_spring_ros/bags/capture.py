@@ -9,8 +9,9 @@ time); a fixed run's log times are the wall time it was recorded at plus that st
 tools show when it was made. A ``modal_spring_ros`` metadata record holds the scene (full
 definition) and either the fixed settings (``modal_spring_sim --bag``) or the node's
 parameters at the start, with every later change on ``/parameter_events`` and every input it
-took (the clamp's poses on ``/anchor_pose``, clicked points on ``/clicked_point``, each on the
-topic its caller names) stamped with the simulation time it took effect at
+took (the clamp's poses on ``/anchor_pose``, clicked points on ``/clicked_point``, wrenches on
+``/wrench`` with the points they acted at on ``/wrench_point``, each on the topic its caller
+names) stamped with the simulation time it took effect at
 (``modal_spring_node`` with ``record.bag``).
 """
 from __future__ import annotations

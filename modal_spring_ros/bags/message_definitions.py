@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import functools
 import json
-import os
 from pathlib import Path
 import re
 import sys
 
-from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
+from modal_spring_ros.scenes.ament_index import package_share
 
 DELIMITER = '=' * 80 + '\n'
 _FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
@@ -30,12 +29,8 @@ class DefinitionNotFound(LookupError):
 
 def share_directory(package: str) -> Path:
     """``share/<package>``: from the ament index when there is one, else the Python prefix."""
-    if os.environ.get('AMENT_PREFIX_PATH'):
-        try:
-            return Path(get_package_share_directory(package))
-        except PackageNotFoundError:
-            pass
-    return Path(sys.prefix) / 'share' / package
+    share = package_share(package)
+    return share if share is not None else Path(sys.prefix) / 'share' / package
 
 
 def _split(type_name: str) -> tuple[str, str, str]:

@@ -87,8 +87,11 @@ def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
     node = None
     try:
-        node = ModalSpringNode()
+        # the executor before the node: once the node is seen in the graph, a Ctrl-C can no
+        # longer land inside the executor's constructor (which leaves a half-built executor
+        # whose finaliser prints a traceback)
         executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
+        node = ModalSpringNode()
         executor.add_node(node)
         spin_until_shutdown(executor)
     except (KeyboardInterrupt, ExternalShutdownException):

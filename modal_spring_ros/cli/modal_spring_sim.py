@@ -13,7 +13,12 @@ import math
 import sys
 import time
 
-from modal_spring_ros.bags.capture import RunBagWriter
+try:
+    from modal_spring_ros.bags.capture import RunBagWriter
+except ImportError as missing:    # pip install without the ros extra: runs, but no bags
+    RunBagWriter = None
+    BAGS_MISSING = (f'--bag needs the ROS message packages ({missing.name} is not installed): '
+                    "pip install '.[ros]', or source a ROS 2 install")
 from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs, config_from_args,
                                          run_main, script_parser, write_output)
 from modal_spring_ros.core.config import MAX_HORIZON_S
@@ -45,6 +50,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
 
     def body() -> int:
+        if args.bag and RunBagWriter is None:
+            raise ValueError(BAGS_MISSING)
         if args.frame_every < 1:
             raise ValueError(f'--frame-every ({args.frame_every}) must be at least 1')
         progress = None if args.quiet else (lambda msg: print(f'[{PROG}] {msg}',

@@ -33,8 +33,11 @@ DEFAULT_REFRESH = 10
 #: Scenes with at least this many springs get sampled forces from the automatic choice (on
 #: smaller ones training costs more than it saves).
 SAMPLE_MIN_SPRINGS = 20_000
-#: Where the clamp's motion comes from: the scene's anchor_motion, or a stream of poses.
-ANCHOR_SOURCES = ('scene', 'topic')
+#: Where the clamp's motion comes from: the scene's anchor_motion, or a stream of poses (a
+#: topic's, or a TF frame's).
+ANCHOR_SOURCES = ('scene', 'topic', 'tf')
+#: the sources whose poses the clamp follows
+POSE_SOURCES = ('topic', 'tf')
 #: Highest bandwidth a clamp follows poses with, Hz.
 MAX_FOLLOW_HZ = 100.0
 #: Longest run the automatic choice promises its tolerance over, s (a day).

@@ -16,8 +16,8 @@ from modal_spring_ros.core.bases.basis import ModalBasis, Progress
 from modal_spring_ros.core.bases.basis_choice import choose_basis
 from modal_spring_ros.core.bases.mode_selection import (choose_modes, choose_refresh, choose_step,
                                                         ModeChoice, SHARE, STABILITY_SAFETY)
-from modal_spring_ros.core.config import (AUTO_DT_SAFETY, DEFAULT_REFRESH, SAMPLE_MIN_SPRINGS,
-                                          SimulationConfig)
+from modal_spring_ros.core.config import (AUTO_DT_SAFETY, DEFAULT_REFRESH, POSE_SOURCES,
+                                          SAMPLE_MIN_SPRINGS, SimulationConfig)
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces import ForceOptions
 from modal_spring_ros.core.forces.base import SampleStore
@@ -192,7 +192,7 @@ def build_simulation(scene: Scene, config: SimulationConfig, *,
     ``worker`` and ``samples`` (where spring samples are kept between runs): see
     :class:`ModalBasis`; a run rebuilt on its basis keeps them.
 
-    With ``config.anchor`` ``topic`` the scene's clamp follows poses given to its
+    With ``config.anchor`` ``topic`` or ``tf`` the scene's clamp follows poses given to its
     :class:`~modal_spring_ros.core.motion.clamp_follower.ClampFollower` instead of its own motion.
 
     :raises SceneError: a mechanism (the stiffness is singular on the free DOF).
@@ -201,7 +201,7 @@ def build_simulation(scene: Scene, config: SimulationConfig, *,
     :raises ConfigError: other bad options (method, integrator, dt, ...).
     """
     config.validate()
-    if config.anchor == 'topic':  # the clamp follows poses (from t = 0: at its rest pose)
+    if config.anchor in POSE_SOURCES:  # the clamp follows poses (from t = 0: at its rest pose)
         rest = np.asarray(scene.rest_positions, dtype=float)
         fixed = np.flatnonzero(scene.fixed)
         clamp = rest[fixed] if fixed.size else rest

@@ -12,18 +12,20 @@ an executor thread. Every change reaches the simulation thread as one typed requ
 (:mod:`~modal_spring_ros.ros.requests`).
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
-(Marker TRIANGLE_LIST, for scenes with a surface, when subscribed), ``/diagnostics``, and
-``/clock`` when ``publish_clock`` is true. Subscriptions (:mod:`~modal_spring_ros.ros.inputs`,
-on the companion node ``<name>_inputs``, :mod:`~modal_spring_ros.ros.input_node`):
-``anchor_pose`` (PoseStamped, with ``anchor.source`` topic) and ``/clicked_point``
-(PointStamped). Services: ``~/reset`` (Trigger), ``~/pause`` (SetBool), ``~/step`` (Trigger,
-while paused). See docs/node.md.
+(Marker: the surface's triangles, or the springs' lines, when subscribed), ``/diagnostics``,
+``/tf`` (the object's and the clamp's frames, :mod:`~modal_spring_ros.ros.tf`), and ``/clock`` when
+``publish_clock`` is true. Subscriptions (:mod:`~modal_spring_ros.ros.inputs`, on the companion
+node ``<name>_inputs``, :mod:`~modal_spring_ros.ros.input_node`): ``anchor_pose`` (PoseStamped,
+with ``anchor.source`` topic), ``/clicked_point`` (PointStamped), ``wrench`` (WrenchStamped),
+``/tf`` and ``/tf_static``. Services: ``~/reset`` (Trigger), ``~/pause`` (SetBool), ``~/step``
+(Trigger, while paused). See docs/node.md.
 """
 from __future__ import annotations
 
 import contextlib
 
 from modal_spring_ros.bags.capture import RunBagWriter
+from modal_spring_ros.core.config import POSE_SOURCES
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.worker import WorkerProcess
 from modal_spring_ros.ros.input_node import InputNode
@@ -91,7 +93,7 @@ class ModalSpringNode(Node):
             computing_modes=lambda: self._preparer.busy, running=self.context.ok,
             node_report=self._report)
         self._params.listen()
-        follower = scene.anchor_motion if values['anchor.source'] == 'topic' else None
+        follower = scene.anchor_motion if values['anchor.source'] in POSE_SOURCES else None
         self._input_node = InputNode(self)      # its own thread: a flood never starves the run
         self._inputs = NodeInputs(self._input_node.node, follower, lambda: self._params.values,
                                   self._thread.submit)

@@ -22,6 +22,7 @@ from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import diagnostic_array, StreamReport
+from modal_spring_ros.ros.tf import FrameBroadcaster, tf_available
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import QoSPolicyKind
@@ -44,19 +45,35 @@ OVERRIDABLE_POLICIES = (QoSPolicyKind.HISTORY, QoSPolicyKind.DEPTH, QoSPolicyKin
 QUEUE_DEPTH = 10
 
 
-def mesh_marker(positions: np.ndarray, rest: np.ndarray, triangles: np.ndarray,
-                header: Header) -> Marker:
-    """Return a TRIANGLE_LIST of the surface, coloured blue (at rest) to red (most displaced)."""
-    corners = positions[triangles.ravel()]
-    disp = distance_from_rest(corners, rest[triangles.ravel()])
+def mesh_marker(positions: np.ndarray, rest: np.ndarray, cells: np.ndarray, header: Header,
+                width: float = 0.0) -> Marker:
+    """
+    Return the object as RViz draws it, coloured blue (at rest) to red (most displaced).
+
+    ``cells`` (T, 3): a TRIANGLE_LIST of its surface; (E, 2): a LINE_LIST of its springs,
+    ``width`` m wide (an object with no surface, such as a chain).
+    """
+    corners = positions[cells.ravel()]
+    disp = distance_from_rest(corners, rest[cells.ravel()])
     level = np.clip(disp / max(float(disp.max()), 1e-12), 0.0, 1.0)
-    m = Marker(header=header, ns='modal_spring', id=0, type=Marker.TRIANGLE_LIST,
-               action=Marker.ADD)
+    lines = cells.shape[1] == 2
+    m = Marker(header=header, ns='modal_spring', id=0,
+               type=Marker.LINE_LIST if lines else Marker.TRIANGLE_LIST, action=Marker.ADD)
     m.pose.orientation.w = 1.0
     m.scale.x = m.scale.y = m.scale.z = 1.0
+    if lines:
+        m.scale.x = width
     m.points = [Point(x=x, y=y, z=z) for x, y, z in corners.tolist()]
     m.colors = [ColorRGBA(r=c, g=0.2, b=1.0 - c, a=1.0) for c in level.tolist()]
     return m
+
+
+def marker_cells(scene: Scene) -> tuple[np.ndarray, float]:
+    """Return what the mesh marker draws: the surface's triangles, else the springs and a width."""
+    triangles = scene.surface_triangles()
+    if triangles.size:
+        return triangles, 0.0
+    return scene.springs, 0.1 * float(np.median(scene.rest_length))
 
 
 class Outputs(Protocol):
@@ -68,7 +85,7 @@ class Outputs(Protocol):
 
     def changed(self, sim: Simulation, changed: dict) -> None: ...
 
-    def received(self, sim: Simulation, topic: str, message) -> None: ...
+    def received(self, sim: Simulation, recorded: list[tuple[str, Any]]) -> None: ...
 
     def log(self, level: str, message: str) -> None: ...
 
@@ -80,7 +97,7 @@ class NodeOutputs:
                  bag: RunBagWriter | None):
         self._node = node
         self._scene = scene
-        self._triangles = scene.surface_triangles()
+        self._cells, self._width = marker_cells(scene)
         self._values = values
         self._bag = bag
         #: why the capture stopped ('' while it records, or when there is none)
@@ -95,9 +112,21 @@ class NodeOutputs:
         self._diagnostics = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC,
                                                   QUEUE_DEPTH)
         self._clock = None  # /clock only when publish_clock asks for it
+        self._tf = self._frame_broadcaster(node, scene, values())
         self._announced = False
         if values()['publish_clock']:
             self.enable_clock()
+
+    @staticmethod
+    def _frame_broadcaster(node: Node, scene: Scene, values: dict) -> FrameBroadcaster | None:
+        """Return the broadcaster of the object's and clamp's frames (None: not broadcast)."""
+        if not (values['tf.publish'] and tf_available()):
+            return None
+        fixed = np.asarray(scene.fixed, dtype=bool)
+        centre = (np.asarray(scene.rest_positions, dtype=float)[fixed].mean(axis=0)
+                  if fixed.any() else None)
+        return FrameBroadcaster(node, values['frame_id'], values['tf.object_frame'],
+                                values['tf.clamp_frame'], centre)
 
     def enable_clock(self) -> None:
         """Create the /clock publisher (once; from the executor's thread)."""
@@ -111,6 +140,9 @@ class NodeOutputs:
                  else self._node.get_clock().now().to_msg())
         header = Header(stamp=stamp, frame_id=values['frame_id'])
         self._points.publish(cloud.message(header))  # serialised here: the bytes are free again
+        if self._tf is not None:
+            motion = sim.model.scene.anchor_motion.frame(sim.time)
+            self._tf.publish(motion.rotation, motion.translation, stamp)
         positions = cloud.points[:, :3]
         if self._bag is not None:
             self._capture(lambda: self._bag.frame(sim.time, positions))
@@ -124,8 +156,8 @@ class NodeOutputs:
                 f'{status.method}, {status.band}) on '
                 f"{self._points.topic_name} at {values['publish_rate_hz']:g} Hz, frame "
                 f"'{values['frame_id']}'")
-        if mesh and self._triangles.size and self._mesh.get_subscription_count() > 0:
-            self._mesh.publish(mesh_marker(positions, rest, self._triangles, header))
+        if mesh and self._cells.size and self._mesh.get_subscription_count() > 0:
+            self._mesh.publish(mesh_marker(positions, rest, self._cells, header, self._width))
 
     def _capture(self, write: Callable[[], None]) -> None:
         """
@@ -156,9 +188,9 @@ class NodeOutputs:
         if self._bag is not None and changed:
             self._capture(lambda: self._bag.parameter_event(sim.time, changed))
 
-    def received(self, sim: Simulation, topic: str, message) -> None:
-        """Keep an input that took effect at ``sim.time`` in the capture, on ``topic``."""
-        if self._bag is not None:
+    def received(self, sim: Simulation, recorded: list[tuple[str, Any]]) -> None:
+        """Keep an input that took effect at ``sim.time`` in the capture: (topic, message)s."""
+        for topic, message in recorded if self._bag is not None else ():
             self._capture(lambda: self._bag.record_input(sim.time, topic, message))
 
     def log(self, level: str, message: str) -> None:

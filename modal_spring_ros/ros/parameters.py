@@ -105,8 +105,21 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     'publish_clock': (False, _descriptor('Publish simulation time on /clock', _B)),
     'anchor.source': ('scene', _descriptor(
         "scene: the clamp moves as the scene's anchor_motion says; topic: it follows "
-        'geometry_msgs/PoseStamped on anchor_pose, relative to the first pose received', _S,
-        read_only=True, constraints='scene or topic')),
+        'geometry_msgs/PoseStamped on anchor_pose; tf: it follows the TF frame anchor.frame '
+        '(both relative to the first pose received)', _S,
+        read_only=True, constraints='scene, topic or tf')),
+    'anchor.frame': ('', _descriptor(
+        'The TF frame the clamp follows with anchor.source tf (a gripper link), looked up in '
+        'frame_id', _S, read_only=True)),
+    'tf.publish': (True, _descriptor(
+        "Broadcast the object's and the clamp's frames on /tf, under frame_id, with every "
+        'frame of the stream', _B, read_only=True)),
+    'tf.object_frame': ('modal_spring_object', _descriptor(
+        'TF frame the object rides (its rest shape moved as the clamp moves it)', _S,
+        read_only=True)),
+    'tf.clamp_frame': ('modal_spring_clamp', _descriptor(
+        'TF frame at the clamp (the centre of the fixed particles, turned with the clamp); '
+        'not broadcast for a scene without fixed particles', _S, read_only=True)),
     'anchor.follow_hz': (DEFAULT_FOLLOW_HZ, _descriptor(
         'Bandwidth of the critically damped filter the clamp follows poses through, Hz', _D,
         read_only=True, float_range=(0.1, MAX_FOLLOW_HZ))),
@@ -120,10 +133,16 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         'Stiffness of the spring a /clicked_point pulls the nearest particle with, N/m', _D,
         float_range=(0.0, 1e6))),
     'interaction.hold_s': (2.0, _descriptor(
-        'How long a /clicked_point pulls, s of simulation time', _D,
+        'How long a /clicked_point pulls and a wrench pushes, s of simulation time', _D,
         float_range=(0.0, 3600.0))),
     'interaction.max_force_n': (5.0, _descriptor(
-        'Largest force a /clicked_point pulls with, N', _D, float_range=(0.0, 1e6))),
+        'Largest force a /clicked_point pulls with and a wrench pushes with, N (the largest '
+        'torque of a wrench: this times interaction.radius, N m)', _D, float_range=(0.0, 1e6))),
+    'interaction.radius': (0.0, _descriptor(
+        'A wrench acts on the free particles within this distance of the origin of its frame '
+        '(the nearest one when none is), and a /clicked_point this close to a particle is on '
+        'the object (it grabs), m; 0: one and a half spring lengths (the median rest length)',
+        _D, float_range=(0.0, 1000.0))),
     'modal.auto': (False, _descriptor(
         "Keep the fewest modes (within the band) that meet modal.tolerance for the scene's "
         'loads (gravity, anchor motion), the step they allow unless sim.dt is set, and the '
@@ -228,6 +247,29 @@ def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
     ).validate(CONFIG_NAMES)
 
 
+def check_frames(values: dict[str, Any]) -> None:
+    """Check the TF frame names (anchor.frame with anchor.source tf, the broadcast frames)."""
+    frame_id = values['frame_id'].lstrip('/')
+    if values.get('anchor.source') == 'tf':
+        followed = values.get('anchor.frame', '').lstrip('/')
+        if not followed:
+            raise ValueError('anchor.source tf needs anchor.frame: the TF frame the clamp '
+                             'follows')
+        if followed == frame_id:
+            raise ValueError(f"anchor.frame '{followed}' is frame_id: the clamp would follow "
+                             'the frame it is placed in')
+    if values.get('tf.publish', False):
+        names = [values.get(n, '').lstrip('/') for n in ('tf.object_frame', 'tf.clamp_frame')]
+        for name, frame in zip(('tf.object_frame', 'tf.clamp_frame'), names):
+            if not frame:
+                raise ValueError(f'{name} must not be empty (or set tf.publish false)')
+            if frame == frame_id:
+                raise ValueError(f"{name} '{frame}' is frame_id: a frame cannot be its own "
+                                 'parent')
+        if names[0] == names[1]:
+            raise ValueError(f"tf.object_frame and tf.clamp_frame are both '{names[0]}'")
+
+
 def check_stream(values: dict[str, Any]) -> None:
     """
     Return the rules of the stream itself and of the string choices.
@@ -245,6 +287,7 @@ def check_stream(values: dict[str, Any]) -> None:
             raise BandError(f'{name} ({v:g}) must not be negative')
     if not values['frame_id']:
         raise ValueError('frame_id must not be empty')
+    check_frames(values)
     rtf = values['realtime_factor']
     if 0.0 < rtf < MIN_REALTIME_FACTOR:
         raise ValueError(f'realtime_factor ({rtf:g}) must be 0 (as fast as possible) or at '

@@ -22,8 +22,9 @@ from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.simulations import DivergenceError
-from modal_spring_ros.ros.input_kinds import InputKind, INPUTS
-from modal_spring_ros.ros.parameters import config_from_parameters, REBUILD_PARAMETERS
+from modal_spring_ros.ros.input_kinds import InputKind, INPUTS, WrenchAt
+from modal_spring_ros.ros.parameters import (config_from_parameters, PARAMETERS,
+                                             REBUILD_PARAMETERS)
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.schema import scene_from_yaml
 from rclpy.parameter import parameter_value_to_python
@@ -58,15 +59,24 @@ def recorded_inputs(bag: BagReader, kinds: tuple[InputKind, ...] = INPUTS
     Return the inputs a node's capture kept, as (log time ns, stamp ns, (kind, message)).
 
     Each kind's ``recorded_topic`` (poses the clamp followed, clicked points, ...), each message
-    stamped with the simulation time it took effect at.
+    stamped with the simulation time it took effect at. A point kept on a kind's
+    ``recorded_point_topic`` goes with the input recorded right after it (a wrench carried
+    through TF, :class:`~modal_spring_ros.ros.input_kinds.WrenchAt`).
     """
     by_topic = {kind.recorded_topic: kind for kind in kinds if kind.recorded_topic in bag.topics}
+    points = {kind.recorded_point_topic for kind in kinds} & set(bag.topics)
     if not by_topic:
         return []
-    out = []
-    for m in bag.messages(list(by_topic)):
+    out, point = [], None
+    for m in bag.messages(list(by_topic) + sorted(points)):
         message = bag.decode(m)
+        if m.topic in points:
+            point = message
+            continue
         stamp = message.header.stamp
+        if point is not None and by_topic[m.topic].recorded_point_topic is not None:
+            message = WrenchAt(message, point)
+        point = None
         out.append((m.log_time_ns, stamp.sec * 1_000_000_000 + stamp.nanosec,
                     (by_topic[m.topic], message)))
     return out
@@ -101,6 +111,8 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
         # recorded before the basis was a parameter: the rest modes were the only basis
         values.setdefault('modal.basis', 'rest')
         values.setdefault('modal.derivative_directions', DEFAULT_DIRECTIONS)
+        for name, (default, _) in PARAMETERS.items():   # parameters added since: defaults
+            values.setdefault(name, default)
         config = config_from_parameters(values)
         changes = parameter_changes(bag, rec.get('node', '/modal_spring'))
     sim = build_simulation(scene, config, allow_unstable=True, samples=sample_cache())

@@ -6,10 +6,9 @@ survives anything a step or a change can raise.
 
 It is the only thread that changes the running simulation. Requests
 (:mod:`modal_spring_ros.ros.requests`) are applied one at a time between two steps, in the order
-they came. The thread is supervised: a divergence sends the run back to rest; any other
-exception is reported as ERROR on ``/diagnostics`` with its message, the run goes back to rest
-(or, if the simulation cannot even reset, to a simulation rebuilt from the settings), and the
-stream goes on.
+they came. The thread is supervised: a divergence sends the run back to rest; any other exception
+is reported as ERROR on ``/diagnostics`` with its message, the run goes back to rest (or, if the
+simulation cannot even reset, to a simulation rebuilt from the settings), and the stream goes on.
 """
 from __future__ import annotations
 
@@ -24,6 +23,7 @@ from modal_spring_ros.core.simulations import DivergenceError, Simulation, Simul
 from modal_spring_ros.core.threads import stepping_threads
 from modal_spring_ros.ros.diagnostics import StreamReport
 from modal_spring_ros.ros.divergence_streak import DivergenceStreak, HeldError
+from modal_spring_ros.ros.input_kinds import recorded_messages
 from modal_spring_ros.ros.outputs import Outputs
 from modal_spring_ros.ros.requests import (ChangeBand, Pause, ReplaceSimulation, Request, Reset,
                                            Step, StepRefused, TakeInput,
@@ -246,7 +246,7 @@ class SimulationThread:
     def _take_input(self, request: TakeInput) -> str:
         self._streak.refuse_while_held()
         message = request.kind.apply(self.sim, request.received, request.values)
-        self._outputs.received(self.sim, request.kind.recorded_topic, request.received)
+        self._outputs.received(self.sim, recorded_messages(request.kind, request.received))
         return message
 
     def _change_band(self, request: ChangeBand) -> str:

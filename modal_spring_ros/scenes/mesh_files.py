@@ -16,8 +16,8 @@ import dataclasses
 import os
 from pathlib import Path
 
-from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
 from modal_spring_ros.core.model.scene import SceneError
+from modal_spring_ros.scenes.ament_index import package_share
 import numpy as np
 
 #: formats read as surfaces (trimesh), and as volume meshes (meshio)
@@ -49,11 +49,11 @@ def resolve_mesh_path(name: str, scene_source: str) -> Path:
     """
     if name.startswith('package://'):
         package, _, rest = name[len('package://'):].partition('/')
-        try:
-            return Path(get_package_share_directory(package)) / rest
-        except (PackageNotFoundError, LookupError, ValueError, OSError):  # OSError: no index
+        share = package_share(package)
+        if share is None:
             raise SceneError(f"package '{package}' of {name} is not installed (not in the "
-                             'ament index)') from None
+                             'ament index)')
+        return share / rest
     path = Path(os.path.expanduser(name))
     if path.is_absolute():
         return path

@@ -11,9 +11,8 @@ from pathlib import Path
 import sys
 from typing import Callable
 
-from ament_index_python.packages import (get_package_prefix, get_package_share_directory,
-                                         PackageNotFoundError)
 from modal_spring_ros.core.model.scene import Scene, SceneError
+from modal_spring_ros.scenes.ament_index import package_prefix, package_share
 from modal_spring_ros.scenes.schema import scene_from_yaml
 from modal_spring_ros.scenes.yaml_reading import read_scene_text
 
@@ -31,10 +30,8 @@ def share_directory() -> Path:
     source = Path(__file__).resolve().parents[2]  # the repository, in a source checkout
     if (source / 'config' / 'scenes').is_dir():
         return source
-    try:
-        return Path(get_package_share_directory(PACKAGE_NAME))
-    except (PackageNotFoundError, LookupError, OSError):  # no ament index: the Python prefix
-        return Path(sys.prefix) / 'share' / PACKAGE_NAME
+    share = package_share(PACKAGE_NAME)
+    return share if share is not None else Path(sys.prefix) / 'share' / PACKAGE_NAME
 
 
 def executable(name: str) -> Path:
@@ -46,11 +43,8 @@ def executable(name: str) -> Path:
 
     :raises FileNotFoundError: the script is in neither place.
     """
-    places = []
-    try:
-        places.append(Path(get_package_prefix(PACKAGE_NAME)) / 'lib' / PACKAGE_NAME / name)
-    except (PackageNotFoundError, LookupError, OSError):  # no ament index
-        pass
+    prefix = package_prefix(PACKAGE_NAME)
+    places = [] if prefix is None else [prefix / 'lib' / PACKAGE_NAME / name]
     places.append(Path(sys.executable).parent / name)
     for path in places:
         if path.is_file():

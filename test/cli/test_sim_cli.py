@@ -4,6 +4,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
+from helpers import HIDE_ROS
 from modal_spring_ros.cli.common import parse_mode_range
 from modal_spring_ros.cli.modal_spring_sim import main
 from modal_spring_ros.core.bases.basis import ModalBasis
@@ -134,3 +135,22 @@ def test_finding_the_shape_a_cloth_hangs_in_shows_progress(tmp_path, capsys):
     assert '[modal_spring_sim] loaded shape: step 10,' in err
     assert '[modal_spring_sim] loaded shape found in' in err
     assert err.index('loaded shape found in') < err.index('modes')   # before the modes
+
+
+def test_without_ros_it_runs_and_says_what_a_bag_would_need(tmp_path):
+    """Without the ros extra: runs and ``.npz`` output work, and ``--bag`` says why it cannot."""
+    def sim(*args):
+        code = HIDE_ROS + ('import sys; from modal_spring_ros.cli.modal_spring_sim import main; '
+                           f'sys.exit(main({list(args)!r}))')
+        return subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                              timeout=300)
+    out = tmp_path / 'run.npz'
+    done = sim('--scene', 'cloth_3d', '--duration', '0.05', '--quiet', '--output', str(out))
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert np.load(out)['positions'].shape[1:] == (400, 3)
+    refused = sim('--duration', '0.05', '--bag', str(tmp_path / 'bag'))
+    assert refused.returncode == 2
+    assert refused.stderr.strip().splitlines()[-1] == (
+        'modal_spring_sim: error: --bag needs the ROS message packages (sensor_msgs is not '
+        "installed): pip install '.[ros]', or source a ROS 2 install")
+    assert not (tmp_path / 'bag').exists()

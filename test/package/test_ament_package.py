@@ -52,6 +52,7 @@ IMPORT_KEYS = {
     'visualization_msgs': 'visualization_msgs',
     'diagnostic_msgs': 'diagnostic_msgs',
     'rosgraph_msgs': 'rosgraph_msgs',
+    'tf2_msgs': 'tf2_msgs',
     'ament_index_python': 'ament_index_python',
 }
 TEST_IMPORT_KEYS = {'pytest': 'python3-pytest', 'rosbags': 'python3-rosbags-pip',
@@ -422,6 +423,14 @@ def test_the_rviz_view_shows_what_the_node_publishes():
     assert cloud['Channel Name'] == 'displacement' and 'displacement' in FIELD_NAMES
     assert displays['rviz_default_plugins/Marker']['Topic']['Value'] == '/' + MESH_TOPIC
     assert view['Global Options']['Fixed Frame'] == PARAMETERS['frame_id'][0]
+    assert 'rviz_default_plugins/TF' in displays                    # the node's frames
+    # RViz's own tools are all there (a Tools list replaces the defaults), Publish Point
+    # sending on the topic the node pulls from
+    from modal_spring_ros.ros.input_kinds import CLICKED_POINT
+    tools = {t['Class']: t for t in view['Tools']}
+    assert tools['rviz_default_plugins/PublishPoint']['Topic']['Value'] == CLICKED_POINT.topic
+    assert {'Interact', 'MoveCamera', 'Select', 'FocusCamera', 'Measure', 'SetInitialPose',
+            'SetGoal'} <= {name.split('/')[1] for name in tools}
     params = yaml.safe_load((REPO / 'config' / 'modal_spring.yaml').read_text())
     assert list(params) == [f'/**/{NODE_NAME}']              # the launch file's node name
 

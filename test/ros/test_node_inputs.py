@@ -87,6 +87,36 @@ def latest(points: list) -> np.ndarray:
     return xyz(points[-1][1])
 
 
+def click_beside_the_corner(points: list, pub, frame_id: str = 'world',
+                            offset=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, int]:
+    """
+    Click 0.5 m right of the settled sheet's bottom right particle; return the cloud and it.
+
+    ``offset``: the world position of ``frame_id``'s origin (the click is sent in that frame).
+    """
+    assert wait_for(lambda: len(points) > 5 and pub.get_subscription_count() > 0, 30)
+    time.sleep(1.0)                                   # settled in the sag
+    before = latest(points)
+    corner = int(np.argmax(before[:, 0] - before[:, 2]))   # the bottom right particle
+    click = PointStamped()
+    click.header.frame_id = frame_id
+    click.point.x = before[corner, 0] + 0.5 - offset[0]
+    click.point.y = before[corner, 1] - offset[1]
+    click.point.z = before[corner, 2] - offset[2]
+    pub.publish(click)
+    assert wait_for(lambda: latest(points)[corner, 0] - before[corner, 0] > 0.01, 10)
+    return before, corner
+
+
+def settles_turned(points: list, scene, angle_deg: float, timeout: float) -> None:
+    """Wait until the top row is the rest row turned by ``angle_deg`` (to 1 mm), and stays."""
+    fixed = top_row(scene)
+    want = turned(scene.rest_positions[fixed], angle_deg)
+    assert wait_for(lambda: np.abs(latest(points)[fixed] - want).max() < 1e-3, timeout)
+    time.sleep(0.5)
+    np.testing.assert_allclose(latest(points)[fixed], want, atol=1e-3)
+
+
 def test_a_pose_stream_turns_the_clamp_and_the_stream_stays_finite():
     """
     The pose turns 30 degrees over a second.
@@ -95,7 +125,6 @@ def test_a_pose_stream_turns_the_clamp_and_the_stream_stays_finite():
     pose's position, to 1 mm.
     """
     scene = load_scene('sheet_10x10')
-    fixed = top_row(scene)
     with node_with_client('anchor.source:=topic', 'publish_rate_hz:=30.0',
                           namespace='follow') as (node, client):
         points = client.collect(PointCloud2, '/follow/points', qos=200)
@@ -103,11 +132,7 @@ def test_a_pose_stream_turns_the_clamp_and_the_stream_stays_finite():
         stream = PoseStream(client, '/follow/anchor_pose',
                             lambda t: 30.0 * min(max(t - 0.5, 0.0), 1.0))
         try:
-            assert wait_for(lambda: np.abs(latest(points)[fixed] - turned(
-                scene.rest_positions[fixed], 30.0)).max() < 1e-3, 20)
-            time.sleep(0.5)
-            np.testing.assert_allclose(latest(points)[fixed],
-                                       turned(scene.rest_positions[fixed], 30.0), atol=1e-3)
+            settles_turned(points, scene, 30.0, 20)
         finally:
             stream.stop()
         for _, m in points:
@@ -163,18 +188,48 @@ def test_a_clicked_point_pulls_the_nearest_particle_toward_it(tmp_path):
                           namespace='click') as (node, client):
         points = client.collect(PointCloud2, '/click/points', qos=500)
         pub = client.node.create_publisher(PointStamped, '/clicked_point', 10)
-        assert wait_for(lambda: len(points) > 5 and pub.get_subscription_count() > 0, 30)
-        time.sleep(1.0)                                   # settled in the sag
-        before = latest(points)
-        corner = int(np.argmax(before[:, 0] - before[:, 2]))   # the bottom right particle
-        click = PointStamped()
-        click.header.frame_id = 'world'
-        click.point.x, click.point.z = before[corner, 0] + 0.5, before[corner, 2]
-        pub.publish(click)
-        assert wait_for(lambda: latest(points)[corner, 0] - before[corner, 0] > 0.01, 10)
+        before, corner = click_beside_the_corner(points, pub)
         moved = latest(points) - before
         # the pulled corner moves the most, toward the point
         assert int(np.argmax(np.linalg.norm(moved, axis=1))) == corner
+
+
+def test_a_click_on_the_sheet_grabs_a_particle_and_the_next_click_takes_it_there(tmp_path):
+    """
+    Pick and place in RViz, where every click lands on something shown (here, the sheet).
+
+    The first click, on the bottom left particle, grabs it where it is (nothing moves); the
+    second, on the sheet's middle, takes that particle toward it: it moves the most, by
+    centimetres, toward the middle.
+    """
+    scene_file = tmp_path / 'still.yaml'
+    scene_file.write_text(yaml.safe_dump(scene_to_dict(variant('sheet_10x10', anchor_motion=[]))))
+    with node_with_client(f'scene:={scene_file}', 'interaction.max_force_n:=30.0',
+                          'interaction.hold_s:=60.0', namespace='pick') as (node, client):
+        points = client.collect(PointCloud2, '/pick/points', qos=500)
+        pub = client.node.create_publisher(PointStamped, '/clicked_point', 10)
+        assert wait_for(lambda: len(points) > 5 and pub.get_subscription_count() > 0, 30)
+        time.sleep(1.0)                                   # settled in the sag
+        before = latest(points)
+        corner = int(np.argmin(before[:, 0] + before[:, 2]))   # the bottom left particle
+        middle = int(np.argmin(np.linalg.norm(before - before.mean(axis=0), axis=1)))
+
+        def click(at: np.ndarray) -> None:
+            message = PointStamped()
+            message.header.frame_id = 'world'
+            message.point.x, message.point.y, message.point.z = (float(v) for v in at)
+            pub.publish(message)
+        click(before[corner])
+        frames_since(points, time.monotonic(), 15)
+        assert np.abs(latest(points) - before).max() < 2e-3      # grabbed, not pulled
+        click(before[middle])
+
+        def gap() -> float:
+            return float(np.linalg.norm(latest(points)[corner] - before[middle]))
+        start = gap()
+        assert wait_for(lambda: gap() < start - 0.02, 20)
+        moved = np.linalg.norm(latest(points) - before, axis=1)
+        assert int(np.argmax(moved)) == corner
 
 
 #: a thousand clicks a second for three seconds on topic argv[1], from a process of their own
@@ -374,7 +429,7 @@ def test_a_flood_of_bad_poses_is_counted_and_logged_once_per_period():
     assert inputs.refused == 2000 and submitted == []
     # one line per period, however many messages were refused
     assert 1 <= len(node.logger.warnings) <= 1 + elapsed / WARN_PERIOD_S
-    assert "frame_id 'map'" in node.logger.warnings[0]
+    assert "'map' is not in the TF tree" in node.logger.warnings[0]
 
 
 def test_a_new_input_is_one_entry_of_the_table_subscribed_applied_recorded_and_resimulated(
@@ -406,7 +461,9 @@ def test_a_new_input_is_one_entry_of_the_table_subscribed_applied_recorded_and_r
     values = {'frame_id': 'world', 'anchor.source': 'scene', 'nudge.gain': 2.0}
     node, submitted = _NodeStub(), []
     NodeInputs(node, None, lambda: values, submitted.append, kinds=kinds)
-    assert set(node.callbacks) == {'/clicked_point', 'nudge_point'}   # no pose: source scene
+    # no pose (source scene); TF's two topics beside the table's
+    subscribed = set(node.callbacks) - {'/tf', '/tf_static'}
+    assert subscribed == {'/clicked_point', 'wrench', 'nudge_point'}
     point = PointStamped()
     point.header.frame_id = 'world'
     for x in (-1.0, 0.25):
@@ -424,8 +481,9 @@ def test_a_new_input_is_one_entry_of_the_table_subscribed_applied_recorded_and_r
         def __getattr__(self, name):        # frames, diagnostics, changes, logs: dropped
             return lambda *args: None
 
-        def received(self, sim, topic, message):
-            bag.record_input(sim.time, topic, message)
+        def received(self, sim, recorded):
+            for topic, message in recorded:
+                bag.record_input(sim.time, topic, message)
 
     thread = SimulationThread(sim, Capture(), StreamSettings, rebuild=lambda: sim)
     thread.submit(request)

@@ -42,8 +42,8 @@ class Recorder:
     def changed(self, sim, changed):
         self.changes.append(dict(changed))
 
-    def received(self, sim, topic, message):
-        self.inputs.append((topic, message))
+    def received(self, sim, recorded):
+        self.inputs.extend(recorded)
 
     def log(self, level, message):
         self.logs.append((level, message))
@@ -229,7 +229,8 @@ def test_clicks_queued_together_pull_toward_the_last_only_and_record_only_it():
     sim = build_simulation(variant('sheet_10x10', anchor_motion=[]), SimulationConfig())
     out = Recorder()
     thread = SimulationThread(sim, out, StreamSettings, rebuild=lambda: sim)
-    clicks = [thread.submit(_click_input(x, -0.85)) for x in (0.0, 0.45, 0.9)]
+    # below the sheet (off the object): each would pull the particle nearest to it
+    clicks = [thread.submit(_click_input(x, -1.5)) for x in (0.0, 0.45, 0.9)]
     thread.start()
     try:
         assert all(click.wait(5.0) for click in clicks)
@@ -304,4 +305,5 @@ def _click(x: float, z: float):
 
 def _click_input(x: float, z: float) -> TakeInput:
     return TakeInput(kind=CLICKED_POINT, received=_click(x, z), values={
-        'interaction.stiffness': 50.0, 'interaction.max_force_n': 5.0, 'interaction.hold_s': 1.0})
+        'interaction.stiffness': 50.0, 'interaction.max_force_n': 5.0, 'interaction.hold_s': 1.0,
+        'interaction.radius': 0.0})

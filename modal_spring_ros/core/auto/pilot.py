@@ -377,13 +377,15 @@ class Pilot:
         Return the full run at the longest step that measures within budget, and its error.
 
         Steps from the longest stable one (``full`` caps it), shortened to where the step error
-        (of order ``STEP_ORDER``) would meet the budget, by a factor of 0.5 to 0.8 each time.
-        Against a richer plan (no full reference), the plan's step over ``REFERENCE_REFINEMENT``.
+        (of order ``STEP_ORDER``) would meet the budget, by a factor of 0.5 to 0.8 each time,
+        down to the reference's step. Without a full reference (its converged run is beyond the
+        pilot's budget, but one full run at a step as long as the sibling's is not), it is
+        measured against the richer sibling, as the plan is: pricing it at the sibling's step
+        unmeasured made a full run that met the tolerance at five times the step look three
+        times dearer than a plan it cost a sixth of.
         """
         sample_s, _, reference, _ = self._sampling
-        if against != 'the full run':
-            return self.full(plan.dt / REFERENCE_REFINEMENT, sample_s), 0.0
-        shortest = self._reference_dt
+        shortest = self._reference_dt if against == 'the full run' else self._sibling[1]
         step = math.inf
         budget = PILOT_MARGIN * self.tolerance
         while True:

@@ -111,25 +111,56 @@ class Scene:
         Return the (T, 3) particle triangles of the surface, empty when it has none.
 
         A mesh's own triangles; a 2D lattice sheet is a surface (two triangles per cell, taken
-        from its diagonal springs' cells); scenes without that structure return an empty array.
+        from its diagonal springs' cells), a 3D lattice block's skin is its six faces (two
+        triangles per face cell, turned outward); scenes without that structure return an empty
+        array.
         """
         if self.triangles is not None:
             return self.triangles
+        if self.dimension == 3:
+            return _block_skin(self)
         return _lattice_triangles(self)
+
+
+def _lattice_grid(scene: Scene, axes) -> np.ndarray | None:
+    """
+    Return each lattice node's particle, indexed along ``axes`` in order, or None.
+
+    None unless the particles fill a full lattice on those axes (at least two nodes along each).
+    """
+    coords = [np.round(scene.rest_positions[:, a], 12) for a in axes]
+    nodes = [np.unique(c) for c in coords]
+    if np.prod([n.size for n in nodes]) != scene.n_particles or min(n.size for n in nodes) < 2:
+        return None
+    grid = np.full([n.size for n in nodes], -1, dtype=np.int64)
+    grid[tuple(np.searchsorted(n, c) for n, c in zip(nodes, coords))] = np.arange(
+        scene.n_particles)
+    return grid
+
+
+def _block_skin(scene: Scene) -> np.ndarray:
+    """Return the outward triangles of a full 3D lattice's six faces (a particle at each node)."""
+    grid = _lattice_grid(scene, (0, 1, 2))
+    if grid is None:
+        return np.empty((0, 3), dtype=np.int64)
+    faces = []
+    for axis in range(3):
+        for side, outward in ((0, -1.0), (-1, 1.0)):
+            face = np.take(grid, side, axis=axis)   # the other two axes, in order
+            a, b = face[:-1, :-1].ravel(), face[1:, :-1].ravel()
+            c, d = face[1:, 1:].ravel(), face[:-1, 1:].ravel()
+            # (a, b, c) turns about +e_axis for axes 0 and 2, about -e_axis for axis 1
+            if outward * (1.0 if axis != 1 else -1.0) < 0:
+                b, d = d, b
+            faces += [np.stack([a, b, c], 1), np.stack([a, c, d], 1)]
+    return np.concatenate(faces)
 
 
 def _lattice_triangles(scene: Scene) -> np.ndarray:
     """Two triangles per square cell of a planar lattice whose four edges are springs."""
-    if scene.dimension != 2:
+    grid = None if scene.dimension != 2 else _lattice_grid(scene, scene.axes[::-1])  # [up, across]
+    if grid is None:
         return np.empty((0, 3), dtype=np.int64)
-    across, up = (np.round(scene.rest_positions[:, a], 12) for a in scene.axes)  # its plane
-    xs, ys = np.unique(across), np.unique(up)
-    if xs.size * ys.size != scene.n_particles or xs.size < 2 or ys.size < 2:
-        return np.empty((0, 3), dtype=np.int64)
-    ix = np.searchsorted(xs, across)
-    iy = np.searchsorted(ys, up)
-    grid = np.full((ys.size, xs.size), -1, dtype=np.int64)
-    grid[iy, ix] = np.arange(scene.n_particles)
     a = grid[:-1, :-1].ravel()
     b = grid[:-1, 1:].ravel()
     c = grid[1:, 1:].ravel()

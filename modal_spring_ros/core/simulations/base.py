@@ -27,6 +27,8 @@ from modal_spring_ros.core.integrators import NonConvergence, Operators
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.motion.pull import Pull
+from modal_spring_ros.core.motion.wrench import AppliedWrench
+from modal_spring_ros.core.simulations.applied_loads import applied_loads
 from modal_spring_ros.core.threads import stepping_threads
 import numpy as np
 
@@ -120,6 +122,8 @@ class Simulation(abc.ABC):
         self.diverged: DivergenceError | None = None
         #: a particle being pulled toward a point (:mod:`~modal_spring_ros.core.motion.pull`)
         self.pull: Pull | None = None
+        #: a wrench pushing a region (:mod:`~modal_spring_ros.core.motion.wrench`)
+        self.wrench: AppliedWrench | None = None
 
     # -- what every method offers --------------------------------------------------------------
     #: the filter band, set by each method's constructor and by :meth:`set_band`
@@ -273,7 +277,7 @@ class Simulation(abc.ABC):
         self.time = self._t0 = 0.0
         self.steps = 0
         self.diverged = None
-        self.pull = None
+        self.pull = self.wrench = None
         n = self.model.n_free_dof
         self.set_state(np.zeros(n), np.zeros(n))
 
@@ -312,26 +316,21 @@ class Simulation(abc.ABC):
     def take_over(self, other: 'Simulation') -> None:
         """Continue from another simulation's physical state and time (a settings change)."""
         self._t0, self.steps, self.time = other.time, 0, other.time
-        self.pull = other.pull
+        self.pull, self.wrench = other.pull, other.wrench
         self.set_state(other.displacement(), other.velocity())
 
     def start_pull(self, pull: Pull | None) -> None:
         """Pull a particle from now on (None: stop pulling). A reset ends it too."""
         self.pull = pull
 
-    def _pull_load(self, u_particle: np.ndarray, t: float) -> np.ndarray | None:
-        """
-        Return the pull's force in the clamp's frame on its particle.
+    def start_wrench(self, wrench: AppliedWrench | None) -> None:
+        """Push a region with a wrench from now on (None: stop). A reset ends it too."""
+        self.wrench = wrench
 
-        Given the particle's displacement in that frame, or None when nothing pulls at ``t``.
-        """
-        pull = self.pull
-        if pull is None:
-            return None
-        frame = self.model.frame(t)
-        x = frame.carry(self.model.rest[pull.particle] + u_particle)
-        f = pull.force(x, t)
-        return None if f is None else f @ frame.rotation
+    def _applied(self, displacement: Callable[[np.ndarray], np.ndarray], t: float,
+                 in_world: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
+        """(free-DOF indices, forces) of the pull and the wrench at ``t``, or None."""
+        return applied_loads(self.model, self.pull, self.wrench, displacement, t, in_world)
 
     # -- stepping ------------------------------------------------------------------------------
     def step(self, count: int = 1) -> None:

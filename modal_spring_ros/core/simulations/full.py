@@ -189,15 +189,11 @@ class FullSimulation(Simulation):
     def _force(self, u: np.ndarray) -> np.ndarray:
         t = self.time + self.dt
         force = (self._world.force(u, t) if self._world is not None else self._forces(u, t))
-        if self.pull is not None:
-            d = self.model.dimension
-            dof = slice(self.pull.slot * d, (self.pull.slot + 1) * d)
-            if self._world is None:
-                pulled = self._pull_load(u[dof], t)
-            else:  # world coordinates: the pull's own force
-                pulled = self.pull.force(self.model.rest[self.pull.particle] + u[dof], t)
-            if pulled is not None:
-                force[dof] += pulled
+        if self.pull is not None or self.wrench is not None:
+            # world coordinates (a turning clamp stepped in the world): the loads' own forces
+            loaded = self._applied(lambda dofs: u[dofs], t, in_world=self._world is not None)
+            if loaded is not None:
+                np.add.at(force, loaded[0], loaded[1])
         return force
 
     def _step_once(self) -> None:

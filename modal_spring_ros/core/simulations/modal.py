@@ -347,12 +347,10 @@ class ModalSimulation(Simulation):
 
     def _force(self, q: np.ndarray) -> np.ndarray:
         force = self._forces(q, self.time + self.dt)
-        if self.pull is not None:
-            d = self.model.dimension
-            rows = self._phi[self.pull.slot * d:(self.pull.slot + 1) * d]
-            pulled = self._pull_load(rows @ q, self.time + self.dt)
-            if pulled is not None:
-                force += pulled @ rows
+        if self.pull is not None or self.wrench is not None:
+            loaded = self._applied(lambda dofs: self._phi[dofs] @ q, self.time + self.dt)
+            if loaded is not None:
+                force += loaded[1] @ self._phi[loaded[0]]
         if self._frame is not None:
             # The Coriolis load depends on the velocity: like damping in the explicit step, it
             # is taken at the predicted velocity v + dt/2 a.
