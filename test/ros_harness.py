@@ -26,6 +26,20 @@ def node_of(status) -> str:
     return next((kv.value for kv in status.values if kv.key == 'node'), '')
 
 
+def stderr_excerpt(err: str, size: int = 2000) -> str:
+    """
+    Return what a failure message should show of a process's ``err``: its end, or its fault.
+
+    A crash in native code prints the fault and every thread's stack (faulthandler) followed by
+    a long list of extension modules; the list would fill the end, so the fault is shown.
+    """
+    start = err.find('Fatal Python error')
+    if start < 0:
+        return err[-size:]
+    end = err.find('Extension modules', start)
+    return err[start:end if end >= 0 else None][:4 * size]
+
+
 def console_script(name: str) -> str:
     """Return the installed console script, found as ``ros2 run`` would (or in the venv)."""
     return str(executable(name))
@@ -62,7 +76,7 @@ class NodeProcess:
         except subprocess.TimeoutExpired:
             out, err = self.kill()
             raise AssertionError(f'node still running {timeout} s after {sig.name}; '
-                                 f'stderr: {err[-2000:]}') from None
+                                 f'stderr: {stderr_excerpt(err)}') from None
         return self.proc.returncode, out, err
 
     def kill(self) -> tuple[str, str]:
@@ -212,7 +226,7 @@ def node_with_client(*params: str, namespace: str, argv: list[str] | None = None
         node.kill()
         raise
     code, _, err = node.interrupt()
-    assert code == 0 and 'Traceback' not in err, err[-2000:]
+    assert code == 0 and 'Traceback' not in err, stderr_excerpt(err)
 
 
 @contextlib.contextmanager

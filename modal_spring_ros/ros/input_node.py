@@ -77,7 +77,7 @@ class InputNode:
             period = max(self._gap, spent / self._cpu_share)
             self._stop.wait(max(0.0, returned + period - time.monotonic()))
 
-    def close(self, timeout: float = 2.0) -> None:
+    def close(self, timeout: float = 5.0) -> None:
         """Stop taking messages, and destroy the companion node."""
         self._stop.set()
         if self._thread.is_alive():

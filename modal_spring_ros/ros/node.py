@@ -50,6 +50,10 @@ SERVICE_TIMEOUT_S = 5.0
 #: how often the executor wakes while a service awaits its answer (the timeout's resolution),
 #: how often the graph is searched for other nodes of this node's name, s
 SERVICE_WAKE_S, NAMESAKE_CHECK_S = 0.25, 2.0
+#: the node's parts, stopped in this order (inputs first, the capture last), as attribute and
+#: method names: a node stopped while it starts stops the parts it has
+STOP_ORDER = (('_input_node', 'close'), ('_worker', 'close'), ('_preparer', 'stop'),
+              ('_thread', 'stop'), ('_outputs', 'close'))
 
 
 class ModalSpringNode(Node):
@@ -57,6 +61,16 @@ class ModalSpringNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        try:
+            self._start()
+        except BaseException:
+            # a failure or a Ctrl-C while starting: what started is stopped and the node
+            # destroyed here (no thread left running into the interpreter's exit)
+            self.stop()
+            self.destroy_node()
+            raise
+
+    def _start(self) -> None:
         for name, (default, descriptor) in PARAMETERS.items():
             self.declare_parameter(name, default, descriptor)
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
@@ -67,14 +81,9 @@ class ModalSpringNode(Node):
         # cancels them.
         self._worker = WorkerProcess('modal_spring_modes',
                                      cancelled=lambda: not self.context.ok())
-        try:
-            sim = build_simulation(load_scene(values['scene'], log.info), config,
-                                   progress=log.info, worker=self._worker,
-                                   samples=sample_cache())
-            sim.check_stable('sim.dt')
-        except BaseException:
-            self._worker.close()
-            raise
+        sim = build_simulation(load_scene(values['scene'], log.info), config,
+                               progress=log.info, worker=self._worker, samples=sample_cache())
+        sim.check_stable('sim.dt')
         self._params = NodeParameters(
             self, ChangePlanner(sim.model, sim.basis), running=lambda: self._thread.sim,
             submit=lambda request: self._thread.submit(request),
@@ -169,9 +178,8 @@ class ModalSpringNode(Node):
         return await self._answer(Step(), response)
 
     def stop(self) -> None:
-        """Stop the threads (before destroy_node) and finalise the capture."""
-        for part in (self._input_node, self._worker):
-            part.close()
-        self._preparer.stop()
-        self._thread.stop()
-        self._outputs.close()
+        """Stop the threads (before destroy_node) and finalise the capture; whatever started."""
+        for name, method in STOP_ORDER:
+            part = getattr(self, name, None)
+            if part is not None:
+                getattr(part, method)()
