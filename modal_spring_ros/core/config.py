@@ -113,6 +113,14 @@ class SimulationConfig:
                               f'seconds above 0 and at most {MAX_HORIZON_S:g}')
         if self.auto and self.method != 'modal':
             raise ConfigError(f"{name('auto')} chooses modes: it needs {name('method')} modal")
+        if self.band.shaped and self.method != 'modal':
+            raise ConfigError(f"a filter shape ({name('order')}, {name('gains')}, "
+                              f"{name('damping')}) acts on modes: it needs {name('method')} "
+                              'modal')
+        if self.band.shaped and self.auto:
+            raise ConfigError(f"{name('auto')} chooses modes for keep-or-drop bands: a filter "
+                              f"shape ({name('order')}, {name('gains')}, {name('damping')}) "
+                              f"needs {name('auto')} off")
         if self.force_refresh < 0:
             raise ConfigError(f"{name('force_refresh')} ({self.force_refresh}) must be at "
                               'least 1 step (or 0: the default)')

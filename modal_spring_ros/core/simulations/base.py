@@ -249,6 +249,10 @@ class Simulation(abc.ABC):
         flat).
         """
 
+    def shown_displacement(self) -> np.ndarray:
+        """Return the displacement streamed: :meth:`displacement` with the output gains."""
+        return self.displacement()
+
     @abc.abstractmethod
     def velocity(self) -> np.ndarray:
         """Free-DOF velocity in the clamp's frame (flat)."""
@@ -283,7 +287,7 @@ class Simulation(abc.ABC):
 
     def positions(self) -> np.ndarray:
         """Return the particles' (n, 3) positions, in scene order."""
-        x = self.model.positions(self.displacement(), self.time)
+        x = self.model.positions(self.shown_displacement(), self.time)
         return self.model.positions3(x)
 
     def positions_into(self, out: np.ndarray) -> None:

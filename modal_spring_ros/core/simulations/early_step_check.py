@@ -35,11 +35,11 @@ def check_step_before_modes(basis: ModalBasis, band: FilterBand, *, dt: float, i
     :raises UnstableStepError: the band keeps a mode at or above the limit.
     """
     limit_hz = 1.0 / (math.pi * dt)
-    top = min(band.high if band.by == 'hz' and band.bounded_above else math.inf,
+    top = min(band.top if band.by == 'hz' and band.bounded_above else math.inf,
               math.inf if highest_hz is None else highest_hz)
     if not conditionally_stable(integrator) or top < limit_hz:
         return
-    count = int(band.high) + 1 if band.by == 'index' and band.bounded_above else math.inf
+    count = int(band.top) + 1 if band.by == 'index' and band.bounded_above else math.inf
     basis.ensure_frequency(limit_hz, min(count, max_modes, basis.n_dof))
     f = basis.frequencies_hz
     over = band.keeps(f) & (f >= limit_hz) & (f <= top * (1.0 + 1e-12))

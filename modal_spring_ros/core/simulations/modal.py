@@ -40,6 +40,8 @@ from modal_spring_ros.core.simulations.coordinates import (ActiveSet, ADDED_ID,
                                                            AddedCoordinateBank, BASES, EMPTY_SET)
 from modal_spring_ros.core.simulations.early_step_check import check_step_before_modes, mode_cap
 from modal_spring_ros.core.simulations.modal_settings import ModalSettings
+from modal_spring_ros.core.simulations.mode_gains import (coordinate_damping, coordinate_gains,
+                                                          GainFade)
 from modal_spring_ros.core.simulations.prepared_sets import PreparedSets
 from modal_spring_ros.core.simulations.stepped_set import SteppedSet
 import numpy as np
@@ -88,8 +90,10 @@ class ModalSimulation(Simulation):
         self._band = band.validate()
         self._set = EMPTY_SET
         self._q = self._v = self._a = np.empty(0)
+        self._gains = GainFade(np.ones((2, 0)))
         self._prepared = PreparedSets(self._build_set)
-        self._install(ActiveSet.settled(self.coordinates_for(self.select_modes(band))), None)
+        self._install(ActiveSet.settled(self.coordinates_for(self.select_modes(band))), None,
+                      self._band)
         self.reset()
 
     # -- the contract --------------------------------------------------------------------------
@@ -178,12 +182,12 @@ class ModalSimulation(Simulation):
         limit = min(self.max_modes, self.basis.n_dof)
         top = self.highest_hz if self.highest_hz is not None else math.inf
         if band.by == 'index':
-            needed = int(band.high) + 1 if band.bounded_above else limit
+            needed = int(band.top) + 1 if band.bounded_above else limit
             self.basis.ensure_count(min(needed, limit))
             if math.isfinite(top):
                 self.basis.ensure_frequency(top, limit)
         elif band.bounded_above or math.isfinite(top):
-            self.basis.ensure_frequency(min(band.high if band.bounded_above else top, top), limit)
+            self.basis.ensure_frequency(min(band.top if band.bounded_above else top, top), limit)
         else:
             self.basis.ensure_count(limit)
 
@@ -212,8 +216,8 @@ class ModalSimulation(Simulation):
         """Change the band; leaving coordinates fade out, entering ones start from rest."""
         keep = self.coordinates_for(self.select_modes(band))
         transition = self.transition_s if transition_s is None else float(transition_s)
-        self._install(self._set.switched(keep, transition <= 0.0), self._set)
         self.transition_s = transition
+        self._install(self._set.switched(keep, transition <= 0.0), self._set, band)
         self._band = band
 
     @property
@@ -221,7 +225,7 @@ class ModalSimulation(Simulation):
         """Tell whether the band reaches past the computed modes (capped at ``max_modes``)."""
         top = self.highest_hz if self.highest_hz is not None else math.inf
         band = self._band
-        edge = min(band.high if band.bounded_above and band.by == 'hz' else math.inf, top)
+        edge = min(band.top if band.bounded_above and band.by == 'hz' else math.inf, top)
         return not self.basis.complete and self.basis.frequencies_hz[-1] <= edge
 
     def check_band(self, band: FilterBand, dt_name: str = 'dt') -> np.ndarray:
@@ -247,10 +251,11 @@ class ModalSimulation(Simulation):
         instant = (self.transition_s if transition_s is None else transition_s) <= 0.0
         current = self._set  # one consistent snapshot
         self._prepared.prepare(self.basis.count, current.next_modes(keep, instant),
-                               instant or not current.modes.size)
-        self._prepared.prepare(self.basis.count, keep, True)
+                               instant or not current.modes.size, band.damping)
+        self._prepared.prepare(self.basis.count, keep, True, band.damping)
 
-    def _build_set(self, modes: np.ndarray, settled: bool) -> SteppedSet:
+    def _build_set(self, modes: np.ndarray, settled: bool,
+                   damping: tuple[str, ...]) -> SteppedSet:
         """
         Build the operators of stepping ``modes``.
 
@@ -260,18 +265,21 @@ class ModalSimulation(Simulation):
         forces = self.forces
         if not settled and force_model(forces).trained:
             forces = forces.untrained()
+        ratios = coordinate_damping(damping, modes, self.basis.frequencies_hz)
         return SteppedSet.build(self.model, self._bank, modes, self.damping, forces, self.dt,
-                                self.strain_limit)
+                                self.strain_limit, ratios)
 
-    def _install(self, new: ActiveSet, old: ActiveSet | None) -> None:
+    def _install(self, new: ActiveSet, old: ActiveSet | None, band: FilterBand) -> None:
         """
-        Step ``new`` from now on.
+        Step ``new`` from now on, with ``band``'s gains and damping.
 
         With ``old``, coordinates in both sets keep their state and those new to the set start from
-        rest (a dropped one has faded to zero); without, it starts at zero. Everything is built
-        first and assigned last, so a failure leaves the run as it was.
+        rest (a dropped one has faded to zero), and the gains fade to ``band``'s; without, it
+        starts at zero. Everything is built first and assigned last, so a failure leaves the run
+        as it was.
         """
-        stepped = self._prepared.take(self.basis.count, new.modes, not new.fading)
+        stepped = self._prepared.take(self.basis.count, new.modes, not new.fading, band.damping)
+        gains = coordinate_gains(band, new.modes, self.basis.frequencies_hz)
         q, v, a = (np.zeros(new.modes.size) for _ in range(3))
         if old is not None and old.modes.size:
             kept = np.isin(new.modes, old.modes)
@@ -281,6 +289,8 @@ class ModalSimulation(Simulation):
         self._ops, self._forces, self._frame = stepped.ops, stepped.forces, stepped.frame
         self._phi32 = stepped.phi32
         self._q, self._v, self._a = q, v, a
+        self._gains.retarget(self._set.modes, new.modes, gains,
+                             old is None or self.transition_s <= 0.0)
         self._set = new
         self._update_envelope()
 
@@ -310,12 +320,12 @@ class ModalSimulation(Simulation):
         self._v[out] *= ratio
         self._a[out] *= ratio
         if np.any(out & (progress <= 0.0)):
-            self._install(self._set.switched(self._set.kept, False), self._set)
+            self._install(self._set.switched(self._set.kept, False), self._set, self._band)
 
     # -- state ---------------------------------------------------------------------------------
     def reset(self) -> None:
-        if self._set.fading:  # settle the band: every kept mode fully in, none fading out
-            self._install(ActiveSet.settled(self._set.kept), None)
+        if self._set.fading or self._gains.fading:  # settle: kept modes fully in, gains reached
+            self._install(ActiveSet.settled(self._set.kept), None, self._band)
         self._at_rest()
 
     def set_state(self, displacement: np.ndarray, velocity: np.ndarray) -> None:
@@ -335,8 +345,14 @@ class ModalSimulation(Simulation):
     def displacement(self) -> np.ndarray:
         return self._phi @ self._q
 
+    def shown_displacement(self) -> np.ndarray:
+        if self._gains.unit_output:
+            return self.displacement()
+        return self._phi @ (self._gains.now[0] * self._q)
+
     def _displacement32(self) -> np.ndarray:
-        return self._phi32 @ self._q.astype(np.float32)  # half the memory read per frame
+        q = self._q if self._gains.unit_output else self._gains.now[0] * self._q
+        return self._phi32 @ q.astype(np.float32)  # half the memory read per frame
 
     def velocity(self) -> np.ndarray:
         return self._phi @ self._v
@@ -356,12 +372,17 @@ class ModalSimulation(Simulation):
             # is taken at the predicted velocity v + dt/2 a.
             force += self._frame.coupling(q, self._v + (0.5 * self.dt) * self._a,
                                           self.time + self.dt)
-        if self._is_fading:
+        if self._is_fading or not self._gains.unit_load:
             # An entering mode takes on its load (all but its own linear restoring force)
-            # along its envelope, so it eases into place instead of dropping from rest.
-            w = self._envelope
+            # along its envelope, so it eases into place instead of dropping from rest; a load
+            # gain scales the same part.
             restoring = -self._omega2 * q
-            force = np.where(self._fading_in, restoring + w * (force - restoring), force)
+            if self._gains.unit_load:
+                w = self._envelope
+                force = np.where(self._fading_in, restoring + w * (force - restoring), force)
+            else:
+                w = np.where(self._fading_in, self._envelope, 1.0) * self._gains.now[1]
+                force = restoring + w * (force - restoring)
         return force
 
     def _step_once(self) -> None:
@@ -370,3 +391,5 @@ class ModalSimulation(Simulation):
         self._commit()
         if self._is_fading:
             self._advance_fade()
+        if self._gains.fading:
+            self._gains.advance(self.dt / self.transition_s)

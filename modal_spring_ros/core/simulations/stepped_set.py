@@ -29,15 +29,21 @@ class SteppedSet:
     @classmethod
     def build(cls, model: MassSpringModel, bank: AddedCoordinateBank, modes: np.ndarray,
               damping: Damping, forces: ForceOptions, dt: float,
-              strain_limit: float) -> 'SteppedSet':
+              strain_limit: float, ratios: np.ndarray | None = None) -> 'SteppedSet':
         """
         Return the set of coordinates ``modes`` (rest or added, from ``bank``).
+
+        ``ratios``: a modal damping ratio per coordinate that replaces ``damping`` where it is
+        not NaN (``C_i = 2 h_i omega_i``).
 
         Its forces are the model ``forces`` names, built with the basis's services (progress,
         worker process, sample store).
         """
         phi, omega = bank.columns(modes)
         damp = damping.modal_coefficients(omega)
+        if ratios is not None:
+            own = ~np.isnan(ratios)
+            damp[own] = 2.0 * ratios[own] * omega[own]
         exact = ExactForces(model, phi, bank.load_mask(modes))
         basis = bank.basis
         context = ForceContext(exact, phi, omega**2, damp, dt, strain_limit, bank.progress,
