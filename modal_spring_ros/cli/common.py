@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import os
 from pathlib import Path
 import sys
@@ -11,6 +12,7 @@ from typing import Callable, Iterator, NoReturn
 from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand
+from modal_spring_ros.core.filter_response import ACTS_ON
 from modal_spring_ros.core.forces import FORCES
 from modal_spring_ros.core.integrators import INTEGRATORS
 from modal_spring_ros.core.model.scene import SceneError
@@ -139,6 +141,18 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument('--modes', default=None, metavar='FIRST:LAST',
                    help='keep modes FIRST..LAST (zero-based, inclusive) instead of a Hz band;'
                         ' with --filter bandstop, drop them')
+    g.add_argument('--order', type=int, default=0, metavar='N',
+                   help='Butterworth roll-off of order N at the band edges (-3 dB at each '
+                        'edge; default 0: ideal edges, keep or drop)')
+    g.add_argument('--gain', action='append', default=[], metavar='TERM',
+                   help='a gain in dB (repeatable): LOW_HZ:HIGH_HZ:DB over a range, '
+                        'peak:CENTER:WIDTH:DB, low_shelf:CORNER:DB or high_shelf:CORNER:DB')
+    g.add_argument('--gains-act-on', choices=ACTS_ON, default='output',
+                   help='output: the gains colour the positions (the motion stays physical; '
+                        'default); load: they scale the loads driving each mode')
+    g.add_argument('--damping-ratio', action='append', default=[], metavar='LOW:HIGH:RATIO',
+                   help="modes within LOW..HIGH Hz damped with modal ratio RATIO instead of "
+                        "the scene's (repeatable)")
     g.add_argument('--integrator', choices=INTEGRATORS, default='explicit')
     g.add_argument('--dt', type=float, default=None,
                    help="time step, s (default: the scene's, else half the stability limit)")
@@ -177,7 +191,8 @@ OPTION_NAMES = {'method': '--method', 'auto': '--auto', 'integrator': '--integra
                 'force_refresh': '--force-refresh', 'basis': '--basis',
                 'derivative_directions': '--derivative-directions', 'forces': '--forces',
                 'horizon_s': '--duration', 'type': '--filter', 'low_hz': '--low-hz',
-                'high_hz': '--high-hz'}
+                'high_hz': '--high-hz', 'order': '--order', 'gains': '--gain',
+                'acts_on': '--gains-act-on', 'damping': '--damping-ratio'}
 #: the edges of ``--modes FIRST:LAST``
 MODES_NAMES = {'low_mode': 'FIRST', 'high_mode': 'LAST'}
 
@@ -199,7 +214,17 @@ def parse_mode_range(text: str) -> FilterBand:
 
 
 def band_from_args(args: argparse.Namespace) -> FilterBand:
-    """Return the filter band the options describe. Raises BandError naming the option."""
+    """Return the filter (band and shape) the options describe; BandError names the option."""
+    band = _edges_from_args(args)
+    if args.order and band.by == 'index':
+        raise BandError('--order rounds edges in Hz: give the band with --low-hz/--high-hz, '
+                        'not --modes')
+    return dataclasses.replace(band, order=args.order, gains=tuple(args.gain),
+                               acts_on=args.gains_act_on,
+                               damping=tuple(args.damping_ratio)).validate(OPTION_NAMES)
+
+
+def _edges_from_args(args: argparse.Namespace) -> FilterBand:
     kind = args.filter_type or ('bandpass' if args.modes else 'allpass')
     if args.modes is not None:
         if args.low_hz is not None or args.high_hz is not None:

@@ -4,6 +4,8 @@
 Example::
 
     modal_spring_sim --scene sheet_10x10 --modes 0:14 --duration 2 --output lowpass.npz
+    modal_spring_sim --filter lowpass --high-hz 20 --order 4 --gain peak:8:2:6 \
+        --response-chart response.png
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs
                                          run_main, script_parser, write_output)
 from modal_spring_ros.core.config import MAX_HORIZON_S
 from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.runs.response_chart import draw_response
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
@@ -40,6 +43,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--output', default=None, help='write the run to this .npz file')
     p.add_argument('--bag', default=None,
                    help='also write every frame to this new rosbag2 MCAP bag folder')
+    p.add_argument('--response-chart', default=None, metavar='PNG',
+                   help="draw the filter's response (gain against frequency, the scene's "
+                        'modes marked) to this PNG file')
     p.add_argument('--allow-unstable', action='store_true',
                    help='step even above the explicit stability limit (to study divergence)')
     p.add_argument('--quiet', action='store_true', help='no progress on stderr')
@@ -65,7 +71,12 @@ def main(argv: list[str] | None = None) -> int:
                                      horizon_s=min(duration, MAX_HORIZON_S))
         sim = build_simulation(scene, config, progress=progress,
                                allow_unstable=args.allow_unstable, samples=sample_cache())
-        with claimed_outputs({'--output': args.output}, {'--bag': args.bag}):
+        with claimed_outputs({'--output': args.output, '--response-chart': args.response_chart},
+                             {'--bag': args.bag}):
+            if args.response_chart:
+                write_output(args.response_chart, '--response-chart', lambda: draw_response(
+                    sim.band, sim.basis.frequencies_hz, args.response_chart,
+                    f'{scene.name}: {sim.band.describe()}'))
             return run_and_report(sim, config, duration)
 
     def run_and_report(sim, config, duration: float) -> int:

@@ -19,6 +19,8 @@ from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TRANSI
                                           MAX_DIRECTIONS, MAX_FOLLOW_HZ, MAX_HORIZON_S,
                                           MIN_DIRECTIONS, SimulationConfig)
 from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand, UNITS
+from modal_spring_ros.core.filter_response import (ACTS_ON, MAX_DAMPING_RATIO, MAX_ORDER,
+                                                   MAX_TERM_DB, split_terms)
 from modal_spring_ros.core.forces import FORCES
 from modal_spring_ros.core.integrators import INTEGRATORS
 from modal_spring_ros.core.motion.clamp_follower import DEFAULT_FOLLOW_HZ
@@ -76,7 +78,23 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     'filter.high_mode': (14, _descriptor(
         'Upper band edge as a mode number (filter.by = index)', _I, int_range=(0, 1_000_000))),
     'filter.transition_s': (DEFAULT_TRANSITION_S, _descriptor(
-        'Fade time of modes leaving or entering the band, s', _D, float_range=(0.0, 60.0))),
+        'Fade time of modes leaving or entering the band (and of a change of gains), s', _D,
+        float_range=(0.0, 60.0))),
+    'filter.order': (0, _descriptor(
+        'Butterworth order of the band edges (-3 dB at each edge); 0 = ideal edges (keep or '
+        'drop). Needs filter.by hz', _I, int_range=(0, MAX_ORDER))),
+    'filter.gains': ('', _descriptor(
+        "Gain terms in dB, separated by spaces or commas: LOW:HIGH:DB (a range), "
+        'peak:CENTER:WIDTH:DB, low_shelf:CORNER:DB, high_shelf:CORNER:DB (Hz); empty = none',
+        _S, constraints=f'each within +-{MAX_TERM_DB:g} dB')),
+    'filter.gains_act_on': ('output', _descriptor(
+        'output: the gains scale what each mode adds to the streamed points (the motion stays '
+        'physical); load: they scale the loads that drive each mode (the motion changes)', _S,
+        constraints='one of ' + ', '.join(ACTS_ON))),
+    'filter.damping': ('', _descriptor(
+        'Damping ranges LOW:HIGH:RATIO, separated by spaces or commas: modes within LOW..HIGH '
+        "Hz are damped with modal ratio RATIO instead of the scene's; empty = none", _S,
+        constraints=f'RATIO from 0 to {MAX_DAMPING_RATIO:g}')),
     'integrator': ('explicit', _descriptor(
         "Newmark member: explicit (beta 0, the paper's) or average (beta 1/4, implicit)", _S,
         constraints='one of ' + ', '.join(INTEGRATORS))),
@@ -195,11 +213,14 @@ REBUILD_PARAMETERS = frozenset({'method', 'integrator', 'sim.dt', 'modal.auto',
                                 'modal.derivative_directions'})
 #: parameters of the band
 BAND_PARAMETERS = frozenset({'filter.type', 'filter.by', 'filter.low_hz', 'filter.high_hz',
-                             'filter.low_mode', 'filter.high_mode', 'filter.transition_s'})
+                             'filter.low_mode', 'filter.high_mode', 'filter.transition_s',
+                             'filter.order', 'filter.gains', 'filter.gains_act_on',
+                             'filter.damping'})
 #: parameters whose change has a slow part (prepared off the parameter services' thread)
 SLOW_PARAMETERS = REBUILD_PARAMETERS | BAND_PARAMETERS
 #: string parameters with a fixed set of values
 CHOICES = {'method': tuple(METHODS), 'filter.type': FILTER_TYPES, 'filter.by': UNITS,
+           'filter.gains_act_on': ACTS_ON,
            'integrator': tuple(INTEGRATORS), 'stamp': STAMPS, 'modal.basis': BASES,
            'modal.forces': FORCES}
 #: configuration field -> parameter name, so that configuration errors name the parameter
@@ -212,16 +233,21 @@ CONFIG_NAMES = {'method': 'method', 'auto': 'modal.auto', 'integrator': 'integra
                 'forces': 'modal.forces', 'horizon_s': 'modal.horizon',
                 'type': 'filter.type', 'by': 'filter.by', 'low_hz': 'filter.low_hz',
                 'high_hz': 'filter.high_hz', 'low_mode': 'filter.low_mode',
-                'high_mode': 'filter.high_mode'}
+                'high_mode': 'filter.high_mode', 'order': 'filter.order',
+                'gains': 'filter.gains', 'acts_on': 'filter.gains_act_on',
+                'damping': 'filter.damping'}
 
 
 def band_from_parameters(values: dict[str, Any]) -> FilterBand:
-    """Return the band described by the ``filter.*`` parameters."""
-    if values['filter.by'] == 'index':
-        return FilterBand(values['filter.type'], float(values['filter.low_mode']),
-                          float(values['filter.high_mode']), 'index')
-    return FilterBand(values['filter.type'], float(values['filter.low_hz']),
-                      float(values['filter.high_hz']), 'hz')
+    """Return the band (and its shape) described by the ``filter.*`` parameters."""
+    by = values['filter.by']
+    edges = ('filter.low_mode', 'filter.high_mode') if by == 'index' else ('filter.low_hz',
+                                                                           'filter.high_hz')
+    return FilterBand(values['filter.type'], float(values[edges[0]]), float(values[edges[1]]),
+                      by, order=int(values.get('filter.order', 0)),
+                      gains=split_terms(values.get('filter.gains', '')),
+                      acts_on=values.get('filter.gains_act_on', 'output'),
+                      damping=split_terms(values.get('filter.damping', '')))
 
 
 def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from helpers import HIDE_ROS
+from helpers import HIDE_ROS, variant
 from modal_spring_ros.cli.common import parse_mode_range
 from modal_spring_ros.cli.modal_spring_sim import main
 from modal_spring_ros.core.bases.basis import ModalBasis
@@ -13,6 +13,7 @@ from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.scenes.resources import load_scene
+from modal_spring_ros.scenes.writing import scene_to_yaml
 import numpy as np
 import pytest
 
@@ -65,6 +66,13 @@ def test_same_options_give_bit_identical_runs(tmp_path):
     (['--dt', '0.01', '--method', 'full'], 'explicit stability limit'),
     (['--dt', '-1'], '--dt (-1.0) must be a finite number of seconds, at least 1e-08 s'),
     (['--output', '/nonexistent/dir/run.npz'], 'folder /nonexistent/dir does not exist'),
+    (['--modes', '0:14', '--order', '2'], '--order rounds edges in Hz'),
+    (['--gain', '1:2:600'], "--gain: '1:2:600': 600 dB is beyond +-60 dB"),
+    (['--gain', 'peak:3:6'], "--gain: 'peak:3:6' must be written peak:CENTER:WIDTH:DB"),
+    (['--damping-ratio', '0:2:3'], "--damping-ratio: damping '0:2:3': RATIO (3) must be"),
+    (['--method', 'full', '--order', '2', '--filter', 'lowpass', '--high-hz', '9'],
+     'a filter shape (--order, --gain, --damping-ratio) acts on modes: it needs --method modal'),
+    (['--response-chart', '/nonexistent/r.png'], 'folder /nonexistent does not exist'),
 ])
 def test_bad_options_exit_2_with_a_clear_message(argv, message, capsys):
     with pytest.raises(SystemExit) as exc:
@@ -154,3 +162,25 @@ def test_without_ros_it_runs_and_says_what_a_bag_would_need(tmp_path):
         'modal_spring_sim: error: --bag needs the ROS message packages (sensor_msgs is not '
         "installed): pip install '.[ros]', or source a ROS 2 install")
     assert not (tmp_path / 'bag').exists()
+
+
+def test_an_equalised_run_streams_its_gains_and_draws_its_response(tmp_path, capsys):
+    """
+    A +6.02 dB output gain over every rest mode doubles every frame's displacement, exactly.
+
+    (A still clamp: the clamp's own motion is not a mode's.)
+    """
+    plain, loud, chart = tmp_path / 'plain.npz', tmp_path / 'loud.npz', tmp_path / 'r.png'
+    scene = tmp_path / 'still.yaml'
+    scene.write_text(scene_to_yaml(variant('sheet_10x10', anchor_motion=[])))
+    common = ['--scene', str(scene), '--modes', '0:14', '--basis', 'rest', '--duration', '0.2',
+              '--quiet']
+    assert main(common + ['--output', str(plain)]) == 0
+    assert main(common + ['--output', str(loud), '--gain', '0:1000:6.020599913279624',
+                          '--response-chart', str(chart)]) == 0
+    assert 'output gains 0:1000:6.020599913279624' in capsys.readouterr().out
+    a, b = np.load(plain), np.load(loud)
+    rest = a['rest_positions']
+    np.testing.assert_allclose(b['positions'] - rest, 2.0 * (a['positions'] - rest), rtol=1e-9,
+                               atol=1e-12)
+    assert chart.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and chart.stat().st_size > 10_000

@@ -63,3 +63,14 @@ def test_a_request_refused_after_the_node_validated_it_changes_nothing(node):
     assert [r.band.high for r in seen if isinstance(r, ChangeBand)] == [8.0]   # never 7 Hz
     assert 'filter.high_hz=7.0 dropped: refused after' in node._preparer.state().reverted
     assert band != node.sim.describe_band()
+
+
+def test_gains_set_while_running_reach_the_run_and_an_impossible_one_changes_nothing(node):
+    (result,) = node.set_parameters([Parameter('filter.gains', value='0:5:6')])
+    assert result.successful, result.reason
+    assert wait_for(lambda: node.sim.band.gains == ('0:5:6',), 10.0), node.sim.describe_band()
+    (result,) = node.set_parameters([Parameter('filter.gains', value='0:5:600')])
+    assert not result.successful
+    assert result.reason == "filter.gains: '0:5:600': 600 dB is beyond +-60 dB"
+    assert node.get_parameter('filter.gains').value == '0:5:6'
+    assert node.sim.band.gains == ('0:5:6',)

@@ -34,3 +34,30 @@ def test_bad_tf_frames_are_refused_by_name(values, reason):
 def test_tf_frames_pass_when_following_a_frame_or_not_broadcasting():
     config_from_parameters({**DEFAULTS, 'anchor.source': 'tf', 'anchor.frame': 'gripper'})
     config_from_parameters({**DEFAULTS, 'tf.publish': False, 'tf.object_frame': ''})
+
+
+def test_the_filter_s_shape_comes_from_its_parameters():
+    band = config_from_parameters({
+        **DEFAULTS, 'filter.type': 'lowpass', 'filter.high_hz': 9.0, 'filter.order': 4,
+        'filter.gains': '1:2:6, peak:5:1:-3  low_shelf:2:4', 'filter.gains_act_on': 'load',
+        'filter.damping': '0:3:0.1'}).band
+    assert (band.order, band.acts_on) == (4, 'load')
+    assert band.gains == ('1:2:6', 'peak:5:1:-3', 'low_shelf:2:4')
+    assert band.damping == ('0:3:0.1',)
+
+
+@pytest.mark.parametrize('values,reason', [
+    ({'filter.gains': '5:2:6'}, r"^filter\.gains: '5:2:6': LOW \(5 Hz\) must be at least 0"),
+    ({'filter.order': 3, 'filter.by': 'index'},
+     r"^filter\.order \(3\) rounds edges in Hz: it needs filter\.by 'hz'"),
+    ({'filter.order': 2, 'filter.type': 'highpass'},
+     r'^filter\.low_hz must be above 0 Hz for a rounded highpass edge'),
+    ({'filter.damping': '0:3:2'}, r"^filter\.damping: damping '0:3:2': RATIO \(2\)"),
+    ({'filter.gains_act_on': 'input'}, r"^filter\.gains_act_on 'input' must be one of"),
+    ({'filter.gains': '1:2:6', 'method': 'full'},
+     r'^a filter shape \(filter\.order, filter\.gains, filter\.damping\) acts on modes'),
+    ({'filter.damping': '0:3:0.1', 'modal.auto': True}, r'^modal\.auto chooses modes'),
+])
+def test_an_impossible_filter_shape_is_refused_by_its_name(values, reason):
+    with pytest.raises(ValueError, match=reason):
+        config_from_parameters({**DEFAULTS, **values})
