@@ -334,7 +334,8 @@ class ModalSimulation(Simulation):
         self._forces.restart()
         self._q = self._phi.T @ (m * displacement)
         self._v = self._phi.T @ (m * velocity)
-        self._a = self._forces(self._q, self.time) - self._damp * self._v
+        self._a = self._load_gained(self._forces(self._q, self.time), self._q) \
+            - self._damp * self._v
         if self._frame is not None:
             self._a += self._frame.coupling(self._q, self._v, self.time)
 
@@ -372,18 +373,20 @@ class ModalSimulation(Simulation):
             # is taken at the predicted velocity v + dt/2 a.
             force += self._frame.coupling(q, self._v + (0.5 * self.dt) * self._a,
                                           self.time + self.dt)
-        if self._is_fading or not self._gains.unit_load:
+        if self._is_fading:
             # An entering mode takes on its load (all but its own linear restoring force)
-            # along its envelope, so it eases into place instead of dropping from rest; a load
-            # gain scales the same part.
+            # along its envelope, so it eases into place instead of dropping from rest.
             restoring = -self._omega2 * q
-            if self._gains.unit_load:
-                w = self._envelope
-                force = np.where(self._fading_in, restoring + w * (force - restoring), force)
-            else:
-                w = np.where(self._fading_in, self._envelope, 1.0) * self._gains.now[1]
-                force = restoring + w * (force - restoring)
-        return force
+            w = self._envelope
+            force = np.where(self._fading_in, restoring + w * (force - restoring), force)
+        return self._load_gained(force, q)
+
+    def _load_gained(self, force: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Return ``force`` with each coordinate's load (all but its restoring force) gained."""
+        if self._gains.unit_load:
+            return force
+        restoring = -self._omega2 * q
+        return restoring + self._gains.now[1] * (force - restoring)
 
     def _step_once(self) -> None:
         q1, v1, a1 = self._advance(self._q, self._v, self._a, self._force, self._ops)
