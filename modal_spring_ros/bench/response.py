@@ -161,7 +161,7 @@ def write_outputs(results: dict, out: Path, progress) -> None:
 
 
 def chart(rows: list[dict], path: Path) -> Path:
-    """Requested and measured gain (dB) per mode for both meanings, and damping ratios."""
+    """Draw the requested and measured gain (dB) and damping ratio of each mode."""
     fig, (left, right) = subplots(1, 2, figsize=(11, 4.5))
     curve = np.geomspace(1.0, 200.0, 800)
     left.semilogx(curve, 20 * np.log10(FilterBand(**EQUALISER).gain(curve)), color='0.6',
