@@ -36,8 +36,8 @@ from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 
 #: the equaliser measured: rounded band-pass edges, a peak and a shelf
-EQUALISER = dict(kind='bandpass', low=8.0, high=60.0, order=2,
-                 gains=('peak:20:6:9', 'high_shelf:80:-6'))
+EQUALISER = {'kind': 'bandpass', 'low': 8.0, 'high': 60.0, 'order': 2,
+             'gains': ('peak:20:6:9', 'high_shelf:80:-6')}
 #: the damping ranges measured
 DAMPING = ('0:20:0.01', '20:50:0.04', '50:1000:0.08')
 DT_S, DURATION_S, QUICK_DURATION_S = 2e-4, 2.0, 1.0
@@ -168,9 +168,8 @@ def chart(rows: list[dict], path: Path) -> Path:
                   lw=1, label='requested')
     for case, marker in (('output', 'o'), ('load', 'x')):
         mine = [r for r in rows if r['case'] == case]
-        left.semilogx([r['hz'] for r in mine], [20 * math.log10(max(r['measured'], 1e-6))
-                                                  for r in mine], marker, ms=4,
-                      label=f'measured, {case} gains')
+        db = [20 * math.log10(max(r['measured'], 1e-6)) for r in mine]
+        left.semilogx([r['hz'] for r in mine], db, marker, ms=4, label=f'measured, {case} gains')
     left.set_ylim(-70, 15)
     left.set_xlabel('mode frequency, Hz')
     left.set_ylabel('gain, dB')

@@ -151,7 +151,7 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
                    help='output: the gains colour the positions (the motion stays physical; '
                         'default); load: they scale the loads driving each mode')
     g.add_argument('--damping-ratio', action='append', default=[], metavar='LOW:HIGH:RATIO',
-                   help="modes within LOW..HIGH Hz damped with modal ratio RATIO instead of "
+                   help='modes within LOW..HIGH Hz damped with modal ratio RATIO instead of '
                         "the scene's (repeatable)")
     g.add_argument('--integrator', choices=INTEGRATORS, default='explicit')
     g.add_argument('--dt', type=float, default=None,

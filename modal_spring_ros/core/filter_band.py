@@ -136,7 +136,7 @@ class FilterBand:
             raise BandError(f'{order_name} ({self.order}) must be a whole number from 0 '
                             f'(ideal edges) to {MAX_ORDER}')
         if self.order and self.by != 'hz':
-            raise BandError(f"{order_name} ({self.order}) rounds edges in Hz: it needs "
+            raise BandError(f'{order_name} ({self.order}) rounds edges in Hz: it needs '
                             f"{names.get('by', 'by')} 'hz'")
         low_name, high_name = (names.get(field, field) for field in self.edge_fields())
         if self.order and self.kind in ('highpass', 'bandpass', 'bandstop') and self.low <= 0:
@@ -169,7 +169,6 @@ class FilterBand:
             db = sum(parse_term(t).db_at(f) for t in self.gains)
             g = g * 10.0 ** (np.asarray(db, dtype=float) / 20.0)
         return g
-
 
     def keeps(self, frequencies_hz: np.ndarray) -> np.ndarray:
         """Boolean mask of the modes (given by their frequencies, ascending) this band keeps."""

@@ -84,7 +84,7 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         'Butterworth order of the band edges (-3 dB at each edge); 0 = ideal edges (keep or '
         'drop). Needs filter.by hz', _I, int_range=(0, MAX_ORDER))),
     'filter.gains': ('', _descriptor(
-        "Gain terms in dB, separated by spaces or commas: LOW:HIGH:DB (a range), "
+        'Gain terms in dB, separated by spaces or commas: LOW:HIGH:DB (a range), '
         'peak:CENTER:WIDTH:DB, low_shelf:CORNER:DB, high_shelf:CORNER:DB (Hz); empty = none',
         _S, constraints=f'each within +-{MAX_TERM_DB:g} dB')),
     'filter.gains_act_on': ('output', _descriptor(

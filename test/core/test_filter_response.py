@@ -173,7 +173,7 @@ def test_a_rounded_lowpass_steps_the_modes_above_its_edge_down_to_the_floor(shee
     (FilterBand(gains=('1:2:80',)), '80 dB is beyond +-60 dB'),
     (FilterBand(gains=('1:2:nan',)), 'every number must be finite'),
     (FilterBand(gains=('notch:3:6',)), "'notch' is not one of peak, low_shelf, high_shelf"),
-    (FilterBand(gains=('1:2',)), "must be written LOW:HIGH:DB"),
+    (FilterBand(gains=('1:2',)), 'must be written LOW:HIGH:DB'),
     (FilterBand(acts_on='input'), "acts_on 'input' must be one of output, load"),
     (FilterBand(damping=('1:2:1.5',)), 'RATIO (1.5) must be from 0 to 1'),
 ])
