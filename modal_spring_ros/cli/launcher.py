@@ -30,7 +30,7 @@ EXIT_INTERRUPTED = 130
 #: The console scripts, each a module of this package named after it.
 SCRIPTS = ('modal_spring_sim', 'modal_spring_node', 'modal_spring_bench', 'modal_spring_replay',
            'modal_spring_compare', 'modal_spring_record', 'modal_spring_gripper',
-           'modal_spring_render')
+           'modal_spring_render', 'modal_spring_view')
 
 
 def run(script: str) -> int:
@@ -96,3 +96,4 @@ modal_spring_compare = functools.partial(run, 'modal_spring_compare')
 modal_spring_record = functools.partial(run, 'modal_spring_record')
 modal_spring_gripper = functools.partial(run, 'modal_spring_gripper')
 modal_spring_render = functools.partial(run, 'modal_spring_render')
+modal_spring_view = functools.partial(run, 'modal_spring_view')

@@ -42,6 +42,7 @@ IMPORT_KEYS = {
     'trimesh': 'python3-trimesh-pip',
     'meshio': 'python3-meshio-pip',
     'threadpoolctl': 'python3-threadpoolctl-pip',
+    'foxglove': 'python3-foxglove-sdk-pip',
     'rclpy': 'rclpy',
     'builtin_interfaces': 'builtin_interfaces',
     'rcl_interfaces': 'rcl_interfaces',
@@ -57,7 +58,8 @@ IMPORT_KEYS = {
 }
 TEST_IMPORT_KEYS = {'pytest': 'python3-pytest', 'rosbags': 'python3-rosbags-pip',
                     'catkin_pkg': 'python3-catkin-pkg', 'ament_flake8': 'ament_flake8',
-                    'ament_pep257': 'ament_pep257', 'PIL': 'python3-pil'}
+                    'ament_pep257': 'ament_pep257', 'PIL': 'python3-pil',
+                    'websockets': 'python3-websockets-pip'}
 #: tools this file runs as ``python -m MODULE``
 TEST_TOOL_KEYS = {'colcon': 'python3-colcon-common-extensions', 'rosdep2': 'python3-rosdep',
                   'flake8': 'python3-flake8'}
@@ -138,10 +140,10 @@ def rosdep_env(tmp_path_factory):
 
 
 def _pip_requirements() -> set[str]:
-    """Lower-case names of the installed package's requirements (install and test extras)."""
+    """Lower-case names of the installed package's requirements (install, view, test)."""
     out = set()
     for req in importlib.metadata.requires(PACKAGE) or []:
-        if 'extra ==' in req and 'extra == "test"' not in req:
+        if 'extra ==' in req and not ('extra == "test"' in req or 'extra == "view"' in req):
             continue
         out.add(re.split(r'[\s\[<>=!;~]', req, maxsplit=1)[0].lower())
     return out
@@ -155,9 +157,10 @@ def test_the_shipped_rosdep_file_resolves_every_pip_key_to_a_package_setup_py_re
     package = _package()
     pip_keys = sorted({d.name for d in package.exec_depends + package.test_depends
                        if d.name.endswith('-pip')})
-    assert pip_keys == ['python3-mcap-pip', 'python3-mcap-ros2-support-pip',
-                        'python3-meshio-pip', 'python3-rosbags-pip', 'python3-threadpoolctl-pip',
-                        'python3-trimesh-pip']
+    assert pip_keys == ['python3-foxglove-sdk-pip', 'python3-mcap-pip',
+                        'python3-mcap-ros2-support-pip', 'python3-meshio-pip',
+                        'python3-rosbags-pip', 'python3-threadpoolctl-pip',
+                        'python3-trimesh-pip', 'python3-websockets-pip']
     requirements = _pip_requirements()
     for key in pip_keys:
         done = subprocess.run(rosdep + ['resolve', key, '--os=ubuntu:noble',
@@ -213,7 +216,7 @@ def _console_scripts() -> list[str]:
 def test_colcon_build_installs_the_ament_layout(colcon_install):
     prefix = colcon_install / PACKAGE
     scripts = _console_scripts()
-    assert 'modal_spring_node' in scripts and len(scripts) == 8
+    assert 'modal_spring_node' in scripts and len(scripts) == 9
     for name in scripts:  # where `ros2 run modal_spring_ros NAME` looks
         exe = prefix / 'lib' / PACKAGE / name
         assert exe.is_file() and os.access(exe, os.X_OK), exe
