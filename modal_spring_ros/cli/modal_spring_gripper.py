@@ -17,13 +17,12 @@ from __future__ import annotations
 
 import argparse
 import math
-import signal
 import subprocess
 import sys
 import time
 
 from geometry_msgs.msg import PoseStamped
-from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args
+from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args, stop_child
 from modal_spring_ros.core.motion.clamp_follower import DEFAULT_FOLLOW_HZ
 from modal_spring_ros.scenes.resources import executable
 import rclpy
@@ -117,12 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-        if node_process is not None:
-            node_process.send_signal(signal.SIGINT)
-            try:
-                node_process.wait(15)
-            except subprocess.TimeoutExpired:
-                node_process.kill()
+        stop_child(node_process)
     return 0
 
 

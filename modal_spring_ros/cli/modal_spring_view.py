@@ -13,11 +13,10 @@ from __future__ import annotations
 
 import argparse
 import math
-import signal
 import subprocess
 import sys
 
-from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args
+from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args, stop_child
 from modal_spring_ros.ros.live_view import (DEFAULT_MAX_RATE_HZ, DEFAULT_PORT, foxglove,
                                             LiveView, SDK_MISSING)
 from modal_spring_ros.scenes.resources import executable
@@ -91,12 +90,7 @@ def main(argv: list[str] | None = None) -> int:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-        if node_process is not None:
-            node_process.send_signal(signal.SIGINT)
-            try:
-                node_process.wait(15)
-            except subprocess.TimeoutExpired:
-                node_process.kill()
+        stop_child(node_process)
     return 0
 
 

@@ -196,3 +196,18 @@ def test_a_shaped_band_survives_the_config_s_round_trip():
                                               acts_on='load', damping=('0:3:0.1',)))
     again = SimulationConfig.from_dict(config.to_dict())
     assert again == config and again.band.gains == ('1:2:6',)
+
+
+@pytest.mark.parametrize('kind, edges', [('lowpass', [9.0]), ('highpass', [3.0]),
+                                         ('bandpass', [3.0, 9.0]), ('bandstop', [3.0, 9.0])])
+@pytest.mark.parametrize('order', [1, 3, 6])
+def test_every_rounded_edge_is_at_minus_3_db_and_the_skirts_fall_with_the_order(kind, edges,
+                                                                               order):
+    band = FilterBand(kind, 3.0, 9.0, order=order).validate()
+    np.testing.assert_allclose(band.gain(np.array(edges)), 1 / math.sqrt(2), rtol=1e-12)
+    inside = {'lowpass': 0.5, 'highpass': 60.0, 'bandpass': math.sqrt(27.0), 'bandstop': 5.0}
+    outside = {'lowpass': 90.0, 'highpass': 0.3, 'bandpass': 90.0, 'bandstop': 90.0}
+    kept, cut = band.gain(np.array([inside[kind], outside[kind]]))
+    if kind == 'bandstop':     # its pass band is outside the edges
+        kept, cut = cut, kept
+    assert kept > 0.95 and cut < 1.01 * 0.1 ** order     # a decade out: order x 20 dB down
