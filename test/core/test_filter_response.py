@@ -201,8 +201,8 @@ def test_a_shaped_band_survives_the_config_s_round_trip():
 @pytest.mark.parametrize('kind, edges', [('lowpass', [9.0]), ('highpass', [3.0]),
                                          ('bandpass', [3.0, 9.0]), ('bandstop', [3.0, 9.0])])
 @pytest.mark.parametrize('order', [1, 3, 6])
-def test_every_rounded_edge_is_at_minus_3_db_and_the_skirts_fall_with_the_order(kind, edges,
-                                                                               order):
+def test_every_rounded_edge_is_at_minus_3_db_and_its_skirt_falls_with_the_order(
+        kind, edges, order):
     band = FilterBand(kind, 3.0, 9.0, order=order).validate()
     np.testing.assert_allclose(band.gain(np.array(edges)), 1 / math.sqrt(2), rtol=1e-12)
     inside = {'lowpass': 0.5, 'highpass': 60.0, 'bandpass': math.sqrt(27.0), 'bandstop': 5.0}
