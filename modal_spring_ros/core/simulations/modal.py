@@ -216,8 +216,9 @@ class ModalSimulation(Simulation):
         """Change the band; leaving coordinates fade out, entering ones start from rest."""
         keep = self.coordinates_for(self.select_modes(band))
         transition = self.transition_s if transition_s is None else float(transition_s)
+        self._install(self._set.switched(keep, transition <= 0.0), self._set, band,
+                      transition <= 0.0)
         self.transition_s = transition
-        self._install(self._set.switched(keep, transition <= 0.0), self._set, band)
         self._band = band
 
     @property
@@ -269,14 +270,15 @@ class ModalSimulation(Simulation):
         return SteppedSet.build(self.model, self._bank, modes, self.damping, forces, self.dt,
                                 self.strain_limit, ratios)
 
-    def _install(self, new: ActiveSet, old: ActiveSet | None, band: FilterBand) -> None:
+    def _install(self, new: ActiveSet, old: ActiveSet | None, band: FilterBand,
+                 instant: bool = False) -> None:
         """
         Step ``new`` from now on, with ``band``'s gains and damping.
 
         With ``old``, coordinates in both sets keep their state and those new to the set start from
-        rest (a dropped one has faded to zero), and the gains fade to ``band``'s; without, it
-        starts at zero. Everything is built first and assigned last, so a failure leaves the run
-        as it was.
+        rest (a dropped one has faded to zero), and the gains fade to ``band``'s (``instant``:
+        at once); without, it starts at zero. Built first, assigned last: a failure changes
+        nothing.
         """
         stepped = self._prepared.take(self.basis.count, new.modes, not new.fading, band.damping)
         gains = coordinate_gains(band, new.modes, self.basis.frequencies_hz)
@@ -290,7 +292,7 @@ class ModalSimulation(Simulation):
         self._phi32 = stepped.phi32
         self._q, self._v, self._a = q, v, a
         self._gains.retarget(self._set.modes, new.modes, gains,
-                             old is None or self.transition_s <= 0.0)
+                             instant or old is None or self.transition_s <= 0.0)
         self._set = new
         self._update_envelope()
 
