@@ -31,6 +31,8 @@ LARGE_CLOUDS_PROFILE = 'config/fastdds_large_clouds.xml'
 _REST_32 = ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31',
             'modal.basis:=rest']
 
+#: the highest DDS domain id ROS 2 accepts
+MAX_DOMAIN_ID = 232
 #: (label, scene, extra node parameters)
 CASES = [
     ('sheet_10x10, modal all modes', 'sheet_10x10', []),
@@ -48,10 +50,32 @@ CASES = [
 ]
 
 
+def domain_id() -> int:
+    """Return the DDS domain to measure on: ``ROS_DOMAIN_ID`` when set, else a random one."""
+    given = os.environ.get('ROS_DOMAIN_ID', '').strip()
+    if given:
+        if not (given.isdigit() and 0 <= int(given) <= MAX_DOMAIN_ID):
+            raise ValueError(f'ROS_DOMAIN_ID ({given!r}) must be a whole number from 0 to '
+                             f'{MAX_DOMAIN_ID}')
+        return int(given)
+    return random.randint(110, 200)     # apart from other runs on this machine
+
+
+def select_cases(case: str | None, quick: bool) -> list[tuple[str, str, list[str]]]:
+    """Return the cases to run: those whose label contains ``case``, else all (two quick)."""
+    if case is None:
+        return CASES[:2] if quick else CASES
+    chosen = [c for c in CASES if case.lower() in c[0].lower()]
+    if not chosen:
+        raise ValueError(f"--case '{case}' matches no stream case (cases: "
+                         f"{'; '.join(label for label, _, _ in CASES)})")
+    return chosen
+
+
 def measure(scene: str, params: list[str], seconds: float, startup_timeout: float,
             progress: Callable[[str], None]) -> dict:
 
-    domain = random.randint(110, 200)
+    domain = domain_id()
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     exe = executable('modal_spring_node')
     args = [str(exe), '--ros-args', '-p', f'scene:={scene}', '-p', 'stamp:=wall']
@@ -115,9 +139,10 @@ def measure(scene: str, params: list[str], seconds: float, startup_timeout: floa
     }
 
 
-def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:
+def run(quick: bool, progress: Callable[[str], None], case: str | None = None) -> list[dict]:
+    """Measure the cases (``case``: only those whose label contains it)."""
     results = []
-    cases = CASES[:2] if quick else CASES
+    cases = select_cases(case, quick)
     for k, (label, scene, params) in enumerate(cases):
         progress(f'stream {k + 1}/{len(cases)}: {label}')
         res = measure(scene, params, 3.0 if quick else 10.0, 240.0, progress)

@@ -1,7 +1,8 @@
 """
 ``modal_spring_bench``: the project's benchmarks, as suites, with their results on disk.
 
-    modal_spring_bench [--suite steps,stream,tradeoff,promise,response] [--quick] [--out DIR]
+    modal_spring_bench [--suite steps,stream,tradeoff,promise,response] [--quick] [--case TEXT]
+                       [--out DIR]
 
 Suites: ``steps`` (median time per step, basis cost, peak memory), ``stream`` (the node's
 publish rate and end-to-end latency, seen from another process), ``tradeoff`` (error against
@@ -32,6 +33,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--suite', default='steps',
                    help=f"comma-separated suites: {', '.join(SUITES)} (default steps)")
     p.add_argument('--quick', action='store_true', help='fewer repetitions and cases')
+    p.add_argument('--case', default=None, metavar='TEXT',
+                   help="stream suite: only the cases whose label contains TEXT (e.g. '100k')")
     p.add_argument('--out', default=None, help='folder for the JSON results')
     args = p.parse_args(argv)
     suites = [s.strip() for s in args.suite.split(',') if s.strip()]
@@ -39,6 +42,18 @@ def main(argv: list[str] | None = None) -> int:
     if unknown or not suites:
         fail(PROG, f"--suite: unknown {', '.join(unknown) or '(none)'} "
                    f"(choose from {', '.join(SUITES)})")
+    if 'stream' in suites:
+        try:
+            stream.domain_id()
+        except ValueError as exc:
+            fail(PROG, str(exc))
+    if args.case is not None:
+        if suites != ['stream']:
+            fail(PROG, '--case picks stream cases: use it with --suite stream alone')
+        try:
+            stream.select_cases(args.case, args.quick)
+        except ValueError as exc:
+            fail(PROG, str(exc))
     out = Path(args.out) if args.out else None
     if out is not None:
         try:
@@ -51,7 +66,8 @@ def main(argv: list[str] | None = None) -> int:
 
     for name in suites:
         module = SUITES[name]
-        results = module.run(args.quick, progress)
+        results = (module.run(args.quick, progress, args.case) if args.case is not None
+                   else module.run(args.quick, progress))
         print(f'== {name} ==')
         print(module.table(results))
         if out is not None:

@@ -1,0 +1,36 @@
+"""The stream benchmark picks its cases and its DDS domain as a user asks (no node started)."""
+from __future__ import annotations
+
+from modal_spring_ros.bench import stream
+from modal_spring_ros.cli.modal_spring_bench import main
+import pytest
+
+
+def test_one_case_is_picked_by_a_part_of_its_label():
+    chosen = stream.select_cases('profile', quick=False)
+    assert [label for label, _, _ in chosen] == [
+        'sheet_316x316 (100k), sampled springs, large-cloud Fast DDS profile']
+    assert len(stream.select_cases('100K', quick=False)) == 4          # any case
+    assert stream.select_cases(None, quick=True) == stream.CASES[:2]
+    with pytest.raises(ValueError, match="--case 'nothing' matches no stream case"):
+        stream.select_cases('nothing', quick=False)
+
+
+def test_the_domain_is_ros_domain_id_when_set(monkeypatch):
+    monkeypatch.setenv('ROS_DOMAIN_ID', '42')
+    assert stream.domain_id() == 42
+    monkeypatch.delenv('ROS_DOMAIN_ID')
+    assert 110 <= stream.domain_id() <= 200
+    monkeypatch.setenv('ROS_DOMAIN_ID', '300')
+    with pytest.raises(ValueError, match=r"ROS_DOMAIN_ID \('300'\) must be a whole number"):
+        stream.domain_id()
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--suite', 'stream', '--case', 'nothing'], "--case 'nothing' matches no stream case"),
+    (['--suite', 'steps', '--case', '100k'], '--case picks stream cases'),
+])
+def test_a_case_that_cannot_be_run_is_refused_before_any_work(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2 and message in capsys.readouterr().err
