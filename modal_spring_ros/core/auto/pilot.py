@@ -10,15 +10,19 @@ it is good; this module does the same for a whole plan:
 1. **A pilot window** that excites what the scene excites (released under gravity from rest,
    its clamp drive) and lasts a few periods of the slowest kept mode and of the drive
    (``MIN_WINDOW_S`` to ``MAX_WINDOW_S``).
-2. **A reference** for that window: the full physical run (every DOF, every spring, explicit at
-   a converged step) where the band keeps everything and its cost is
-   within ``REFERENCE_WORK``; otherwise the richer sibling of the plan (an embedded pair: every
-   spring on every step, the derivatives basis with twice the directions, more modes where the
-   band allows, a quarter of the step). The sibling's step error is a sixteenth of the plan's
-   (second-order schemes), so the difference is divided by ``1 - (h_sibling / h_plan)^2``
-   (Richardson): exact for the plan's step error, a few per cent high for the rest. A sibling
-   still richer than a refined plan in every respect (modes, directions, forces, a step at most
-   half its step: the factor is then 4/3) is kept; otherwise a new one is made.
+2. **A reference** for that window: the full physical run (every DOF, every spring, explicit,
+   halved from its longest stable step until step doubling says it has converged) where the
+   band keeps everything and its cost is within ``REFERENCE_WORK``; otherwise the richer
+   sibling of the plan (an embedded pair: every spring on every step, the derivatives basis
+   with twice the directions, more modes where the band allows, a quarter of the step). The
+   sibling's step error is a sixteenth of the plan's (second-order schemes), so the difference
+   is divided by ``1 - (h_sibling / h_plan)^2`` (Richardson): exact for the plan's step
+   error, a few per cent high for the rest. A sibling still richer than a refined plan in
+   every respect (modes, directions, forces, a step at most half its step: the factor is then
+   4/3) is kept; otherwise a new one is made. A sibling shares what the modal coordinates
+   cannot follow (a cloth's slack regions are nonlinear from millimetres: plan and sibling
+   agreed to 0.06 % and were 100 % off the full run), so the full run is the reference
+   wherever it can be afforded.
 3. **The measured error**: relative L2 of the free-DOF displacement in the clamp's frame over
    the window's samples, against the reference (as the benchmark measures it). The promise is
    over the run's *horizon* (its duration), which may be longer than the window: an undamped
@@ -32,9 +36,9 @@ it is good; this module does the same for a whole plan:
 5. **The full run is a candidate**: where the band keeps every mode, the full run meets any
    tolerance, and its cost per simulated second is compared with the plan's by a work model
    fitted to measured step costs (deterministic: the same choice whatever the machine's load
-   or thread count). The cheaper
-   of the two that meets the tolerance is chosen; a plan that cannot be brought within the
-   tolerance falls back to the full run, and says so.
+   or thread count). The cheaper of the two that meets the tolerance is chosen; a plan that
+   cannot be brought within the tolerance falls back to the full run, and says so
+   (:mod:`~modal_spring_ros.core.auto.full_candidate` measures it).
 
 Everything here is deterministic: no wall-clock time enters a decision.
 """
@@ -44,6 +48,8 @@ import dataclasses
 import math
 from typing import Callable
 
+from modal_spring_ros.core.auto.full_candidate import (against_reference, BY_ITSELF,
+                                                       by_step_doubling, STEP_ORDER)
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, horizon_error,
                                                        on_samples, trajectory, trajectory_error)
 from modal_spring_ros.core.auto.work_model import work_per_second
@@ -63,16 +69,11 @@ MIN_WINDOW_S, MAX_WINDOW_S, WINDOW_PERIODS = 1.0, 3.0, 8.0
 SAMPLES = 120
 #: The full reference run is used when its window costs at most this much modelled CPU time, us.
 REFERENCE_WORK = 5e6
-#: First step of the full reference run: at most this share of its explicit stability limit,
-#: and this many times shorter than the plan's (then halved until it has converged).
-REFERENCE_SAFETY, REFERENCE_REFINEMENT = 0.15, 4.0
 #: The reference's own error (by step doubling) must be within this share of the tolerance.
 REFERENCE_ACCURACY = 0.1
 #: The richer sibling's step is made this many times shorter than the plan's, and kept for a
 #: refined plan while it is at least ``SIBLING_KEPT`` times shorter.
 SIBLING_REFINEMENT, SIBLING_KEPT = 4.0, 2.0
-#: Order of the schemes' step error (the Richardson correction against the sibling).
-STEP_ORDER = 2
 #: Longest step a plan is lengthened to, as a share of its explicit stability limit (below
 #: ``mode_selection.STABILITY_SAFETY``, beyond which a plan's step is cut to a safe one).
 LONGEST_STEP = 0.85
@@ -112,13 +113,14 @@ class PilotReport:
     error: float                    # relative error of the chosen plan over the horizon
     planned_error: float            # the same for the plan as first predicted
     window_s: float
-    against: str                    # 'the full run' or 'a richer plan'
+    against: str                    # 'the full run', 'a richer plan' or (full) BY_ITSELF
     refined: tuple[str, ...]        # refinements applied, in order
     method: str                     # 'modal' or 'full'
     cost_ratio: float               # the plan's cost per simulated second / the full run's
     reason: str = ''                # why the full run was chosen, when it was
     horizon_s: float = 0.0          # the run the promise is for, s (0: the window)
     window_error: float = math.nan  # the chosen plan's error measured over the window
+    tolerance: float = math.nan     # what the plan was to meet
 
     def _over(self) -> str:
         """Say how the error was found: measured over the window, extrapolated beyond."""
@@ -129,8 +131,11 @@ class PilotReport:
 
     def describe(self) -> str:
         if self.method == 'full':
+            beyond = (f'; NOT within {self.tolerance:.2%}: the full run did not converge to it '
+                      f'at any step the pilot could afford' if self.error > self.tolerance
+                      else '')
             return (f'full run chosen ({self.reason}): error {self.error:.2%} {self._over()}; '
-                    f'the modal plan as first made: {self.planned_error:.2%}')
+                    f'the modal plan as first made: {self.planned_error:.2%}{beyond}')
         steps = f", refined: {', '.join(self.refined)}" if self.refined else ''
         return (f'measured error {self.error:.2%} {self._over()}{steps}; work '
                 f'{self.cost_ratio:.2g} x the full run')
@@ -216,10 +221,10 @@ class Pilot:
             plan, sim, error, longer = self._lengthened(plan, sim, error, reference, sample_s)
             refined.extend(['a longer step'] if longer else [])
         self._sampling = (sample_s, samples, reference, against)
-        sim, report = self._choose(sim, plan, error, planned, against, tuple(refined))
+        sim, report = self._choose(sim, error, planned, against, tuple(refined))
         window_error = report.error if report.method == 'full' else self._measured[id(sim)][1]
         return sim, dataclasses.replace(report, horizon_s=self.horizon_s,
-                                        window_error=window_error)
+                                        window_error=window_error, tolerance=self.tolerance)
 
     # -- internals -----------------------------------------------------------------------------
     def _lengthened(self, plan: PlanSettings, sim: Simulation, error: float,
@@ -331,8 +336,7 @@ class Pilot:
     def _converged_full_run(self, plan: PlanSettings, sample_s: float, samples: int
                             ) -> np.ndarray | None:
         """Return the full run's converged trajectory, or None beyond ``REFERENCE_WORK``."""
-        probe = self.full(plan.dt, sample_s)
-        step = min(plan.dt / REFERENCE_REFINEMENT, REFERENCE_SAFETY * probe.stability_limit())
+        step = self.full(math.inf, sample_s).dt
         found = converged_trajectory(lambda dt: self.full(dt, sample_s), step, sample_s,
                                      samples, REFERENCE_ACCURACY * self.tolerance,
                                      REFERENCE_WORK / self.window_s)
@@ -357,41 +361,39 @@ class Pilot:
                 plan, dt=plan.dt / 2,
                 refresh=plan.refresh * 2 if plan.forces == 'refreshed' else 1)
 
-    def _choose(self, sim: Simulation, plan: PlanSettings, error: float, planned: float,
-                against: str, refined: tuple[str, ...]) -> tuple[Simulation, PilotReport]:
+    def _choose(self, sim: Simulation, error: float, planned: float, against: str,
+                refined: tuple[str, ...]) -> tuple[Simulation, PilotReport]:
         if self.full is None:
             return sim, PilotReport(error, planned, self.window_s, against, refined, 'modal',
                                     math.nan)
-        full, full_error = self._full_candidate(plan, against)
+        full, full_error, full_against = self._full_candidate(against, error)
         ratio = work_per_second(sim) / work_per_second(full)
         report = PilotReport(error, planned, self.window_s, against, refined, 'modal', ratio)
         if error <= self.tolerance and ratio <= FULL_RUN_TIE:
             return sim, report
-        reason = (f'no plan within {self.tolerance:.2%} after refining'
+        reason = (f'no plan within {self.tolerance:.2%} after refining: the best measured '
+                  f'{error:.2%}'
                   if error > self.tolerance else f'cheaper: the plan needs {ratio:.2g} x its work')
         return full, dataclasses.replace(report, error=full_error, method='full', cost_ratio=1.0,
-                                         reason=reason)
+                                         reason=reason, against=full_against)
 
-    def _full_candidate(self, plan: PlanSettings, against: str) -> tuple[Simulation, float]:
+    def _full_candidate(self, against: str, error: float) -> tuple[Simulation, float, str]:
         """
-        Return the full run at the longest step that measures within budget, and its error.
+        Return the full run as a candidate, its error, and what that was measured against.
 
-        Steps from the longest stable one (``full`` caps it), shortened to where the step error
-        (of order ``STEP_ORDER``) would meet the budget, by a factor of 0.5 to 0.8 each time,
-        down to the reference's step. Without a full reference (its converged run is beyond the
-        pilot's budget, but one full run at a step as long as the sibling's is not), it is
-        measured against the richer sibling, as the plan is: pricing it at the sibling's step
-        unmeasured made a full run that met the tolerance at five times the step look three
-        times dearer than a plan it cost a sixth of.
+        Against the pilot's reference (:func:`~.full_candidate.against_reference`), down to
+        the reference's step; without a full reference, against the richer sibling as the plan
+        is (pricing it at the sibling's step unmeasured made a full run that met the tolerance
+        at five times the step look three times dearer than a plan it cost a sixth of), unless
+        the plan never came within the tolerance: then the sibling is no reference, and the
+        full run is measured by its own step doubling (:func:`~.full_candidate.by_step_doubling`).
         """
-        sample_s, _, reference, _ = self._sampling
-        shortest = self._reference_dt if against == 'the full run' else self._sibling[1]
-        step = math.inf
+        sample_s, samples, reference, _ = self._sampling
         budget = PILOT_MARGIN * self.tolerance
-        while True:
-            full = self.full(step, sample_s)
-            error = self._error(full, reference, sample_s)
-            if error <= budget or full.dt <= shortest:
-                return full, error
-            reach = 0.95 * (budget / error) ** (1.0 / STEP_ORDER) if error < math.inf else 0.0
-            step = full.dt * min(0.8, max(0.5, reach))
+        if against != 'the full run' and error > self.tolerance:
+            full, full_error = by_step_doubling(self.full, sample_s, samples, self.horizon_s,
+                                                budget, REFERENCE_WORK / self.window_s)
+            return full, full_error, BY_ITSELF
+        shortest = self._reference_dt if against == 'the full run' else self._sibling[1]
+        return (*against_reference(self.full, lambda sim: self._error(sim, reference, sample_s),
+                                   sample_s, budget, shortest), against)

@@ -1,0 +1,77 @@
+"""
+The full run as the automatic choice's candidate: the longest step it measures within budget.
+
+Two ways to measure it, by what the pilot can trust:
+
+- :func:`against_reference`: against the pilot's reference (the converged full run, or a
+  richer modal plan that the plan itself measured within the tolerance against), from the
+  longest stable step down;
+- :func:`by_step_doubling`: against itself at half the step. Where no modal plan came within
+  the tolerance, the richer modal plan is no reference for anything (a scene the modal
+  coordinates cannot follow, such as cloth whose slack regions turn nonlinear at millimetres),
+  and measuring the full run against it reported the modal plan's error as the full run's and
+  shortened its step for nothing. The full run's only error is its step error: a second-order
+  scheme's error at ``h`` is four thirds of the difference between its runs at ``h`` and
+  ``h / 2``.
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+from modal_spring_ros.core.auto.measured_error import horizon_error, trajectory
+from modal_spring_ros.core.auto.work_model import work_per_second
+from modal_spring_ros.core.simulations import Simulation
+
+#: Order of the schemes' step error.
+STEP_ORDER = 2
+#: What a full run measured by step doubling is said to be measured against.
+BY_ITSELF = 'its own run at half the step'
+
+
+def against_reference(full: Callable[[float, float], Simulation],
+                      error_of: Callable[[Simulation], float], sample_s: float, budget: float,
+                      shortest: float) -> tuple[Simulation, float]:
+    """
+    Return the full run at the longest step whose ``error_of`` is within ``budget``, and it.
+
+    Steps from the longest stable one (``full(longest_dt, sample_s)`` caps it), shortened to
+    where the step error (of order ``STEP_ORDER``) would meet the budget, by a factor of 0.5 to
+    0.8 each time, down to ``shortest``.
+    """
+    step = math.inf
+    while True:
+        sim = full(step, sample_s)
+        error = error_of(sim)
+        if error <= budget or sim.dt <= shortest:
+            return sim, error
+        reach = 0.95 * (budget / error) ** (1.0 / STEP_ORDER) if error < math.inf else 0.0
+        step = sim.dt * min(0.8, max(0.5, reach))
+
+
+def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float,
+                     samples: int, horizon_s: float, budget: float, work_per_s: float
+                     ) -> tuple[Simulation, float]:
+    """
+    Return the full run at the longest step its own step doubling puts within ``budget``.
+
+    From the longest stable step, halved while the estimate (four thirds of the difference to
+    the run at half the step, over ``horizon_s`` as :func:`horizon_error` extrapolates it) is
+    over the budget and the runs' modelled work (us per simulated second, summed) stays within
+    ``work_per_s``. Where it never meets the budget, the finest run measured is returned with
+    its estimate, which then says so.
+    """
+    coarse = full(math.inf, sample_s)
+    coarse_run = trajectory(coarse, sample_s, samples)
+    spent = work_per_second(coarse)
+    while True:
+        fine = full(coarse.dt / 2.0, sample_s)
+        spent += work_per_second(fine)
+        fine_run = trajectory(fine, sample_s, samples)
+        if fine_run is None:
+            return coarse, math.inf
+        share = 1.0 / (1.0 - 0.5 ** STEP_ORDER)
+        error = horizon_error(coarse_run, fine_run, sample_s, horizon_s) * share
+        if error <= budget or spent > work_per_s:
+            return coarse, error
+        coarse, coarse_run = fine, fine_run

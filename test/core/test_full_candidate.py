@@ -1,0 +1,61 @@
+"""The full run as auto's candidate, measured by its own step doubling where nothing else can."""
+from __future__ import annotations
+
+import math
+
+from modal_spring_ros.core.auto.full_candidate import by_step_doubling
+from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
+                                                       trajectory, trajectory_error)
+from modal_spring_ros.core.auto.pilot import PilotReport
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.scenes.resources import load_scene
+import pytest
+
+SAMPLE_S, SAMPLES = 0.02, 100
+
+
+@pytest.fixture(scope='module')
+def sheet():
+    """Return the full run builder of ``sheet_10x10`` and its converged trajectory."""
+    base = build_simulation(load_scene('sheet_10x10'), SimulationConfig(method='full'))
+
+    def full(longest_dt: float, sample_s: float):
+        return on_samples(base, sample_s, min(0.9 * base.stability_limit(), longest_dt))
+
+    reference, _ = converged_trajectory(lambda dt: full(dt, SAMPLE_S),
+                                        0.05 * base.stability_limit(), SAMPLE_S, SAMPLES, 1e-5)
+    return full, reference
+
+
+@pytest.mark.parametrize('budget', [1e-2, 1e-3])
+def test_step_doubling_finds_the_longest_step_within_budget_and_its_true_error(sheet, budget):
+    full, reference = sheet
+    sim, estimate = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES, budget,
+                                     math.inf)
+    achieved = trajectory_error(trajectory(sim, SAMPLE_S, SAMPLES), reference)
+    assert estimate <= budget
+    assert achieved == pytest.approx(estimate, rel=0.05)            # Richardson: four thirds
+    longer = full(2.0 * sim.dt, SAMPLE_S)
+    if longer.dt > sim.dt * 1.5:                                     # not at the stable limit
+        assert trajectory_error(trajectory(longer, SAMPLE_S, SAMPLES), reference) > budget
+
+
+def test_out_of_work_it_returns_the_coarser_run_with_its_estimate(sheet):
+    full, reference = sheet
+    sim, estimate = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES, 1e-9, 0.0)
+    assert sim.dt == pytest.approx(full(math.inf, SAMPLE_S).dt)      # one pair, no more
+    assert estimate > 1e-9
+    achieved = trajectory_error(trajectory(sim, SAMPLE_S, SAMPLES), reference)
+    assert achieved == pytest.approx(estimate, rel=0.05)
+
+
+def test_a_full_run_beyond_the_tolerance_says_so():
+    report = PilotReport(0.05, 0.2, 3.0, 'its own run at half the step', (), 'full', 1.0,
+                         reason='no plan within 1.00% after refining: the best measured 16%',
+                         tolerance=0.01)
+    assert 'NOT within 1.00%' in report.describe()
+    assert 'against its own run at half the step' in report.describe()
+    within = PilotReport(0.004, 0.2, 3.0, 'the full run', (), 'full', 1.0, reason='r',
+                         tolerance=0.01)
+    assert 'NOT within' not in within.describe()
