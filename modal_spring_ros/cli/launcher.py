@@ -23,9 +23,16 @@ import faulthandler
 import functools
 import importlib
 import signal
+import sys
 
 #: Exit status of a run ended by Ctrl-C before it started (128 + SIGINT), as a shell reports it.
 EXIT_INTERRUPTED = 130
+
+#: Exit status of a script whose packages are not installed (as argparse's usage errors).
+EXIT_MISSING = 2
+#: The optional extras (``pip install '.[extra]'``) that bring a missing top-level module;
+#: every other missing module is one of ROS's (the ``ros`` extra, or a ROS install).
+EXTRA_OF = {'foxglove': 'view'}
 
 #: The console scripts, each a module of this package named after it.
 SCRIPTS = ('modal_spring_sim', 'modal_spring_node', 'modal_spring_bench', 'modal_spring_replay',
@@ -38,12 +45,30 @@ def run(script: str) -> int:
     return run_module(f'{__package__}.{script}')
 
 
+def install_hint(missing: str) -> str:
+    """Say how to install the optional package that brings module ``missing``."""
+    extra = EXTRA_OF.get(missing.split('.')[0], 'ros')
+    return (f"pip install '.[{extra}]'" if extra != 'ros' else
+            "pip install '.[ros]' (ROS 2 Jazzy from PyPI wheels), or source a ROS 2 install")
+
+
 def run_module(name: str) -> int:
-    """Import module ``name`` under Ctrl-C's guard and run its ``main``."""
+    """
+    Import module ``name`` under Ctrl-C's guard and run its ``main``.
+
+    A module that needs a package not installed (``pip install .`` brings no ROS) ends in one
+    line that names it and says how to install it, not in a traceback.
+    """
     faulthandler.enable(all_threads=True)
     interrupts = _remember_interrupts()
     try:
-        module = importlib.import_module(name)
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            script = name.rsplit('.', 1)[-1]
+            print(f'{script}: needs {exc.name}, which is not installed: '
+                  f'{install_hint(exc.name or "")}', file=sys.stderr)
+            return EXIT_MISSING
         if interrupts:                  # pressed during the imports, and swallowed there
             return EXIT_INTERRUPTED
         return module.main()

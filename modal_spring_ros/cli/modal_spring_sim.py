@@ -15,14 +15,15 @@ import math
 import sys
 import time
 
+from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs, config_from_args,
+                                         run_main, script_parser, write_output)
+from modal_spring_ros.cli.launcher import install_hint
 try:
     from modal_spring_ros.bags.capture import RunBagWriter
 except ImportError as missing:    # pip install without the ros extra: runs, but no bags
     RunBagWriter = None
     BAGS_MISSING = (f'--bag needs the ROS message packages ({missing.name} is not installed): '
-                    "pip install '.[ros]', or source a ROS 2 install")
-from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs, config_from_args,
-                                         run_main, script_parser, write_output)
+                    f'{install_hint(missing.name or "")}')
 from modal_spring_ros.core.config import MAX_HORIZON_S
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.response_chart import draw_response

@@ -160,7 +160,8 @@ def test_without_ros_it_runs_and_says_what_a_bag_would_need(tmp_path):
     assert refused.returncode == 2
     assert refused.stderr.strip().splitlines()[-1] == (
         'modal_spring_sim: error: --bag needs the ROS message packages (sensor_msgs is not '
-        "installed): pip install '.[ros]', or source a ROS 2 install")
+        "installed): pip install '.[ros]' (ROS 2 Jazzy from PyPI wheels), or source a ROS 2 "
+        'install')
     assert not (tmp_path / 'bag').exists()
 
 

@@ -1,17 +1,38 @@
-"""The Python API page's example runs as written, with every ROS package hidden."""
+"""
+Python without ROS: the Python API page's example, the simulator and the scripts that need ROS.
+
+Twice: in this interpreter with every ROS package hidden, and in ``.venv-noros``, the venv
+``.ci/bootstrap`` makes with ``pip install -e .`` alone (no ROS wheels), as a user without ROS
+has it (``MODAL_SPRING_NOROS_PYTHON`` names another; skipped where there is none).
+"""
 from __future__ import annotations
 
+import os
+from pathlib import Path
 import re
 import subprocess
 import sys
 
 from helpers import HIDE_ROS, REPO
+import numpy as np
+import pytest
+
+#: The interpreter of a venv without the ROS wheels.
+NOROS_PYTHON = Path(os.environ.get('MODAL_SPRING_NOROS_PYTHON',
+                                   REPO / '.venv-noros' / 'bin' / 'python'))
+needs_noros = pytest.mark.skipif(not NOROS_PYTHON.exists(),
+                                 reason=f'no venv without ROS at {NOROS_PYTHON}: run '
+                                        '.ci/bootstrap')
+WAYS = [pytest.param((sys.executable, HIDE_ROS), id='ros-hidden'),
+        pytest.param((str(NOROS_PYTHON), ''), id='venv-without-ros', marks=needs_noros)]
 
 
-def test_the_documented_example_runs_without_ros():
+@pytest.mark.parametrize('way', WAYS)
+def test_the_documented_example_runs_without_ros(way):
+    python, prelude = way
     page = (REPO / 'docs' / 'python_api.md').read_text()
     (example,) = re.findall(r'```python\n(.*?)```', page, flags=re.S)
-    done = subprocess.run([sys.executable, '-c', HIDE_ROS + example], capture_output=True,
+    done = subprocess.run([python, '-c', prelude + example], capture_output=True,
                           text=True, timeout=300, cwd=REPO)
     assert done.returncode == 0, done.stderr[-2000:]
     lines = done.stdout.splitlines()
@@ -26,3 +47,26 @@ def test_hiding_ros_really_hides_it():
     done = subprocess.run([sys.executable, '-c', HIDE_ROS + 'import rclpy'], capture_output=True,
                           text=True, timeout=60)
     assert done.returncode != 0 and 'hidden' in done.stderr
+
+
+@needs_noros
+def test_the_venv_without_ros_has_none_and_its_simulator_runs_a_mesh_scene(tmp_path):
+    for module in ('rclpy', 'sensor_msgs', 'ament_index_python'):
+        done = subprocess.run([str(NOROS_PYTHON), '-c', f'import {module}'],
+                              capture_output=True, text=True, timeout=60)
+        assert 'ModuleNotFoundError' in done.stderr, module
+    bin_dir = NOROS_PYTHON.parent
+    out = tmp_path / 'cloth.npz'
+    done = subprocess.run([str(bin_dir / 'modal_spring_sim'), '--scene', 'cloth_3d',
+                           '--duration', '0.02', '--quiet', '--output', str(out)],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    positions = np.load(out)['positions']
+    assert positions.shape[1:] == (400, 3) and np.isfinite(positions).all()
+    # a script that needs ROS says so in one line, and how to get it
+    done = subprocess.run([str(bin_dir / 'modal_spring_node')], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2
+    assert re.fullmatch(r'modal_spring_node: needs \S+, which is not installed: pip install '
+                        r"'\.\[ros\]' \(ROS 2 Jazzy from PyPI wheels\), or source a ROS 2 "
+                        r'install', done.stderr.strip()), done.stderr
