@@ -61,6 +61,7 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
     ``work_per_s``. Where it never meets the budget, the finest run measured is returned with
     its estimate, which then says so.
     """
+    share = 1.0 / (1.0 - 0.5 ** STEP_ORDER)       # the coarse run's error / the difference
     coarse = full(math.inf, sample_s)
     coarse_run = trajectory(coarse, sample_s, samples)
     spent = work_per_second(coarse)
@@ -70,7 +71,6 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
         fine_run = trajectory(fine, sample_s, samples)
         if fine_run is None:
             return coarse, math.inf
-        share = 1.0 / (1.0 - 0.5 ** STEP_ORDER)
         error = horizon_error(coarse_run, fine_run, sample_s, horizon_s) * share
         if error <= budget or spent > work_per_s:
             return coarse, error
