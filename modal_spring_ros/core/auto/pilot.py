@@ -316,7 +316,7 @@ class Pilot:
         """
         self._sibling, self._measured = None, {}
         if self.full is not None:
-            found = self._converged_full_run(plan, sample_s, samples)
+            found = self._converged_full_run(sample_s, samples)
             if found is not None:
                 return found, 'the full run'
         richer = dataclasses.replace(
@@ -333,8 +333,7 @@ class Pilot:
                              'it with method full')
         return reference, 'a richer plan'
 
-    def _converged_full_run(self, plan: PlanSettings, sample_s: float, samples: int
-                            ) -> np.ndarray | None:
+    def _converged_full_run(self, sample_s: float, samples: int) -> np.ndarray | None:
         """Return the full run's converged trajectory, or None beyond ``REFERENCE_WORK``."""
         step = self.full(math.inf, sample_s).dt
         found = converged_trajectory(lambda dt: self.full(dt, sample_s), step, sample_s,
