@@ -9,6 +9,7 @@ import threading
 import time
 
 from modal_spring_ros.ros.node import ModalSpringNode
+from modal_spring_ros.ros.stop_signals import spin_until_stopped, StopSignals
 from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.context import Context
@@ -238,23 +239,18 @@ def node_in_process(namespace: str, parameters: list[Parameter] | None = None):
     """
     context = Context()
     rclpy.init(context=context, domain_id=DOMAIN_ID)
-    node = ModalSpringNode(context=context, namespace=namespace,
+    stop = StopSignals()                # not installed: this process's signals stay pytest's
+    node = ModalSpringNode(stop=stop, context=context, namespace=namespace,
                            parameter_overrides=parameters or [])
     executor = MultiThreadedExecutor(num_threads=2, context=context)
     executor.add_node(node)
-    stop = threading.Event()
-
-    def spin():
-        while not stop.is_set() and context.ok():
-            executor.spin_once(timeout_sec=0.05)
-    thread = threading.Thread(target=spin, daemon=True)
+    thread = threading.Thread(target=spin_until_stopped, args=(executor, stop), daemon=True)
     thread.start()
     try:
         yield node
     finally:
-        stop.set()
+        stop.requested.set()
         thread.join(10.0)
         node.stop()
-        executor.shutdown(timeout_sec=0.0)
         node.destroy_node()
         rclpy.try_shutdown(context=context)

@@ -8,7 +8,6 @@ Every setting is a ROS parameter (listed by ``--help``); change them at runtime 
 """
 from __future__ import annotations
 
-import signal
 import sys
 
 from modal_spring_ros.bags.writer import BagError
@@ -18,6 +17,7 @@ from modal_spring_ros.core.worker import WorkerError
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.parameters import PARAMETERS
 from modal_spring_ros.ros.publication_mode import prefer_asynchronous_publication
+from modal_spring_ros.ros.stop_signals import init_ros, spin_until_stopped, StopSignals
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
@@ -25,8 +25,6 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 PROG = 'modal_spring_node'
 #: executor threads: the parameter services, and the node's own services beside them
 EXECUTOR_THREADS = 2
-#: longest the executor waits for work before it checks again that ROS is still up, s
-SPIN_SLICE_S = 0.25
 
 
 USAGE = """usage: modal_spring_node [-h] [--ros-args -p NAME:=VALUE ... --params-file FILE ...]
@@ -50,62 +48,36 @@ def usage() -> str:
     return '\n'.join(lines)
 
 
-def _ignore_after_rclpy(signum, frame) -> None:
-    """
-    Let rclpy's SIGTERM handler end the node as cleanly as on SIGINT.
-
-    rclpy's handler shuts the context down and then chains to the previous handler. With this one
-    (instead of the default, which kills the process) spin returns and the node ends as cleanly as
-    on SIGINT.
-    """
-
-
-def spin_until_shutdown(executor: MultiThreadedExecutor) -> None:
-    """
-    Spin until ROS is shut down (Ctrl-C, SIGTERM), never waiting unboundedly.
-
-    ``Executor.spin`` waits for work with no timeout and counts on the signal handler's guard
-    condition to wake it; when that trigger is taken by a wait that still saw the context up, the
-    wait that follows never returns (seen as a node hanging on SIGINT, most often right after a
-    subscriber died). Waiting in slices makes the check of the context the thing that ends it.
-    Callbacks still running are waited for, with the executor's threads.
-    """
-    try:
-        while executor.context.ok():
-            executor.spin_once(timeout_sec=SPIN_SLICE_S)
-    finally:
-        executor.shutdown(timeout_sec=SPIN_SLICE_S)
-
-
 def main(args: list[str] | None = None) -> int:
     own, _ = split_ros_args(args)
     if own and own[0] in ('-h', '--help'):
         print(usage())
         return 0
-    signal.signal(signal.SIGTERM, _ignore_after_rclpy)
+    stop = StopSignals().install()  # ROS is shut down last, once the node's threads are joined
     prefer_asynchronous_publication()  # a frame's sending never holds the stepping thread
-    rclpy.init(args=args)
+    init_ros(args)
     node = None
     try:
         # the executor before the node: once the node is seen in the graph, a Ctrl-C can no
         # longer land inside the executor's constructor (which leaves a half-built executor
         # whose finaliser prints a traceback)
         executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
-        node = ModalSpringNode()
+        node = ModalSpringNode(stop=stop)
         executor.add_node(node)
-        spin_until_shutdown(executor)
+        stop.interrupting = False       # streaming: a signal ends the spin loop, then the node
+        spin_until_stopped(executor, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (SceneError, ValueError, ParameterException, BagError) as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return EXIT_USAGE
     except WorkerError as exc:
-        if not rclpy.ok():
+        if stop.requested.is_set() or not rclpy.ok():
             return 0  # interrupted while starting (say, during a long mode computation)
         print(f'{PROG}: error: computing the modes failed: {exc}', file=sys.stderr)
         return 1
     except Exception:
-        if not rclpy.ok():
+        if stop.requested.is_set() or not rclpy.ok():
             return 0
         raise
     finally:

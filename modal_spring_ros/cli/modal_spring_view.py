@@ -19,13 +19,12 @@ import sys
 from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args, stop_child
 from modal_spring_ros.ros.live_view import (DEFAULT_MAX_RATE_HZ, DEFAULT_PORT, foxglove,
                                             LiveView, SDK_MISSING)
+from modal_spring_ros.ros.stop_signals import spin_until_stopped
 from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 PROG = 'modal_spring_view'
-#: longest the executor waits for work before it checks again that ROS is still up, s
-SPIN_SLICE_S = 0.25
 
 
 def parser() -> argparse.ArgumentParser:
@@ -80,8 +79,7 @@ def main(argv: list[str] | None = None) -> int:
               f'ws://{args.host}:{view.port} (Foxglove: Open connection)', file=sys.stderr,
               flush=True)
         executor.add_node(node)
-        while executor.context.ok():
-            executor.spin_once(timeout_sec=SPIN_SLICE_S)
+        spin_until_stopped(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

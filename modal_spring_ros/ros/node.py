@@ -38,6 +38,7 @@ from modal_spring_ros.ros.parameters import (config_from_parameters, FREQUENCIES
                                              FREQUENCIES_DESCRIPTOR, PARAMETERS)
 from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset, Step
 from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
+from modal_spring_ros.ros.stop_signals import StopSignals
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -59,8 +60,10 @@ STOP_ORDER = (('_input_node', 'close'), ('_worker', 'close'), ('_preparer', 'sto
 class ModalSpringNode(Node):
     """Streams a scene's filtered deformation. Construct, spin, then :meth:`stop`."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, stop: StopSignals | None = None, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        # what ends the run: the process's stop signals (set before ROS is shut down), or ROS
+        self._stop = stop or StopSignals()
         try:
             self._start()
         except BaseException:
@@ -80,7 +83,7 @@ class ModalSpringNode(Node):
         # hold this process's interpreter lock while the stream runs; shutting down (Ctrl-C)
         # cancels them.
         self._worker = WorkerProcess('modal_spring_modes',
-                                     cancelled=lambda: not self.context.ok())
+                                     cancelled=lambda: not self._running())
         sim = build_simulation(load_scene(values['scene'], log.info), config,
                                progress=log.info, worker=self._worker, samples=sample_cache())
         sim.check_stable('sim.dt')
@@ -99,7 +102,7 @@ class ModalSpringNode(Node):
             sim, self._outputs, self._stream_settings,
             rebuild=lambda: rebuild(sim.model, sim.basis,
                                     config_from_parameters(self._params.applied())),
-            computing_modes=lambda: self._preparer.busy, running=self.context.ok,
+            computing_modes=lambda: self._preparer.busy, running=self._running,
             node_report=self._report)
         self._params.listen()
         follower = scene.anchor_motion if values['anchor.source'] in POSE_SOURCES else None
@@ -120,6 +123,9 @@ class ModalSpringNode(Node):
                  f"{'modes' if status.method == 'modal' else 'DOF'} stepped; dt {sim.dt:g} s")
         self._thread.start()
         self._input_node.start()
+
+    def _running(self) -> bool:
+        return self._stop.running(self.context)
 
     @property
     def sim(self):

@@ -8,8 +8,8 @@ import threading
 import time
 
 from modal_spring_ros.cli.launcher import EXIT_INTERRUPTED
-from modal_spring_ros.cli.modal_spring_node import spin_until_shutdown
 from modal_spring_ros.ros.parameters import PARAMETERS
+from modal_spring_ros.ros.stop_signals import spin_until_stopped
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -45,7 +45,7 @@ def test_spinning_ends_when_ros_shuts_down_without_waking_the_executor():
     node = rclpy.create_node('spin_probe', context=context)
     executor = MultiThreadedExecutor(num_threads=2, context=context)
     executor.add_node(node)
-    spinning = threading.Thread(target=spin_until_shutdown, args=(executor,), daemon=True)
+    spinning = threading.Thread(target=spin_until_stopped, args=(executor,), daemon=True)
     spinning.start()
     time.sleep(0.5)                                   # waiting for work, none comes
     with context.handle:
