@@ -11,7 +11,8 @@ import dataclasses
 import math
 
 from modal_spring_ros.core.auto.measured_error import on_samples
-from modal_spring_ros.core.auto.pilot import Pilot, PlanSettings
+from modal_spring_ros.core.auto.pilot import Pilot
+from modal_spring_ros.core.auto.plan import PlanSettings
 from modal_spring_ros.core.bases.basis import ModalBasis, Progress
 from modal_spring_ros.core.bases.basis_choice import choose_basis
 from modal_spring_ros.core.bases.mode_selection import (choose_modes, choose_refresh, choose_step,

@@ -6,7 +6,9 @@ import math
 from modal_spring_ros.core.auto.full_candidate import by_step_doubling
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
-from modal_spring_ros.core.auto.pilot import PilotReport
+from modal_spring_ros.core.auto.plan import PilotReport
+from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK, full_run_start, MIN_SHARE
+from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.scenes.resources import load_scene
@@ -59,3 +61,14 @@ def test_a_full_run_beyond_the_tolerance_says_so():
     within = PilotReport(0.004, 0.2, 3.0, 'the full run', (), 'full', 1.0, reason='r',
                          tolerance=0.01)
     assert 'NOT within' not in within.describe()
+
+
+def test_the_full_run_over_the_window_start_is_as_long_as_its_work_affords(sheet):
+    full, reference = sheet
+    one_window = work_per_second(full(math.inf, SAMPLE_S)) * SAMPLE_S * SAMPLES
+    accuracy = 1e-3                 # a tenth of 1 %, as the pilot asks: two halvings here
+    half = full_run_start(full, SAMPLE_S, SAMPLES, accuracy, DOUBLING_WORK * one_window / 2)
+    assert half is not None and len(half) == SAMPLES // 2
+    assert trajectory_error(half, reference[:len(half)]) <= accuracy     # converged
+    assert full_run_start(full, SAMPLE_S, SAMPLES, accuracy,
+                          DOUBLING_WORK * one_window * 0.9 * MIN_SHARE) is None  # too short

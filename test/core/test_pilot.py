@@ -6,6 +6,7 @@ error against a converged full run is within the tolerance, or auto refuses with
 """
 from __future__ import annotations
 
+from modal_spring_ros.core.auto import pilot
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.config import SimulationConfig
@@ -136,6 +137,32 @@ def test_the_3d_scenes_keep_the_promise_against_the_converged_full_run(name):
     assert 0.0 < report.error <= TOLERANCE                        # measured, also when full
     if report.method == 'modal':
         assert report.cost_ratio <= 1.15
+    sample_s = sim.dt * max(1, round(SAMPLE_S / sim.dt))
+    samples = int(DURATION_S / sample_s)
+    reference = converged_full_run(scene, sample_s, samples)
+    achieved = trajectory_error(trajectory(sim, sample_s, samples), reference)
+    assert achieved <= TOLERANCE, (achieved, report.describe())
+
+
+@pytest.mark.slow
+def test_a_richer_plan_as_reference_is_checked_against_the_full_run_over_the_window_start(
+        monkeypatch):
+    """
+    A sibling shares what the plan's modes cannot follow; the full run's start says so.
+
+    sheet_10x10_swing with at most 4 modes, the full run priced beyond the pilot's budget
+    over the window (as on a large scene): against the richer plan alone (the same 4 modes)
+    the plan measured 0.73 % and was 1.05 % off the converged full run over 3 s. Checked
+    against the full run over the window's start, it measures 1.3 %, and the full run is
+    chosen, within the tolerance.
+    """
+    monkeypatch.setattr(pilot, 'REFERENCE_WORK', 1e5)
+    scene = load_scene('sheet_10x10_swing')
+    sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
+                                                   max_modes=4))
+    report = sim.pilot
+    assert report.method == 'full', report.describe()
+    assert report.reason.startswith(f'no plan within {TOLERANCE:.2%} after refining')
     sample_s = sim.dt * max(1, round(SAMPLE_S / sim.dt))
     samples = int(DURATION_S / sample_s)
     reference = converged_full_run(scene, sample_s, samples)

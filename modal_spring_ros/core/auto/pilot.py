@@ -22,7 +22,9 @@ it is good; this module does the same for a whole plan:
    4/3) is kept; otherwise a new one is made. A sibling shares what the modal coordinates
    cannot follow (a cloth's slack regions are nonlinear from millimetres: plan and sibling
    agreed to 0.06 % and were 100 % off the full run), so the full run is the reference
-   wherever it can be afforded.
+   wherever it can be afforded, and where it cannot over the whole window it is run over the
+   window's start as far as the budget goes, and every run is measured against that too
+   (:mod:`~modal_spring_ros.core.auto.sibling_check`).
 3. **The measured error**: relative L2 of the free-DOF displacement in the clamp's frame over
    the window's samples, against the reference (as the benchmark measures it). The promise is
    over the run's *horizon* (its duration), which may be longer than the window: an undamped
@@ -52,6 +54,8 @@ from modal_spring_ros.core.auto.full_candidate import (against_reference, BY_ITS
                                                        by_step_doubling, STEP_ORDER)
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, horizon_error,
                                                        on_samples, trajectory, trajectory_error)
+from modal_spring_ros.core.auto.plan import PilotReport, PlanSettings
+from modal_spring_ros.core.auto.sibling_check import full_run_start
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import Simulation
@@ -85,60 +89,6 @@ TIE = 1.1
 #: above this many times the full run's work: within it the two are a tie to the model (its
 #: ratios are good to about 30 %), and the plan, which measured within the tolerance, is kept.
 FULL_RUN_TIE = 1.15
-
-
-@dataclasses.dataclass(frozen=True)
-class PlanSettings:
-    """What an automatic plan sets: modes (up to ``highest_hz``), basis, forces, step."""
-
-    highest_hz: float
-    basis_kind: str
-    directions: int
-    forces: str
-    refresh: int
-    dt: float
-
-    def describe(self) -> str:
-        forces = (f'springs every {self.refresh} steps' if self.forces == 'refreshed'
-                  else f'{self.forces} forces')
-        basis = (f'derivatives basis ({self.directions} directions)'
-                 if self.basis_kind == 'derivatives' else 'rest modes')
-        return f'modes up to {self.highest_hz:.4g} Hz, {basis}, {forces}, dt {self.dt:.3g} s'
-
-
-@dataclasses.dataclass(frozen=True)
-class PilotReport:
-    """What the pilot measured, against what, and what it chose."""
-
-    error: float                    # relative error of the chosen plan over the horizon
-    planned_error: float            # the same for the plan as first predicted
-    window_s: float
-    against: str                    # 'the full run', 'a richer plan' or (full) BY_ITSELF
-    refined: tuple[str, ...]        # refinements applied, in order
-    method: str                     # 'modal' or 'full'
-    cost_ratio: float               # the plan's cost per simulated second / the full run's
-    reason: str = ''                # why the full run was chosen, when it was
-    horizon_s: float = 0.0          # the run the promise is for, s (0: the window)
-    window_error: float = math.nan  # the chosen plan's error measured over the window
-    tolerance: float = math.nan     # what the plan was to meet
-
-    def _over(self) -> str:
-        """Say how the error was found: measured over the window, extrapolated beyond."""
-        if self.horizon_s <= self.window_s * (1.0 + 1e-9):
-            return f'against {self.against} over {self.window_s:.3g} s (pilot)'
-        return (f'over a {self.horizon_s:.3g} s run (measured {self.window_error:.2%} against '
-                f'{self.against} over {self.window_s:.3g} s, drift extrapolated)')
-
-    def describe(self) -> str:
-        if self.method == 'full':
-            beyond = (f'; NOT within {self.tolerance:.2%}: the full run did not converge to it '
-                      f'at any step the pilot could afford' if self.error > self.tolerance
-                      else '')
-            return (f'full run chosen ({self.reason}): error {self.error:.2%} {self._over()}; '
-                    f'the modal plan as first made: {self.planned_error:.2%}{beyond}')
-        steps = f", refined: {', '.join(self.refined)}" if self.refined else ''
-        return (f'measured error {self.error:.2%} {self._over()}{steps}; work '
-                f'{self.cost_ratio:.2g} x the full run')
 
 
 def pilot_window(model: MassSpringModel, lowest_hz: float) -> float:
@@ -181,10 +131,15 @@ class Pilot:
         self._sample_s = 0.0      # the sampling interval every run lands on (set by run)
         # what the full candidate is measured with: sample_s, samples, reference, against
         self._sampling: tuple[float, int, np.ndarray, str] | None = None
+        # the full run over the window's start, checking a sibling reference (None: no check);
+        # whether it was looked for
+        self._start: np.ndarray | None = None
+        self._start_sought = False
 
     def run(self, plan: PlanSettings) -> tuple[Simulation, PilotReport]:
         """Return the simulation chosen and what the pilot measured."""
         sim = self.make(plan)
+        self._start, self._start_sought = None, False
         sample_s = sim.dt * max(1, int(round(self.window_s / SAMPLES / sim.dt)))
         self._sample_s = sample_s
         samples = max(1, int(math.ceil(self.window_s / sample_s)))
@@ -273,8 +228,12 @@ class Pilot:
         """
         run = trajectory(sim, sample_s, len(reference))
         shared = self._shared(sim)
-        self._measured[id(sim)] = (sim, trajectory_error(run, reference) * shared)
-        return horizon_error(run, reference, sample_s, self.horizon_s) * shared
+        start = 0.0
+        if self._sibling is not None and self._start is not None:
+            start = trajectory_error(None if run is None else run[:len(self._start)],
+                                     self._start)
+        self._measured[id(sim)] = (sim, max(trajectory_error(run, reference) * shared, start))
+        return max(horizon_error(run, reference, sample_s, self.horizon_s) * shared, start)
 
     def _shared(self, sim: Simulation) -> float:
         """Return the Richardson factor for ``sim`` against the sibling (1: the full run)."""
@@ -331,7 +290,14 @@ class Pilot:
             raise ValueError('modal.auto cannot measure a plan for this scene: the full run is '
                              'beyond its pilot budget and the richer modal plan diverges; run '
                              'it with method full')
-        return reference, 'a richer plan'
+        if self.full is not None and not self._start_sought:
+            self._start_sought = True
+            self._start = full_run_start(self.full, sample_s, samples,
+                                         REFERENCE_ACCURACY * self.tolerance, REFERENCE_WORK)
+        if self._start is None:
+            return reference, 'a richer plan'
+        return reference, (f'a richer plan and the full run over its first '
+                           f'{len(self._start) * sample_s:.2g} s')
 
     def _converged_full_run(self, sample_s: float, samples: int) -> np.ndarray | None:
         """Return the full run's converged trajectory, or None beyond ``REFERENCE_WORK``."""

@@ -128,7 +128,7 @@ class Simulation(abc.ABC):
     # -- what every method offers --------------------------------------------------------------
     #: the filter band, set by each method's constructor and by :meth:`set_band`
     _band: FilterBand
-    #: what the automatic choice's pilot run measured (:class:`~modal_spring_ros.core.auto.pilot.
+    #: what the automatic choice's pilot run measured (:class:`~modal_spring_ros.core.auto.plan.
     #: PilotReport`), on a run it chose; None otherwise
     pilot = None
 

@@ -1,0 +1,64 @@
+"""
+An automatic plan (what it sets) and what its pilot run measured about it.
+
+:class:`PlanSettings` is what :mod:`~modal_spring_ros.core.auto.pilot` refines;
+:class:`PilotReport` is what it found, printed in the summary and on ``/diagnostics``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanSettings:
+    """What an automatic plan sets: modes (up to ``highest_hz``), basis, forces, step."""
+
+    highest_hz: float
+    basis_kind: str
+    directions: int
+    forces: str
+    refresh: int
+    dt: float
+
+    def describe(self) -> str:
+        forces = (f'springs every {self.refresh} steps' if self.forces == 'refreshed'
+                  else f'{self.forces} forces')
+        basis = (f'derivatives basis ({self.directions} directions)'
+                 if self.basis_kind == 'derivatives' else 'rest modes')
+        return f'modes up to {self.highest_hz:.4g} Hz, {basis}, {forces}, dt {self.dt:.3g} s'
+
+
+@dataclasses.dataclass(frozen=True)
+class PilotReport:
+    """What the pilot measured, against what, and what it chose."""
+
+    error: float                    # relative error of the chosen plan over the horizon
+    planned_error: float            # the same for the plan as first predicted
+    window_s: float
+    against: str                    # 'the full run', 'a richer plan' or (full) BY_ITSELF
+    refined: tuple[str, ...]        # refinements applied, in order
+    method: str                     # 'modal' or 'full'
+    cost_ratio: float               # the plan's cost per simulated second / the full run's
+    reason: str = ''                # why the full run was chosen, when it was
+    horizon_s: float = 0.0          # the run the promise is for, s (0: the window)
+    window_error: float = math.nan  # the chosen plan's error measured over the window
+    tolerance: float = math.nan     # what the plan was to meet
+
+    def _over(self) -> str:
+        """Say how the error was found: measured over the window, extrapolated beyond."""
+        if self.horizon_s <= self.window_s * (1.0 + 1e-9):
+            return f'against {self.against} over {self.window_s:.3g} s (pilot)'
+        return (f'over a {self.horizon_s:.3g} s run (measured {self.window_error:.2%} against '
+                f'{self.against} over {self.window_s:.3g} s, drift extrapolated)')
+
+    def describe(self) -> str:
+        if self.method == 'full':
+            beyond = (f'; NOT within {self.tolerance:.2%}: the full run did not converge to it '
+                      f'at any step the pilot could afford' if self.error > self.tolerance
+                      else '')
+            return (f'full run chosen ({self.reason}): error {self.error:.2%} {self._over()}; '
+                    f'the modal plan as first made: {self.planned_error:.2%}{beyond}')
+        steps = f", refined: {', '.join(self.refined)}" if self.refined else ''
+        return (f'measured error {self.error:.2%} {self._over()}{steps}; work '
+                f'{self.cost_ratio:.2g} x the full run')
