@@ -36,7 +36,8 @@ class PilotReport:
     error: float                    # relative error of the chosen plan over the horizon
     planned_error: float            # the same for the plan as first predicted
     window_s: float
-    against: str                    # 'the full run', 'a richer plan' or (full) BY_ITSELF
+    against: str                    # 'the full run', 'a richer plan' (and the full run's
+    #                                 start, where checked) or (full) BY_ITSELF
     refined: tuple[str, ...]        # refinements applied, in order
     method: str                     # 'modal' or 'full'
     cost_ratio: float               # the plan's cost per simulated second / the full run's
