@@ -282,10 +282,11 @@ def test_a_flood_of_clicks_keeps_the_stream_at_its_rate(tmp_path):
     """
     A thousand clicks a second for three seconds: the stream keeps its rate and its clock.
 
-    Both are measured against the same run under the same load: the same flood sent first on a
-    topic nobody listens to (the clicks come from a process of their own, which takes its share
-    of the machine whatever it sends). Every click is answered (applied, or superseded by a newer
-    one before the next step), and the last one pulls.
+    Both are measured against the same run under the same load: the same flood sent on a topic
+    nobody listens to (the clicks come from a process of their own, which takes its share of
+    the machine whatever it sends), before and after, the slower of the two the baseline (a
+    busy machine's load drifts between windows). Every click is answered (applied, or
+    superseded by a newer one before the next step), and the last one pulls.
     """
     scene_file = tmp_path / 'still.yaml'
     scene_file.write_text(yaml.safe_dump(scene_to_dict(variant('sheet_10x10', anchor_motion=[]))))
@@ -296,6 +297,8 @@ def test_a_flood_of_clicks_keeps_the_stream_at_its_rate(tmp_path):
         unheard = _flood('/flood/nobody_listens', False, points)
         heard = _flood('/clicked_point', True, points)
         frames_since(points, heard[1], 5, timeout=30)
+        pulled = latest(points)
+        after = _flood('/flood/nobody_listens', False, points)
     received = [(t, m) for t, m in list(points)]
 
     def window(flood) -> tuple[float, float]:
@@ -306,13 +309,15 @@ def test_a_flood_of_clicks_keeps_the_stream_at_its_rate(tmp_path):
         span = (stamps[-1] - stamps[0]) if len(stamps) > 1 else 0.0
         return len(inside) / (end - start), span / (end - start)
 
-    rate_unheard, clock_unheard = window(unheard)
+    # the slower baseline of the two, rate and clock each
+    rate_unheard, clock_unheard = (min(pair)
+                                   for pair in zip(window(unheard), window(after)))
     rate, clock = window(heard)
     assert heard[2] > 1000
     assert rate >= 0.8 * rate_unheard, (rate_unheard, rate)
     assert clock >= 0.8 * clock_unheard, (clock_unheard, clock)
     # the clicks pulled: the sheet left its sag toward +x
-    assert (latest(points)[:, 0] - heard[3][:, 0]).max() > 0.01
+    assert (pulled[:, 0] - heard[3][:, 0]).max() > 0.01
 
 
 def test_the_inputs_subscribe_on_a_companion_named_after_the_node_even_when_renamed():
