@@ -12,7 +12,7 @@ import sys
 from typing import Callable, Iterator, NoReturn
 
 from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
-from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.config import DEFAULT_WATCH_S, SimulationConfig
 from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand
 from modal_spring_ros.core.filter_response import ACTS_ON
 from modal_spring_ros.core.forces import FORCES
@@ -179,6 +179,12 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
                         '(in place of --basis)')
     g.add_argument('--tolerance', type=float, default=0.01,
                    help='predicted relative error for --auto (default 0.01)')
+    g.add_argument('--watch', type=float, default=None, metavar='SECONDS',
+                   help="with --auto: measure the plan's error again from the run's own state "
+                        'every SECONDS of the run, and fall back to the full run (or a richer '
+                        'plan) where it is beyond --tolerance; 0: not watched (default: every '
+                        f'{DEFAULT_WATCH_S:g} s, or less often where watching would cost more '
+                        'than a quarter of the run)')
     g.add_argument('--basis', choices=BASES, default='derivatives',
                    help="modal coordinates: the band's rest modes (the paper's method), or "
                         'those plus their modal derivatives and static load vectors (right '
@@ -203,8 +209,9 @@ OPTION_NAMES = {'method': '--method', 'auto': '--auto', 'integrator': '--integra
                 'strain_limit': '--strain-limit', 'tolerance': '--tolerance',
                 'force_refresh': '--force-refresh', 'basis': '--basis',
                 'derivative_directions': '--derivative-directions', 'forces': '--forces',
-                'horizon_s': '--duration', 'type': '--filter', 'low_hz': '--low-hz',
-                'high_hz': '--high-hz', 'order': '--order', 'gains': '--gain',
+                'horizon_s': '--duration', 'watch_s': '--watch', 'type': '--filter',
+                'low_hz': '--low-hz', 'high_hz': '--high-hz', 'order': '--order',
+                'gains': '--gain',
                 'acts_on': '--gains-act-on', 'damping': '--damping-ratio'}
 #: the edges of ``--modes FIRST:LAST``
 MODES_NAMES = {'low_mode': 'FIRST', 'high_mode': 'LAST'}
@@ -269,7 +276,7 @@ def config_from_args(args: argparse.Namespace) -> SimulationConfig:
                             auto=args.auto, tolerance=args.tolerance,
                             force_refresh=args.force_refresh, basis=args.basis,
                             derivative_directions=args.derivative_directions,
-                            forces=args.forces).validate(OPTION_NAMES)
+                            forces=args.forces, watch_s=args.watch).validate(OPTION_NAMES)
 
 
 def run_main(prog: str, body: Callable[[], int]) -> int:

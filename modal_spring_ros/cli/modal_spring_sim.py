@@ -24,6 +24,7 @@ except ImportError as missing:    # pip install without the ros extra: runs, but
     RunBagWriter = None
     BAGS_MISSING = (f'--bag needs the ROS message packages ({missing.name} is not installed): '
                     f'{install_hint(missing.name or "")}')
+from modal_spring_ros.core.auto.run_watch import RunWatch, watch_of, WatchedWindow
 from modal_spring_ros.core.config import MAX_HORIZON_S
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.response_chart import draw_response
@@ -86,11 +87,15 @@ def main(argv: list[str] | None = None) -> int:
             bag = RunBagWriter(args.bag, sim.model.scene, config, dt=sim.dt,
                                frame_every=args.frame_every, duration=duration)
         start = time.perf_counter()
+        watch = watch_of(sim, config.watch_s)
         try:
             run = record(sim, duration, frame_every=args.frame_every,
                          on_progress=None if args.quiet else
                          (lambda frac: print(f'[{PROG}] {frac:4.0%}', file=sys.stderr)),
-                         on_frame=bag.frame if bag else None)
+                         on_frame=bag.frame if bag else None, watch=watch,
+                         on_watch=None if args.quiet else
+                         lambda window, now: print(f'[{PROG}] {watched_line(window, now)}',
+                                                   file=sys.stderr))
             if bag:
                 bag.close()
         except BaseException:  # a full disk, Ctrl-C: no half-written bag is left behind
@@ -98,8 +103,9 @@ def main(argv: list[str] | None = None) -> int:
                 bag.writer.discard()
             raise
         wall = time.perf_counter() - start
+        sim = run.simulation
         steps = max(sim.steps, 1)
-        print(summary(sim, run.diverged, wall / steps, wall))
+        print(summary(sim, run.diverged, wall / steps, wall, watch))
         if args.output:
             write_output(args.output, '--output', lambda: run.save_npz(args.output))
             print(f'wrote {args.output} ({run.t.size} frames)')
@@ -110,7 +116,17 @@ def main(argv: list[str] | None = None) -> int:
     return run_main(PROG, body)
 
 
-def summary(sim, diverged: str, seconds_per_step: float, wall: float) -> str:
+def watched_line(window: WatchedWindow, now) -> str:
+    """Say what one watched window measured, and what the run does about it."""
+    if window.within:
+        return f'watched: {window.describe()}'
+    return (f'WARN: watched: {window.describe()}, beyond the tolerance '
+            f'{window.tolerance:.2%}: the run falls back to the {now.method} run '
+            f'(dt {now.dt:.3g} s) from t = {window.start_s:.4g} s')
+
+
+def summary(sim, diverged: str, seconds_per_step: float, wall: float,
+            watch: RunWatch | None = None) -> str:
     scene = sim.model.scene
     lines = [f'scene      {scene.name}: {scene.n_particles} particles, {scene.n_springs} '
              f'springs, {sim.model.n_free_dof} free DOF']
@@ -137,6 +153,11 @@ def summary(sim, diverged: str, seconds_per_step: float, wall: float) -> str:
         lines.append(f'auto       {choice.describe()} ({errors})')
     if sim.pilot is not None:
         lines.append(f'measured   {sim.pilot.describe()}')
+    if watch is not None:
+        fell = watch.last is not None and not watch.last.within
+        lines.append(f'watched    {watch.describe()}'
+                     + (f'; beyond {watch.last.tolerance:.2%}: fell back to the {sim.method} '
+                        f'run' if fell else ''))
     lines.append(f'stepping   {sim.integrator} Newmark, dt {sim.dt:g} s '
                  f'(explicit limit {sim.stability_limit():.4g} s), {sim.steps} steps, '
                  f't = {sim.time:.4g} s')

@@ -42,6 +42,9 @@ POSE_SOURCES = ('topic', 'tf')
 MAX_FOLLOW_HZ = 100.0
 #: Longest run the automatic choice promises its tolerance over, s (a day).
 MAX_HORIZON_S = 86_400.0
+#: Simulated seconds between two watched windows of an automatic plan, by default (0: not
+#: watched; :mod:`~modal_spring_ros.core.auto.run_watch`).
+DEFAULT_WATCH_S = 10.0
 
 
 class ConfigError(ValueError):
@@ -68,6 +71,8 @@ class SimulationConfig:
     anchor: str = 'scene'              # the clamp moves as the scene says, or follows poses
     follow_hz: float = DEFAULT_FOLLOW_HZ  # bandwidth of the filter poses are followed through
     horizon_s: float | None = None     # the run auto's tolerance holds over; None: the scene's
+    watch_s: float | None = None       # auto's plan re-measured every this many s; 0: never;
+    #                                    None: every DEFAULT_WATCH_S within a share of its work
 
     def validate(self, names: Mapping[str, str] | None = None) -> 'SimulationConfig':
         """
@@ -111,6 +116,10 @@ class SimulationConfig:
                                                and 0.0 < self.horizon_s <= MAX_HORIZON_S):
             raise ConfigError(f"{name('horizon_s')} ({self.horizon_s}) must be a number of "
                               f'seconds above 0 and at most {MAX_HORIZON_S:g}')
+        if self.watch_s is not None and not (math.isfinite(self.watch_s)
+                                             and 0.0 <= self.watch_s <= MAX_HORIZON_S):
+            raise ConfigError(f"{name('watch_s')} ({self.watch_s}) must be a number of seconds "
+                              f'from 0 (not watched) to {MAX_HORIZON_S:g}')
         if self.auto and self.method != 'modal':
             raise ConfigError(f"{name('auto')} chooses modes: it needs {name('method')} modal")
         if self.band.shaped and self.method != 'modal':
@@ -137,9 +146,11 @@ class SimulationConfig:
         """
         Return a configuration as :meth:`to_dict` wrote it.
 
-        One written before the basis was a setting was a run of rest modes.
+        One written before the basis was a setting was a run of rest modes; one written before
+        automatic plans were watched while running was not watched.
         """
         data = dict(data)
         data.setdefault('basis', 'rest')
+        data.setdefault('watch_s', 0.0)      # recorded before runs were watched: not watched
         band = data.pop('band', {}) or {}
         return cls(band=FilterBand(**band), **data)

@@ -162,6 +162,8 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
                   horizon_s=config.horizon_s or model.scene.default_duration)
     sim, report = pilot.run(plan)
     sim.pilot = report
+    if report.method == 'modal':
+        sim.watch_reference = pilot.watch_reference(sim)
     return sim
 
 

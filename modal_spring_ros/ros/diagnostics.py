@@ -50,6 +50,22 @@ class StreamReport:
     parameters_reverted: str = ''      # a change that failed after it was accepted, recently
     namesakes: int = 0                 # other nodes on the graph with this node's full name
     name: str = ''                     # this node's fully qualified name (for the namesakes)
+    watched: str = 'off'               # what the watch of an automatic plan measured
+    watch_beyond: str = ''             # a watched window beyond the tolerance, recently
+
+
+@dataclasses.dataclass
+class StreamWindow:
+    """Bookkeeping of one diagnostics window (written by the simulation thread only)."""
+
+    wall: float = 0.0
+    sim_time: float = 0.0
+    valid: bool = True
+    step_seconds: float = 0.0
+    steps: int = 0
+    frames: int = 0
+    longest_gap: float = 0.0
+    computing_modes: bool = False
 
 
 def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[int, str]:
@@ -74,6 +90,8 @@ def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[i
                                if stream.computing_modes else ''))
     if status.forces.fell_back:
         warnings.append(f'spring forces fell back: {status.forces.description}')
+    if stream.watch_beyond:
+        warnings.append(stream.watch_beyond)
     if stream.anchor_stale:
         warnings.append(f'anchor pose: {stream.anchor}')
     if stream.recording:
@@ -106,6 +124,7 @@ def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, s
         'modes computed': str(status.modes_computed),
         'automatic mode choice': status.mode_choice,
         'automatic choice measured': status.measured,
+        'automatic choice watched': stream.watched,
         'integrator': status.integrator,
         'dt (s)': f'{status.dt:g}',
         'spring forces': status.forces.description,

@@ -23,6 +23,7 @@ with ``anchor.source`` topic), ``/clicked_point`` (PointStamped), ``wrench`` (Wr
 from __future__ import annotations
 
 import contextlib
+import threading
 
 from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.core.config import POSE_SOURCES
@@ -34,15 +35,19 @@ from modal_spring_ros.ros.namesakes import count_namesakes, namesakes_warning
 from modal_spring_ros.ros.node_parameters import NodeParameters
 from modal_spring_ros.ros.outputs import NodeOutputs
 from modal_spring_ros.ros.parameter_changes import ChangePlanner
-from modal_spring_ros.ros.parameters import (config_from_parameters, FREQUENCIES,
+from modal_spring_ros.ros.parameters import (config_from_parameters, CONFIG_NAMES, FREQUENCIES,
                                              FREQUENCIES_DESCRIPTOR, PARAMETERS)
+from modal_spring_ros.ros.plan_watch import beyond_message
 from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset, Step
-from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
+from modal_spring_ros.ros.simulation_thread import SimulationThread
 from modal_spring_ros.ros.stop_signals import StopSignals
+from modal_spring_ros.ros.stream_settings import StreamSettings
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.resources import load_scene
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
 
 NODE_NAME = 'modal_spring'
@@ -103,7 +108,7 @@ class ModalSpringNode(Node):
             rebuild=lambda: rebuild(sim.model, sim.basis,
                                     config_from_parameters(self._params.applied())),
             computing_modes=lambda: self._preparer.busy, running=self._running,
-            node_report=self._report)
+            node_report=self._report, on_watch_beyond=self._fall_back)
         self._params.listen()
         follower = scene.anchor_motion if values['anchor.source'] in POSE_SOURCES else None
         self._input_node = InputNode(self)      # its own thread: a flood never starves the run
@@ -146,7 +151,7 @@ class ModalSpringNode(Node):
     def _stream_settings(self) -> StreamSettings:
         v = self._params.values
         return StreamSettings(v['publish_rate_hz'], v['mesh_rate_hz'], v['realtime_factor'],
-                              v['sim.strain_warning'])
+                              v['sim.strain_warning'], v['modal.watch'])
 
     def _report(self) -> dict:
         """Return what the node adds to the simulation thread's report on /diagnostics."""
@@ -155,6 +160,31 @@ class ModalSpringNode(Node):
         return {'anchor': anchor, 'anchor_stale': stale,
                 'parameters_preparing': state.preparing, 'parameters_reverted': state.reverted,
                 'namesakes': self._namesakes, 'name': self.get_fully_qualified_name()}
+
+    def _fall_back(self, window, settings: dict) -> None:
+        """
+        Set the parameters of the automatic plan's fallback (the watch found it beyond).
+
+        From a thread of its own (the simulation thread must not wait for the parameter
+        callbacks), atomically (``modal.auto`` off and ``method`` full are only valid together),
+        so that the parameters, ``/parameter_events`` and a capture say what runs from now on.
+        """
+        values = {CONFIG_NAMES[name]: 0.0 if value is None else value
+                  for name, value in settings.items()}
+        self.get_logger().warning(f'{beyond_message(window, settings)}: setting '
+                                  + ', '.join(f'{k}={v!r}' for k, v in values.items()))
+        threading.Thread(target=self._set_fallback, args=(values,), daemon=True,
+                         name='modal_spring_fallback').start()
+
+    def _set_fallback(self, values: dict) -> None:
+        try:
+            result = self.set_parameters_atomically(
+                [Parameter(name, value=value) for name, value in values.items()])
+        except Exception as exc:  # shutting down, or a parameter refused by its type
+            result = SetParametersResult(successful=False, reason=repr(exc))
+        if not result.successful and self._running():
+            self.get_logger().error(f'the fallback of the automatic plan was refused: '
+                                    f'{result.reason}')
 
     def _check_namesakes(self) -> None:
         found = count_namesakes(self)

@@ -16,6 +16,7 @@ from typing import Any
 from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.bases.mode_selection import DEFAULT_TOLERANCE
 from modal_spring_ros.core.config import (DEFAULT_STRAIN_WARNING, DEFAULT_TRANSITION_S,
+                                          DEFAULT_WATCH_S,
                                           MAX_DIRECTIONS, MAX_FOLLOW_HZ, MAX_HORIZON_S,
                                           MIN_DIRECTIONS, SimulationConfig)
 from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand, UNITS
@@ -173,6 +174,12 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         'Run length, s, that modal.tolerance holds over (an undamped scene drifts further the '
         "longer it runs); 0 = the scene's simulation.duration", _D,
         float_range=(0.0, MAX_HORIZON_S))),
+    'modal.watch': (DEFAULT_WATCH_S, _descriptor(
+        "With modal.auto: the plan's error is measured again from the run's own state every "
+        'this many simulated seconds (less often where watching would take more than a '
+        'quarter of a core at real time), reported on /diagnostics, and beyond modal.tolerance the node falls back '
+        'by setting its parameters (method full, or the whole band on a richer basis); '
+        '0 = not watched', _D, float_range=(0.0, MAX_HORIZON_S))),
     'modal.forces': ('exact', _descriptor(
         'Spring forces: exact (every spring every step, the paper), refreshed (every spring '
         'every modal.force_refresh steps, a tangent between) or sampled (a weighted sample of '
@@ -231,6 +238,7 @@ CONFIG_NAMES = {'method': 'method', 'auto': 'modal.auto', 'integrator': 'integra
                 'basis': 'modal.basis', 'derivative_directions': 'modal.derivative_directions',
                 'anchor': 'anchor.source', 'follow_hz': 'anchor.follow_hz',
                 'forces': 'modal.forces', 'horizon_s': 'modal.horizon',
+                'watch_s': 'modal.watch',
                 'type': 'filter.type', 'by': 'filter.by', 'low_hz': 'filter.low_hz',
                 'high_hz': 'filter.high_hz', 'low_mode': 'filter.low_mode',
                 'high_mode': 'filter.high_mode', 'order': 'filter.order',
@@ -268,6 +276,7 @@ def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
         derivative_directions=values.get('modal.derivative_directions', DEFAULT_DIRECTIONS),
         forces=values.get('modal.forces', 'exact'),
         horizon_s=values.get('modal.horizon', 0.0) or None,
+        watch_s=values.get('modal.watch', DEFAULT_WATCH_S),
         anchor=values.get('anchor.source', 'scene'),
         follow_hz=values.get('anchor.follow_hz', DEFAULT_FOLLOW_HZ),
     ).validate(CONFIG_NAMES)

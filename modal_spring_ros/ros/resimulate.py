@@ -18,6 +18,7 @@ from modal_spring_ros.bags.capture import POINTS_TOPIC, RunBagWriter
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.stamps import to_seconds
 from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.core.auto.run_watch import watch_of
 from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
@@ -116,6 +117,10 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
         config = config_from_parameters(values)
         changes = parameter_changes(bag, rec.get('node', '/modal_spring'))
     sim = build_simulation(scene, config, allow_unstable=True, samples=sample_cache())
+    # a recorded configuration's watch falls back where the run did (a node's fallback is a
+    # recorded parameter change)
+    watch = watch_of(sim, config.watch_s) if values is None else None
+    frame_s = max(1, int(rec.get('frame_every', 0) or 1)) * sim.dt
     frames = frame_times(bag, topic)
     writer = RunBagWriter(output, scene, config, dt=sim.dt,
                           frame_every=int(rec.get('frame_every', 0)),
@@ -140,6 +145,9 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
             if stamp < sim.time - 0.5 * sim.dt:   # the recording was reset
                 sim.reset()
             while sim.time < stamp - 0.5 * sim.dt:
+                if watch is not None:
+                    sim, window = watch.before_step(sim, frame_s)
+                    watch = watch if window is None or window.within else None
                 try:
                     sim.step()
                 except DivergenceError:

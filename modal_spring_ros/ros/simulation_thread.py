@@ -12,7 +12,6 @@ simulation cannot even reset, to a simulation rebuilt from the settings), and th
 """
 from __future__ import annotations
 
-import dataclasses
 import queue
 import threading
 import time
@@ -21,42 +20,21 @@ from typing import Callable
 from modal_spring_ros.bags.pointcloud import CloudBuffer
 from modal_spring_ros.core.simulations import DivergenceError, Simulation, SimulationStatus
 from modal_spring_ros.core.threads import stepping_threads
-from modal_spring_ros.ros.diagnostics import StreamReport
+from modal_spring_ros.ros.diagnostics import StreamReport, StreamWindow
 from modal_spring_ros.ros.divergence_streak import DivergenceStreak, HeldError
 from modal_spring_ros.ros.input_kinds import recorded_messages
 from modal_spring_ros.ros.outputs import Outputs
+from modal_spring_ros.ros.plan_watch import FallBack, PlanWatch
 from modal_spring_ros.ros.requests import (ChangeBand, Pause, ReplaceSimulation, Request, Reset,
-                                           Step, StepRefused, TakeInput,
-                                           without_superseded)
+                                           Step, StepRefused, TakeInput, without_superseded)
+from modal_spring_ros.ros.stream_settings import StreamSettings
 
 #: wall time between two diagnostics messages, s
 DIAGNOSTICS_PERIOD_S = 1.0
 #: wait before trying again when even recovering failed, s
 RECOVERY_RETRY_S = 0.5
-
-
-@dataclasses.dataclass(frozen=True)
-class StreamSettings:
-    """The node's stream settings, read by the thread on every frame."""
-
-    publish_rate_hz: float = 60.0
-    mesh_rate_hz: float = 10.0
-    realtime_factor: float = 1.0
-    strain_warning: float = 0.1
-
-
-@dataclasses.dataclass
-class _Window:
-    """Bookkeeping of one diagnostics window (written by the simulation thread only)."""
-
-    wall: float = 0.0
-    sim_time: float = 0.0
-    valid: bool = True
-    step_seconds: float = 0.0
-    steps: int = 0
-    frames: int = 0
-    longest_gap: float = 0.0
-    computing_modes: bool = False
+#: share of the publish period left before a frame when the watch's shadows stop (plan_watch)
+FRAME_MARGIN = 0.25
 
 
 class SimulationThread:
@@ -67,7 +45,8 @@ class SimulationThread:
                  rebuild: Callable[[], Simulation],
                  computing_modes: Callable[[], bool] = lambda: False,
                  running: Callable[[], bool] = lambda: True,
-                 node_report: Callable[[], dict] = dict):
+                 node_report: Callable[[], dict] = dict,
+                 on_watch_beyond: FallBack = lambda window, settings: None):
         """
         Step ``sim`` and publish through ``outputs`` with the ``settings`` of the moment.
 
@@ -76,7 +55,8 @@ class SimulationThread:
         ``running``: False once the node is shutting down (its publishers are then gone, and the
         thread ends instead of reporting them as failures); ``node_report``: what the node
         adds to each report (:class:`StreamReport` fields: the clamp's pose stream, pending
-        parameter changes).
+        parameter changes); ``on_watch_beyond``: falls an automatic plan back
+        (:mod:`~modal_spring_ros.ros.plan_watch`).
         """
         self._running = running
         self._node_report = node_report
@@ -89,7 +69,7 @@ class SimulationThread:
         self._requests: queue.Queue[Request] = queue.Queue()
         self._stop = threading.Event()
         self._wake = threading.Event()  # the settings changed: stop waiting out the old period
-        self._window = _Window()
+        self._window = StreamWindow()
         self._frames = 0
         self._last_frame = 0.0
         self._cloud: CloudBuffer | None = None  # the frames' bytes, reused (see _publish_frame)
@@ -100,6 +80,7 @@ class SimulationThread:
         self._diverged_recently = False
         self._last_status = sim.status()
         self._anchor = (time.monotonic(), sim.time)
+        self._plan_watch = PlanWatch(on_watch_beyond)
         self._thread = threading.Thread(target=self._run, name='modal_spring_sim', daemon=True)
 
     # -- from other threads --------------------------------------------------------------------
@@ -182,6 +163,9 @@ class SimulationThread:
             next_publish += period
             if next_publish < now:
                 next_publish = now + period
+            if not (self.paused or self.held):   # in the idle time before the next frame
+                self._plan_watch.step(self.sim, settings.watch_s,
+                                      next_publish - FRAME_MARGIN * period)
             if rtf > 0.0 or self.paused or self.held:
                 self._wake.wait(max(0.0, next_publish - time.monotonic()))
                 self._wake.clear()
@@ -251,6 +235,7 @@ class SimulationThread:
 
     def _change_band(self, request: ChangeBand) -> str:
         self.sim.set_band(request.band, request.transition_s)
+        self._plan_watch.band_changed(self.sim)
         self._outputs.changed(self.sim, request.changed)
         return f'band {request.band.describe()}'
 
@@ -265,6 +250,7 @@ class SimulationThread:
         self.sim.model.scene.anchor_motion.clear()  # a followed clamp forgets its poses
         self.sim.reset()
         self._streak.clear()
+        self._plan_watch.restart()
         self._reanchor(window_valid=False)
         return 'back to the rest state at t = 0'
 
@@ -328,7 +314,8 @@ class SimulationThread:
             computing_modes=w.computing_modes or self._computing_modes(), paused=self.paused,
             strain_warning=settings.strain_warning, divergences=self._divergences,
             last_divergence=self._last_divergence,
-            diverged_recently=self._diverged_recently, error=error, **self._node_report())
+            diverged_recently=self._diverged_recently, error=error, **self._plan_watch.report(),
+            **self._node_report())
 
     def _status(self) -> SimulationStatus:
         """Return the simulation's status, or the last one read when it cannot give one."""
@@ -345,8 +332,8 @@ class SimulationThread:
             self._diverged_recently = False
 
     def _start_window(self, valid: bool) -> None:
-        self._window = _Window(wall=time.monotonic(), sim_time=self.sim.time, valid=valid,
-                               computing_modes=self._computing_modes())
+        self._window = StreamWindow(wall=time.monotonic(), sim_time=self.sim.time,
+                                    valid=valid, computing_modes=self._computing_modes())
         self._last_frame = 0.0
 
     def _reanchor(self, window_valid: bool) -> None:
@@ -396,5 +383,6 @@ class SimulationThread:
             except Exception as again:
                 self._report_error(f'rebuilding the simulation failed: {again!r}')
                 return False
+        self._plan_watch.restart()
         self._reanchor(window_valid=False)
         return True

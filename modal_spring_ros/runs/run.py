@@ -16,6 +16,7 @@ from pathlib import Path
 import time
 from typing import Callable
 
+from modal_spring_ros.core.auto.run_watch import RunWatch, WatchedWindow
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import DivergenceError, Simulation
 from modal_spring_ros.core.threads import stepping_threads
@@ -38,6 +39,8 @@ class Run:
     integrator: str
     band: str
     diverged: str = ''
+    #: the simulation the run ended on (not saved: a watched run may have fallen back)
+    simulation: Simulation | None = dataclasses.field(default=None, repr=False, compare=False)
 
     def save_npz(self, path: str | Path) -> None:
         s = self.scene
@@ -58,7 +61,9 @@ class Run:
 def record(sim: Simulation, duration: float, *, frame_every: int = 1,
            on_progress: Callable[[float], None] | None = None,
            on_frame: Callable[[float, np.ndarray], None] | None = None,
-           progress_interval_s: float = PROGRESS_INTERVAL_S) -> Run:
+           progress_interval_s: float = PROGRESS_INTERVAL_S,
+           watch: RunWatch | None = None,
+           on_watch: Callable[[WatchedWindow, Simulation], None] | None = None) -> Run:
     """
     Step ``sim`` for ``duration`` seconds.
 
@@ -66,8 +71,17 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
     its message (no bad frame). ``on_frame(t, positions)`` sees every frame as it is made (e.g. to
     stream it to a bag). ``on_progress(fraction done)`` is called at whole percents, at most once
     per ``progress_interval_s`` of wall time.
+
+    With ``watch`` (:mod:`~modal_spring_ros.core.auto.run_watch`), the plan's error is measured
+    again from the run's state every watch interval; ``on_watch(window, simulation)`` sees each
+    window and the simulation that goes on (the fallback, where the window was beyond the
+    tolerance: the run continues as it from the window's start, at a step that divides the frame
+    interval). The run's :attr:`Run.simulation` is the one it ended on.
     """
+    frame_s = frame_every * sim.dt
     steps = int(round(duration / sim.dt))
+    start = sim.time
+    end = start + steps * sim.dt
     frames = [sim.positions()]
     times = [sim.time]
     if on_frame:
@@ -75,13 +89,24 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
     diverged = ''
     check_every = max(1, steps // 100)
     last_report = time.monotonic()
-    for k in range(1, steps + 1):
+    next_frame = sim.time + frame_s
+    k = 0
+    while sim.time + 0.5 * sim.dt < end:
+        if watch is not None:
+            sim, window = watch.before_step(sim, frame_s)
+            if window is not None:
+                if not window.within:
+                    watch = None                  # the fallback is what the plan is measured by
+                if on_watch:
+                    on_watch(window, sim)
         try:
             sim.step()
         except DivergenceError as exc:
             diverged = str(exc)
             break
-        if k % frame_every == 0:
+        k += 1
+        if sim.time >= next_frame - 0.5 * sim.dt:
+            next_frame += frame_s
             frames.append(sim.positions())
             times.append(sim.time)
             if on_frame:
@@ -89,10 +114,11 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
         if on_progress and k % check_every == 0:
             now = time.monotonic()
             if now - last_report >= progress_interval_s:
-                on_progress(k / steps)
+                on_progress(min(1.0, (sim.time - start) / (end - start)))
                 last_report = now
     freqs = sim.basis.frequencies_hz if sim.basis is not None else np.empty(0)
     kept, band = sim.kept_modes, sim.describe_band()
     return Run(scene=sim.model.scene, t=np.array(times), positions=np.array(frames),
                frequencies_hz=freqs, kept_modes=np.asarray(kept, dtype=np.int64), dt=sim.dt,
-               method=sim.method, integrator=sim.integrator, band=band, diverged=diverged)
+               method=sim.method, integrator=sim.integrator, band=band, diverged=diverged,
+               simulation=sim)

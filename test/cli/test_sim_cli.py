@@ -185,3 +185,45 @@ def test_an_equalised_run_streams_its_gains_and_draws_its_response(tmp_path, cap
     np.testing.assert_allclose(b['positions'] - rest, 2.0 * (a['positions'] - rest), rtol=1e-9,
                                atol=1e-12)
     assert chart.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and chart.stat().st_size > 10_000
+
+
+def ramped_shake(tmp_path):
+    """Return a scene file: ``sheet_10x10`` shaken near its vertical mode, growing over 12 s."""
+    scene = variant('sheet_10x10', anchor_motion=[
+        {'axis': 'x', 'amplitude': 0.02, 'frequency_hz': 0.7, 'ramp_s': 1.0},
+        {'axis': 'z', 'amplitude': 0.02, 'frequency_hz': 9.5, 'ramp_s': 12.0}])
+    path = tmp_path / 'ramped.yaml'
+    path.write_text(scene_to_yaml(scene))
+    return path
+
+
+def test_a_plan_the_run_outgrows_is_caught_by_its_watch_and_falls_back(tmp_path, capsys):
+    """
+    The pilot's window sees a gentle shake; the shake grows into large deformation later.
+
+    Watched every 3 s, the plan measures 0.3 % from 3 s and is beyond 1 % from 6 s on: the run
+    goes on as the full run from there, and a bag of it re-simulates through the fallback.
+    """
+    from modal_spring_ros.bags.reader import BagReader
+    from modal_spring_ros.ros.resimulate import resimulate
+    bag = tmp_path / 'ramped'
+    assert main(['--scene', str(ramped_shake(tmp_path)), '--auto', '--duration', '9',
+                 '--watch', '3', '--frame-every', '40', '--bag', str(bag)]) == 0
+    out, err = capsys.readouterr()
+    within = [line for line in err.splitlines() if line.startswith('[modal_spring_sim] watched')]
+    assert len(within) == 1 and ' from t = 3 s against the full run' in within[0]
+    warning = [line for line in err.splitlines() if 'WARN: watched:' in line]
+    assert len(warning) == 1 and 'beyond the tolerance 1.00%: the run falls back to the full' in (
+        warning[0])
+    error = float(warning[0].split('watched: ')[1].split('%')[0]) / 100
+    start = float(warning[0].split('from t = ')[1].split(' s')[0])
+    assert error > 0.01 and start == pytest.approx(6.0, abs=0.01)
+    watched = [line for line in out.splitlines() if line.startswith('watched ')]
+    assert len(watched) == 1 and watched[0].endswith('beyond 1.00%: fell back to the full run')
+    assert 'method     full physical (180 DOF)' in out
+    again = tmp_path / 'again'
+    resimulate(bag, again)
+    t_rec, x_rec = BagReader(bag).points()
+    t_new, x_new = BagReader(again).points()
+    assert np.array_equal(t_new, t_rec)
+    np.testing.assert_allclose(x_new, x_rec, rtol=0, atol=2e-6)

@@ -120,3 +120,14 @@ def test_a_silent_pose_stream_warns_that_the_clamp_holds_the_last_pose():
                                                   'the last')
     assert values['anchor pose'] == 'no pose for 1.3 s: holding the last'
     assert 'anchor pose' not in _entry()[1]               # the scene's own motion: not shown
+
+
+def test_a_watched_plan_reports_its_windows_and_a_window_beyond_warns():
+    watched = '3 windows: last 0.64% over 3.01 s from t = 30 s against the full run'
+    entry, values = _entry(stream=dataclasses.replace(STREAM, watched=watched))
+    assert (entry.level, values['automatic choice watched']) == (OK, watched)
+    assert _entry()[1]['automatic choice watched'] == 'off'
+    beyond = ('automatic plan beyond its tolerance 1.00%: 2.67% over 3.01 s from t = 21.7 s '
+              'against the full run; falling back to the full run')
+    entry, _ = _entry(stream=dataclasses.replace(STREAM, watched=beyond, watch_beyond=beyond))
+    assert (entry.level, entry.message) == (WARN, beyond)

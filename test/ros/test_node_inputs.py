@@ -451,7 +451,8 @@ def test_a_new_input_is_one_entry_of_the_table_subscribed_applied_recorded_and_r
     from modal_spring_ros.ros.input_kinds import INPUTS, InputKind
     from modal_spring_ros.ros.inputs import NodeInputs
     from modal_spring_ros.ros.resimulate import recorded_inputs
-    from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
+    from modal_spring_ros.ros.simulation_thread import SimulationThread
+    from modal_spring_ros.ros.stream_settings import StreamSettings
     applied = []
 
     def nudge(sim, message, values):

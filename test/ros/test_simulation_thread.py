@@ -15,7 +15,8 @@ from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.ros.input_kinds import CLICKED_POINT
 from modal_spring_ros.ros.requests import ChangeBand, Pause, ReplaceSimulation, Reset, TakeInput
-from modal_spring_ros.ros.simulation_thread import SimulationThread, StreamSettings
+from modal_spring_ros.ros.simulation_thread import SimulationThread
+from modal_spring_ros.ros.stream_settings import StreamSettings
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest

@@ -55,6 +55,7 @@ from modal_spring_ros.core.auto.full_candidate import (against_reference, BY_ITS
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, horizon_error,
                                                        on_samples, trajectory, trajectory_error)
 from modal_spring_ros.core.auto.plan import PilotReport, PlanSettings
+from modal_spring_ros.core.auto.run_watch import WatchReference
 from modal_spring_ros.core.auto.sibling_check import full_run_start
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.model.model import MassSpringModel
@@ -135,6 +136,8 @@ class Pilot:
         # whether it was looked for
         self._start: np.ndarray | None = None
         self._start_sought = False
+        self._fallback: Simulation | None = None   # the full candidate, once measured
+        self._reference_dt = 0.0                   # the converged full reference's step
 
     def run(self, plan: PlanSettings) -> tuple[Simulation, PilotReport]:
         """Return the simulation chosen and what the pilot measured."""
@@ -180,6 +183,33 @@ class Pilot:
         window_error = report.error if report.method == 'full' else self._measured[id(sim)][1]
         return sim, dataclasses.replace(report, horizon_s=self.horizon_s,
                                         window_error=window_error, tolerance=self.tolerance)
+
+    def watch_reference(self, sim: Simulation) -> WatchReference:
+        """
+        Return what the chosen modal ``sim`` is watched against while it runs.
+
+        (:mod:`~modal_spring_ros.core.auto.run_watch`): the pilot's reference (the converged full
+        run, or the richer plan with its Richardson share) on its samples; it falls back to the
+        full candidate measured, or where the band keeps no full run to the richer plan (as
+        settings: the whole band on its basis and forces, at a step within stability).
+        """
+        sample_s, samples, _, against = self._sampling
+        richer, dt, full = (self._sibling or (None, 0.0))[0], self._reference_dt, self._fallback
+
+        def reference() -> Simulation:
+            return (self.full(dt * (1.0 + 1e-9), sample_s) if richer is None
+                    else self._build(richer))
+        if full is None:
+            fallback, settings = reference, {
+                'auto': False, 'basis': 'derivatives', 'forces': 'exact', 'force_refresh': 1,
+                'derivative_directions': richer.directions, 'dt': None}
+        else:
+            fallback, settings = (lambda: full.with_dt(full.dt)), {
+                'auto': False, 'method': 'full', 'integrator': full.integrator, 'dt': full.dt}
+        work = work_per_second(sim)
+        return WatchReference(reference, fallback, settings, against.split(' and ')[0],
+                              sample_s, samples, self._shared(sim), self.tolerance, work,
+                              work + work_per_second(reference()))
 
     # -- internals -----------------------------------------------------------------------------
     def _lengthened(self, plan: PlanSettings, sim: Simulation, error: float,
@@ -332,6 +362,7 @@ class Pilot:
             return sim, PilotReport(error, planned, self.window_s, against, refined, 'modal',
                                     math.nan)
         full, full_error, full_against = self._full_candidate(against, error)
+        self._fallback = full
         ratio = work_per_second(sim) / work_per_second(full)
         report = PilotReport(error, planned, self.window_s, against, refined, 'modal', ratio)
         if error <= self.tolerance and ratio <= FULL_RUN_TIE:

@@ -131,6 +131,9 @@ class Simulation(abc.ABC):
     #: what the automatic choice's pilot run measured (:class:`~modal_spring_ros.core.auto.plan.
     #: PilotReport`), on a run it chose; None otherwise
     pilot = None
+    #: what the run is watched against while it runs (:class:`~modal_spring_ros.core.auto.
+    #: run_watch.WatchReference`), on a modal run the automatic choice chose; None otherwise
+    watch_reference = None
 
     @property
     def band(self) -> FilterBand:

@@ -1,0 +1,95 @@
+"""
+The simulation thread's watch over an automatic plan, without DDS.
+
+What it watches (an automatic plan whose clamp is a function of time, until a band is set on it
+by hand), when it falls back (once, with the settings that rebuild the fallback), and that a
+failing watch costs the run nothing.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation, rebuild
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.ros.plan_watch import PlanWatch
+from modal_spring_ros.scenes.resources import load_scene
+import pytest
+
+CONFIG = SimulationConfig(auto=True, tolerance=0.01)
+
+
+@pytest.fixture(scope='module')
+def plan():
+    return build_simulation(load_scene('sheet_10x10'), CONFIG)
+
+
+def run_of(plan, reference=None):
+    """Return a fresh run of ``plan`` (at rest), watched against ``reference`` (its own)."""
+    sim = plan.with_dt(plan.dt)
+    sim.watch_reference = reference or plan.watch_reference
+    return sim
+
+
+def step_watched(watch: PlanWatch, sim, seconds: float, interval_s: float = 1.0) -> None:
+    while sim.time < seconds:
+        sim.step()
+        watch.step(sim, interval_s, math.inf)
+
+
+def test_a_window_within_the_tolerance_is_reported_and_nothing_falls_back(plan):
+    fallen = []
+    watch = PlanWatch(lambda window, settings: fallen.append((window, settings)))
+    assert watch.report() == {'watched': 'off', 'watch_beyond': ''}
+    sim = run_of(plan)
+    step_watched(watch, sim, 1.5)
+    report = watch.report()
+    assert report['watched'].startswith('1 window: last ') and report['watch_beyond'] == ''
+    assert 'against the full run' in report['watched'] and not fallen
+
+
+def test_a_window_beyond_falls_back_once_with_the_settings_of_the_full_run(plan):
+    fallen = []
+    watch = PlanWatch(lambda window, settings: fallen.append((window, settings)))
+    strict = dataclasses.replace(plan.watch_reference, tolerance=1e-6)   # nothing meets it
+    sim = run_of(plan, strict)
+    step_watched(watch, sim, 3.5)
+    (window, settings), = fallen                              # once: the run is replaced
+    assert window.error > 1e-6 and not window.within
+    assert settings == {'auto': False, 'method': 'full', 'integrator': 'explicit',
+                        'dt': pytest.approx(settings['dt'])} and settings['dt'] > 0.0
+    # the settings rebuild the full run the pilot measured, at its step
+    again = rebuild(sim.model, sim.basis, dataclasses.replace(CONFIG, **settings))
+    assert again.method == 'full' and again.dt == pytest.approx(settings['dt'])
+    report = watch.report()
+    assert report['watch_beyond'].startswith('automatic plan beyond its tolerance 0.00%')
+    assert report['watch_beyond'].endswith('; falling back to the full run')
+
+
+def test_a_band_set_by_hand_is_no_longer_the_plan_and_is_not_watched(plan):
+    watch = PlanWatch(lambda window, settings: None)
+    sim = run_of(plan)
+    sim.set_band(FilterBand('lowpass', 0.0, 10.0))
+    watch.band_changed(sim)
+    step_watched(watch, sim, 1.5)
+    assert watch.report()['watched'] == 'off'
+
+
+def test_an_interval_of_zero_and_a_plan_not_chosen_by_auto_are_not_watched(plan):
+    watch = PlanWatch(lambda window, settings: None)
+    step_watched(watch, run_of(plan), 1.5, interval_s=0.0)
+    assert watch.report()['watched'] == 'off'
+    plain = build_simulation(load_scene('sheet_10x10'), SimulationConfig())
+    step_watched(watch, plain, 0.2)
+    assert watch.report()['watched'] == 'off'
+
+
+def test_a_watch_that_fails_is_said_and_the_run_goes_on(plan):
+    def broken():
+        raise RuntimeError('no reference today')
+    watch = PlanWatch(lambda window, settings: None)
+    sim = run_of(plan, dataclasses.replace(plan.watch_reference, reference=broken))
+    step_watched(watch, sim, 1.5)
+    assert sim.time >= 1.5 and watch.report()['watch_beyond'] == (
+        "the automatic plan is no longer watched: RuntimeError('no reference today')")
