@@ -74,26 +74,42 @@ def measure(seed: int, tolerance: float) -> dict:
                against=pilot.against if pilot is not None else '')
     sample_s = sim.dt * max(1, int(round(SAMPLE_S / sim.dt)))
     samples = int(round(DURATION_S / sample_s))
+    checked = full_run_check(scene, sample_s, samples, tolerance)
+    if checked is None:
+        row['refused'] = 'the reference did not converge'
+        return row
+    reference, baseline, error = checked
+    row['achieved'] = trajectory_error(trajectory(sim, sample_s, samples), reference)
+    row.update(full_dt=float(baseline.dt), full_error=error,
+               auto_cpu_per_s=cpu_per_second(sim), full_cpu_per_s=cpu_per_second(baseline))
+    row['cost_ratio'] = row['auto_cpu_per_s'] / row['full_cpu_per_s']
+    return row
+
+
+def full_run_check(scene, sample_s: float, samples: int, tolerance: float
+                   ) -> tuple[np.ndarray, Simulation, float] | None:
+    """
+    Return the truth a plan is checked against, and the full run that meets ``tolerance``.
+
+    The full run converged in its step to ``REFERENCE_ACCURACY`` of the tolerance (its
+    trajectory every ``sample_s``), the full run at the longest step (halved from 0.9 of its
+    stability limit) within the tolerance, and that run's error; None where the reference does
+    not converge.
+    """
     full = build_simulation(scene, SimulationConfig(method='full'))
     found = converged_trajectory(lambda dt: on_samples(full, sample_s, dt),
                                  0.2 * full.stability_limit(), sample_s, samples,
                                  REFERENCE_ACCURACY * tolerance)
     if found is None:
-        row['refused'] = 'the reference did not converge'
-        return row
+        return None
     reference, _ = found
-    row['achieved'] = trajectory_error(trajectory(sim, sample_s, samples), reference)
     step = 0.9 * full.stability_limit()
     while True:   # the full run at the longest step that meets the tolerance
         baseline = on_samples(full, sample_s, step)
         error = trajectory_error(trajectory(baseline, sample_s, samples), reference)
         if error <= tolerance or step < 1e-6:
-            break
+            return reference, baseline, error
         step = baseline.dt / 2.0
-    row.update(full_dt=float(baseline.dt), full_error=error,
-               auto_cpu_per_s=cpu_per_second(sim), full_cpu_per_s=cpu_per_second(baseline))
-    row['cost_ratio'] = row['auto_cpu_per_s'] / row['full_cpu_per_s']
-    return row
 
 
 def _measure(args: tuple[int, float]) -> dict:
@@ -156,12 +172,17 @@ def table(results: dict) -> str:
 
 def write_outputs(results: dict, out: Path, progress) -> None:
     rows = results['rows']
+    write_csv(rows, out / 'promise.csv')
+    progress(f"wrote {out / 'promise.csv'} and {chart(rows, out / 'promise.png')}")
+
+
+def write_csv(rows: list[dict], path: Path) -> None:
+    """Write ``rows`` as a CSV file, a column per key any row has (empty where it has none)."""
     keys = sorted({k for r in rows for k in r})
-    with open(out / 'promise.csv', 'w', newline='') as f:
+    with open(path, 'w', newline='') as f:
         writer = csv.DictWriter(f, fieldnames=keys)
         writer.writeheader()
         writer.writerows(rows)
-    progress(f"wrote {out / 'promise.csv'} and {chart(rows, out / 'promise.png')}")
 
 
 def chart(rows: list[dict], path: Path) -> Path:

@@ -1,7 +1,8 @@
 """
 ``modal_spring_bench``: the project's benchmarks, as suites, with their results on disk.
 
-    modal_spring_bench [--suite steps,stream,tradeoff,promise,response] [--quick] [--case TEXT]
+    modal_spring_bench [--suite steps,stream,tradeoff,promise,auto,response] [--quick]
+                       [--case TEXT]
                        [--out DIR]
 
 Suites: ``steps`` (median time per step, basis cost, peak memory), ``stream`` (the node's
@@ -9,9 +10,10 @@ publish rate and end-to-end latency, seen from another process), ``tradeoff`` (e
 cost of every method, stability limits, the paper's figs. 7 and 8, the large-deformation
 failure, with CSV and PNG charts), ``promise`` (``modal.auto`` on 50 random scenes at 1 % and
 0.3 %: measured against printed error, and its cost against the full run's, with CSV and a PNG
-chart), ``response`` (the filter's gains and damping requested against measured, mode by mode,
-with CSV and a PNG chart). Results are printed as tables and written to
-``DIR/<suite>.json``. Progress goes to stderr.
+chart), ``auto`` (``modal.auto`` on the built-in scenes: the plan as predicted against the plan
+measured, error and cost, with CSV), ``response`` (the filter's gains and damping requested
+against measured, mode by mode, with CSV and a PNG chart). Results are printed as tables and
+written to ``DIR/<suite>.json``. Progress goes to stderr.
 """
 from __future__ import annotations
 
@@ -19,13 +21,13 @@ import json
 from pathlib import Path
 import sys
 
-from modal_spring_ros.bench import promise, response, steps, stream, tradeoff
+from modal_spring_ros.bench import auto_scenes, promise, response, steps, stream, tradeoff
 from modal_spring_ros.cli.common import fail, script_parser
 
 PROG = 'modal_spring_bench'
 #: suite name -> module with run(quick, progress), table(results), write_outputs(...)
 SUITES = {'steps': steps, 'stream': stream, 'tradeoff': tradeoff, 'promise': promise,
-          'response': response}
+          'auto': auto_scenes, 'response': response}
 
 
 def main(argv: list[str] | None = None) -> int:

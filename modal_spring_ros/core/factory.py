@@ -117,13 +117,14 @@ def force_options(forces: str, refresh: int, tolerance: float) -> ForceOptions:
     return ForceOptions(forces, refresh, tolerance)
 
 
-def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig
-               ) -> Simulation:
+def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig,
+               measured: bool = True) -> Simulation:
     """
     ``modal.auto``: the plan the prediction gives, then measured by a pilot run and refined.
 
     (:mod:`~modal_spring_ros.core.auto.pilot`); the full run where it is cheaper or the plan cannot
-    be brought within the tolerance (bands that keep every mode only).
+    be brought within the tolerance (bands that keep every mode only). Not ``measured``: the
+    plan as predicted, with no pilot.
     """
     limit = min(config.max_modes or DEFAULT_MAX_MODES, basis.n_dof)
     choice = choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
@@ -143,6 +144,8 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
 
     def make(settings: PlanSettings) -> Simulation:
         return _modal(model, basis, config, bank, choice, settings, keep_dt)
+    if not measured:
+        return make(plan)
 
     def full(longest_dt: float, sample_s: float) -> Simulation:
         # explicit, within its stability limit and no longer than ``longest_dt`` (the pilot
@@ -183,6 +186,19 @@ def _more_modes(basis: ModalBasis, band: FilterBand, hz: float, limit: int) -> f
     if freqs.size <= now:
         return None
     return float(freqs[min(target, freqs.size) - 1])
+
+
+def predicted_simulation(scene: Scene, config: SimulationConfig) -> Simulation:
+    """
+    Return ``modal.auto``'s plan as its prediction gives it, unmeasured (no pilot run).
+
+    What the automatic choice ran before it measured its plans: the benchmark's baseline for
+    what measuring adds (``modal_spring_bench --suite auto``).
+    """
+    if not (config.auto and config.method == 'modal'):
+        raise ValueError("a predicted plan is modal.auto's: it needs auto and method modal")
+    model = MassSpringModel(scene)
+    return _automatic(model, ModalBasis(model), config.validate(), measured=False)
 
 
 def build_simulation(scene: Scene, config: SimulationConfig, *,

@@ -177,9 +177,10 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     'modal.watch': (DEFAULT_WATCH_S, _descriptor(
         "With modal.auto: the plan's error is measured again from the run's own state every "
         'this many simulated seconds (less often where watching would take more than a '
-        'quarter of a core at real time), reported on /diagnostics, and beyond modal.tolerance the node falls back '
-        'by setting its parameters (method full, or the whole band on a richer basis); '
-        '0 = not watched', _D, float_range=(0.0, MAX_HORIZON_S))),
+        'quarter of a core at real time), reported on /diagnostics, and beyond '
+        'modal.tolerance the node falls back by setting its parameters (method full, or the '
+        'whole band on a richer basis); 0 = not watched', _D,
+        float_range=(0.0, MAX_HORIZON_S))),
     'modal.forces': ('exact', _descriptor(
         'Spring forces: exact (every spring every step, the paper), refreshed (every spring '
         'every modal.force_refresh steps, a tangent between) or sampled (a weighted sample of '

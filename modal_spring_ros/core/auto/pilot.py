@@ -86,10 +86,11 @@ LONGEST_STEP = 0.85
 MAX_PILOT_DIRECTIONS = 96
 #: A candidate within this factor of another's measured error counts as a tie (cheaper wins).
 TIE = 1.1
-#: The full run replaces a plan within the tolerance only where the work model prices the plan
-#: above this many times the full run's work: within it the two are a tie to the model (its
-#: ratios are good to about 30 %), and the plan, which measured within the tolerance, is kept.
-FULL_RUN_TIE = 1.15
+#: The full run replaces a plan within the tolerance where the work model prices the plan above
+#: this many times the full run's work: auto never chooses a candidate it prices above 1.1 times
+#: the cheapest it measured; within that the two are a tie (the model's ratios are good to about
+#: 30 %), and the plan, which measured within the tolerance, is kept.
+FULL_RUN_TIE = 1.1
 
 
 def pilot_window(model: MassSpringModel, lowest_hz: float) -> float:
