@@ -35,6 +35,10 @@ DIAGNOSTICS_PERIOD_S = 1.0
 RECOVERY_RETRY_S = 0.5
 #: share of the publish period left before a frame when the watch's shadows stop (plan_watch)
 FRAME_MARGIN = 0.25
+#: share of the publish period a frame's steps may take after it is due: a run that cannot step
+#: in real time drops the debt beyond one frame, and its frames keep their rate (the achieved
+#: real-time factor falls below the one requested instead)
+FRAME_LATENESS = 0.75
 
 
 class SimulationThread:
@@ -140,18 +144,23 @@ class SimulationThread:
             rtf = settings.realtime_factor
             if self._apply_requests():
                 published_time = None
+            behind = False
             if not (self.paused or self.held):
                 if rtf > 0.0:
                     wall0, sim0 = self._anchor
                     target = sim0 + (time.monotonic() - wall0) * rtf
-                    self._step_until(target, next_publish + period)
-                    if self.sim.time + self.sim.dt < target:  # could not keep up: drop debt
-                        self._reanchor(window_valid=True)
+                    self._step_until(target, next_publish + FRAME_LATENESS * period)
+                    behind = self.sim.time + self.sim.dt < target
+                    if target - self.sim.time > rtf * period:  # could not keep up: the debt
+                        # beyond one frame's steps is dropped (the frames keep their rate)
+                        self._anchor = (time.monotonic(), self.sim.time + rtf * period)
                 else:  # as fast as possible: as many steps as fit until the frame is due
                     self._step_until(float('inf'), next_publish)
             now = time.monotonic()
+            # woken before the frame is due (a setting changed): the frame stays on its grid
+            due = now >= next_publish
             # a held run goes on publishing its held state: the stream never goes silent
-            if (self.sim.time != published_time or self.held) and not self.paused:
+            if due and (self.sim.time != published_time or self.held) and not self.paused:
                 mesh = now >= next_mesh and settings.mesh_rate_hz > 0
                 self._publish_frame(mesh)
                 published_time = self.sim.time
@@ -160,9 +169,12 @@ class SimulationThread:
             if now >= next_diagnostics:
                 self._publish_diagnostics(settings, error=self.held)
                 next_diagnostics = now + DIAGNOSTICS_PERIOD_S
-            next_publish += period
-            if next_publish < now:
-                next_publish = now + period
+            if due:
+                next_publish += period
+                if next_publish < now:
+                    next_publish = now + period
+            if behind:  # no idle time: step on towards the next frame
+                continue
             if not (self.paused or self.held):   # in the idle time before the next frame
                 self._plan_watch.step(self.sim, settings.watch_s,
                                       next_publish - FRAME_MARGIN * period)

@@ -308,3 +308,46 @@ def _click_input(x: float, z: float) -> TakeInput:
     return TakeInput(kind=CLICKED_POINT, received=_click(x, z), values={
         'interaction.stiffness': 50.0, 'interaction.max_force_n': 5.0, 'interaction.hold_s': 1.0,
         'interaction.radius': 0.0})
+
+
+def test_settings_changed_between_frames_keeps_the_frames_on_their_grid():
+    """A slider dragged (a setting every few ms) neither adds frames nor delays them."""
+    sim = build_simulation(load_scene('sheet_10x10'), SimulationConfig())
+    out = Recorder()
+    thread = SimulationThread(sim, out, lambda: StreamSettings(publish_rate_hz=30.0),
+                              rebuild=lambda: sim)
+    thread.start()
+    try:
+        assert wait_for(lambda: len(out.frames) >= 3, 5.0)
+        start = time.monotonic()
+        while time.monotonic() < start + 2.0:
+            thread.settings_changed()
+            time.sleep(0.007)
+        gaps = np.diff([wall for wall, _, _ in out.frames_after(start)])
+    finally:
+        thread.stop()
+    assert 40 <= gaps.size <= 65, gaps.size          # 2 s at 30 Hz: 60 frames, none added
+    assert np.median(gaps) == pytest.approx(1 / 30.0, rel=0.15)
+    assert np.percentile(gaps, 10) > 0.5 / 30.0, np.sort(gaps)[:5]  # no frame sent early
+
+
+def test_a_run_that_cannot_step_in_real_time_keeps_its_frame_rate(running, monkeypatch):
+    """Steps costing twice real time: the run slows (reported), the frames keep their rate."""
+    sim = build_simulation(variant('sheet_10x10', anchor_motion=[]), SimulationConfig())
+    real = sim._step_once
+    step_cost = 2.0 * sim.dt  # wall seconds a step takes: half of real time at most
+
+    def slow_step():
+        time.sleep(step_cost)
+        real()
+
+    monkeypatch.setattr(sim, '_step_once', slow_step)
+    thread, out = running(sim, StreamSettings(publish_rate_hz=30.0))
+    start_wall, start_sim = time.monotonic(), thread.sim.time
+    time.sleep(2.0)
+    achieved = (thread.sim.time - start_sim) / (time.monotonic() - start_wall)
+    gaps = np.diff([wall for wall, _, _ in out.frames_after(start_wall)])
+    assert 0.05 < achieved < 0.55, achieved
+    assert np.median(gaps) < 1.3 / 30.0, np.median(gaps)   # not a frame every other period
+    reported = [r.achieved_rtf for _, r in out.reports if r.window_valid]
+    assert reported and reported[-1] < 0.6, reported
