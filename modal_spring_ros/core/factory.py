@@ -161,7 +161,7 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
 
     everything = config.band.kind == 'allpass'
     pilot = Pilot(model, config.tolerance, make, full if everything else None, more_modes,
-                  float(basis.frequencies_hz[choice.modes[0]]), can_halve_step=not keep_dt,
+                  basis.frequencies_hz[choice.modes], can_halve_step=not keep_dt,
                   horizon_s=config.horizon_s or model.scene.default_duration)
     sim, report = pilot.run(plan)
     sim.pilot = report

@@ -6,11 +6,13 @@ error against a converged full run is within the tolerance, or auto refuses with
 """
 from __future__ import annotations
 
-from modal_spring_ros.core.auto import pilot
+from helpers import variant
+from modal_spring_ros.core.auto import pilot, pilot_window
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.scenes.generator import random_scene
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -168,3 +170,33 @@ def test_a_richer_plan_as_reference_is_checked_against_the_full_run_over_the_win
     reference = converged_full_run(scene, sample_s, samples)
     achieved = trajectory_error(trajectory(sim, sample_s, samples), reference)
     assert achieved <= TOLERANCE, (achieved, report.describe())
+
+
+def _driven(hz: float, ratio: float) -> MassSpringModel:
+    """sheet_10x10 (first mode 4.7357 Hz) shaken at ``hz``, with modal damping ``ratio``."""
+    return MassSpringModel(variant(
+        'sheet_10x10_resonance', damping={'ratio': ratio},
+        anchor_motion=[{'axis': 'x', 'amplitude': 0.004, 'frequency_hz': hz, 'ramp_s': 0.5}]))
+
+
+def test_a_drive_near_a_kept_mode_makes_the_window_span_its_build_up():
+    """
+    Three of the driven mode's settling times: its decay time, or the beat with the drive.
+
+    Damped at the mode: ``3 / (h omega)``; undamped 4 % off: three beat periods
+    ``3 / |f - f_drive|``; 20 % off: no build-up, the window of a few periods. Never longer than
+    ``MAX_BUILD_UP_WINDOW_S`` (nor the run, :class:`pilot.Pilot`).
+    """
+    f1, f2 = 4.7357, 10.229
+    kept = np.array([f1, f2])
+    resonant = _driven(f1, 0.02)
+    assert pilot_window.build_up_s(resonant, kept) == pytest.approx(3.0 / (0.02 * 2 * np.pi * f1))
+    assert pilot_window.pilot_window(resonant, kept) == pytest.approx(5.04, abs=0.01)
+    beating = _driven(1.04 * f1, 0.0)
+    assert pilot_window.build_up_s(beating, kept) == pytest.approx(3.0 / (0.04 * f1))
+    assert pilot_window.pilot_window(beating, kept) == pilot_window.MAX_BUILD_UP_WINDOW_S
+    apart = _driven(1.2 * f1, 0.02)
+    assert pilot_window.build_up_s(apart, kept) == 0.0
+    assert pilot_window.pilot_window(apart, kept) == pytest.approx(8.0 / f1)  # 8 periods, mode 1
+    # only the modes kept count: the drive near mode 1, mode 1 not kept (a high-pass band)
+    assert pilot_window.build_up_s(resonant, np.array([f2])) == 0.0

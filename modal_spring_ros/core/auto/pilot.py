@@ -9,7 +9,9 @@ it is good; this module does the same for a whole plan:
 
 1. **A pilot window** that excites what the scene excites (released under gravity from rest,
    its clamp drive) and lasts a few periods of the slowest kept mode and of the drive
-   (``MIN_WINDOW_S`` to ``MAX_WINDOW_S``).
+   (1 to 3 s), or, for a drive near a kept mode, the time its response takes to build up
+   (:mod:`~modal_spring_ros.core.auto.pilot_window`): a drift model fitted to a shorter
+   window cannot see that build-up. Never longer than the run.
 2. **A reference** for that window: the full physical run (every DOF, every spring, explicit,
    halved from its longest stable step until step doubling says it has converged) where the
    band keeps everything and its cost is within ``REFERENCE_WORK``; otherwise the richer
@@ -54,6 +56,7 @@ from modal_spring_ros.core.auto.full_candidate import (against_reference, BY_ITS
                                                        by_step_doubling, STEP_ORDER)
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, horizon_error,
                                                        on_samples, trajectory, trajectory_error)
+from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PilotReport, PlanSettings
 from modal_spring_ros.core.auto.run_watch import WatchReference
 from modal_spring_ros.core.auto.sibling_check import full_run_start
@@ -67,9 +70,6 @@ import numpy as np
 PILOT_MARGIN = 0.8
 #: Most refinement rounds before the plan gives way to the full run.
 MAX_ROUNDS = 5
-#: Pilot window bounds, s, and how many periods of the slowest kept mode and of the drive it spans
-#: (a drive near a resonance builds its error up over several periods).
-MIN_WINDOW_S, MAX_WINDOW_S, WINDOW_PERIODS = 1.0, 3.0, 8.0
 #: Samples of the displacement over the window (at least).
 SAMPLES = 120
 #: The full reference run is used when its window costs at most this much modelled CPU time, us.
@@ -93,14 +93,6 @@ TIE = 1.1
 FULL_RUN_TIE = 1.1
 
 
-def pilot_window(model: MassSpringModel, lowest_hz: float) -> float:
-    """Return the pilot window: a few periods of the slowest kept mode and of the drive."""
-    drive = model.scene.anchor_motion.frequencies_hz
-    slowest = min([lowest_hz, *[f for f in drive.tolist() if f > 0]])
-    window = WINDOW_PERIODS / slowest if slowest > 0 else MAX_WINDOW_S
-    return float(min(MAX_WINDOW_S, max(MIN_WINDOW_S, window)))
-
-
 class Pilot:
     """
     Refine a plan by measurement and choose between it and the full run.
@@ -116,7 +108,7 @@ class Pilot:
     def __init__(self, model: MassSpringModel, tolerance: float,
                  make: Callable[[PlanSettings], Simulation],
                  full: Callable[[float, float], Simulation] | None,
-                 more_modes: Callable[[float], float | None], lowest_hz: float,
+                 more_modes: Callable[[float], float | None], kept_hz: np.ndarray,
                  can_halve_step: bool = True, horizon_s: float | None = None):
         self.model = model
         self.can_halve_step = can_halve_step
@@ -124,7 +116,7 @@ class Pilot:
         self.make = make
         self.full = full
         self.more_modes = more_modes
-        window = pilot_window(model, lowest_hz)
+        window = pilot_window(model, kept_hz)
         self.horizon_s = float(horizon_s) if horizon_s is not None else window
         self.window_s = min(window, self.horizon_s)
         self._sibling: tuple[PlanSettings, float] | None = None   # the richer plan, its step
