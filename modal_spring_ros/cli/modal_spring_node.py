@@ -1,9 +1,10 @@
 """
 ``modal_spring_node``: stream a scene's filtered deformation into the ROS graph.
 
-    modal_spring_node [-h] [--ros-args -p NAME:=VALUE ... --params-file FILE ...]
+    modal_spring_node [-h] [--managed] [--ros-args -p NAME:=VALUE ... --params-file FILE ...]
 
-Every setting is a ROS parameter (listed by ``--help``); change them at runtime with
+``--managed`` runs it as a lifecycle node (:mod:`~modal_spring_ros.ros.managed_node`). Every
+setting is a ROS parameter (listed by ``--help``); change them at runtime with
 ``ros2 param set`` or any ``SetParameters`` client.
 """
 from __future__ import annotations
@@ -14,6 +15,7 @@ from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.cli.common import EXIT_USAGE, split_ros_args
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError
+from modal_spring_ros.ros.managed_node import ManagedModalSpringNode
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.parameters import PARAMETERS
 from modal_spring_ros.ros.publication_mode import prefer_asynchronous_publication
@@ -27,13 +29,17 @@ PROG = 'modal_spring_node'
 EXECUTOR_THREADS = 2
 
 
-USAGE = """usage: modal_spring_node [-h] [--ros-args -p NAME:=VALUE ... --params-file FILE ...]
+USAGE = """usage: modal_spring_node [-h] [--managed]
+                         [--ros-args -p NAME:=VALUE ... --params-file FILE ...]
 
 Steps a mass-spring scene in modal coordinates and streams it as sensor_msgs/PointCloud2 on
 'points', with /diagnostics. Every setting is a ROS parameter: give it at start with
 --ros-args -p NAME:=VALUE (or a parameter file), change it at runtime with ros2 param set or
 SetParameters(Atomically). Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool),
 ~/step (std_srvs/Trigger: one frame, while paused).
+--managed: a lifecycle node, created unconfigured (configure loads the scene and computes the
+modes, activate streams, deactivate stops the frames, cleanup frees; lifecycle_msgs services
+~/change_state, ~/get_state).
 
 parameters (read-only ones only at start):"""
 
@@ -53,6 +59,11 @@ def main(args: list[str] | None = None) -> int:
     if own and own[0] in ('-h', '--help'):
         print(usage())
         return 0
+    if own not in ([], ['--managed']):
+        print(f'{PROG}: error: unknown arguments {own} (settings are ROS parameters: '
+              f'--ros-args -p NAME:=VALUE)', file=sys.stderr)
+        return EXIT_USAGE
+    kind = ManagedModalSpringNode if own else ModalSpringNode
     stop = StopSignals().install()  # ROS is shut down last, once the node's threads are joined
     prefer_asynchronous_publication()  # a frame's sending never holds the stepping thread
     init_ros(args)
@@ -62,7 +73,7 @@ def main(args: list[str] | None = None) -> int:
         # longer land inside the executor's constructor (which leaves a half-built executor
         # whose finaliser prints a traceback)
         executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
-        node = ModalSpringNode(stop=stop)
+        node = kind(stop=stop)
         executor.add_node(node)
         stop.interrupting = False       # streaming: a signal ends the spin loop, then the node
         spin_until_stopped(executor, stop)

@@ -79,8 +79,16 @@ class ModalSpringNode(Node):
             raise
 
     def _start(self) -> None:
+        self._declare_parameters()
+        self._build()
+        self._begin()
+
+    def _declare_parameters(self) -> None:
         for name, (default, descriptor) in PARAMETERS.items():
             self.declare_parameter(name, default, descriptor)
+
+    def _build(self) -> None:
+        """Build the run and every part of the node from the parameters; start no thread."""
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
         config = config_from_parameters(values)
         log = self.get_logger()
@@ -98,8 +106,11 @@ class ModalSpringNode(Node):
             settings_changed=lambda: self._thread.settings_changed(),
             enable_clock=lambda: self._outputs.enable_clock())
         self._preparer = self._params.preparer
-        self.declare_parameter(FREQUENCIES, sim.basis.frequencies_hz.tolist(),
-                               FREQUENCIES_DESCRIPTOR)
+        if self.has_parameter(FREQUENCIES):     # built again (a managed node configured again)
+            self.set_parameters([Parameter(FREQUENCIES, value=sim.basis.frequencies_hz.tolist())])
+        else:
+            self.declare_parameter(FREQUENCIES, sim.basis.frequencies_hz.tolist(),
+                                   FREQUENCIES_DESCRIPTOR)
         scene = sim.model.scene
         self._outputs = NodeOutputs(self, scene, lambda: self._params.values,
                                     self._open_capture(sim))
@@ -126,6 +137,9 @@ class ModalSpringNode(Node):
         log.info(f'scene {scene.name}: {scene.n_particles} particles, {status.modes_computed} '
                  f'modes computed; {status.method}, {status.band}, {status.coordinates} '
                  f"{'modes' if status.method == 'modal' else 'DOF'} stepped; dt {sim.dt:g} s")
+
+    def _begin(self) -> None:
+        """Start streaming: the simulation thread and the inputs' thread."""
         self._thread.start()
         self._input_node.start()
 

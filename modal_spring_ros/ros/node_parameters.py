@@ -69,6 +69,11 @@ class NodeParameters:
         self._node.add_on_set_parameters_callback(self._on_set)
         self._node.add_post_set_parameters_callback(self._after_set)
 
+    def unlisten(self) -> None:
+        """Take no more requests (the node's parts are released: a managed node cleaned up)."""
+        self._node.remove_on_set_parameters_callback(self._on_set)
+        self._node.remove_post_set_parameters_callback(self._after_set)
+
     # -- the parameter services' callbacks -----------------------------------------------------
     def _own(self) -> bool:
         return getattr(self._own_update, 'active', False)

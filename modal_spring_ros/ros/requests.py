@@ -12,6 +12,7 @@ applied (blocking a thread), :func:`applied_within` awaits the same in an execut
 from __future__ import annotations
 
 import dataclasses
+import queue
 import threading
 import time
 from typing import Any, Callable
@@ -127,6 +128,16 @@ def _replaces(request: Request, following: Request | None) -> bool:
         return False
     return isinstance(request, ChangeBand) or (isinstance(request, TakeInput)
                                                and request.kind is following.kind)
+
+
+def drained(requests: 'queue.Queue[Request]') -> list[Request]:
+    """Return every request queued now, in the order they came (without waiting)."""
+    batch = []
+    while True:
+        try:
+            batch.append(requests.get_nowait())
+        except queue.Empty:
+            return batch
 
 
 def without_superseded(batch: list[Request]) -> list[Request]:

@@ -2,13 +2,11 @@
 The node's simulation thread.
 
 Steps at a fixed ``dt``, publishes on its own period, applies state changes between steps, and
-survives anything a step or a change can raise.
-
-It is the only thread that changes the running simulation. Requests
-(:mod:`modal_spring_ros.ros.requests`) are applied one at a time between two steps, in the order
-they came. The thread is supervised: a divergence sends the run back to rest; any other exception
-is reported as ERROR on ``/diagnostics`` with its message, the run goes back to rest (or, if the
-simulation cannot even reset, to a simulation rebuilt from the settings), and the stream goes on.
+survives anything a step or a change can raise. It alone changes the running simulation:
+requests (:mod:`modal_spring_ros.ros.requests`) are applied one at a time between two steps,
+in the order they came. The thread is supervised: a divergence sends the run back to rest; any
+other exception is reported as ERROR on ``/diagnostics`` with its message, the run goes back to
+rest (or, if it cannot even reset, to a simulation rebuilt from the settings), and it goes on.
 """
 from __future__ import annotations
 
@@ -25,8 +23,9 @@ from modal_spring_ros.ros.divergence_streak import DivergenceStreak, HeldError
 from modal_spring_ros.ros.input_kinds import recorded_messages
 from modal_spring_ros.ros.outputs import Outputs
 from modal_spring_ros.ros.plan_watch import FallBack, PlanWatch
-from modal_spring_ros.ros.requests import (ChangeBand, Pause, ReplaceSimulation, Request, Reset,
-                                           Step, StepRefused, TakeInput, without_superseded)
+from modal_spring_ros.ros.requests import (ChangeBand, drained, Pause, ReplaceSimulation,
+                                           Request, Reset, Step, StepRefused, TakeInput,
+                                           without_superseded)
 from modal_spring_ros.ros.stream_settings import StreamSettings
 
 #: wall time between two diagnostics messages, s
@@ -35,9 +34,8 @@ DIAGNOSTICS_PERIOD_S = 1.0
 RECOVERY_RETRY_S = 0.5
 #: share of the publish period left before a frame when the watch's shadows stop (plan_watch)
 FRAME_MARGIN = 0.25
-#: share of the publish period a frame's steps may take after it is due: a run that cannot step
-#: in real time drops the debt beyond one frame, and its frames keep their rate (the achieved
-#: real-time factor falls below the one requested instead)
+#: share of the publish period a frame's steps may take after it is due (a run that cannot keep
+#: up drops its debt beyond one frame: its frames keep their rate, its real-time factor falls)
 FRAME_LATENESS = 0.75
 
 
@@ -54,18 +52,17 @@ class SimulationThread:
         """
         Step ``sim`` and publish through ``outputs`` with the ``settings`` of the moment.
 
-        ``rebuild``: a fresh simulation of the current settings at rest (the last resort of
-        recovery); ``computing_modes``: whether a request is computing modes right now;
-        ``running``: False once the node is shutting down (its publishers are then gone, and the
-        thread ends instead of reporting them as failures); ``node_report``: what the node
-        adds to each report (:class:`StreamReport` fields: the clamp's pose stream, pending
-        parameter changes); ``on_watch_beyond``: falls an automatic plan back
-        (:mod:`~modal_spring_ros.ros.plan_watch`).
+        ``rebuild``: a fresh run of the current settings at rest (recovery's last resort);
+        ``computing_modes``: whether a request computes modes now; ``running``: False once the
+        node shuts down (the thread then ends instead of reporting its publishers gone);
+        ``node_report``: the node's :class:`StreamReport` fields; ``on_watch_beyond``: falls
+        an automatic plan back (:mod:`~modal_spring_ros.ros.plan_watch`).
         """
         self._running = running
         self._node_report = node_report
         self.sim = sim
         self.paused = False
+        self._suspended = False  # a managed node inactive: no steps, no frames
         self._outputs = outputs
         self._settings = settings
         self._rebuild = rebuild
@@ -112,6 +109,16 @@ class SimulationThread:
             self._thread.join(timeout)
         self._fail_pending('the node is shutting down')
 
+    def suspend(self) -> None:
+        """Stop stepping and publishing frames until :meth:`resume` (diagnostics go on)."""
+        self._suspended = True
+
+    def resume(self) -> None:
+        """Step and publish again, from where the run was (its time does not jump)."""
+        self._reanchor(window_valid=False)
+        self._suspended = False
+        self._wake.set()
+
     @property
     def alive(self) -> bool:
         return self._thread.is_alive()
@@ -145,7 +152,8 @@ class SimulationThread:
             if self._apply_requests():
                 published_time = None
             behind = False
-            if not (self.paused or self.held):
+            still = self.paused or self.held or self._suspended
+            if not still:
                 if rtf > 0.0:
                     wall0, sim0 = self._anchor
                     target = sim0 + (time.monotonic() - wall0) * rtf
@@ -160,7 +168,8 @@ class SimulationThread:
             # woken before the frame is due (a setting changed): the frame stays on its grid
             due = now >= next_publish
             # a held run goes on publishing its held state: the stream never goes silent
-            if due and (self.sim.time != published_time or self.held) and not self.paused:
+            if due and (self.sim.time != published_time or self.held) and not (
+                    self.paused or self._suspended):
                 mesh = now >= next_mesh and settings.mesh_rate_hz > 0
                 self._publish_frame(mesh)
                 published_time = self.sim.time
@@ -175,10 +184,10 @@ class SimulationThread:
                     next_publish = now + period
             if behind:  # no idle time: step on towards the next frame
                 continue
-            if not (self.paused or self.held):   # in the idle time before the next frame
+            if not still:   # in the idle time before the next frame
                 self._plan_watch.step(self.sim, settings.watch_s,
                                       next_publish - FRAME_MARGIN * period)
-            if rtf > 0.0 or self.paused or self.held:
+            if rtf > 0.0 or still:
                 self._wake.wait(max(0.0, next_publish - time.monotonic()))
                 self._wake.clear()
 
@@ -209,14 +218,8 @@ class SimulationThread:
         One a newer one of its kind directly follows is answered, not applied
         (:func:`~modal_spring_ros.ros.requests.without_superseded`).
         """
-        batch: list[Request] = []
-        while True:
-            try:
-                batch.append(self._requests.get_nowait())
-            except queue.Empty:
-                break
         applied = False
-        for request in without_superseded(batch):
+        for request in without_superseded(drained(self._requests)):
             try:
                 message = self._apply(request)
             except (HeldError, StepRefused) as exc:  # said once (held), or not an error
@@ -286,11 +289,8 @@ class SimulationThread:
         return f'stepped {self._window.steps - steps} steps to t = {self.sim.time:.6g} s'
 
     def _fail_pending(self, why: str) -> None:
-        while True:
-            try:
-                self._requests.get_nowait().finish(False, why)
-            except queue.Empty:
-                return
+        for request in drained(self._requests):
+            request.finish(False, why)
 
     # -- frames and reports --------------------------------------------------------------------
     def _publish_frame(self, mesh: bool) -> None:

@@ -21,13 +21,21 @@ def test_help_prints_every_parameter_and_exits_without_starting():
     proc = subprocess.run([console_script('modal_spring_node'), '--help'], capture_output=True,
                           text=True, timeout=30)
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.startswith('usage: modal_spring_node [-h] [--ros-args')
+    assert proc.stdout.startswith('usage: modal_spring_node [-h] [--managed]\n')
+    assert '[--ros-args -p NAME:=VALUE' in proc.stdout
     for name, (default, descriptor) in PARAMETERS.items():
         flag = ', read-only' if descriptor.read_only else ''
         assert f'\n  {name} (default {default!r}{flag})\n' in proc.stdout
         assert descriptor.description.split()[0] in proc.stdout
     assert "  scene (default 'sheet_10x10', read-only)" in proc.stdout
     assert proc.stderr == ''  # nothing started: no log line
+
+
+def test_an_unknown_option_is_refused_before_anything_starts():
+    proc = subprocess.run([console_script('modal_spring_node'), '--manged'], capture_output=True,
+                          text=True, timeout=30)
+    assert proc.returncode == 2
+    assert "unknown arguments ['--manged']" in proc.stderr and '--ros-args -p' in proc.stderr
 
 
 @pytest.mark.ros

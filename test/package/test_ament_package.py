@@ -54,6 +54,7 @@ IMPORT_KEYS = {
     'diagnostic_msgs': 'diagnostic_msgs',
     'rosgraph_msgs': 'rosgraph_msgs',
     'tf2_msgs': 'tf2_msgs',
+    'lifecycle_msgs': 'lifecycle_msgs',
     'ament_index_python': 'ament_index_python',
 }
 TEST_IMPORT_KEYS = {'pytest': 'python3-pytest', 'rosbags': 'python3-rosbags-pip',

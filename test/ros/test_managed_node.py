@@ -1,0 +1,98 @@
+"""
+``modal_spring_node --managed`` over DDS: the lifecycle a launch file or Nav2's manager drives.
+
+configure (the scene loaded, the modes computed), activate (frames), deactivate (no frames, the
+run's time held), activate again (from the same time), cleanup (the node's topics and services
+gone), configure again; a refused transition and a configure that fails say so and change
+nothing.
+"""
+from __future__ import annotations
+
+import time
+
+from lifecycle_msgs.msg import State, Transition
+from lifecycle_msgs.srv import ChangeState, GetState
+import pytest
+from ros_harness import Client, console_script, NodeProcess, stderr_excerpt, wait_for
+from sensor_msgs.msg import PointCloud2
+from std_srvs.srv import Trigger
+
+pytestmark = pytest.mark.ros
+
+NODE = '/managed/modal_spring'
+
+
+def managed(*params: str) -> NodeProcess:
+    ros_args = [x for p in params for x in ('-p', p)] + ['-r', '__ns:=/managed']
+    return NodeProcess(argv=[console_script('modal_spring_node'), '--managed', '--ros-args',
+                             *ros_args])
+
+
+def state(client: Client) -> int:
+    return client.call(GetState, f'{NODE}/get_state', GetState.Request()).current_state.id
+
+
+def change(client: Client, transition: int) -> bool:
+    request = ChangeState.Request(transition=Transition(id=transition))
+    return client.call(ChangeState, f'{NODE}/change_state', request, timeout=60.0).success
+
+
+def stamp_s(message) -> float:
+    return message.header.stamp.sec + 1e-9 * message.header.stamp.nanosec
+
+
+def test_the_managed_node_streams_only_while_active_and_cleans_up():
+    node = managed('publish_rate_hz:=30.0')
+    client = Client('managed_client')
+    points = client.collect(PointCloud2, '/managed/points')
+    try:
+        assert state(client) == State.PRIMARY_STATE_UNCONFIGURED
+        # the state machine refuses what the state does not allow, and nothing changes
+        assert not change(client, Transition.TRANSITION_ACTIVATE)
+        assert state(client) == State.PRIMARY_STATE_UNCONFIGURED
+        assert change(client, Transition.TRANSITION_CONFIGURE)
+        assert state(client) == State.PRIMARY_STATE_INACTIVE
+        time.sleep(1.0)
+        assert points == []                                    # configured: no frame yet
+        assert change(client, Transition.TRANSITION_ACTIVATE)
+        assert wait_for(lambda: len(points) >= 10, 30)
+        assert change(client, Transition.TRANSITION_DEACTIVATE)
+        time.sleep(0.3)                                        # frames already sent arrive
+        held = len(points)
+        last = stamp_s(points[-1][1])
+        time.sleep(1.5)
+        assert len(points) == held                             # inactive: no frames
+        assert change(client, Transition.TRANSITION_ACTIVATE)
+        assert wait_for(lambda: len(points) >= held + 10, 30)
+        # the run went on from where it was: its time did not jump over the inactive 1.5 s
+        resumed = stamp_s(points[held][1])
+        assert last < resumed < last + 0.5, (last, resumed)
+        assert change(client, Transition.TRANSITION_DEACTIVATE)
+        assert change(client, Transition.TRANSITION_CLEANUP)
+        assert state(client) == State.PRIMARY_STATE_UNCONFIGURED
+        # the node's own services are gone with its run; configured again, they are back
+        names = dict(client.node.get_service_names_and_types())
+        assert f'{NODE}/reset' not in names and f'{NODE}/change_state' in names
+        assert change(client, Transition.TRANSITION_CONFIGURE)
+        assert client.call(Trigger, f'{NODE}/reset', Trigger.Request()).success
+        assert change(client, Transition.TRANSITION_ACTIVATE)
+        count = len(points)
+        assert wait_for(lambda: len(points) >= count + 10, 30)
+    finally:
+        client.close()
+        code, _, err = node.interrupt()
+    assert code == 0 and 'Traceback' not in err, stderr_excerpt(err)
+
+
+def test_a_configure_that_fails_says_why_and_stays_unconfigured():
+    node = managed('scene:=/nonexistent/scene.yaml')
+    client = Client('managed_bad_client')
+    try:
+        assert not change(client, Transition.TRANSITION_CONFIGURE)
+        assert state(client) == State.PRIMARY_STATE_UNCONFIGURED
+        assert node.proc.poll() is None                         # still there, to be fixed
+    finally:
+        client.close()
+        code, _, err = node.interrupt()
+    assert code == 0 and 'Traceback' not in err, stderr_excerpt(err)
+    assert 'configure failed' in err and 'nonexistent' in err, stderr_excerpt(err)
