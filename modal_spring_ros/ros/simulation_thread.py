@@ -182,12 +182,10 @@ class SimulationThread:
                 next_publish += period
                 if next_publish < now:
                     next_publish = now + period
-            if behind:  # no idle time: step on towards the next frame
-                continue
-            if not still:   # in the idle time before the next frame
+            if not still:   # in the idle time before the next frame (behind: one sample)
                 self._plan_watch.step(self.sim, settings.watch_s,
                                       next_publish - FRAME_MARGIN * period)
-            if rtf > 0.0 or still:
+            if (rtf > 0.0 and not behind) or still:   # behind: step on towards the next frame
                 self._wake.wait(max(0.0, next_publish - time.monotonic()))
                 self._wake.clear()
 

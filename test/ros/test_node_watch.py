@@ -49,7 +49,9 @@ def test_a_pull_beyond_the_automatic_plan_is_caught_and_the_node_falls_back(tmp_
             'automatic choice watched', '').startswith('1 window: last '), 60)
         status, values = latest_status(diags)
         watched = values['automatic choice watched']
-        assert 'against the full run' in watched and status.level == DiagnosticStatus.OK
+        # within the tolerance: no watch warning (a busy host may warn of its real-time factor)
+        assert 'against the full run' in watched and status.level != DiagnosticStatus.ERROR
+        assert 'beyond its tolerance' not in status.message, status.message
         error = float(watched.split('last ')[1].split('%')[0]) / 100
         assert 0.0 < error <= 0.01
         # a pull far beyond anything the pilot measured
