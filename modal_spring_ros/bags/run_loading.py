@@ -14,6 +14,7 @@ from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.comparison import load_npz_run, RunData
 from modal_spring_ros.runs.sample_cache import sample_cache
+from modal_spring_ros.scenes.limits import available_memory
 from modal_spring_ros.scenes.schema import scene_from_yaml
 
 
@@ -33,7 +34,8 @@ def load_run(path: str | Path, topic: str = '/points') -> RunData:
     if 'config' in rec and scene is not None:
         config = SimulationConfig.from_dict(rec['config'])
         label = f'{config.method} {config.band.describe()}'
-        sim = build_simulation(scene, config, allow_unstable=True, samples=sample_cache())
+        sim = build_simulation(scene, config, allow_unstable=True, samples=sample_cache(),
+                               memory_available=available_memory())
         kept = sim.basis.frequencies_hz[sim.kept_modes]
         if config.method == 'modal':
             band = (float(kept.min()), float(kept.max()))

@@ -1,7 +1,7 @@
 """
 ``modal_spring_bench``: the project's benchmarks, as suites, with their results on disk.
 
-    modal_spring_bench [--suite steps,stream,tradeoff,promise,auto,response] [--quick]
+    modal_spring_bench [--suite steps,stream,tradeoff,promise,auto,response,scale] [--quick]
                        [--case TEXT]
                        [--out DIR]
 
@@ -12,7 +12,9 @@ failure, with CSV and PNG charts), ``promise`` (``modal.auto`` on 50 random scen
 0.3 %: measured against printed error, and its cost against the full run's, with CSV and a PNG
 chart), ``auto`` (``modal.auto`` on the built-in scenes: the plan as predicted against the plan
 measured, error and cost, with CSV), ``response`` (the filter's gains and damping requested
-against measured, mode by mode, with CSV and a PNG chart). Results are printed as tables and
+against measured, mode by mode, with CSV and a PNG chart), ``scale`` (sheets of 10k to 500k
+particles: the memory estimate against the measured peak, set-up, step and frame, and the sizes
+that stream at 60 Hz, with CSV and a PNG chart). Results are printed as tables and
 written to ``DIR/<suite>.json``. Progress goes to stderr.
 """
 from __future__ import annotations
@@ -21,13 +23,14 @@ import json
 from pathlib import Path
 import sys
 
-from modal_spring_ros.bench import auto_scenes, promise, response, steps, stream, tradeoff
+from modal_spring_ros.bench import (auto_scenes, memory, promise, response, steps, stream,
+                                    tradeoff)
 from modal_spring_ros.cli.common import fail, script_parser
 
 PROG = 'modal_spring_bench'
 #: suite name -> module with run(quick, progress), table(results), write_outputs(...)
 SUITES = {'steps': steps, 'stream': stream, 'tradeoff': tradeoff, 'promise': promise,
-          'auto': auto_scenes, 'response': response}
+          'auto': auto_scenes, 'response': response, 'scale': memory}
 
 
 def main(argv: list[str] | None = None) -> int:

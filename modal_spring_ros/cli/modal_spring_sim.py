@@ -30,6 +30,7 @@ from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.response_chart import draw_response
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.runs.sample_cache import sample_cache
+from modal_spring_ros.scenes.limits import available_memory
 from modal_spring_ros.scenes.resources import load_scene
 
 PROG = 'modal_spring_sim'
@@ -72,7 +73,8 @@ def main(argv: list[str] | None = None) -> int:
         config = dataclasses.replace(config_from_args(args),
                                      horizon_s=min(duration, MAX_HORIZON_S))
         sim = build_simulation(scene, config, progress=progress,
-                               allow_unstable=args.allow_unstable, samples=sample_cache())
+                               allow_unstable=args.allow_unstable, samples=sample_cache(),
+                               memory_available=available_memory())
         with claimed_outputs({'--output': args.output, '--response-chart': args.response_chart},
                              {'--bag': args.bag}):
             if args.response_chart:

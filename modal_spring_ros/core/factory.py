@@ -23,6 +23,7 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces import ForceOptions
 from modal_spring_ros.core.forces.base import SampleStore
 from modal_spring_ros.core.integrators import conditionally_stable
+from modal_spring_ros.core.memory_estimate import check_run_memory
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.motion.clamp_follower import ClampFollower
@@ -204,22 +205,28 @@ def predicted_simulation(scene: Scene, config: SimulationConfig) -> Simulation:
 def build_simulation(scene: Scene, config: SimulationConfig, *,
                      progress: Progress | None = None, allow_unstable: bool = False,
                      worker: WorkerProcess | None = None,
-                     samples: SampleStore | None = None) -> Simulation:
+                     samples: SampleStore | None = None,
+                     memory_available: int | None = None) -> Simulation:
     """
     Scene + options -> a simulation at rest at t = 0.
 
     ``worker`` and ``samples`` (where spring samples are kept between runs): see
-    :class:`ModalBasis`; a run rebuilt on its basis keeps them.
+    :class:`ModalBasis`; a run rebuilt on its basis keeps them. ``memory_available`` (bytes,
+    what the machine has): a run estimated beyond it is refused before any stage runs
+    (:mod:`~modal_spring_ros.core.memory_estimate`); None: not checked.
 
     With ``config.anchor`` ``topic`` or ``tf`` the scene's clamp follows poses given to its
     :class:`~modal_spring_ros.core.motion.clamp_follower.ClampFollower` instead of its own motion.
 
-    :raises SceneError: a mechanism (the stiffness is singular on the free DOF).
+    :raises SceneError: a mechanism (the stiffness is singular on the free DOF), or a run that
+        would not fit in ``memory_available`` (:class:`MemoryLimitError`, before any of it).
     :raises BandError: impossible filter band.
     :raises UnstableStepError: explicit stepping above ``2 / omega_max`` (unless allowed).
     :raises ConfigError: other bad options (method, integrator, dt, ...).
     """
     config.validate()
+    if memory_available is not None:
+        check_run_memory(scene, config, memory_available)
     if config.anchor in POSE_SOURCES:  # the clamp follows poses (from t = 0: at its rest pose)
         rest = np.asarray(scene.rest_positions, dtype=float)
         fixed = np.flatnonzero(scene.fixed)

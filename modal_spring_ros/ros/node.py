@@ -43,6 +43,7 @@ from modal_spring_ros.ros.simulation_thread import SimulationThread
 from modal_spring_ros.ros.stop_signals import StopSignals
 from modal_spring_ros.ros.stream_settings import StreamSettings
 from modal_spring_ros.runs.sample_cache import sample_cache
+from modal_spring_ros.scenes.limits import available_memory
 from modal_spring_ros.scenes.resources import load_scene
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -98,7 +99,8 @@ class ModalSpringNode(Node):
         self._worker = WorkerProcess('modal_spring_modes',
                                      cancelled=lambda: not self._running())
         sim = build_simulation(load_scene(values['scene'], log.info), config,
-                               progress=log.info, worker=self._worker, samples=sample_cache())
+                               progress=log.info, worker=self._worker, samples=sample_cache(),
+                               memory_available=available_memory())
         sim.check_stable('sim.dt')
         self._params = NodeParameters(
             self, ChangePlanner(sim.model, sim.basis), running=lambda: self._thread.sim,

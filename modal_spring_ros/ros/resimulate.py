@@ -27,6 +27,7 @@ from modal_spring_ros.ros.input_kinds import InputKind, INPUTS, WrenchAt
 from modal_spring_ros.ros.parameters import (config_from_parameters, PARAMETERS,
                                              REBUILD_PARAMETERS)
 from modal_spring_ros.runs.sample_cache import sample_cache
+from modal_spring_ros.scenes.limits import available_memory
 from modal_spring_ros.scenes.schema import scene_from_yaml
 from rclpy.parameter import parameter_value_to_python
 from rclpy.serialization import deserialize_message
@@ -116,7 +117,8 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
             values.setdefault(name, default)
         config = config_from_parameters(values)
         changes = parameter_changes(bag, rec.get('node', '/modal_spring'))
-    sim = build_simulation(scene, config, allow_unstable=True, samples=sample_cache())
+    sim = build_simulation(scene, config, allow_unstable=True, samples=sample_cache(),
+                           memory_available=available_memory())
     # a recorded configuration's watch falls back where the run did (a node's fallback is a
     # recorded parameter change)
     watch = watch_of(sim, config.watch_s) if values is None else None

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from typing import Any, Callable, Mapping
 
+from modal_spring_ros.core.memory_estimate import gib
 from modal_spring_ros.core.model.loaded_shape import needs_loaded_shape, settle
 from modal_spring_ros.core.model.scene import Damping, Scene, SceneError
 from modal_spring_ros.core.motion.anchor_motion import (AnchorMotion, RotationComponent,
@@ -303,8 +304,8 @@ class _SceneParser(FieldReader):
         need = particles * BYTES_PER_PARTICLE
         have = available_memory()
         if need > have:
-            raise self.fail(field, f'{particles:,} particles need about {need / 2**30:.3g} GiB '
-                            f'to build and run, and {have / 2**30:.3g} GiB are available')
+            raise self.fail(field, f'{particles:,} particles need at least {gib(need)} to build '
+                            f'and run, and {gib(have)} are available')
 
     def check_connected(self, pairs: np.ndarray, n: int) -> None:
         degree = np.bincount(pairs.ravel(), minlength=n)

@@ -7,6 +7,9 @@ in the test itself.
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 import time
 
 from helpers import variant
@@ -251,3 +254,30 @@ def test_training_gives_up_early_where_sampling_cannot_pay(sheet_10x10):
                             ModalSettings(dt=2e-4, basis_kind='rest',
                                           forces=ForceOptions('sampled', tolerance=0.01)))
     assert again._forces.sample.gave_up and again._forces.sample.seconds == 0.0  # cached
+
+
+#: trains sheet_32x32's spring sample in a fresh process and prints a digest of it
+TRAIN_AND_DIGEST = """
+import hashlib
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.scenes.resources import load_scene
+sim = build_simulation(load_scene('sheet_32x32'), SimulationConfig(
+    band=FilterBand('lowpass', 0, 14, 'index'), basis='rest', forces='sampled'))
+sample = sim._forces.sample
+print(sample.count, hashlib.sha256(sample.springs.tobytes() + sample.weights.tobytes()
+                                   ).hexdigest())
+"""
+
+
+def test_training_gives_the_same_sample_in_every_process():
+    """Seeded and on one BLAS thread: two processes (one and two BLAS threads) agree bitwise."""
+    digests = []
+    for threads in ('1', '2'):
+        env = dict(os.environ, OPENBLAS_NUM_THREADS=threads, OMP_NUM_THREADS=threads)
+        out = subprocess.run([sys.executable, '-c', TRAIN_AND_DIGEST], env=env, check=True,
+                             capture_output=True, text=True, timeout=240).stdout.split()
+        digests.append(out[-2:])
+    assert int(digests[0][0]) > 0
+    assert digests[0] == digests[1]

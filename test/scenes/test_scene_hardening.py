@@ -13,6 +13,7 @@ import re
 
 from modal_spring_ros.cli.modal_spring_sim import main
 from modal_spring_ros.core.model.scene import Scene, SceneError
+from modal_spring_ros.scenes import limits
 from modal_spring_ros.scenes.resources import builtin_scene_dir, builtin_scene_names, load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
 from modal_spring_ros.scenes.yaml_reading import MAX_BYTES
@@ -57,9 +58,9 @@ CASES = {
                           'particles.mass: must be at most 1e+09 in size, got an integer of '
                           '401 digits'),
     'huge lattice': (_replace(SHEET, 'counts: [10, 10]', 'counts: [100000, 100000]'),
-                     'particles.lattice.counts: 10,000,000,000 particles need about'),
-    'large lattice': (_replace(SHEET, 'counts: [10, 10]', 'counts: [3000, 3000]'),
-                      'particles.lattice.counts: 9,000,000 particles need about'),
+                     'particles.lattice.counts: 10,000,000,000 particles need at least'),
+    'large lattice': (_replace(SHEET, 'counts: [10, 10]', 'counts: [6000, 6000]'),
+                      'particles.lattice.counts: 36,000,000 particles need at least'),
     'tiny step': (_replace(SHEET, 'simulation: {dt: 0.0005', 'simulation: {dt: 1.0e-300'),
                   'simulation.dt: 1e-300 s makes 5e+300 steps'),
     'huge mass': (_replace(SHEET, 'mass: 0.01', 'mass: 1.0e308'),
@@ -162,3 +163,9 @@ def test_numbers_yaml_1_1_reads_as_text_are_numbers():
     """``1e-4`` (no dot) and ``1.0e308`` (no exponent sign) are text to YAML 1.1."""
     scene = scene_from_yaml(SHEET.replace('dt: 0.0005', 'dt: 5e-4'), 'sheet.yaml')
     assert scene.default_dt == 5e-4
+
+
+def test_available_memory_honours_an_address_space_limit(monkeypatch):
+    monkeypatch.setattr(limits.resource, 'getrlimit', lambda _: (2**30, 2**30))
+    monkeypatch.setattr(limits, 'mapped_bytes', lambda: 2**29)
+    assert 0 < limits.available_memory() <= 2**29

@@ -42,6 +42,9 @@ ZERO_MODE_RTOL = 1e-9
 #: Seed of the generic vector that fixes the modes' signs (see ``_deterministic_signs``).
 SIGN_SEED = 20240611
 
+#: Bytes of rows :func:`mass_gram` weights at a time.
+GRAM_BLOCK_BYTES = 16 * 2**20
+
 Progress = Callable[[str], None]
 
 
@@ -213,7 +216,7 @@ class ModalBasis:
 
 def _deterministic_signs(phi: np.ndarray, mass: np.ndarray) -> np.ndarray:
     """
-    Return ``phi`` with each mode's sign fixed by a rule that does not depend on the solver.
+    Fix each mode's sign in ``phi`` (in place, and return it) by a rule the solver cannot sway.
 
     A mode's sign is that of its projection ``phi^T M w`` on a fixed generic vector ``w``
     (seeded): unlike "the largest component is positive", which picks either sign when a mode
@@ -230,7 +233,23 @@ def _deterministic_signs(phi: np.ndarray, mass: np.ndarray) -> np.ndarray:
     fallback = phi[pivot, np.arange(phi.shape[1])]
     signs = np.where(np.abs(projection) > 1e-6 * scale, np.sign(projection), np.sign(fallback))
     signs[signs == 0] = 1.0
-    return phi * signs
+    phi *= signs  # in place: the caller's fresh modes
+    return phi
+
+
+def mass_gram(x: np.ndarray, mass: np.ndarray) -> np.ndarray:
+    """
+    Return ``x^T M x`` (symmetric) for a lumped mass ``mass`` and columns ``x``.
+
+    In blocks of rows, so that no temporary the size of ``x`` is made (on a large scene ``x`` can
+    be a stage's largest array).
+    """
+    out = np.zeros((x.shape[1], x.shape[1]))
+    rows = max(1, GRAM_BLOCK_BYTES // max(8 * x.shape[1], 1))
+    for start in range(0, x.shape[0], rows):
+        block = x[start:start + rows]
+        out += block.T @ (mass[start:start + rows, None] * block)
+    return 0.5 * (out + out.T)
 
 
 def _grown(old_lam: np.ndarray, old_phi: np.ndarray, lam: np.ndarray, phi: np.ndarray,
@@ -248,8 +267,7 @@ def _grown(old_lam: np.ndarray, old_phi: np.ndarray, lam: np.ndarray, phi: np.nd
         return old_lam, old_phi
     extra = phi[:, k:]
     extra = extra - old_phi @ (old_phi.T @ (mass[:, None] * extra))
-    gram = extra.T @ (mass[:, None] * extra)
-    value, vector = np.linalg.eigh(0.5 * (gram + gram.T))
+    value, vector = np.linalg.eigh(mass_gram(extra, mass))
     if value.min() <= 1e-12 * max(value.max(), 1e-300):
         raise RuntimeError('the new modes repeat the ones already computed (eigensolver '
                            'returned a dependent set)')
@@ -305,10 +323,12 @@ class ShiftInvertModes:
         lam, phi = spla.eigsh(self.k, k=count, M=m, sigma=self.sigma, OPinv=op, which='LM',
                               v0=np.ones(n), tol=1e-12)
         order = np.argsort(lam)
-        lam, phi = lam[order], phi[:, order]
-        # Renormalise against M (ARPACK's scaling is close, not exact).
-        norms = np.sqrt(np.einsum('ij,i,ij->j', phi, self.mass_dof, phi))
-        return lam, phi / norms
+        if np.any(order != np.arange(order.size)):
+            lam, phi = lam[order], phi[:, order]
+        # Renormalise against M (ARPACK's scaling is close, not exact), in place: at this size
+        # each copy of the modes is a stage's peak.
+        phi /= np.sqrt(np.einsum('ij,i,ij->j', phi, self.mass_dof, phi))
+        return lam, phi
 
 
 #: A worker process's solver (by token), kept with its factor for the next call.

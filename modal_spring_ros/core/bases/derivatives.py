@@ -38,7 +38,7 @@ from __future__ import annotations
 import dataclasses
 import time
 
-from modal_spring_ros.core.bases.basis import ModalBasis, Progress
+from modal_spring_ros.core.bases.basis import mass_gram, ModalBasis, Progress
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.motion.frame_loads import frame_load_patterns
 import numpy as np
@@ -49,8 +49,13 @@ DEFAULT_DIRECTIONS = 15
 #: ``1 / (omega_i omega_j)``: the 24th mode's pairs weigh about 1/100 of the first's on the sheets;
 #: a 256-mode band would otherwise need 32,896 solves).
 MAX_PAIR_MODES = 24
-#: Pairs whose right-hand sides are built and solved at once (bounds the memory).
+#: Most pairs whose right-hand sides are built and solved at once.
 PAIR_CHUNK = 64
+#: Bytes one chunk's per-spring arrays (about ``PER_SPRING_ARRAYS`` arrays of d x E x chunk
+#: floats at once) may take: fewer pairs a chunk on scenes with many springs.
+CHUNK_BYTES = 16 * 2**20
+#: Arrays of d x E x chunk floats :func:`_per_spring` holds at once at its peak.
+PER_SPRING_ARRAYS = 8
 #: Directions whose mass norm falls below this share of the largest are dependent: dropped.
 DEPENDENT_RTOL = 1e-10
 #: A static response with less than this share of it outside the band's modes adds nothing.
@@ -224,23 +229,33 @@ def _compute(solve, model: MassSpringModel, below: np.ndarray, phi: np.ndarray,
     d, lengths, stiffness, unit, diff = _spring_geometry(model)
     g = np.asarray(diff @ phi).reshape(d, lengths.size, -1)
     weights = omega[0] ** 2 / (omega[pairs[:, 0]] * omega[pairs[:, 1]]) if pairs.size else []
-    blocks, scale = [], 0.0
-    for first in range(0, len(pairs), PAIR_CHUNK):
-        chunk = pairs[first:first + PAIR_CHUNK]
+    solved_all = np.empty((model.n_free_dof, len(pairs)))  # filled chunk by chunk, not stacked
+    scale = 0.0
+    step = pair_chunk(d, lengths.size)
+    for first in range(0, len(pairs), step):
+        chunk = pairs[first:first + step]
         per_spring = _per_spring(g[:, :, chunk[:, 0]], g[:, :, chunk[:, 1]], unit, lengths,
                                  stiffness)
         rhs = -(diff.T @ per_spring.reshape(d * lengths.size, -1))
-        solved = solve(rhs) * weights[first:first + PAIR_CHUNK]
+        del per_spring
+        solved = solve(rhs) * weights[first:first + step]
         scale = max(scale, float(np.sqrt(np.einsum('ij,i,ij->j', solved, mass, solved).max())))
-        blocks.append(project(solved))
-    derivatives = _leading_directions(np.column_stack(blocks), mass, directions,
-                                      REMAINDER_RTOL * scale) \
-        if blocks else np.empty((model.n_free_dof, 0))
+        solved_all[:, first:first + step] = project(solved)
+    del g
+    derivatives = _leading_directions(solved_all, mass, directions, REMAINDER_RTOL * scale) \
+        if pairs.size else np.empty((model.n_free_dof, 0))
+    del solved_all
     loads = static_load_vectors(model, *span)
     static = _remainders(solve(loads) if loads.size else loads, mass, project)
     vectors, omega2 = _orthonormal_diagonal(np.column_stack([derivatives, static]), mass,
                                             model, project)
     return vectors, omega2, min(derivatives.shape[1], vectors.shape[1])
+
+
+def pair_chunk(dimension: int, springs: int) -> int:
+    """Return how many pairs a chunk takes: up to ``PAIR_CHUNK``, within ``CHUNK_BYTES``."""
+    per_pair = PER_SPRING_ARRAYS * dimension * springs * 8
+    return int(min(PAIR_CHUNK, max(1, CHUNK_BYTES // max(per_pair, 1))))
 
 
 def _leading_directions(x: np.ndarray, mass: np.ndarray, count: int, floor: float
@@ -251,8 +266,7 @@ def _leading_directions(x: np.ndarray, mass: np.ndarray, count: int, floor: floa
     Of those whose singular value passes ``floor`` (below it, what is left after the projection is
     round-off).
     """
-    y = np.sqrt(mass)[:, None] * x
-    value, vector = np.linalg.eigh(y.T @ y)           # the SVD's right side, from the Gram
+    value, vector = np.linalg.eigh(mass_gram(x, mass))  # the SVD's right side, from the Gram
     order = np.argsort(value)[::-1]
     value, vector = value[order], vector[:, order]
     keep = min(count, int(np.sum(value > max(DEPENDENT_RTOL ** 2 * max(value[0], 0.0),
@@ -283,8 +297,7 @@ def _orthonormal_diagonal(x: np.ndarray, mass: np.ndarray, model: MassSpringMode
     """
     if x.shape[1] == 0:
         return x, np.empty(0)
-    gram = x.T @ (mass[:, None] * x)
-    value, vector = np.linalg.eigh(0.5 * (gram + gram.T))
+    value, vector = np.linalg.eigh(mass_gram(x, mass))
     independent = value > DEPENDENT_RTOL * value.max()
     x = project(x @ (vector[:, independent] / np.sqrt(value[independent])))
     stiffness = x.T @ (model.stiffness_free @ x)
