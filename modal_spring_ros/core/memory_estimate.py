@@ -10,8 +10,8 @@ trains a spring sample on snapshots of every spring's force (sampled springs, an
 which may choose them), and steps the ``m`` coordinates it keeps. Each term below counts such
 arrays in floats; the coefficients are fitted to the peak resident memory measured on sheets and
 blocks of several sizes (``test/bench/test_memory.py``; ``modal_spring_bench --suite scale`` up
-to 500,000 particles). Memory a stage frees is not always given back to the system before the next one
-grows, so the stages add up rather than take turns.
+to 500,000 particles). Memory a stage frees is not always given back to the system before the
+next one grows, so the stages add up rather than take turns.
 
 Pure: counts in, bytes out; :func:`run_size` reads the counts from a scene and a run's options,
 :func:`check_run_memory` refuses a run that does not fit in the memory it is handed (the front
