@@ -23,8 +23,9 @@ def subplots(*grid, **kw):
     return fig, fig.subplots(*grid, **kw)
 
 
-def _finish(fig, ax, path: Path, xlabel: str, ylabel: str, title: str, log: bool = True,
-            legend: bool = True) -> Path:
+def finish_chart(fig, ax, path: Path, xlabel: str, ylabel: str, title: str, log: bool = True,
+                 legend: bool = True) -> Path:
+    """Label, scale (log-log unless ``log`` is False), lay out and save a chart at ``path``."""
     if log:
         ax.set_xscale('log')
         ax.set_yscale('log')
@@ -59,9 +60,9 @@ def error_vs_cost(case: dict, path: Path) -> Path:
     ax.step([r['seconds_per_sim_second'] for r in front], [r['rel_l2'] for r in front],
             where='post', color='0.4', lw=1, ls='--', label='Pareto front', zorder=2)
     ax.axhline(0.01, color='0.7', lw=0.8)
-    return _finish(fig, ax, path, 'cost: wall seconds per simulated second',
-                   'relative L2 displacement error',
-                   f"{case['scene']}: error against cost ({case['free_dof']} DOF)")
+    return finish_chart(fig, ax, path, 'cost: wall seconds per simulated second',
+                        'relative L2 displacement error',
+                        f"{case['scene']}: error against cost ({case['free_dof']} DOF)")
 
 
 def stability_map(case: dict, path: Path) -> Path:
@@ -85,8 +86,8 @@ def stability_map(case: dict, path: Path) -> Path:
     ax.scatter([], [], marker='^', c='C2', label='modal average (tested up to 100x)')
     full = next(s for s in st if s['method'] == 'full explicit')
     ax.axhline(full['largest_stable'], color='C3', label='full explicit: largest stable step')
-    return _finish(fig, ax, path, 'kept modes', 'time step (s)',
-                   f"{case['scene']}: stability map")
+    return finish_chart(fig, ax, path, 'kept modes', 'time step (s)',
+                        f"{case['scene']}: stability map")
 
 
 def fig7(costs: dict, path: Path) -> Path:
@@ -99,17 +100,17 @@ def fig7(costs: dict, path: Path) -> Path:
                                ('modal_sampled', 'C6', '32 modes, sampled springs')):
         if key in rows[0]:
             ax.plot(n, [1e6 * r[key] for r in rows], 'o-', c=colour, label=label)
-    return _finish(fig, ax, path, 'particles', 'time per step (us)',
-                   'Paper fig. 7 extended: time per step against particle count')
+    return finish_chart(fig, ax, path, 'particles', 'time per step (us)',
+                        'Paper fig. 7 extended: time per step against particle count')
 
 
 def fig8(costs: dict, path: Path) -> Path:
     rows = costs['fig8']
     fig, ax = subplots(figsize=(6, 4))
     ax.plot([r['dropped'] for r in rows], [1e6 * r['seconds_per_step'] for r in rows], 'o-')
-    return _finish(fig, ax, path, 'dropped modes (of 180)', 'time per step (us)',
-                   'Paper fig. 8: sheet_10x10, time per step against dropped modes',
-                   log=False, legend=False)
+    return finish_chart(fig, ax, path, 'dropped modes (of 180)', 'time per step (us)',
+                        'Paper fig. 8: sheet_10x10, time per step against dropped modes',
+                        log=False, legend=False)
 
 
 def failure_chart(f: dict, path: Path) -> Path:
@@ -152,9 +153,9 @@ def turning_clamp_chart(f: dict, path: Path) -> Path:
                 label='turn left out (base excitation only): world positions')
     ax.axhline(0.02, color='0.6', ls=':', lw=0.8)
     ax.legend(fontsize=8, loc='center right')
-    return _finish(fig, ax, path, 'time (s)', 'relative L2 error (0.25 s windows)',
-                   'A clamp turning +-45 degrees at 0.5 Hz: sheet_10x10_swing against full',
-                   log=False, legend=False)
+    return finish_chart(fig, ax, path, 'time (s)', 'relative L2 error (0.25 s windows)',
+                        'A clamp turning +-45 degrees at 0.5 Hz: sheet_10x10_swing against full',
+                        log=False, legend=False)
 
 
 def draw_all(result: dict, out: Path) -> list[Path]:

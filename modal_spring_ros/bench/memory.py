@@ -20,7 +20,7 @@ import statistics
 import time
 from typing import Callable
 
-from modal_spring_ros.bench.charts import subplots
+from modal_spring_ros.bench.charts import finish_chart, subplots
 from modal_spring_ros.bench.steps import frame_costs
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
@@ -178,12 +178,6 @@ def write_outputs(results: list[dict], out: Path, progress) -> None:
     ax.plot(n, [r['peak_mb'] for r in measured], 'o-', label='measured peak')
     ax.plot(n, [r['estimate_mb'] for r in measured], 's--', label='estimate (refused above '
             'the memory available)')
-    ax.set_xscale('log')
-    ax.set_yscale('log')
-    ax.set_xlabel('particles')
-    ax.set_ylabel('resident memory above start, MB')
-    ax.set_title('Memory of a run as the sheet grows (32 modes, sampled springs)')
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / 'scale.png', dpi=110)
+    finish_chart(fig, ax, out / 'scale.png', 'particles', 'resident memory above start, MB',
+                 'Memory of a run as the sheet grows (32 modes, sampled springs)')
     progress(f'wrote {out / "scale.csv"} and {out / "scale.png"}')
