@@ -22,7 +22,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, DENSE_LIMIT
+from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, DENSE_LIMIT, INITIAL_MODES
 from modal_spring_ros.core.bases.derivatives import MAX_PAIR_MODES
 from modal_spring_ros.core.model.scene import Scene, SceneError
 import numpy as np
@@ -62,9 +62,6 @@ RUN_VECTORS_PER_COORDINATE = 1.0
 SAMPLE_SPRING_VECTORS = 190
 #: Dense eigensolver (every mode of a small scene): n x n matrices held at once.
 DENSE_MATRICES = 4
-#: The modes first computed on a large scene (see
-#: :class:`~modal_spring_ros.core.bases.basis.ModalBasis`).
-INITIAL_MODES = 32
 
 
 @dataclasses.dataclass(frozen=True)

@@ -30,6 +30,9 @@ import scipy.sparse.linalg as spla
 #: Most modes computed on scenes too large for the dense solver, unless asked otherwise.
 DEFAULT_MAX_MODES = 256
 
+#: Modes a large scene's basis computes first.
+INITIAL_MODES = 32
+
 #: Largest number of free DOF for which every mode is computed with a dense solver.
 DENSE_LIMIT = 1000
 
@@ -67,7 +70,7 @@ class ModalBasis:
     :ivar complete: every mode of the scene has been computed.
     """
 
-    def __init__(self, model: MassSpringModel, *, initial_modes: int = 32,
+    def __init__(self, model: MassSpringModel, *, initial_modes: int = INITIAL_MODES,
                  progress: Progress | None = None, dense_limit: int = DENSE_LIMIT,
                  worker: WorkerProcess | None = None, samples: SampleStore | None = None):
         self.model = model
