@@ -9,11 +9,12 @@ import threading
 import time
 
 from modal_spring_ros.ros.node import ModalSpringNode
+from modal_spring_ros.ros.pooled_executor import PooledExecutor
 from modal_spring_ros.ros.stop_signals import spin_until_stopped, StopSignals
 from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
 # One DDS domain per test session, loopback discovery only: parallel sessions stay apart.
@@ -242,7 +243,7 @@ def node_in_process(namespace: str, parameters: list[Parameter] | None = None):
     stop = StopSignals()                # not installed: this process's signals stay pytest's
     node = ModalSpringNode(stop=stop, context=context, namespace=namespace,
                            parameter_overrides=parameters or [])
-    executor = MultiThreadedExecutor(num_threads=2, context=context)
+    executor = PooledExecutor(2, context=context)
     executor.add_node(node)
     thread = threading.Thread(target=spin_until_stopped, args=(executor, stop), daemon=True)
     thread.start()

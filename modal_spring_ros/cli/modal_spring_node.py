@@ -18,11 +18,12 @@ from modal_spring_ros.core.worker import WorkerError
 from modal_spring_ros.ros.managed_node import ManagedModalSpringNode
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.parameters import PARAMETERS
+from modal_spring_ros.ros.pooled_executor import PooledExecutor
 from modal_spring_ros.ros.publication_mode import prefer_asynchronous_publication
 from modal_spring_ros.ros.stop_signals import init_ros, spin_until_stopped, StopSignals
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 
 PROG = 'modal_spring_node'
 #: executor threads: the parameter services, and the node's own services beside them
@@ -72,7 +73,7 @@ def main(args: list[str] | None = None) -> int:
         # the executor before the node: once the node is seen in the graph, a Ctrl-C can no
         # longer land inside the executor's constructor (which leaves a half-built executor
         # whose finaliser prints a traceback)
-        executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
+        executor = PooledExecutor(EXECUTOR_THREADS, name='modal_spring_executor')
         node = kind(stop=stop)
         executor.add_node(node)
         stop.interrupting = False       # streaming: a signal ends the spin loop, then the node

@@ -16,6 +16,7 @@ from __future__ import annotations
 import signal
 import threading
 
+from modal_spring_ros.ros.pooled_executor import DRAIN_TIMEOUT_S
 import rclpy
 from rclpy.executors import Executor
 from rclpy.signals import SignalHandlerOptions
@@ -64,10 +65,10 @@ def spin_until_stopped(executor: Executor, stop: StopSignals | None = None) -> N
     ``Executor.spin`` waits for work with no timeout and counts on a guard condition to wake it
     when ROS is shut down; when that trigger is taken by a wait that still saw the context up, the
     wait that follows never returns. Waiting in slices makes the check the thing that ends it.
-    Callbacks still running are waited for, with the executor's threads.
+    Callbacks still running are waited for (a :class:`PooledExecutor` cancels queued ones).
     """
     try:
         while (stop is None or not stop.requested.is_set()) and executor.context.ok():
             executor.spin_once(timeout_sec=SPIN_SLICE_S)
     finally:
-        executor.shutdown(timeout_sec=SPIN_SLICE_S)
+        executor.shutdown(timeout_sec=DRAIN_TIMEOUT_S)

@@ -9,11 +9,11 @@ import time
 
 from modal_spring_ros.cli.launcher import EXIT_INTERRUPTED
 from modal_spring_ros.ros.parameters import PARAMETERS
+from modal_spring_ros.ros.pooled_executor import PooledExecutor
 from modal_spring_ros.ros.stop_signals import spin_until_stopped
 import pytest
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
 from ros_harness import console_script, DOMAIN_ID, stderr_excerpt
 
 
@@ -51,7 +51,7 @@ def test_spinning_ends_when_ros_shuts_down_without_waking_the_executor():
     context = Context()
     rclpy.init(context=context, domain_id=DOMAIN_ID)
     node = rclpy.create_node('spin_probe', context=context)
-    executor = MultiThreadedExecutor(num_threads=2, context=context)
+    executor = PooledExecutor(2, context=context)
     executor.add_node(node)
     spinning = threading.Thread(target=spin_until_stopped, args=(executor,), daemon=True)
     spinning.start()

@@ -14,11 +14,11 @@ import threading
 import time
 
 from modal_spring_ros.ros.node import ModalSpringNode
+from modal_spring_ros.ros.pooled_executor import PooledExecutor
 from modal_spring_ros.ros.stop_signals import spin_until_stopped, STOP_SIGNALS, StopSignals
 import pytest
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
 from ros_harness import DOMAIN_ID, wait_for
 
 #: the threads a streaming node runs beside its executor
@@ -60,7 +60,7 @@ def test_a_signal_while_streaming_ends_the_spin_and_leaves_ros_up_until_the_node
     stop = StopSignals().install()
     node = ModalSpringNode(stop=stop, context=context, namespace='stop_signals')
     try:
-        executor = MultiThreadedExecutor(num_threads=2, context=context)
+        executor = PooledExecutor(2, context=context)
         executor.add_node(node)
         stop.interrupting = False
         spinning = threading.Thread(target=spin_until_stopped, args=(executor, stop),
