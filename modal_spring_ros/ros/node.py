@@ -35,13 +35,15 @@ from modal_spring_ros.ros.namesakes import count_namesakes, namesakes_warning
 from modal_spring_ros.ros.node_parameters import NodeParameters
 from modal_spring_ros.ros.outputs import NodeOutputs
 from modal_spring_ros.ros.parameter_changes import ChangePlanner
-from modal_spring_ros.ros.parameters import (config_from_parameters, CONFIG_NAMES, FREQUENCIES,
+from modal_spring_ros.ros.parameters import (CLOCK_OFFSET, CLOCK_OFFSET_DESCRIPTOR,
+                                             config_from_parameters, CONFIG_NAMES, FREQUENCIES,
                                              FREQUENCIES_DESCRIPTOR, PARAMETERS)
 from modal_spring_ros.ros.plan_watch import beyond_message
 from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset, Step
 from modal_spring_ros.ros.simulation_thread import SimulationThread
 from modal_spring_ros.ros.stop_signals import StopSignals
 from modal_spring_ros.ros.stream_settings import StreamSettings
+from modal_spring_ros.ros.stream_time import clock_warnings, StreamTime
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.limits import available_memory
 from modal_spring_ros.scenes.resources import load_scene
@@ -108,14 +110,15 @@ class ModalSpringNode(Node):
             settings_changed=lambda: self._thread.settings_changed(),
             enable_clock=lambda: self._outputs.enable_clock())
         self._preparer = self._params.preparer
-        if self.has_parameter(FREQUENCIES):     # built again (a managed node configured again)
-            self.set_parameters([Parameter(FREQUENCIES, value=sim.basis.frequencies_hz.tolist())])
-        else:
-            self.declare_parameter(FREQUENCIES, sim.basis.frequencies_hz.tolist(),
-                                   FREQUENCIES_DESCRIPTOR)
+        # published time goes on from where it was (a managed node configured again)
+        self._time = StreamTime(getattr(self, '_time', StreamTime()).reached,
+                                moved=lambda offset: self._params.report(CLOCK_OFFSET, offset))
+        self._report_parameter(FREQUENCIES, sim.basis.frequencies_hz.tolist(),
+                               FREQUENCIES_DESCRIPTOR)
+        self._report_parameter(CLOCK_OFFSET, self._time.offset, CLOCK_OFFSET_DESCRIPTOR)
         scene = sim.model.scene
         self._outputs = NodeOutputs(self, scene, lambda: self._params.values,
-                                    self._open_capture(sim))
+                                    self._open_capture(sim), self._time)
         self._thread = SimulationThread(
             sim, self._outputs, self._stream_settings,
             rebuild=lambda: rebuild(sim.model, sim.basis,
@@ -139,6 +142,15 @@ class ModalSpringNode(Node):
         log.info(f'scene {scene.name}: {scene.n_particles} particles, {status.modes_computed} '
                  f'modes computed; {status.method}, {status.band}, {status.coordinates} '
                  f"{'modes' if status.method == 'modal' else 'DOF'} stepped; dt {sim.dt:g} s")
+        for warning in clock_warnings(self.get_parameter('use_sim_time').value, values):
+            log.warning(warning)
+
+    def _report_parameter(self, name: str, value, descriptor) -> None:
+        """Declare a parameter the node reports, or set it when built again (before listening)."""
+        if self.has_parameter(name):
+            self.set_parameters([Parameter(name, value=value)])
+        else:
+            self.declare_parameter(name, value, descriptor)
 
     def _begin(self) -> None:
         """Start streaming: the simulation thread and the inputs' thread."""

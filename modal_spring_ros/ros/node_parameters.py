@@ -22,12 +22,19 @@ from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.core.worker import WorkerError
 from modal_spring_ros.ros.change_preparer import ChangePreparer, ChangeRefused, describe
 from modal_spring_ros.ros.parameter_changes import ChangePlanner
-from modal_spring_ros.ros.parameters import (config_from_parameters, FREQUENCIES, PARAMETERS,
-                                             SLOW_PARAMETERS)
+from modal_spring_ros.ros.parameters import (CLOCK_OFFSET, config_from_parameters, FREQUENCIES,
+                                             PARAMETERS, SLOW_PARAMETERS)
 from modal_spring_ros.ros.requests import Request
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+
+#: the parameters the node reports: every request but the node's own is refused, saying why
+REPORTED = {
+    FREQUENCIES: 'the node reports the frequencies of the modes it has computed',
+    CLOCK_OFFSET: 'the node moves it on at a reset or a divergence, so that published time '
+                  'never goes back',
+}
 
 
 class NodeParameters:
@@ -82,9 +89,9 @@ class NodeParameters:
         """Validate a request and prepare its slow part, answered within ``answer_within_s``."""
         if self._own():                              # the node itself: frequencies, reverts
             return SetParametersResult(successful=True)
-        if any(p.name == FREQUENCIES for p in params):
-            return self._refused(f'{FREQUENCIES} is read-only: the node reports the '
-                                 'frequencies of the modes it has computed')
+        reported = [p.name for p in params if p.name in REPORTED]
+        if reported:
+            return self._refused(f'{reported[0]} is read-only: {REPORTED[reported[0]]}')
         incoming = {p.name: p.value for p in params if p.name in PARAMETERS}
         with self._lock:
             requested = dict(self._values, **incoming)
@@ -151,6 +158,10 @@ class NodeParameters:
             self._node.set_parameters(params)
         finally:
             self._own_update.active = False
+
+    def report(self, name: str, value: Any) -> None:
+        """Set a parameter the node reports (:data:`REPORTED`), as the node itself."""
+        self._set_own([Parameter(name, value=value)])
 
     def _publish_frequencies(self) -> None:
         """Update modal.frequencies_hz when a band made the node compute more modes."""

@@ -22,6 +22,7 @@ from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import diagnostic_array, StreamReport
+from modal_spring_ros.ros.stream_time import StreamTime
 from modal_spring_ros.ros.tf import FrameBroadcaster, tf_available
 import numpy as np
 from rclpy.node import Node
@@ -94,8 +95,10 @@ class NodeOutputs:
     """The node's publishers and capture; ``values`` gives the current parameter values."""
 
     def __init__(self, node: Node, scene: Scene, values: Callable[[], dict[str, Any]],
-                 bag: RunBagWriter | None):
+                 bag: RunBagWriter | None, time: StreamTime | None = None):
+        """``time`` maps simulation time to published time (default: from 0, reported nowhere)."""
         self._node = node
+        self._time = time or StreamTime()
         self._scene = scene
         self._cells, self._width = marker_cells(scene)
         self._values = values
@@ -136,7 +139,8 @@ class NodeOutputs:
     def frame(self, sim: Simulation, cloud: CloudBuffer, mesh: bool) -> None:
         values = self._values()
         rest = self._scene.rest_positions
-        stamp = (to_time_msg(sim.time) if values['stamp'] == 'sim'
+        published = self._time.at(sim.time, sim.dt)   # never back: a reset moves it on
+        stamp = (to_time_msg(published) if values['stamp'] == 'sim'
                  else self._node.get_clock().now().to_msg())
         header = Header(stamp=stamp, frame_id=values['frame_id'])
         self._points.publish(cloud.message(header))  # serialised here: the bytes are free again
@@ -147,7 +151,7 @@ class NodeOutputs:
         if self._bag is not None:
             self._capture(lambda: self._bag.frame(sim.time, positions))
         if values['publish_clock'] and self._clock is not None:
-            self._clock.publish(Clock(clock=to_time_msg(sim.time)))
+            self._clock.publish(Clock(clock=to_time_msg(published)))
         if not self._announced:
             self._announced = True
             status = sim.status()

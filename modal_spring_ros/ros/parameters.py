@@ -32,6 +32,8 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 
 #: the one parameter the node sets itself (refused from anyone else)
 FREQUENCIES = 'modal.frequencies_hz'
+#: the published time at which the run's simulation time is 0 (reported by the node)
+CLOCK_OFFSET = 'clock.offset_s'
 #: header stamps of the points and mesh
 STAMPS = ('sim', 'wall')
 #: smallest non-zero real-time factor: below it the stream would stand still
@@ -118,8 +120,9 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         constraints=f'0, or at least {MIN_REALTIME_FACTOR:g}')),
     'frame_id': ('world', _descriptor('header.frame_id of points and mesh', _S)),
     'stamp': ('sim', _descriptor(
-        'header.stamp of points and mesh: sim (simulation time, as /clock) or wall (the '
-        "node's clock when publishing, for latency measurement or wall-time TF)", _S,
+        'header.stamp of points, mesh and TF: sim (simulation time, as on /clock; never back: '
+        "see clock.offset_s) or wall (the node's ROS clock when publishing: system time, or "
+        "/clock's under use_sim_time; for wall-time TF and latency measurement)", _S,
         constraints='sim or wall')),
     'publish_clock': (False, _descriptor('Publish simulation time on /clock', _B)),
     'anchor.source': ('scene', _descriptor(
@@ -211,6 +214,10 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
 FREQUENCIES_DESCRIPTOR = _descriptor(
     'Frequencies of the computed modes, Hz (ascending); read-only: the node updates it when '
     'a band needs more modes', ParameterType.PARAMETER_DOUBLE_ARRAY)
+CLOCK_OFFSET_DESCRIPTOR = _descriptor(
+    "Published time (sim stamps, /clock) at which the run's simulation time is 0, s; "
+    'read-only: a reset or a divergence moves it on, so that published time never goes back',
+    ParameterType.PARAMETER_DOUBLE)
 
 #: parameters whose change rebuilds the simulation (state and time carried over); the other
 #: ``filter.*`` parameters change the band of the running one

@@ -8,7 +8,10 @@ time it took effect at): re-simulating either reproduces every frame to float32 
 A bag recorded over DDS by ``modal_spring_record`` holds the scene, the node's parameters at
 the start and every later change as received on ``/parameter_events``; those are applied
 before the first frame received after them, so the re-run follows the recording as closely as
-its stamps allow.
+its stamps allow. Its stamps are the node's published time, which never goes back: simulation
+time plus ``clock.offset_s``, whose changes (a reset, or a divergence sent back to rest) are on
+``/parameter_events`` too; each sends the re-run back to rest. The re-run's frames are stamped
+with simulation time.
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.simulations import DivergenceError
 from modal_spring_ros.ros.input_kinds import InputKind, INPUTS, WrenchAt
-from modal_spring_ros.ros.parameters import (config_from_parameters, PARAMETERS,
+from modal_spring_ros.ros.parameters import (CLOCK_OFFSET, config_from_parameters, PARAMETERS,
                                              REBUILD_PARAMETERS)
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.limits import available_memory
@@ -130,6 +133,8 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
                           frame_id=rec.get('frame_id', 'world'),
                           source='modal_spring_replay --resimulate')
     exact = rec.get('event_clock') == 'sim'   # events stamped with simulation time
+    # a DDS recording's stamps: simulation time plus the node's offset (its capture's: none)
+    offset = 0.0 if exact or values is None else float(values.get(CLOCK_OFFSET) or 0.0)
     pending = sorted(changes + (recorded_inputs(bag) if values is not None else []),
                      key=lambda event: event[0])
     try:
@@ -142,11 +147,15 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
                 if isinstance(change, tuple):      # an input: (kind, message)
                     kind, message = change
                     kind.apply(sim, message, values)
-                else:
-                    sim, values = _apply(sim, values, change)
-            if stamp < sim.time - 0.5 * sim.dt:   # the recording was reset
+                    continue
+                if CLOCK_OFFSET in change and not exact:   # the run went back to rest
+                    sim.reset()
+                    offset = float(change[CLOCK_OFFSET])
+                sim, values = _apply(sim, values, change)
+            at = stamp - offset
+            if at < sim.time - 0.5 * sim.dt:      # the recording was reset (older bags)
                 sim.reset()
-            while sim.time < stamp - 0.5 * sim.dt:
+            while sim.time < at - 0.5 * sim.dt:
                 if watch is not None:
                     sim, window = watch.before_step(sim, frame_s)
                     watch = watch if window is None or window.within else None

@@ -8,11 +8,13 @@ import time
 
 from helpers import BAGS
 from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.ros.resimulate import resimulate
+from modal_spring_ros.ros.parameters import CLOCK_OFFSET
+from modal_spring_ros.ros.resimulate import parameter_changes, resimulate
 import numpy as np
 import pytest
 from ros_harness import Client, console_script, frames_since, NodeProcess, wait_for
 from sensor_msgs.msg import PointCloud2
+from std_srvs.srv import Trigger
 
 pytestmark = pytest.mark.ros
 
@@ -71,6 +73,8 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
                                           filter__type='lowpass', filter__high_hz=12.0)
         assert result.successful
         frames_since(points, time.monotonic(), 75, timeout=60)
+        assert client.call(Trigger, '/rec/modal_spring/reset', Trigger.Request()).success
+        frames_since(points, time.monotonic(), 45, timeout=60)
         recorder.send_signal(signal.SIGINT)
         recorder.wait(timeout=30)
         reader.join(timeout=5)
@@ -96,16 +100,24 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
     stamp = bag.decode(first).header.stamp
     assert first.publish_time_ns == stamp.sec * 1_000_000_000 + stamp.nanosec
     assert first.log_time_ns > 1_600_000_000 * 10**9
-    # re-simulation: the same scene, parameters and change give the recorded frames
+    # re-simulation: the same scene, parameters, change and reset give the recorded frames
     again = tmp_path / 'again'
     n = resimulate(out, again, topic='/rec/points')
     t_rec, x_rec = bag.points('/rec/points')
     t_new, x_new = BagReader(again).points()
     assert n == len(t_rec)
-    np.testing.assert_allclose(t_new, t_rec, atol=1e-9)
+    assert np.all(np.diff(t_rec) > 0)                # the reset did not send the stamps back
+    (moved,) = [(log, change[CLOCK_OFFSET]) for log, _, change
+                in parameter_changes(bag, '/rec/modal_spring') if CLOCK_OFFSET in change]
+    after = np.array([m.log_time_ns for m in bag.messages(['/rec/points'])]) > moved[0]
+    assert 30 < after.sum() < n - 60
+    assert t_rec[~after][-1] < moved[1] <= t_rec[after][0]   # the time reached, and a step
+    # the re-run is stamped with simulation time: the recorded stamps less the offset
+    np.testing.assert_allclose(t_new, np.where(after, t_rec - moved[1], t_rec), atol=1e-6)
     err = np.linalg.norm((x_new - x_rec).reshape(n, -1), axis=1)
-    before = err[: n // 3]                                   # well before the band change
+    before = err[: n // 4]                                   # well before the band change
     assert before.max() < 1e-5                               # float32 round-off
+    assert err[after].max() < 1e-5                           # from rest again, as recorded
     assert err.max() < 0.05 * np.linalg.norm((x_rec - x_rec[0]).reshape(n, -1), axis=1).max()
 
 
@@ -117,7 +129,6 @@ def test_the_nodes_own_capture_resimulates_frame_for_frame(tmp_path):
     time it took effect: the re-run reproduces all of it.
     """
     from ros_harness import node_with_client
-    from std_srvs.srv import Trigger
     out = tmp_path / 'direct'
     with node_with_client(f'record.bag:={out}', 'publish_rate_hz:=30.0',
                           namespace='direct') as (node, client):

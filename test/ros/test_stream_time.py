@@ -1,0 +1,66 @@
+"""Published time never goes back: a reset moves the offset on (StreamTime, and the live node)."""
+from __future__ import annotations
+
+import time
+
+from modal_spring_ros.ros.parameters import CLOCK_OFFSET
+from modal_spring_ros.ros.stream_time import clock_warnings, StreamTime
+import numpy as np
+import pytest
+from ros_harness import frames_since, node_with_client, wait_for
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import PointCloud2
+from std_srvs.srv import Trigger
+
+
+def _seconds(stamp) -> float:
+    return stamp.sec + 1e-9 * stamp.nanosec
+
+
+def test_published_time_goes_on_from_the_time_reached_when_simulation_time_goes_back():
+    moves = []
+    clock = StreamTime(moved=moves.append)
+    assert [clock.at(t) for t in (0.0, 0.1, 0.5)] == [0.0, 0.1, 0.5]
+    assert moves == [] and clock.offset == 0.0
+    assert clock.at(0.02, 0.01) == pytest.approx(0.53)    # reset at 0.5: on from 0.5 + a step
+    assert moves == [pytest.approx(0.51)] and clock.offset == pytest.approx(0.51)
+    assert clock.at(0.3, 0.01) == pytest.approx(0.81)
+    assert clock.reached == pytest.approx(0.81)
+    assert clock.at(0.3, 0.01) == pytest.approx(0.81)     # a paused frame: the same time
+    assert clock.at(0.0, 0.01) == pytest.approx(0.82)     # the rest state at 0: a step later
+    assert moves == [pytest.approx(0.51), pytest.approx(0.82)]
+    again = StreamTime(clock.reached)                     # a node configured again
+    assert again.at(0.01) == pytest.approx(0.83)
+
+
+def test_stamps_of_its_own_time_under_another_clock_are_warned_about():
+    own = {'stamp': 'sim', 'publish_clock': False}
+    (warning,) = clock_warnings(True, own)
+    assert 'use_sim_time' in warning and 'stamp:=wall' in warning
+    assert clock_warnings(False, own) == []                       # its own time, no other
+    assert clock_warnings(True, dict(own, stamp='wall')) == []     # the other clock's time
+    assert clock_warnings(True, dict(own, publish_clock=True)) == []   # it is the clock
+
+
+@pytest.mark.ros
+def test_a_reset_sends_neither_clock_nor_stamps_back_and_reports_the_offset():
+    with node_with_client('publish_clock:=true', 'publish_rate_hz:=30.0',
+                          namespace='monotonic') as (node, client):
+        points = client.collect(PointCloud2, '/monotonic/points', qos=500)
+        clocks = client.collect(Clock, '/clock', qos=500)
+        assert wait_for(lambda: len(points) > 20, 30)
+        assert client.get_parameters('monotonic/modal_spring', CLOCK_OFFSET) == [0.0]
+        before = _seconds(points[-1][1].header.stamp)
+        assert client.call(Trigger, '/monotonic/modal_spring/reset', Trigger.Request()).success
+        frames_since(points, time.monotonic(), 20, timeout=60)
+        (offset,) = client.get_parameters('monotonic/modal_spring', CLOCK_OFFSET)
+        stamps = np.array([_seconds(m.header.stamp) for _, m in points])
+        ticks = np.array([_seconds(c.clock) for _, c in clocks])
+        assert np.all(np.diff(stamps) > 0), 'a stamp went back'
+        assert np.all(np.diff(ticks) >= 0), '/clock went back'
+        # the offset is the time reached at the reset (and a step): the run starts again there
+        assert before < offset <= stamps[-1]
+        first = stamps[stamps > offset][0]
+        assert first - offset < 0.2                            # t is small again
+        (refused,) = client.set_parameters('monotonic/modal_spring', clock__offset_s=0.0)
+        assert not refused.successful and 'read-only' in refused.reason
