@@ -1,8 +1,10 @@
 """Published time never goes back: a reset moves the offset on (StreamTime, and the live node)."""
 from __future__ import annotations
 
+import threading
 import time
 
+from builtin_interfaces.msg import Time
 from modal_spring_ros.ros.parameters import CLOCK_OFFSET
 from modal_spring_ros.ros.stream_time import clock_warnings, StreamTime
 import numpy as np
@@ -64,3 +66,33 @@ def test_a_reset_sends_neither_clock_nor_stamps_back_and_reports_the_offset():
         assert first - offset < 0.2                            # t is small again
         (refused,) = client.set_parameters('monotonic/modal_spring', clock__offset_s=0.0)
         assert not refused.successful and 'read-only' in refused.reason
+
+
+@pytest.mark.ros
+def test_under_another_clock_wall_stamps_are_that_clock_s_time():
+    """``use_sim_time:=true`` and ``stamp:=wall``: a bag's or a simulator's /clock stamps it."""
+    with node_with_client('use_sim_time:=true', 'stamp:=wall',
+                          namespace='other_clock') as (node, client):
+        publisher = client.node.create_publisher(Clock, '/clock', 10)
+        points = client.collect(PointCloud2, '/other_clock/points', qos=500)
+        ticks, stop = [], threading.Event()
+
+        def tick():
+            t = 1000.0                                    # far from the wall clock and from 0
+            while not stop.is_set():
+                publisher.publish(Clock(clock=Time(sec=int(t), nanosec=int(t % 1 * 1e9))))
+                ticks.append(t)
+                t += 0.01
+                time.sleep(0.01)
+        ticker = threading.Thread(target=tick, daemon=True)
+        ticker.start()
+        try:
+            # once the node has the other clock, every frame is stamped with its time
+            assert wait_for(lambda: any(_seconds(m.header.stamp) >= 1000.0
+                                        for _, m in list(points)), 30)
+            window = frames_since(points, time.monotonic(), 10)
+        finally:
+            stop.set()
+            ticker.join(5)
+        stamps = [_seconds(m.header.stamp) for m in window]
+        assert all(1000.0 <= s <= ticks[-1] + 1e-6 for s in stamps), stamps
