@@ -9,6 +9,7 @@ from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.ros.parameters import CLOCK_OFFSET
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -204,13 +205,16 @@ def test_step_advances_a_paused_run_by_one_frame_and_publishes_it(running):
 
 def test_reset_returns_to_the_rest_state(running):
     _, client, points, _ = running
-    assert stamp(points[-1][1]) > 5.0
+    before = stamp(points[-1][1])
+    assert before > 5.0
     res = client.call(Trigger, f'/{NODE}/reset', Trigger.Request())
     assert res.success
     called = time.monotonic()
     assert wait_for(lambda: any(t > called for t, _ in points), 2.0)
     first = next(m for t, m in points if t > called)
-    assert stamp(first) < 0.2
+    # simulation time starts again at 0; the stamps go on from where they were
+    (offset,) = client.get_parameters(NODE, CLOCK_OFFSET)
+    assert before < offset <= stamp(first) + 1e-9 < offset + 0.2     # stamps: whole ns
     scene_rest = load_scene('sheet_10x10').rest_positions
     assert np.abs(xyz(first) - scene_rest).max() < 5e-3
 
