@@ -71,10 +71,12 @@ def hf_power(frames: np.ndarray, cutoff_hz: float) -> float:
 
 
 def test_points_stream_layout_rate_and_values(running):
-    _, _, points, _ = running
+    _, _, points, diagnostics = running
     start = time.monotonic()
     time.sleep(3.0)
     window = [(t, m) for t, m in points if t >= start]
+    reported = [float(status_values(msg.status[0])['achieved real-time factor'])
+                for t, msg in diagnostics if start + 1.0 < t <= window[-1][0]]
     assert 0.85 * 3 * RATE <= len(window) <= 1.1 * 3 * RATE
     msg = window[-1][1]
     assert msg.header.frame_id == 'world' and msg.height == 1 and msg.width == 100
@@ -86,8 +88,12 @@ def test_points_stream_layout_rate_and_values(running):
         assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
     stamps = np.array([stamp(m) for _, m in window])
     assert np.all(np.diff(stamps) > 0)
-    # simulation time runs at the requested real-time factor (1)
-    assert (stamps[-1] - stamps[0]) == pytest.approx(window[-1][0] - window[0][0], rel=0.1)
+    # simulation time runs at the requested real-time factor (1), never faster; on a busy
+    # machine it may fall behind, and then the node reports the factor it achieves
+    factor = (stamps[-1] - stamps[0]) / (window[-1][0] - window[0][0])
+    assert factor <= 1.1
+    assert factor == pytest.approx(1.0, abs=0.1) or (
+        reported and abs(factor - float(np.mean(reported))) < 0.15), (factor, reported)
 
 
 def test_points_match_the_headless_engine(running):
