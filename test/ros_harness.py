@@ -8,6 +8,7 @@ import subprocess
 import threading
 import time
 
+from modal_spring_ros.bags.sim_time import SOURCE
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.pooled_executor import PooledExecutor
 from modal_spring_ros.ros.stop_signals import spin_until_stopped, StopSignals
@@ -16,6 +17,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
+from sensor_msgs.msg import TimeReference
 
 # One DDS domain per test session, loopback discovery only: parallel sessions stay apart.
 DOMAIN_ID = 20 + os.getpid() % 70
@@ -184,6 +186,34 @@ class Client:
         rclpy.try_shutdown(context=self.context)
         if self.error is not None:
             raise RuntimeError(f"the client's executor failed: {self.error!r}")
+
+
+class SimTimes:
+    """The simulation time of each frame, as the node publishes it beside them on sim_time."""
+
+    def __init__(self):
+        """Start empty: :meth:`subscribe` before the frames asked about arrive."""
+        self._times: dict[int, float] = {}
+
+    def subscribe(self, client: Client, topic: str = '/sim_time') -> SimTimes:
+        """Take the node's ``sim_time`` (``topic``) through ``client``; return self."""
+        client.node.create_subscription(TimeReference, topic, self._keep, 200)
+        return self
+
+    @staticmethod
+    def _ns(stamp) -> int:
+        return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+    def _keep(self, reference: TimeReference) -> None:
+        if reference.source == SOURCE:
+            self._times[self._ns(reference.header.stamp)] = (
+                reference.time_ref.sec + 1e-9 * reference.time_ref.nanosec)
+
+    def __call__(self, frame) -> float:
+        """Return the simulation time, s, of a frame (a message with a header) received."""
+        key = self._ns(frame.header.stamp)
+        assert wait_for(lambda: key in self._times, 2.0), 'no sim_time for the frame'
+        return self._times[key]
 
 
 def wait_for(predicate, timeout: float, interval: float = 0.02) -> bool:

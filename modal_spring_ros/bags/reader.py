@@ -260,20 +260,30 @@ class BagReader:
                     merged[k] = v
         return merged
 
-    def points(self, topic: str = '/points') -> tuple[np.ndarray, np.ndarray]:
-        """(F,) header stamps in seconds and (F, n, 3) float64 positions of a cloud topic."""
+    def points(self, topic: str = '/points',
+               times: dict[int, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return (F,) header stamps in seconds and (F, n, 3) float64 positions of a cloud topic.
+
+        With ``times`` ({stamp ns: time s}, ``bags/sim_time.py``) each frame's stamp is
+        replaced by its time there, and frames it lacks are left out.
+        """
         if topic not in self.topics:
             raise BagError(f'{self.path}: no topic {topic} (topics: '
                            f"{', '.join(sorted(self.topics)) or 'none'})")
         stamps, frames = [], []
         for m in self.messages([topic]):
             msg = self.decode(m)
+            stamp = msg.header.stamp
+            ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+            if times is not None and ns not in times:
+                continue
             cloud = xyz(msg)
             if not np.isfinite(cloud).all():
                 raise BagError(f'{self.path}: message on {topic} at log time '
                                f'{m.log_time_ns} ns is damaged: its cloud holds non-finite '
                                'values')
-            stamps.append(msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec)
+            stamps.append(times[ns] if times is not None else stamp.sec + 1e-9 * stamp.nanosec)
             frames.append(cloud)
         if not frames:
             raise BagError(f'{self.path}: topic {topic} has no messages')

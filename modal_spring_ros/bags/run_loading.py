@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.bags.sim_time import simulation_times
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
@@ -19,14 +20,19 @@ from modal_spring_ros.scenes.schema import scene_from_yaml
 
 
 def load_run(path: str | Path, topic: str = '/points') -> RunData:
-    """Return a ``.npz`` run or a bag (folder or ``.mcap``) as arrays. Raises BagError/RunError."""
+    """
+    Return a ``.npz`` run or a bag (folder or ``.mcap``) as arrays. Raises BagError/RunError.
+
+    A bag's frames are timed by their recorded ``sim_time`` where it has one (a node recording
+    stamped with the node's clock), else by their stamps.
+    """
     path = Path(path)
     if not path.exists():
         raise BagError(f'{path}: no such run (.npz, bag folder or .mcap)')
     if path.suffix == '.npz':
         return load_npz_run(path)
     bag = BagReader(path)
-    stamps, frames = bag.points(topic)
+    stamps, frames = bag.points(topic, simulation_times(bag, topic) or None)  # simulation time
     rec = bag.run_record()
     scene = scene_from_yaml(rec['scene_yaml'], source=f'{path} (scene)') \
         if 'scene_yaml' in rec else None

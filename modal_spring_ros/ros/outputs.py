@@ -17,19 +17,20 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point
 from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.bags.pointcloud import CloudBuffer, distance_from_rest
+from modal_spring_ros.bags.sim_time import SIM_TIME_TOPIC, SOURCE
 from modal_spring_ros.bags.stamps import to_time_msg
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import diagnostic_array, StreamReport
-from modal_spring_ros.ros.stream_time import StreamTime
+from modal_spring_ros.ros.stream_time import stamps_in_simulation_time, StreamTime
 from modal_spring_ros.ros.tf import FrameBroadcaster, tf_available
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import QoSPolicyKind
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import PointCloud2
+from sensor_msgs.msg import PointCloud2, TimeReference
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker
 
@@ -112,6 +113,8 @@ class NodeOutputs:
                                              qos_overriding_options=overrides)
         self._mesh = node.create_publisher(Marker, MESH_TOPIC, QUEUE_DEPTH,
                                            qos_overriding_options=overrides)
+        # each frame's simulation time, whichever clock stamps it (bags/sim_time.py)
+        self._sim_time = node.create_publisher(TimeReference, SIM_TIME_TOPIC, QUEUE_DEPTH)
         self._diagnostics = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC,
                                                   QUEUE_DEPTH)
         self._clock = None  # /clock only when publish_clock asks for it
@@ -140,10 +143,12 @@ class NodeOutputs:
         values = self._values()
         rest = self._scene.rest_positions
         published = self._time.at(sim.time, sim.dt)   # never back: a reset moves it on
-        stamp = (to_time_msg(published) if values['stamp'] == 'sim'
+        stamp = (to_time_msg(published) if stamps_in_simulation_time(values)
                  else self._node.get_clock().now().to_msg())
         header = Header(stamp=stamp, frame_id=values['frame_id'])
         self._points.publish(cloud.message(header))  # serialised here: the bytes are free again
+        self._sim_time.publish(TimeReference(header=header, time_ref=to_time_msg(published),
+                                             source=SOURCE))
         if self._tf is not None:
             motion = sim.model.scene.anchor_motion.frame(sim.time)
             self._tf.publish(motion.rotation, motion.translation, stamp)

@@ -34,8 +34,8 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 FREQUENCIES = 'modal.frequencies_hz'
 #: the published time at which the run's simulation time is 0 (reported by the node)
 CLOCK_OFFSET = 'clock.offset_s'
-#: header stamps of the points and mesh
-STAMPS = ('sim', 'wall')
+#: header stamps of the points and mesh (auto: sim with publish_clock, else wall)
+STAMPS = ('auto', 'sim', 'wall')
 #: smallest non-zero real-time factor: below it the stream would stand still
 MIN_REALTIME_FACTOR = 1e-3
 
@@ -119,11 +119,12 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         'between two frames)', _D, float_range=(0.0, 1000.0),
         constraints=f'0, or at least {MIN_REALTIME_FACTOR:g}')),
     'frame_id': ('world', _descriptor('header.frame_id of points and mesh', _S)),
-    'stamp': ('sim', _descriptor(
-        'header.stamp of points, mesh and TF: sim (simulation time, as on /clock; never back: '
-        "see clock.offset_s) or wall (the node's ROS clock when publishing: system time, or "
-        "/clock's under use_sim_time; for wall-time TF and latency measurement)", _S,
-        constraints='sim or wall')),
+    'stamp': ('auto', _descriptor(
+        'header.stamp of points, mesh and TF: auto (sim with publish_clock, else wall: as ROS '
+        'nodes stamp), sim (simulation time, as on /clock; never back: see clock.offset_s) or '
+        "wall (the node's ROS clock when publishing: system time, or /clock's under "
+        'use_sim_time); sim_time gives the simulation time of every frame', _S,
+        constraints='auto, sim or wall')),
     'publish_clock': (False, _descriptor('Publish simulation time on /clock', _B)),
     'anchor.source': ('scene', _descriptor(
         "scene: the clamp moves as the scene's anchor_motion says; topic: it follows "

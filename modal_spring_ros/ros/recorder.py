@@ -20,6 +20,7 @@ import time
 from modal_spring_ros.bags.message_definitions import msg_text
 from modal_spring_ros.bags.qos import profiles_to_yaml
 from modal_spring_ros.bags.reader import message_class
+from modal_spring_ros.bags.sim_time import SIM_TIME_TOPIC
 from modal_spring_ros.bags.writer import BagError, BagWriter
 from modal_spring_ros.ros.outputs import DIAGNOSTICS_TOPIC, MESH_TOPIC, POINTS_TOPIC
 from rcl_interfaces.srv import GetParameters, ListParameters
@@ -27,7 +28,8 @@ import rclpy
 from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-DEFAULT_TOPICS = [POINTS_TOPIC, MESH_TOPIC, DIAGNOSTICS_TOPIC, '/parameter_events']
+DEFAULT_TOPICS = [POINTS_TOPIC, SIM_TIME_TOPIC, MESH_TOPIC, DIAGNOSTICS_TOPIC,
+                  '/parameter_events']
 #: first field types whose stamp is the message's publish time
 _STAMPED_FIRST_FIELDS = ('std_msgs/Header header', 'builtin_interfaces/Time stamp')
 

@@ -8,10 +8,12 @@ time it took effect at): re-simulating either reproduces every frame to float32 
 A bag recorded over DDS by ``modal_spring_record`` holds the scene, the node's parameters at
 the start and every later change as received on ``/parameter_events``; those are applied
 before the first frame received after them, so the re-run follows the recording as closely as
-its stamps allow. Its stamps are the node's published time, which never goes back: simulation
-time plus ``clock.offset_s``, whose changes (a reset, or a divergence sent back to rest) are on
-``/parameter_events`` too; each sends the re-run back to rest. The re-run's frames are stamped
-with simulation time.
+its stamps allow. Each frame's time is the node's published simulation time, which never goes
+back: simulation time plus ``clock.offset_s``, whose changes (a reset, or a divergence sent
+back to rest) are on ``/parameter_events`` too; each sends the re-run back to rest. It is the
+recorded ``sim_time`` of the frame's stamp (``bags/sim_time.py``), or, in a recording without
+it, the stamp itself where the node stamped with simulation time. The re-run's frames are
+stamped with simulation time.
 """
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ from pathlib import Path
 
 from modal_spring_ros.bags.capture import POINTS_TOPIC, RunBagWriter
 from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.bags.sim_time import sim_time_topic, simulation_times
 from modal_spring_ros.bags.stamps import to_seconds
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.auto.run_watch import watch_of
@@ -29,6 +32,7 @@ from modal_spring_ros.core.simulations import DivergenceError
 from modal_spring_ros.ros.input_kinds import InputKind, INPUTS, WrenchAt
 from modal_spring_ros.ros.parameters import (CLOCK_OFFSET, config_from_parameters, PARAMETERS,
                                              REBUILD_PARAMETERS)
+from modal_spring_ros.ros.stream_time import stamps_in_simulation_time
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.limits import available_memory
 from modal_spring_ros.scenes.schema import scene_from_yaml
@@ -87,10 +91,34 @@ def recorded_inputs(bag: BagReader, kinds: tuple[InputKind, ...] = INPUTS
     return out
 
 
-def frame_times(bag: BagReader, topic: str) -> list[tuple[int, float]]:
-    """Return (log time ns, header stamp s) of every frame, in log order."""
-    return [(m.log_time_ns, to_seconds(deserialize_message(m.data, PointCloud2).header.stamp))
-            for m in bag.messages([topic])]
+def frame_times(bag: BagReader, topic: str,
+                stamped_in_sim_time: bool = True) -> list[tuple[int, float]]:
+    """
+    Return (log time ns, published simulation time s) of every frame placed, in log order.
+
+    A frame is placed by the recorded ``sim_time`` of its stamp; in a recording without
+    ``sim_time``, by its stamp when ``stamped_in_sim_time``.
+
+    :raises BagError: no frame can be placed in simulation time.
+    """
+    times = simulation_times(bag, topic)
+    if not times and not stamped_in_sim_time:
+        raise BagError(f"{bag.path}: the frames on {topic} are stamped with the node's clock "
+                       f'and the bag has no {sim_time_topic(topic)} to place them in simulation '
+                       'time: record that topic too (modal_spring_record does by default), or '
+                       'run the node with stamp:=sim')
+    out = []
+    for m in bag.messages([topic]):
+        stamp = deserialize_message(m.data, PointCloud2).header.stamp
+        ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+        if ns in times:
+            out.append((m.log_time_ns, times[ns]))
+        elif not times:
+            out.append((m.log_time_ns, to_seconds(stamp)))
+    if not out:
+        raise BagError(f'{bag.path}: no frame on {topic} has its simulation time on '
+                       f'{sim_time_topic(topic)}')
+    return out
 
 
 def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOPIC) -> int:
@@ -116,6 +144,8 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
         # recorded before the basis was a parameter: the rest modes were the only basis
         values.setdefault('modal.basis', 'rest')
         values.setdefault('modal.derivative_directions', DEFAULT_DIRECTIONS)
+        # recorded before stamps had a choice: simulation time
+        values.setdefault('stamp', 'sim')
         for name, (default, _) in PARAMETERS.items():   # parameters added since: defaults
             values.setdefault(name, default)
         config = config_from_parameters(values)
@@ -126,13 +156,14 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
     # recorded parameter change)
     watch = watch_of(sim, config.watch_s) if values is None else None
     frame_s = max(1, int(rec.get('frame_every', 0) or 1)) * sim.dt
-    frames = frame_times(bag, topic)
+    exact = rec.get('event_clock') == 'sim'   # the node's capture: frames and events in sim time
+    frames = frame_times(bag, topic,
+                         values is None or exact or stamps_in_simulation_time(values))
     writer = RunBagWriter(output, scene, config, dt=sim.dt,
                           frame_every=int(rec.get('frame_every', 0)),
                           duration=float(rec.get('duration', 0.0)),
                           frame_id=rec.get('frame_id', 'world'),
                           source='modal_spring_replay --resimulate')
-    exact = rec.get('event_clock') == 'sim'   # events stamped with simulation time
     # a DDS recording's stamps: simulation time plus the node's offset (its capture's: none)
     offset = 0.0 if exact or values is None else float(values.get(CLOCK_OFFSET) or 0.0)
     pending = sorted(changes + (recorded_inputs(bag) if values is not None else []),

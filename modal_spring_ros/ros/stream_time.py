@@ -12,6 +12,11 @@ it was (the rest state, published at ``t`` = 0, one step after the last frame: n
 share a stamp, which a tf2 buffer would refuse as repeated data). The
 offset is reported (the node's ``clock.offset_s``, on ``/parameter_events``), so a recording maps
 its stamps back to simulation time (``modal_spring_replay --resimulate``).
+
+Which clock stamps the frames is the ``stamp`` parameter (:func:`stamps_in_simulation_time`):
+by default (``auto``) the node stamps as ROS nodes do, with its own clock (system time, or
+``/clock``'s under ``use_sim_time``), and with simulation time only when it publishes that
+time on ``/clock`` itself; each frame's simulation time is on ``sim_time`` either way.
 """
 from __future__ import annotations
 
@@ -56,6 +61,11 @@ class StreamTime:
         if moved and self._moved is not None:
             self._moved(offset)
         return offset + t
+
+
+def stamps_in_simulation_time(values: dict) -> bool:
+    """Return whether frames are stamped with published simulation time (else the node's clock)."""
+    return values['stamp'] == 'sim' or (values['stamp'] == 'auto' and values['publish_clock'])
 
 
 def clock_warnings(use_sim_time: bool, values: dict) -> list[str]:

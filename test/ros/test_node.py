@@ -13,7 +13,7 @@ from modal_spring_ros.ros.parameters import CLOCK_OFFSET
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
-from ros_harness import Client, NodeProcess, wait_for
+from ros_harness import Client, NodeProcess, SimTimes, wait_for
 from sensor_msgs.msg import PointCloud2, PointField
 from std_srvs.srv import SetBool, Trigger
 
@@ -21,12 +21,15 @@ pytestmark = pytest.mark.ros
 
 NODE = 'modal_spring'
 RATE = 60.0
+#: each frame's simulation time (from sim_time), once the module's node runs
+sim_time = SimTimes()
 
 
 @pytest.fixture(scope='module')
 def running():
     node = NodeProcess()
     client = Client()
+    sim_time.subscribe(client)
     points = client.collect(PointCloud2, '/points', qos=200)
     diagnostics = client.collect(DiagnosticArray, '/diagnostics')
     assert wait_for(lambda: len(points) > 5, 30), node.proc.stderr
@@ -86,7 +89,10 @@ def test_points_stream_layout_rate_and_values(running):
     assert msg.point_step == 16 and msg.row_step == 1600 and not msg.is_bigendian
     for _, m in window:
         assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
-    stamps = np.array([stamp(m) for _, m in window])
+    # stamped as ROS nodes stamp by default: with the node's clock (system time) when published
+    assert np.all(np.diff([stamp(m) for _, m in window]) > 0)
+    assert abs(stamp(msg) - time.time()) < 2.0
+    stamps = np.array([sim_time(m) for _, m in window])
     assert np.all(np.diff(stamps) > 0)
     # simulation time runs at the requested real-time factor (1), never faster; on a busy
     # machine it may fall behind, and then the node reports the factor it achieves
@@ -100,7 +106,7 @@ def test_points_match_the_headless_engine(running):
     """Same scene, same settings: the streamed frame equals modal_spring_sim's at its stamp."""
     _, _, points, _ = running
     msg = points[-1][1]
-    t = stamp(msg)
+    t = sim_time(msg)
     sim = build_simulation(load_scene('sheet_10x10'), SimulationConfig())
     sim.step(int(round(t / sim.dt)))
     assert sim.time == pytest.approx(t, abs=1e-9)
@@ -201,7 +207,7 @@ def test_step_advances_a_paused_run_by_one_frame_and_publishes_it(running):
         time.sleep(0.5)                                  # and nothing more while paused
         stepped = [m for t, m in points if t > start]
         assert len(stepped) == 3
-        times = np.array([stamp(m) for m in stepped])
+        times = np.array([sim_time(m) for m in stepped])
         # one frame period of simulated time each (real-time factor 1), to the step
         assert np.allclose(np.diff(times), 1.0 / RATE, atol=2e-3), np.diff(times)
         assert not np.allclose(xyz(stepped[0]), xyz(stepped[2]))   # the sheet moved
@@ -211,16 +217,16 @@ def test_step_advances_a_paused_run_by_one_frame_and_publishes_it(running):
 
 def test_reset_returns_to_the_rest_state(running):
     _, client, points, _ = running
-    before = stamp(points[-1][1])
+    before = sim_time(points[-1][1])
     assert before > 5.0
     res = client.call(Trigger, f'/{NODE}/reset', Trigger.Request())
     assert res.success
     called = time.monotonic()
     assert wait_for(lambda: any(t > called for t, _ in points), 2.0)
     first = next(m for t, m in points if t > called)
-    # simulation time starts again at 0; the stamps go on from where they were
+    # simulation time starts again at 0; the published simulation time goes on from where it was
     (offset,) = client.get_parameters(NODE, CLOCK_OFFSET)
-    assert before < offset <= stamp(first) + 1e-9 < offset + 0.2     # stamps: whole ns
+    assert before < offset <= sim_time(first) + 1e-9 < offset + 0.2     # whole ns
     scene_rest = load_scene('sheet_10x10').rest_positions
     assert np.abs(xyz(first) - scene_rest).max() < 5e-3
 

@@ -291,7 +291,8 @@ def test_a_flood_of_clicks_keeps_the_stream_at_its_rate(tmp_path):
     scene_file = tmp_path / 'still.yaml'
     scene_file.write_text(yaml.safe_dump(scene_to_dict(variant('sheet_10x10', anchor_motion=[]))))
     with node_with_client(f'scene:={scene_file}', 'interaction.max_force_n:=5.0',
-                          'publish_rate_hz:=30.0', namespace='flood') as (node, client):
+                          'publish_rate_hz:=30.0', 'stamp:=sim',   # frames in simulated time
+                          namespace='flood') as (node, client):
         points = client.collect(PointCloud2, '/flood/points', qos=500)
         assert wait_for(lambda: len(points) > 5, 30)
         unheard = _flood('/flood/nobody_listens', False, points)

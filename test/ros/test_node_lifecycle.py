@@ -240,7 +240,7 @@ def test_a_host_that_cannot_keep_real_time_says_so():
 @pytest.mark.parametrize('param, message', [
     ('sim.strain_limit:=0.0001', 'sim.strain_limit out of range'),
     ('filter.type:=notch', "filter.type 'notch' must be one of"),
-    ('stamp:=gps', "stamp 'gps' must be one of sim, wall"),
+    ('stamp:=gps', "stamp 'gps' must be one of auto, sim, wall"),
     ('scene:=no_such_scene', "unknown scene 'no_such_scene'"),
     ('publish_rate_hz:=30', 'publish_rate_hz'),
 ])

@@ -8,8 +8,11 @@ import time
 
 from helpers import BAGS
 from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.bags.run_loading import load_run
+from modal_spring_ros.bags.sim_time import simulation_times
+from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.ros.parameters import CLOCK_OFFSET
-from modal_spring_ros.ros.resimulate import parameter_changes, resimulate
+from modal_spring_ros.ros.resimulate import frame_times, parameter_changes, resimulate
 import numpy as np
 import pytest
 from ros_harness import Client, console_script, frames_since, NodeProcess, wait_for
@@ -58,7 +61,8 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
         assert wait_for(lambda: len(points) > 3, 30)
         recorder = subprocess.Popen(
             [console_script('modal_spring_record'), '--output', str(out), '--node',
-             '/rec/modal_spring', '--topics', 'points', '/diagnostics', '/parameter_events',
+             '/rec/modal_spring', '--topics', 'points', 'sim_time', '/diagnostics',
+             '/parameter_events',
              '--ros-args', '-r', '__ns:=/rec'],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         log: list[str] = []
@@ -95,31 +99,45 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
     assert record['parameters']['scene'] == 'sheet_10x10'
     assert record['parameters']['filter.type'] == 'allpass'
     assert 'particles:' in record['scene_yaml']                 # the full definition
-    # header stamp (simulation time) as publish time, receive time as log time
+    # header stamp (the node's clock: system time by default) as publish time, receive time as
+    # log time
     first = next(bag.messages(['/rec/points']))
     stamp = bag.decode(first).header.stamp
     assert first.publish_time_ns == stamp.sec * 1_000_000_000 + stamp.nanosec
     assert first.log_time_ns > 1_600_000_000 * 10**9
+    assert abs(first.log_time_ns - first.publish_time_ns) < 10**9
     # re-simulation: the same scene, parameters, change and reset give the recorded frames
     again = tmp_path / 'again'
     n = resimulate(out, again, topic='/rec/points')
-    t_rec, x_rec = bag.points('/rec/points')
+    # each frame's simulation time, as published beside it on sim_time
+    t_rec, x_rec = bag.points('/rec/points', simulation_times(bag, '/rec/points'))
     t_new, x_new = BagReader(again).points()
-    assert n == len(t_rec)
-    assert np.all(np.diff(t_rec) > 0)                # the reset did not send the stamps back
+    assert n == len(t_rec) >= bag.topics['/rec/points'].count - 10   # both subscribed at once
+    assert np.all(np.diff(t_rec) > 0)                # the reset did not send that time back
+    np.testing.assert_array_equal(load_run(out, '/rec/points').t, t_rec)   # compared the same
     (moved,) = [(log, change[CLOCK_OFFSET]) for log, _, change
                 in parameter_changes(bag, '/rec/modal_spring') if CLOCK_OFFSET in change]
     after = np.array([m.log_time_ns for m in bag.messages(['/rec/points'])]) > moved[0]
     assert 30 < after.sum() < n - 60
     # the time reached, and a step (stamps are whole nanoseconds)
     assert t_rec[~after][-1] < moved[1] <= t_rec[after][0] + 1e-9
-    # the re-run is stamped with simulation time: the recorded stamps less the offset
+    # the re-run is stamped with simulation time: the recorded times less the offset
     np.testing.assert_allclose(t_new, np.where(after, t_rec - moved[1], t_rec), atol=1e-6)
     err = np.linalg.norm((x_new - x_rec).reshape(n, -1), axis=1)
     before = err[: n // 4]                                   # well before the band change
     assert before.max() < 1e-5                               # float32 round-off
     assert err[after].max() < 1e-5                           # from rest again, as recorded
     assert err.max() < 0.05 * np.linalg.norm((x_rec - x_rec[0]).reshape(n, -1), axis=1).max()
+
+
+def test_frames_stamped_with_the_nodes_clock_need_their_sim_time():
+    """A recording of the node's clock stamps without sim_time cannot be placed: it says so."""
+    bag = BagReader(BAGS / 'sheet_10x10_full')         # no sim_time: stamps are simulation time
+    frames = frame_times(bag, '/points')
+    np.testing.assert_allclose([t for _, t in frames], bag.points('/points')[0])
+    with pytest.raises(BagError, match='stamped with the node.s clock and the bag has no '
+                                       '/sim_time'):
+        frame_times(bag, '/points', stamped_in_sim_time=False)
 
 
 def test_the_nodes_own_capture_resimulates_frame_for_frame(tmp_path):

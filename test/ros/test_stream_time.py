@@ -6,10 +6,11 @@ import time
 
 from builtin_interfaces.msg import Time
 from modal_spring_ros.ros.parameters import CLOCK_OFFSET
-from modal_spring_ros.ros.stream_time import clock_warnings, StreamTime
+from modal_spring_ros.ros.stream_time import (clock_warnings, stamps_in_simulation_time,
+                                              StreamTime)
 import numpy as np
 import pytest
-from ros_harness import frames_since, node_with_client, wait_for
+from ros_harness import frames_since, node_with_client, SimTimes, wait_for
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import Trigger
@@ -42,6 +43,14 @@ def test_stamps_of_its_own_time_under_another_clock_are_warned_about():
     assert clock_warnings(False, own) == []                       # its own time, no other
     assert clock_warnings(True, dict(own, stamp='wall')) == []     # the other clock's time
     assert clock_warnings(True, dict(own, publish_clock=True)) == []   # it is the clock
+    assert clock_warnings(True, dict(own, stamp='auto')) == []     # the default: the other's
+
+
+def test_auto_stamps_with_simulation_time_only_where_the_node_is_the_clock():
+    assert stamps_in_simulation_time({'stamp': 'auto', 'publish_clock': True})
+    assert not stamps_in_simulation_time({'stamp': 'auto', 'publish_clock': False})
+    assert stamps_in_simulation_time({'stamp': 'sim', 'publish_clock': False})
+    assert not stamps_in_simulation_time({'stamp': 'wall', 'publish_clock': True})
 
 
 @pytest.mark.ros
@@ -69,11 +78,11 @@ def test_a_reset_sends_neither_clock_nor_stamps_back_and_reports_the_offset():
 
 
 @pytest.mark.ros
-def test_under_another_clock_wall_stamps_are_that_clock_s_time():
-    """``use_sim_time:=true`` and ``stamp:=wall``: a bag's or a simulator's /clock stamps it."""
-    with node_with_client('use_sim_time:=true', 'stamp:=wall',
-                          namespace='other_clock') as (node, client):
+def test_under_another_clock_the_default_stamps_are_that_clock_s_time():
+    """``use_sim_time:=true`` (stamp ``auto``): a bag's or a simulator's /clock stamps it."""
+    with node_with_client('use_sim_time:=true', namespace='other_clock') as (node, client):
         publisher = client.node.create_publisher(Clock, '/clock', 10)
+        sim_time = SimTimes().subscribe(client, '/other_clock/sim_time')
         points = client.collect(PointCloud2, '/other_clock/points', qos=500)
         ticks, stop = [], threading.Event()
 
@@ -96,3 +105,6 @@ def test_under_another_clock_wall_stamps_are_that_clock_s_time():
             ticker.join(5)
         stamps = [_seconds(m.header.stamp) for m in window]
         assert all(1000.0 <= s <= ticks[-1] + 1e-6 for s in stamps), stamps
+        # and beside each frame, its own simulation time (the node runs from 0)
+        times = np.array([sim_time(m) for m in window])
+        assert np.all(np.diff(times) >= 0) and times[0] < times[-1] < 100.0, times
