@@ -19,6 +19,7 @@ from typing import Any, Callable
 import uuid
 
 from modal_spring_ros.core.forces.base import SampleStore
+from modal_spring_ros.core.model.definite_factor import factor_definite
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerProcess
@@ -304,7 +305,7 @@ class ShiftInvertModes:
     def _factorised(self):
         if self._factor is None:
             m = sp.diags(self.mass_dof).tocsc()
-            self._factor = spla.splu((self.k - self.sigma * m).tocsc())
+            self._factor = factor_definite(self.k - self.sigma * m)
         return self._factor
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
@@ -323,8 +324,14 @@ class ShiftInvertModes:
         n = self.mass_dof.size
         m = sp.diags(self.mass_dof).tocsc()
         op = spla.LinearOperator((n, n), matvec=self._factorised().solve, dtype=float)
-        lam, phi = spla.eigsh(self.k, k=count, M=m, sigma=self.sigma, OPinv=op, which='LM',
-                              v0=np.ones(n), tol=1e-12)
+        try:
+            lam, phi = spla.eigsh(self.k, k=count, M=m, sigma=self.sigma, OPinv=op, which='LM',
+                                  v0=np.ones(n), tol=1e-12)
+        except spla.ArpackError:
+            # a cluster of (near) zero modes, a mechanism's, can leave ARPACK's default space of
+            # 2 k + 1 vectors without a shift to apply: the space twice that size
+            lam, phi = spla.eigsh(self.k, k=count, M=m, sigma=self.sigma, OPinv=op, which='LM',
+                                  v0=np.ones(n), tol=1e-12, ncv=min(n, 4 * count + 2))
         order = np.argsort(lam)
         if np.any(order != np.arange(order.size)):
             lam, phi = lam[order], phi[:, order]

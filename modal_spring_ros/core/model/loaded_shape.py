@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
+from modal_spring_ros.core.model.definite_factor import factor_definite
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Scene, SceneError
 from modal_spring_ros.core.model.stiffness import assemble_stiffness, reduce_to_free
@@ -116,7 +117,13 @@ def settle(scene: Scene, progress: Callable[[str], None] | None = None) -> Scene
         if not mu:
             scale = float(np.mean(hessian.diagonal() / mass))
             mu, mu_floor = 1e-3 * scale, 1e-12 * scale
-        step = spla.spsolve((hessian + mu * mass_term).tocsc(), force)
+        try:   # definite, unless the exact tangent is not
+            step = factor_definite(hessian + mu * mass_term, definite=not exact).solve(force)
+        except RuntimeError:  # a singular exact tangent: the convex one
+            if not exact:
+                raise
+            exact = False
+            continue
         if exact and not float(np.dot(force, step)) > 0.0:  # not downhill: the convex one
             exact = False
             continue

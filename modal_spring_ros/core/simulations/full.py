@@ -10,6 +10,7 @@ from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces.exact import ExactForces
 from modal_spring_ros.core.integrators.base import ROUNDOFF_SHARE
+from modal_spring_ros.core.model.definite_factor import factor_definite
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simulation,
@@ -19,7 +20,6 @@ from modal_spring_ros.core.simulations.modal_settings import ModalSettings
 from modal_spring_ros.core.simulations.world_frame import WorldFrameRun
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 
 class PhysicalOperators:
@@ -86,7 +86,7 @@ class PhysicalOperators:
         if self._c is None:
             return rhs / self.m
         if self._explicit is None:
-            self._explicit = spla.splu((sp.diags(self.m) + 0.5 * self.dt * self._c).tocsc())
+            self._explicit = factor_definite(sp.diags(self.m) + 0.5 * self.dt * self._c)
         return self._explicit.solve(rhs)
 
     def solve_average(self, rhs):
@@ -98,7 +98,7 @@ class PhysicalOperators:
             a = sp.diags(self.m) + h * h * self.k
             if self._c is not None:
                 a = a + h * self._c
-            self._average = spla.splu(sp.csc_matrix(a))
+            self._average = factor_definite(a)
         return self._average.solve(rhs)
 
 
