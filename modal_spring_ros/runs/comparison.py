@@ -1,7 +1,8 @@
 """
 Compare two runs of the same scene frame by frame (``.npz`` runs or bags, in any mix).
 
-Frames are aligned by stamp. Per frame: RMS and largest position difference, relative L2
+Frames are aligned by their time (simulation time: a bag's recorded ``sim_time`` where the
+node stamped with its clock, else the stamps; ``bags/run_loading.py``). Per frame: RMS and largest position difference, relative L2
 error of A against B's displacement, and, where the scene is known, each run's mechanical
 energy (springs, gravity, and kinetic from finite differences of positions). Per run: the
 displacement spectrum and, when the run says which modes it kept, that frequency band.
@@ -69,12 +70,12 @@ def check_same_scene(a: RunData, b: RunData) -> None:
 
 
 def align(a: RunData, b: RunData) -> tuple[np.ndarray, np.ndarray]:
-    """Return the indices of the frames of A and B with equal stamps (to the microsecond)."""
+    """Return the indices of the frames of A and B with equal times (to the microsecond)."""
     ka = np.round(a.t * 1e6).astype(np.int64)
     kb = np.round(b.t * 1e6).astype(np.int64)
     common, ia, ib = np.intersect1d(ka, kb, return_indices=True)
     if common.size == 0:
-        raise ComparisonError(f'{a.name} and {b.name} share no frame stamps')
+        raise ComparisonError(f'{a.name} and {b.name} share no frame times')
     return ia, ib
 
 
