@@ -176,15 +176,17 @@ def test_mesh_and_clock_are_published_when_asked_for():
         points = client.collect(PointCloud2, '/extras/points')
         meshes = client.collect(Marker, '/extras/mesh')
         clocks = client.collect(Clock, '/clock')
-        assert wait_for(lambda: len(meshes) >= 6 and len(clocks) > 10, 30)
+        assert wait_for(lambda: len(meshes) >= 10 and len(clocks) > 10, 30)
         marker = meshes[-1][1]
         assert marker.type == Marker.TRIANGLE_LIST and marker.header.frame_id == 'world'
         assert len(marker.points) == 3 * 2 * 81 == len(marker.colors)   # 2 per cell
         assert all(0.0 <= c.r <= 1.0 and c.a == 1.0 for c in marker.colors)
-        # about every 0.2 s of a real-time run: judged by the markers' own stamps (receive
-        # times bunch up when DDS delivers what it queued while the subscriber was matching)
-        stamps_s = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for _, m in meshes]
-        assert 0.1 <= float(np.median(np.diff(stamps_s))) <= 0.4
+        # about every 0.2 s of wall time (mesh_rate_hz 5), whatever the real-time factor a busy
+        # machine allows: judged after the first markers (those bunch up when DDS delivers what
+        # it queued while the subscriber was matching)
+        received = [t for t, _ in meshes][4:]
+        rate = (len(received) - 1) / (received[-1] - received[0])
+        assert 2.5 <= rate <= 7.5, rate
         # /clock carries the simulation time of the frames
         stamps = {(m.header.stamp.sec, m.header.stamp.nanosec) for _, m in points}
         assert sum((c.clock.sec, c.clock.nanosec) in stamps for _, c in clocks) > 5
@@ -391,10 +393,11 @@ def test_two_nodes_of_one_name_on_one_domain_are_both_warned():
         code, _, err = second.interrupt()
         assert code == 0 and err.count('1 other node named /twin/modal_spring') == 1   # once
         settled = time.monotonic()
-        # the one left says it is alone again once the graph forgets the other
+        # the one left says it is alone again once the graph forgets the other (at the latest
+        # when the other's DDS lease ends, should its goodbye be lost on a busy machine)
         assert wait_for(lambda: any(
             t > settled and {kv.key: kv.value for kv in s.values}['nodes with this name'] == '1'
-            and 'other node' not in s.message for t, s in _status(diags, '/twin/')), 60)
+            and 'other node' not in s.message for t, s in _status(diags, '/twin/')), 120)
     finally:
         client.close()
         first.kill()
