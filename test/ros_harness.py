@@ -9,6 +9,7 @@ import threading
 import time
 
 from modal_spring_ros.bags.sim_time import SOURCE
+from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.pooled_executor import PooledExecutor
 from modal_spring_ros.ros.stop_signals import spin_until_stopped, StopSignals
@@ -200,18 +201,13 @@ class SimTimes:
         client.node.create_subscription(TimeReference, topic, self._keep, 200)
         return self
 
-    @staticmethod
-    def _ns(stamp) -> int:
-        return stamp.sec * 1_000_000_000 + stamp.nanosec
-
     def _keep(self, reference: TimeReference) -> None:
         if reference.source == SOURCE:
-            self._times[self._ns(reference.header.stamp)] = (
-                reference.time_ref.sec + 1e-9 * reference.time_ref.nanosec)
+            self._times[to_nanoseconds(reference.header.stamp)] = to_seconds(reference.time_ref)
 
     def __call__(self, frame) -> float:
         """Return the simulation time, s, of a frame (a message with a header) received."""
-        key = self._ns(frame.header.stamp)
+        key = to_nanoseconds(frame.header.stamp)
         assert wait_for(lambda: key in self._times, 2.0), 'no sim_time for the frame'
         return self._times[key]
 

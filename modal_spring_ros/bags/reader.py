@@ -19,6 +19,7 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
 from modal_spring_ros.bags.pointcloud import xyz
+from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.bags.writer import BagError, RUN_RECORD
 import numpy as np
 from rclpy.serialization import deserialize_message
@@ -274,8 +275,7 @@ class BagReader:
         stamps, frames = [], []
         for m in self.messages([topic]):
             msg = self.decode(m)
-            stamp = msg.header.stamp
-            ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+            ns = to_nanoseconds(msg.header.stamp)
             if times is not None and ns not in times:
                 continue
             cloud = xyz(msg)
@@ -283,7 +283,7 @@ class BagReader:
                 raise BagError(f'{self.path}: message on {topic} at log time '
                                f'{m.log_time_ns} ns is damaged: its cloud holds non-finite '
                                'values')
-            stamps.append(times[ns] if times is not None else stamp.sec + 1e-9 * stamp.nanosec)
+            stamps.append(times[ns] if times is not None else to_seconds(msg.header.stamp))
             frames.append(cloud)
         if not frames:
             raise BagError(f'{self.path}: topic {topic} has no messages')

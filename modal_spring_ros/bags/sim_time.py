@@ -11,6 +11,7 @@ never back), its ``source`` :data:`SOURCE`. Frames stamped with the node's clock
 from __future__ import annotations
 
 from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
 
 #: the topic's name relative to the node (a sibling of ``points``)
 SIM_TIME_TOPIC = 'sim_time'
@@ -42,6 +43,5 @@ def simulation_times(bag: BagReader, points_topic: str) -> dict[int, float]:
         reference = bag.decode(m)
         if reference.source != SOURCE:
             continue
-        stamp, ref = reference.header.stamp, reference.time_ref
-        times[stamp.sec * 1_000_000_000 + stamp.nanosec] = ref.sec + 1e-9 * ref.nanosec
+        times[to_nanoseconds(reference.header.stamp)] = to_seconds(reference.time_ref)
     return times

@@ -22,7 +22,7 @@ from pathlib import Path
 from modal_spring_ros.bags.capture import POINTS_TOPIC, RunBagWriter
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.sim_time import sim_time_topic, simulation_times
-from modal_spring_ros.bags.stamps import to_seconds
+from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.auto.run_watch import watch_of
 from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
@@ -110,9 +110,8 @@ def frame_times(bag: BagReader, topic: str,
     out = []
     for m in bag.messages([topic]):
         stamp = deserialize_message(m.data, PointCloud2).header.stamp
-        ns = stamp.sec * 1_000_000_000 + stamp.nanosec
-        if ns in times:
-            out.append((m.log_time_ns, times[ns]))
+        if to_nanoseconds(stamp) in times:
+            out.append((m.log_time_ns, times[to_nanoseconds(stamp)]))
         elif not times:
             out.append((m.log_time_ns, to_seconds(stamp)))
     if not out:
