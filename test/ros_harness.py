@@ -51,7 +51,12 @@ def console_script(name: str) -> str:
 
 
 class NodeProcess:
-    """``modal_spring_node`` with ``--ros-args -p`` overrides, in its own process group."""
+    """
+    ``modal_spring_node`` with ``--ros-args -p`` overrides, in its own process group.
+
+    What the process prints is read as it comes (two reader threads): a test can wait for a line
+    of one process among several of one name, and a chatty node never blocks on a full pipe.
+    """
 
     def __init__(self, *params: str, namespace: str = '',
                  executable: str = 'modal_spring_node', argv: list[str] | None = None):
@@ -66,6 +71,24 @@ class NodeProcess:
                 args += ['--ros-args'] + ros_args
         self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, env=dict(os.environ), start_new_session=True)
+        self._out: list[str] = []
+        self._err: list[str] = []
+        self._readers = [threading.Thread(target=lines.extend, args=(pipe,), daemon=True)
+                         for lines, pipe in ((self._out, self.proc.stdout),
+                                             (self._err, self.proc.stderr))]
+        for reader in self._readers:
+            reader.start()
+
+    def stderr(self) -> str:
+        """Return what the process has printed to stderr so far."""
+        return ''.join(list(self._err))
+
+    def wait(self, timeout: float) -> tuple[int, str, str]:
+        """Wait for the process to end; return its exit status, stdout and stderr."""
+        self.proc.wait(timeout=timeout)
+        for reader in self._readers:
+            reader.join(timeout=10.0)
+        return self.proc.returncode, ''.join(self._out), ''.join(self._err)
 
     def interrupt(self, timeout: float = 15.0,
                   sig: signal.Signals = signal.SIGINT) -> tuple[int, str, str]:
@@ -77,22 +100,20 @@ class NodeProcess:
         """
         self.proc.send_signal(sig)
         try:
-            out, err = self.proc.communicate(timeout=timeout)
+            return self.wait(timeout)
         except subprocess.TimeoutExpired:
-            out, err = self.kill()
+            _, err = self.kill()
             raise AssertionError(f'node still running {timeout} s after {sig.name}; '
                                  f'stderr: {stderr_excerpt(err)}') from None
-        return self.proc.returncode, out, err
 
     def kill(self) -> tuple[str, str]:
         """SIGKILL to the whole process group; returns what the process printed."""
         if self.proc.poll() is None:
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(self.proc.pid, signal.SIGKILL)
-        try:
-            return self.proc.communicate(timeout=10.0)
-        except (subprocess.TimeoutExpired, ValueError):  # ValueError: pipes already read
-            return '', ''
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            return self.wait(10.0)[1:]
+        return ''.join(self._out), ''.join(self._err)
 
 
 class Client:
@@ -106,6 +127,7 @@ class Client:
     """
 
     SLICE_S = 0.05
+    MATCH_S = 0.3
 
     def __init__(self, name: str = 'test_client'):
         self.context = Context()
@@ -134,12 +156,16 @@ class Client:
             msg_type, topic, lambda m: received.append((time.monotonic(), m)), qos)
         return received
 
-    def call(self, srv_type, name: str, request, timeout: float = 20.0):
+    def call(self, srv_type, name: str, request, timeout: float = 20.0,
+             resend_s: float | None = None):
         """
         Call a service and wait for its answer.
 
         One client per service, kept: a client created per call can send its request before the
-        server has matched its response reader, and DDS then drops the answer.
+        server has matched its response reader, and DDS then drops the answer (Fast DDS waits
+        100 ms for that match, ros2/rmw_fastrtps#390; a busy machine can take longer). A new
+        client therefore gives discovery a moment before its first request, and a query that
+        may safely be asked twice (``resend_s``) is asked again when unanswered that long.
         """
         with self._clients_lock:
             client = self._clients.get((srv_type, name))
@@ -147,14 +173,19 @@ class Client:
                 client = self.node.create_client(srv_type, name)
                 if not client.wait_for_service(timeout_sec=timeout):
                     raise TimeoutError(f'service {name} not available')
+                time.sleep(self.MATCH_S)
                 self._clients[(srv_type, name)] = client
-        future = client.call_async(request)
         end = time.monotonic() + timeout
-        while not future.done() and time.monotonic() < end:
-            time.sleep(0.01)
-        if not future.done():
-            raise TimeoutError(f'service {name} did not answer')
-        return future.result()
+        while True:
+            future = client.call_async(request)
+            ask_again = time.monotonic() + (resend_s or timeout)
+            while not future.done() and time.monotonic() < min(end, ask_again):
+                time.sleep(0.01)
+            if future.done():
+                return future.result()
+            if time.monotonic() >= end:
+                raise TimeoutError(f'service {name} did not answer')
+            client.remove_pending_request(future)
 
     def set_parameters(self, node: str, atomically: bool = False, timeout: float = 20.0,
                        **values):

@@ -13,7 +13,7 @@ from modal_spring_ros.ros.parameters import CLOCK_OFFSET
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
-from ros_harness import Client, NodeProcess, SimTimes, wait_for
+from ros_harness import Client, NodeProcess, SimTimes, stderr_excerpt, wait_for
 from sensor_msgs.msg import PointCloud2, PointField
 from std_srvs.srv import SetBool, Trigger
 
@@ -32,7 +32,7 @@ def running():
     sim_time.subscribe(client)
     points = client.collect(PointCloud2, '/points', qos=200)
     diagnostics = client.collect(DiagnosticArray, '/diagnostics')
-    assert wait_for(lambda: len(points) > 5, 30), node.proc.stderr
+    assert wait_for(lambda: len(points) > 5, 30), stderr_excerpt(node.stderr())
     yield node, client, points, diagnostics
     client.close()
     node.kill()

@@ -9,7 +9,6 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -248,8 +247,8 @@ def test_a_host_that_cannot_keep_real_time_says_so():
 ])
 def test_bad_startup_parameters_exit_2_with_one_clear_line(param, message):
     node = NodeProcess(param, namespace='badstart')
-    out, err = node.proc.communicate(timeout=30)
-    assert node.proc.returncode == 2
+    code, _, err = node.wait(30)
+    assert code == 2
     assert 'Traceback' not in err and message in err
 
 
@@ -317,21 +316,16 @@ def test_a_signal_during_a_long_mode_computation_at_startup_cancels_it(sig):
     manager sends it) must end the node cleanly without waiting for that computation.
     """
     node = NodeProcess('scene:=sheet_100x100', namespace='startint')
-    lines: list[str] = []
-    reader = threading.Thread(target=lambda: lines.extend(node.proc.stderr), daemon=True)
-    reader.start()
     try:
-        assert wait_for(lambda: any('computing the 256 lowest modes' in x for x in lines), 60)
+        assert wait_for(lambda: 'computing the 256 lowest modes' in node.stderr(), 60)
         if sig == signal.SIGINT:
             os.killpg(node.proc.pid, sig)
         else:
             node.proc.send_signal(sig)
-        node.proc.wait(timeout=15)
-        reader.join(timeout=10)
+        code, _, err = node.wait(15)
     finally:
         node.kill()
-    err = ''.join(lines)
-    assert node.proc.returncode == 0, stderr_excerpt(err, 3000)
+    assert code == 0, stderr_excerpt(err, 3000)
     assert 'Traceback' not in err
     assert '256 modes ready' not in err                   # cancelled, not waited for
 
@@ -388,10 +382,14 @@ def test_two_nodes_of_one_name_on_one_domain_are_both_warned():
         def warned():
             return [s for _, s in _status(diags, '/twin/') if s.level == DiagnosticStatus.WARN
                     and '1 other node named /twin/modal_spring on this domain' in s.message]
-        assert wait_for(lambda: len(warned()) >= 2, 60)
+        # each of the two says so: on /diagnostics (where both statuses carry one name) and in
+        # its own log
+        warning = '1 other node named /twin/modal_spring'
+        assert wait_for(lambda: len(warned()) >= 2 and all(
+            warning in node.stderr() for node in (first, second)), 60)
         assert {kv.key: kv.value for kv in warned()[0].values}['nodes with this name'] == '2'
         code, _, err = second.interrupt()
-        assert code == 0 and err.count('1 other node named /twin/modal_spring') == 1   # once
+        assert code == 0 and err.count(warning) == 1                  # once
         settled = time.monotonic()
         # the one left says it is alone again once the graph forgets the other (at the latest
         # when the other's DDS lease ends, should its goodbye be lost on a busy machine)
