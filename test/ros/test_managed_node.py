@@ -36,7 +36,7 @@ GOALS = {Transition.TRANSITION_CONFIGURE: State.PRIMARY_STATE_INACTIVE,
 
 
 def state(client: Client) -> int:
-    """Return the node's lifecycle state (asked again should an answer be lost)."""
+    """Return the node's lifecycle state id (asked again should an answer be lost)."""
     return client.call(GetState, f'{NODE}/get_state', GetState.Request(),
                        timeout=60.0, resend_s=5.0).current_state.id
 
