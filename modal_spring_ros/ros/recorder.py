@@ -30,6 +30,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 DEFAULT_TOPICS = [POINTS_TOPIC, SIM_TIME_TOPIC, MESH_TOPIC, DIAGNOSTICS_TOPIC,
                   '/parameter_events']
+#: a parameter query unanswered this long is sent again, s
+ASK_AGAIN_S = 3.0
 #: first field types whose stamp is the message's publish time
 _STAMPED_FIRST_FIELDS = ('std_msgs/Header header', 'builtin_interfaces/Time stamp')
 
@@ -113,13 +115,30 @@ def snapshot_parameters(node, target: str, timeout: float) -> dict | None:
     if not (list_client.wait_for_service(timeout_sec=timeout)
             and get_client.wait_for_service(timeout_sec=timeout)):
         return None
-    future = list_client.call_async(ListParameters.Request())
-    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
-    if not future.done():
+    end = time.monotonic() + timeout
+    listed = _ask(node, list_client, ListParameters.Request(), end)
+    if listed is None:
         return None
-    names = list(future.result().result.names)
-    future = get_client.call_async(GetParameters.Request(names=names))
-    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
-    if not future.done():
+    names = list(listed.result.names)
+    values = _ask(node, get_client, GetParameters.Request(names=names), end)
+    if values is None:
         return None
-    return {n: parameter_value_to_python(v) for n, v in zip(names, future.result().values)}
+    return {n: parameter_value_to_python(v) for n, v in zip(names, values.values)}
+
+
+def _ask(node, client, request, end: float):
+    """
+    Return ``client``'s answer to ``request`` by monotonic time ``end``, or None.
+
+    The request is a query, so one unanswered for :data:`ASK_AGAIN_S` is sent again: a new
+    client's first answer can be lost when the server has not yet matched its response reader
+    (Fast DDS waits 100 ms for that, which a busy machine can exceed).
+    """
+    while time.monotonic() < end:
+        future = client.call_async(request)
+        rclpy.spin_until_future_complete(
+            node, future, timeout_sec=min(ASK_AGAIN_S, max(0.0, end - time.monotonic())))
+        if future.done():
+            return future.result()
+        client.remove_pending_request(future)
+    return None

@@ -1,0 +1,90 @@
+"""
+The recorder's snapshot of a node's parameters, asked over real DDS.
+
+``snapshot_parameters`` asks ``list_parameters`` then ``get_parameters``; a query unanswered
+for ``ASK_AGAIN_S`` is asked again (a new client's first answer can be lost on a busy machine),
+and a node that never answers gives None by the timeout.
+"""
+from __future__ import annotations
+
+import time
+
+from modal_spring_ros.ros import recorder
+from modal_spring_ros.ros.recorder import snapshot_parameters
+import pytest
+from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.srv import GetParameters, ListParameters
+import rclpy
+from ros_harness import Client, DOMAIN_ID
+
+pytestmark = pytest.mark.ros
+
+
+class SlowParameters:
+    """A node's two parameter queries; the first ``late`` list requests answered too late."""
+
+    def __init__(self, client: Client, name: str, late: int, delay_s: float):
+        self.listed = 0
+        self.late, self.delay_s = late, delay_s
+        client.node.create_service(ListParameters, f'/{name}/list_parameters', self._list)
+        client.node.create_service(GetParameters, f'/{name}/get_parameters', self._get)
+
+    def _list(self, request, response):
+        self.listed += 1
+        if self.listed <= self.late:
+            time.sleep(self.delay_s)
+        response.result.names = ['scene', 'publish_rate_hz']
+        return response
+
+    def _get(self, request, response):
+        values = {'scene': ParameterValue(type=ParameterType.PARAMETER_STRING,
+                                          string_value='sheet_10x10'),
+                  'publish_rate_hz': ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
+                                                    double_value=30.0)}
+        response.values = [values[n] for n in request.names]
+        return response
+
+
+def asker(name: str):
+    """
+    Return a node to ask from and the function that ends it.
+
+    In the default context, as ``modal_spring_record`` makes its node.
+    """
+    rclpy.init(domain_id=DOMAIN_ID)
+    node = rclpy.create_node(name)
+
+    def close():
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return node, close
+
+
+def test_a_query_answered_too_late_is_asked_again(monkeypatch):
+    monkeypatch.setattr(recorder, 'ASK_AGAIN_S', 1.0)
+    server = Client('slow_parameters_server')
+    slow = SlowParameters(server, 'slow_node', late=1, delay_s=2.0)
+    node, close = asker('snapshot_asker')
+    try:
+        start = time.monotonic()
+        assert snapshot_parameters(node, '/slow_node', timeout=20.0) == {
+            'scene': 'sheet_10x10', 'publish_rate_hz': 30.0}
+        assert slow.listed >= 2                     # asked again (the server answers in turn)
+        assert time.monotonic() - start < 15.0
+    finally:
+        close()
+        server.close()
+
+
+def test_a_node_that_never_answers_gives_none_by_the_timeout(monkeypatch):
+    monkeypatch.setattr(recorder, 'ASK_AGAIN_S', 0.5)
+    server = Client('mute_parameters_server')
+    slow = SlowParameters(server, 'mute_node', late=100, delay_s=3.0)
+    node, close = asker('mute_asker')
+    try:
+        start = time.monotonic()
+        assert snapshot_parameters(node, '/mute_node', timeout=2.0) is None
+        assert 1.5 < time.monotonic() - start < 8.0 and slow.listed >= 1
+    finally:
+        close()
+        server.close()
