@@ -18,15 +18,16 @@ import time
 from typing import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray
-from modal_spring_ros.scenes.resources import executable, share_directory
+from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import PointCloud2
 
-#: the Fast DDS profile shipped for large clouds (``--profile=`` in a case: the node's
-#: FASTRTPS_DEFAULT_PROFILES_FILE)
-LARGE_CLOUDS_PROFILE = 'config/fastdds_large_clouds.xml'
+#: a case's environment for the node (``--env=NAME=VALUE``): Fast DDS's own transports, which
+#: send clouds over 0.5 MB over UDP (the node otherwise takes the large-segment profile for them,
+#: ros/shared_memory.py)
+FAST_DDS_DEFAULTS = '--env=FASTDDS_BUILTIN_TRANSPORTS=DEFAULT'
 #: the paper's method on the lowest 32 rest modes (the node's default adds their derivatives)
 _REST_32 = ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31',
             'modal.basis:=rest']
@@ -45,8 +46,8 @@ CASES = [
      _REST_32 + ['modal.force_refresh:=10']),
     ('sheet_316x316 (100k), modal 32 modes, sampled springs', 'sheet_316x316',
      _REST_32 + ['modal.forces:=sampled']),
-    ('sheet_316x316 (100k), sampled springs, large-cloud Fast DDS profile', 'sheet_316x316',
-     _REST_32 + ['modal.forces:=sampled', f'--profile={LARGE_CLOUDS_PROFILE}']),
+    ('sheet_316x316 (100k), sampled springs, Fast DDS default transports (UDP)',
+     'sheet_316x316', _REST_32 + ['modal.forces:=sampled', FAST_DDS_DEFAULTS]),
 ]
 
 
@@ -80,8 +81,9 @@ def measure(scene: str, params: list[str], seconds: float, startup_timeout: floa
     exe = executable('modal_spring_node')
     args = [str(exe), '--ros-args', '-p', f'scene:={scene}', '-p', 'stamp:=wall']
     for p in params:
-        if p.startswith('--profile='):
-            env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(share_directory() / p.split('=', 1)[1])
+        if p.startswith('--env='):
+            name, value = p[len('--env='):].split('=', 1)
+            env[name] = value
         else:
             args += ['-p', p]
     node = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,

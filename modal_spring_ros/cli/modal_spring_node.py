@@ -20,7 +20,10 @@ from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.parameters import PARAMETERS
 from modal_spring_ros.ros.pooled_executor import PooledExecutor
 from modal_spring_ros.ros.publication_mode import prefer_asynchronous_publication
+from modal_spring_ros.ros.shared_memory import prefer_large_shared_memory, scene_argument
 from modal_spring_ros.ros.stop_signals import init_ros, spin_until_stopped, StopSignals
+from modal_spring_ros.scenes.declared_size import declared_particles
+from modal_spring_ros.scenes.resources import share_directory
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
@@ -56,7 +59,7 @@ def usage() -> str:
 
 
 def main(args: list[str] | None = None) -> int:
-    own, _ = split_ros_args(args)
+    own, ros_args = split_ros_args(args)
     if own and own[0] in ('-h', '--help'):
         print(usage())
         return 0
@@ -67,6 +70,9 @@ def main(args: list[str] | None = None) -> int:
     kind = ManagedModalSpringNode if own else ModalSpringNode
     stop = StopSignals().install()  # ROS is shut down last, once the node's threads are joined
     prefer_asynchronous_publication()  # a frame's sending never holds the stepping thread
+    # large clouds fit Fast DDS's shared-memory segment
+    scene = scene_argument(ros_args, PARAMETERS['scene'][0])
+    prefer_large_shared_memory(share_directory(), declared_particles(scene))
     init_ros(args)
     node = None
     try:

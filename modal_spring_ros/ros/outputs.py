@@ -23,9 +23,12 @@ from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import Simulation, SimulationStatus
 from modal_spring_ros.ros.diagnostics import diagnostic_array, StreamReport
+from modal_spring_ros.ros.shared_memory import cloud_transport
 from modal_spring_ros.ros.stream_time import stamps_in_simulation_time, StreamTime
 from modal_spring_ros.ros.tf import FrameBroadcaster, tf_available
+from modal_spring_ros.scenes.resources import share_directory
 import numpy as np
+from rclpy import get_rmw_implementation_identifier
 from rclpy.node import Node
 from rclpy.qos import QoSPolicyKind
 from rclpy.qos_overriding_options import QoSOverridingOptions
@@ -160,11 +163,13 @@ class NodeOutputs:
         if not self._announced:
             self._announced = True
             status = sim.status()
+            transport = cloud_transport(cloud.points.nbytes, get_rmw_implementation_identifier(),
+                                        share_directory())
             self._node.get_logger().info(
                 f'streaming {self._scene.name} ({self._scene.n_particles} particles; '
                 f'{status.method}, {status.band}) on '
                 f"{self._points.topic_name} at {values['publish_rate_hz']:g} Hz, frame "
-                f"'{values['frame_id']}'")
+                f"'{values['frame_id']}'" + (f'; {transport}' if transport else ''))
         if mesh and self._cells.size and self._mesh.get_subscription_count() > 0:
             self._mesh.publish(mesh_marker(positions, rest, self._cells, header, self._width))
 

@@ -7,9 +7,10 @@ import pytest
 
 
 def test_one_case_is_picked_by_a_part_of_its_label():
-    chosen = stream.select_cases('profile', quick=False)
+    chosen = stream.select_cases('default transports', quick=False)
     assert [label for label, _, _ in chosen] == [
-        'sheet_316x316 (100k), sampled springs, large-cloud Fast DDS profile']
+        'sheet_316x316 (100k), sampled springs, Fast DDS default transports (UDP)']
+    assert chosen[0][2][-1] == '--env=FASTDDS_BUILTIN_TRANSPORTS=DEFAULT'
     assert len(stream.select_cases('100K', quick=False)) == 4          # any case
     assert stream.select_cases(None, quick=True) == stream.CASES[:2]
     with pytest.raises(ValueError, match="--case 'nothing' matches no stream case"):

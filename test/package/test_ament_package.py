@@ -472,15 +472,16 @@ def test_the_shipped_parameter_file_holds_the_node_s_own_defaults():
 def test_the_large_cloud_profile_sends_a_100k_cloud_through_shared_memory():
     import xml.etree.ElementTree as ET
 
-    from modal_spring_ros.bench.stream import LARGE_CLOUDS_PROFILE
+    from modal_spring_ros.ros.shared_memory import PROFILE, SEGMENT_BYTES
     from modal_spring_ros.scenes.resources import load_scene
     ns = {'f': 'http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles'}
-    root = ET.parse(REPO / LARGE_CLOUDS_PROFILE).getroot()
+    root = ET.parse(REPO / PROFILE).getroot()
     transports = {t.findtext('f:transport_id', namespaces=ns): t
                   for t in root.iterfind('.//f:transport_descriptor', ns)}
     shm = [t for t in transports.values() if t.findtext('f:type', namespaces=ns) == 'SHM']
     cloud = 16 * load_scene('sheet_316x316').n_particles          # the points' bytes
-    assert len(shm) == 1 and int(shm[0].findtext('f:segment_size', namespaces=ns)) > 4 * cloud
+    size = int(shm[0].findtext('f:segment_size', namespaces=ns))
+    assert len(shm) == 1 and size > 4 * cloud and size == SEGMENT_BYTES
     participant = root.find('.//f:participant', ns)
     assert participant.get('is_default_profile') == 'true'
     used = [e.text for e in participant.iterfind('.//f:userTransports/f:transport_id', ns)]
