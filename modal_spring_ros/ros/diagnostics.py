@@ -38,6 +38,7 @@ class StreamReport:
     longest_gap_s: float = 0.0         # longest time between two frames in the window
     computing_modes: bool = False      # a parameter request is computing modes (now or then)
     paused: bool = False
+    clock_stopped: bool = False        # the run keeps pace with a /clock that stood still
     strain_warning: float = 0.1
     divergences: int = 0
     last_divergence: str = ''
@@ -61,6 +62,7 @@ class StreamWindow:
     wall: float = 0.0
     sim_time: float = 0.0
     valid: bool = True
+    pace: tuple[str, float] = ('wall', 0.0)  # the pace clock's reading at the start
     step_seconds: float = 0.0
     steps: int = 0
     frames: int = 0
@@ -77,11 +79,12 @@ def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[i
     time says both). An error says only itself.
     """
     warnings = []
-    if (not stream.paused and stream.window_valid and stream.requested_rtf > 0
+    still = stream.paused or stream.clock_stopped      # no frames are owed
+    if (not still and stream.window_valid and stream.requested_rtf > 0
             and stream.achieved_rtf < REALTIME_TOLERANCE * stream.requested_rtf):
         warnings.append(f'cannot keep real time: achieved real-time factor '
                         f'{stream.achieved_rtf:.2f} of {stream.requested_rtf:g}')
-    if not stream.paused:
+    if not still:
         if stream.window_valid and stream.frames_in_window == 0 and stream.window_s > 0:
             warnings.append(f'no frame published in the last {stream.window_s:.1f} s')
         elif stream.longest_gap_s > STALL_PERIODS * stream.publish_period_s:
@@ -109,6 +112,8 @@ def level_and_message(status: SimulationStatus, stream: StreamReport) -> tuple[i
             stream.error or f'{stream.last_divergence}; recovered: back to the rest state')
     if warnings:
         return DiagnosticStatus.WARN, '; '.join(reversed(warnings))
+    if stream.clock_stopped and not stream.paused:
+        return DiagnosticStatus.OK, 'waiting for /clock (use_sim_time): it has not advanced'
     return DiagnosticStatus.OK, 'paused' if stream.paused else 'streaming'
 
 

@@ -40,6 +40,7 @@ from modal_spring_ros.ros.parameters import (CLOCK_OFFSET, CLOCK_OFFSET_DESCRIPT
                                              FREQUENCIES_DESCRIPTOR, PARAMETERS)
 from modal_spring_ros.ros.plan_watch import beyond_message
 from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset, Step
+from modal_spring_ros.ros.run_pace import pace_reading
 from modal_spring_ros.ros.simulation_thread import SimulationThread
 from modal_spring_ros.ros.stop_signals import StopSignals
 from modal_spring_ros.ros.stream_settings import StreamSettings
@@ -98,8 +99,7 @@ class ModalSpringNode(Node):
         # Sparse mode computations (large scenes) run in a worker process, so that they never
         # hold this process's interpreter lock while the stream runs; shutting down (Ctrl-C)
         # cancels them.
-        self._worker = WorkerProcess('modal_spring_modes',
-                                     cancelled=lambda: not self._running())
+        self._worker = WorkerProcess('modal_spring_modes', cancelled=lambda: not self._running())
         sim = build_simulation(load_scene(values['scene'], log.info), config,
                                progress=log.info, worker=self._worker, samples=sample_cache(),
                                memory_available=available_memory())
@@ -120,11 +120,11 @@ class ModalSpringNode(Node):
         self._outputs = NodeOutputs(self, scene, lambda: self._params.values,
                                     self._open_capture(sim), self._time)
         self._thread = SimulationThread(
-            sim, self._outputs, self._stream_settings,
-            rebuild=lambda: rebuild(sim.model, sim.basis,
-                                    config_from_parameters(self._params.applied())),
+            sim, self._outputs, self._stream_settings, rebuild=lambda: rebuild(
+                sim.model, sim.basis, config_from_parameters(self._params.applied())),
             computing_modes=lambda: self._preparer.busy, running=self._running,
-            node_report=self._report, on_watch_beyond=self._fall_back)
+            node_report=self._report, on_watch_beyond=self._fall_back, pace=lambda: pace_reading(
+                self.get_clock(), self._params.values['publish_clock']))
         self._params.listen()
         follower = scene.anchor_motion if values['anchor.source'] in POSE_SOURCES else None
         self._input_node = InputNode(self)      # its own thread: a flood never starves the run

@@ -26,6 +26,7 @@ from modal_spring_ros.ros.plan_watch import FallBack, PlanWatch
 from modal_spring_ros.ros.requests import (ChangeBand, drained, Pause, ReplaceSimulation,
                                            Request, Reset, Step, StepRefused, TakeInput,
                                            without_superseded)
+from modal_spring_ros.ros.run_pace import Reading, RunPace, wall_pace
 from modal_spring_ros.ros.stream_settings import StreamSettings
 
 #: wall time between two diagnostics messages, s
@@ -48,15 +49,16 @@ class SimulationThread:
                  computing_modes: Callable[[], bool] = lambda: False,
                  running: Callable[[], bool] = lambda: True,
                  node_report: Callable[[], dict] = dict,
-                 on_watch_beyond: FallBack = lambda window, settings: None):
+                 on_watch_beyond: FallBack = lambda window, settings: None,
+                 pace: Callable[[], Reading] = wall_pace):
         """
         Step ``sim`` and publish through ``outputs`` with the ``settings`` of the moment.
 
         ``rebuild``: a fresh run of the current settings at rest (recovery's last resort);
         ``computing_modes``: whether a request computes modes now; ``running``: False once the
         node shuts down (the thread then ends instead of reporting its publishers gone);
-        ``node_report``: the node's :class:`StreamReport` fields; ``on_watch_beyond``: falls
-        an automatic plan back (:mod:`~modal_spring_ros.ros.plan_watch`).
+        ``node_report``: the node's :class:`StreamReport` fields; ``on_watch_beyond``: falls an
+        automatic plan back (:mod:`~.plan_watch`); ``pace``: the clock it keeps pace with.
         """
         self._running = running
         self._node_report = node_report
@@ -80,7 +82,7 @@ class SimulationThread:
         self._last_divergence = ''
         self._diverged_recently = False
         self._last_status = sim.status()
-        self._anchor = (time.monotonic(), sim.time)
+        self._pace = RunPace(pace, sim.time)
         self._plan_watch = PlanWatch(on_watch_beyond)
         self._thread = threading.Thread(target=self._run, name='modal_spring_sim', daemon=True)
 
@@ -155,13 +157,14 @@ class SimulationThread:
             still = self.paused or self.held or self._suspended
             if not still:
                 if rtf > 0.0:
-                    wall0, sim0 = self._anchor
-                    target = sim0 + (time.monotonic() - wall0) * rtf
+                    target, jumped = self._pace.owed(self.sim.time, rtf)
+                    if jumped:
+                        self._start_window(valid=False)
                     self._step_until(target, next_publish + FRAME_LATENESS * period)
                     behind = self.sim.time + self.sim.dt < target
                     if target - self.sim.time > rtf * period:  # could not keep up: the debt
                         # beyond one frame's steps is dropped (the frames keep their rate)
-                        self._anchor = (time.monotonic(), self.sim.time + rtf * period)
+                        self._pace.anchor(self.sim.time + rtf * period, at_last_reading=True)
                 else:  # as fast as possible: as many steps as fit until the frame is due
                     self._step_until(float('inf'), next_publish)
             now = time.monotonic()
@@ -312,12 +315,11 @@ class SimulationThread:
 
     def _report(self, settings: StreamSettings, error: str = '') -> StreamReport:
         w = self._window
-        now = time.monotonic()
-        span = now - w.wall
-        achieved = (self.sim.time - w.sim_time) / span if span > 0 and w.valid else 0.0
+        clock_span, clock_stopped = self._pace.since(w.pace)   # the clock the run follows
+        achieved = (self.sim.time - w.sim_time) / clock_span if clock_span > 0 else 0.0
         return StreamReport(
-            window_s=span, window_valid=w.valid, achieved_rtf=achieved,
-            requested_rtf=settings.realtime_factor,
+            window_s=time.monotonic() - w.wall, window_valid=w.valid, clock_stopped=clock_stopped,
+            achieved_rtf=achieved if w.valid else 0.0, requested_rtf=settings.realtime_factor,
             publish_period_s=1.0 / settings.publish_rate_hz,
             step_us=1e6 * w.step_seconds / max(w.steps, 1), frames=self._frames,
             frames_in_window=w.frames, longest_gap_s=w.longest_gap,
@@ -342,12 +344,12 @@ class SimulationThread:
             self._diverged_recently = False
 
     def _start_window(self, valid: bool) -> None:
-        self._window = StreamWindow(wall=time.monotonic(), sim_time=self.sim.time,
-                                    valid=valid, computing_modes=self._computing_modes())
+        self._window = StreamWindow(time.monotonic(), self.sim.time, valid, pace=self._pace.read(),
+                                    computing_modes=self._computing_modes())
         self._last_frame = 0.0
 
     def _reanchor(self, window_valid: bool) -> None:
-        self._anchor = (time.monotonic(), self.sim.time)
+        self._pace.anchor(self.sim.time)
         if not window_valid:
             self._window.valid = False
             self._last_frame = 0.0

@@ -5,12 +5,13 @@ import threading
 import time
 
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
 from modal_spring_ros.ros.parameters import CLOCK_OFFSET
 from modal_spring_ros.ros.stream_time import (clock_warnings, stamps_in_simulation_time,
                                               StreamTime)
 import numpy as np
 import pytest
-from ros_harness import frames_since, node_with_client, SimTimes, wait_for
+from ros_harness import frames_since, node_of, node_with_client, SimTimes, wait_for
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import Trigger
@@ -108,3 +109,57 @@ def test_under_another_clock_the_default_stamps_are_that_clock_s_time():
         # and beside each frame, its own simulation time (the node runs from 0)
         times = np.array([sim_time(m) for m in window])
         assert np.all(np.diff(times) >= 0) and times[0] < times[-1] < 100.0, times
+
+
+def test_under_another_clock_the_run_keeps_pace_with_it_and_waits_when_it_stops():
+    """
+    ``use_sim_time:=true``: the run follows /clock (here at half the wall's rate), not the wall.
+
+    A simulator under another clock advances as that clock does: a bag played at half speed
+    slows it, a paused one pauses it (no new frames, /diagnostics says it waits).
+    """
+    with node_with_client('use_sim_time:=true', namespace='paced') as (node, client):
+        publisher = client.node.create_publisher(Clock, '/clock', 10)
+        sim_time = SimTimes().subscribe(client, '/paced/sim_time')
+        points = client.collect(PointCloud2, '/paced/points', qos=500)
+        diags = client.collect(DiagnosticArray, '/diagnostics')
+        clock, running, stop = [500.0], threading.Event(), threading.Event()
+
+        def tick():
+            while not stop.is_set():
+                if running.is_set():
+                    clock[0] += 0.005                     # 5 ms of clock each 10 ms of wall
+                t = clock[0]
+                publisher.publish(Clock(clock=Time(sec=int(t), nanosec=int(t % 1 * 1e9))))
+                time.sleep(0.01)
+        ticker = threading.Thread(target=tick, daemon=True)
+        running.set()
+        ticker.start()
+        try:
+            assert wait_for(lambda: any(_seconds(m.header.stamp) >= 500.0
+                                        for _, m in list(points)), 30)
+            # past the start, where a run still settling may drop what it cannot catch up
+            window = frames_since(points, time.monotonic() + 1.5, 90, timeout=60)
+            running.clear()                                # the clock stands still
+            time.sleep(0.5)                                # frames already made arrive
+            held = len(points)
+            last = sim_time(points[-1][1])
+            time.sleep(2.5)
+            later = [sim_time(m) for _, m in list(points)[held:]]
+            waiting = [s for _, d in list(diags) for s in d.status
+                       if node_of(s).startswith('/paced/')]
+        finally:
+            stop.set()
+            ticker.join(5)
+        # the simulation advanced as the clock did (stamps are the clock's time), not as the wall
+        # (twice the clock here): never ahead of it, and behind only by what a run that cannot
+        # keep up on a busy machine drops (a frame's debt at a time, as under the wall's pace)
+        first, final = window[0], window[-1]
+        clock_span = _seconds(final.header.stamp) - _seconds(first.header.stamp)
+        sim_span = sim_time(final) - sim_time(first)
+        assert clock_span > 0.4, clock_span
+        assert 0.3 < sim_span / clock_span < 1.1, (sim_span, clock_span)
+        # with the clock stopped the run waits: no new simulation time, and it says why
+        assert all(t <= last + 1e-9 for t in later), (last, later)
+        assert any('waiting for /clock' in s.message for s in waiting), [
+            s.message for s in waiting]
