@@ -149,3 +149,34 @@ def test_the_built_in_cloth_shows_its_own_triangles():
     assert scene.loaded and scene.n_particles == 400
     assert scene.surface_triangles().shape == (722, 3)
     assert scene.fixed.sum() == 2
+
+
+def test_a_finer_mesh_of_a_solid_has_nearly_the_same_low_frequencies(tmp_path):
+    """
+    The soft block's object (12 x 8 x 8 cm, 1000 kg/m^3, 100 kPa, glued at its base) meshed twice.
+
+    Edges of at most 2 cm and of at most 1.2 cm on the skin (516 and 1908 particles once
+    filled): the lowest five frequencies agree within 5 % (measured 1.2-4.9 %, the most in the
+    fourth, a torsion: a spring network has no Poisson coupling of its own, so its modes converge
+    more slowly than a finite-element solid's; a 4 cm mesh, 133 particles, is up to 15 % off
+    there). The lowest, the bending the clamp drives most, within 3 %.
+    """
+    trimesh = pytest.importorskip('trimesh')
+    box = trimesh.creation.box(extents=[0.12, 0.08, 0.08])
+    box.apply_translation([0.0, 0.0, 0.04])
+    frequencies = []
+    for edge in (0.02, 0.012):
+        vertices, faces = trimesh.remesh.subdivide_to_size(box.vertices, box.faces,
+                                                           max_edge=edge)
+        path = write_obj(tmp_path / f'block_{edge}.obj', vertices, faces)
+        scene = scene_from_dict({
+            'dimension': 3, 'mesh': {'file': str(path), 'kind': 'volume'},
+            'material': {'density': 1000.0, 'stiffness': 1e5},
+            'fixed': {'box': {'min': [-1, -1, -0.001], 'max': [1, 1, 0.001]}},
+            'gravity': [0.0, 0.0, -9.81]})
+        basis = ModalBasis(MassSpringModel(scene))
+        basis.ensure_count(5)
+        frequencies.append(np.asarray(basis.frequencies_hz[:5]))
+    coarse, fine = frequencies
+    assert np.max(np.abs(coarse / fine - 1.0)) < 0.05, (coarse, fine)
+    assert abs(coarse[0] / fine[0] - 1.0) < 0.03, (coarse, fine)
