@@ -10,25 +10,16 @@ what is wrong with it.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 from modal_spring_ros.scenes.mesh_files import read_mesh, resolve_mesh_path
-from modal_spring_ros.scenes.resources import builtin_scene_dir
+from modal_spring_ros.scenes.resources import scene_file
 from modal_spring_ros.scenes.yaml_reading import load_yaml, read_scene_text
-
-
-def scene_path(name_or_path: str) -> Path:
-    """Return the file of a built-in scene's name or a scene path, as ``load_scene`` finds it."""
-    path = Path(name_or_path)
-    if name_or_path.endswith(('.yaml', '.yml')) or path.exists():
-        return path
-    return builtin_scene_dir() / f'{name_or_path}.yaml'
 
 
 def declared_particles(name_or_path: str) -> int | None:
     """Return the particles the scene declares, or None where that cannot be read cheaply."""
     try:
-        path = scene_path(name_or_path)
+        path = scene_file(name_or_path)
         data = load_yaml(read_scene_text(path), str(path))
         if 'mesh' in data:
             spec = data['mesh']

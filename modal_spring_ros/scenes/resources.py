@@ -66,6 +66,23 @@ def builtin_scene_names() -> list[str]:
     return sorted(p.stem for p in builtin_scene_dir().glob('*.yaml'))
 
 
+def scene_file(name_or_path: str | Path) -> Path:
+    """
+    Return the file of a scene path, or of a built-in scene's name.
+
+    :raises SceneError: a name that is neither a file nor a built-in scene.
+    """
+    text = str(name_or_path)
+    path = Path(text)
+    if text.endswith(('.yaml', '.yml')) or path.exists():
+        return path
+    candidate = builtin_scene_dir() / f'{text}.yaml'
+    if not candidate.exists():
+        raise SceneError(f"unknown scene '{text}': not a file, and not a built-in scene "
+                         f"(built-in: {', '.join(builtin_scene_names())})")
+    return candidate
+
+
 def load_scene(name_or_path: str | Path,
                progress: Callable[[str], None] | None = None) -> Scene:
     """
@@ -73,15 +90,6 @@ def load_scene(name_or_path: str | Path,
 
     :raises SceneError: unknown name, unreadable file, invalid YAML or an invalid scene.
     """
-    text = str(name_or_path)
-    path = Path(text)
-    if not (text.endswith(('.yaml', '.yml')) or path.exists()):
-        candidate = builtin_scene_dir() / f'{text}.yaml'
-        if not candidate.exists():
-            raise SceneError(
-                f"unknown scene '{text}': not a file, and not a built-in scene "
-                f"(built-in: {', '.join(builtin_scene_names())})"
-            )
-        path = candidate
+    path = scene_file(name_or_path)
     return scene_from_yaml(read_scene_text(path), source=str(path), default_name=path.stem,
                            progress=progress)
