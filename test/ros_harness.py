@@ -236,6 +236,10 @@ class SimTimes:
         if reference.source == SOURCE:
             self._times[to_nanoseconds(reference.header.stamp)] = to_seconds(reference.time_ref)
 
+    def known(self, frame) -> float | None:
+        """Return a frame's simulation time if its sim_time has come, else None (no wait)."""
+        return self._times.get(to_nanoseconds(frame.header.stamp))
+
     def __call__(self, frame) -> float:
         """Return the simulation time, s, of a frame (a message with a header) received."""
         key = to_nanoseconds(frame.header.stamp)

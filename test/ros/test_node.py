@@ -53,6 +53,20 @@ def status_values(status) -> dict[str, str]:
     return {kv.key: kv.value for kv in status.values}
 
 
+def largest_speed(window: list) -> float:
+    """
+    Return the largest particle speed between consecutive frames (m per simulated s).
+
+    A state that does not carry over shows as a jump between two frames. Judged per simulated
+    second, not per frame: a frame not received on a busy machine doubles the step between the
+    two around it, not the speed. Frames whose sim_time is missing are left out.
+    """
+    timed = [(t, m) for m in window if (t := sim_time.known(m)) is not None]
+    speeds = [np.abs(xyz(b) - xyz(a)).max() / (tb - ta)
+              for (ta, a), (tb, b) in zip(timed, timed[1:]) if tb > ta]
+    return max(speeds)
+
+
 def frames_between(points, start: float, end: float) -> np.ndarray:
     return np.array([xyz(m) for t, m in points if start <= t <= end])
 
@@ -238,10 +252,9 @@ def test_method_switch_carries_the_state_over(running):
     assert result.successful
     changed = time.monotonic()
     assert wait_for(lambda: (s := latest_status(diagnostics, changed)) is not None
-                    and status_values(s)['method'] == 'full', 5.0)
+                    and status_values(s)['method'] == 'full', 20.0)
     window = [m for t, m in points if t > changed - 0.4]
-    steps = [np.abs(xyz(b) - xyz(a)).max() for a, b in zip(window, window[1:])]
-    assert max(steps) < 5e-3                  # no jump at the switch
+    assert largest_speed(window) < 0.3        # no jump at the switch (5 mm in a 60 Hz frame)
     (result,) = client.set_parameters(NODE, method='modal')
     assert result.successful
 
@@ -253,14 +266,15 @@ def test_force_refresh_is_set_at_runtime_and_reported(running):
     assert result.successful
     changed = time.monotonic()
     assert wait_for(lambda: (s := latest_status(diagnostics, changed)) is not None
-                    and status_values(s)['force refresh (steps)'] == '4', 5.0)
-    assert wait_for(lambda: (s := latest_status(diagnostics, time.monotonic() - 0.5))
-                    is not None and status_values(s)['measured force error'] != '0.00e+00', 5.0)
+                    and status_values(s)['force refresh (steps)'] == '4', 20.0)
+    assert wait_for(lambda: (s := latest_status(diagnostics, changed)) is not None
+                    and status_values(s)['force refresh (steps)'] == '4'
+                    and status_values(s)['measured force error'] not in (
+                        '0.00e+00', 'exact every step'), 20.0)
     window = [m for t, m in points if t > changed - 0.4]
-    steps = [np.abs(xyz(b) - xyz(a)).max() for a, b in zip(window, window[1:])]
-    assert max(steps) < 5e-3                  # the state carries over: no jump
+    assert largest_speed(window) < 0.3        # the state carries over: no jump
     (result,) = client.set_parameters(NODE, modal__force_refresh=0)
     assert result.successful
-    assert wait_for(lambda: (s := latest_status(diagnostics, time.monotonic() - 0.2))
-                    is not None and status_values(s)['measured force error']
-                    == 'exact every step', 5.0)
+    exact = time.monotonic()
+    assert wait_for(lambda: (s := latest_status(diagnostics, exact)) is not None
+                    and status_values(s)['measured force error'] == 'exact every step', 20.0)
