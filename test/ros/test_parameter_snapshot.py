@@ -7,6 +7,7 @@ and a node that never answers gives None by the timeout.
 """
 from __future__ import annotations
 
+import contextlib
 import time
 
 from modal_spring_ros.ros import recorder
@@ -45,46 +46,36 @@ class SlowParameters:
         return response
 
 
-def asker(name: str):
+@contextlib.contextmanager
+def asked(name: str, late: int, delay_s: float):
     """
-    Return a node to ask from and the function that ends it.
+    Yield a node's slow parameter services and a node to ask them from, then end both.
 
-    In the default context, as ``modal_spring_record`` makes its node.
+    The asker is in the default context, as ``modal_spring_record`` makes its node.
     """
+    server = Client(f'{name}_server')
+    slow = SlowParameters(server, name, late=late, delay_s=delay_s)
     rclpy.init(domain_id=DOMAIN_ID)
-    node = rclpy.create_node(name)
-
-    def close():
+    node = rclpy.create_node(f'{name}_asker')
+    try:
+        yield slow, node
+    finally:
         node.destroy_node()
         rclpy.try_shutdown()
-    return node, close
+        server.close()
 
 
 def test_a_query_answered_too_late_is_asked_again(monkeypatch):
     monkeypatch.setattr(recorder, 'ASK_AGAIN_S', 1.0)
-    server = Client('slow_parameters_server')
-    slow = SlowParameters(server, 'slow_node', late=1, delay_s=2.0)
-    node, close = asker('snapshot_asker')
-    try:
-        start = time.monotonic()
+    with asked('slow_node', late=1, delay_s=2.0) as (slow, node):
         assert snapshot_parameters(node, '/slow_node', timeout=20.0) == {
             'scene': 'sheet_10x10', 'publish_rate_hz': 30.0}
         assert slow.listed >= 2                     # asked again (the server answers in turn)
-        assert time.monotonic() - start < 15.0
-    finally:
-        close()
-        server.close()
 
 
 def test_a_node_that_never_answers_gives_none_by_the_timeout(monkeypatch):
     monkeypatch.setattr(recorder, 'ASK_AGAIN_S', 0.5)
-    server = Client('mute_parameters_server')
-    slow = SlowParameters(server, 'mute_node', late=100, delay_s=3.0)
-    node, close = asker('mute_asker')
-    try:
+    with asked('mute_node', late=100, delay_s=3.0) as (slow, node):
         start = time.monotonic()
         assert snapshot_parameters(node, '/mute_node', timeout=2.0) is None
-        assert 1.5 < time.monotonic() - start < 8.0 and slow.listed >= 1
-    finally:
-        close()
-        server.close()
+        assert time.monotonic() - start >= 1.9 and slow.listed >= 1   # waited out its timeout
