@@ -30,7 +30,7 @@ from modal_spring_ros.core.motion.clamp_follower import ClampFollower
 from modal_spring_ros.core.motion.pull import REACH_MIN_M
 from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSettings,
                                                ModalSimulation, Simulation)
-from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank
+from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank, shared_bank
 from modal_spring_ros.core.simulations.early_step_check import check_step_before_modes, mode_cap
 from modal_spring_ros.core.worker import WorkerProcess
 import numpy as np
@@ -60,7 +60,7 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig,
     if config.method == 'modal':
         forces = config.forces
         refresh = config.force_refresh or (DEFAULT_REFRESH if forces == 'refreshed' else 1)
-        bank = AddedCoordinateBank(basis, config.derivative_directions, basis.progress)
+        bank = shared_bank(basis, config.derivative_directions)
         plan = PlanSettings(math.inf, config.basis, config.derivative_directions, forces,
                             refresh, dt or 0.0)
         if config.dt is not None:
@@ -129,7 +129,7 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     """
     limit = min(config.max_modes or DEFAULT_MAX_MODES, basis.n_dof)
     choice = choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
-    bank = AddedCoordinateBank(basis, config.derivative_directions, basis.progress)
+    bank = shared_bank(basis, config.derivative_directions)
     chosen = choose_basis(model, basis, choice.modes, SHARE * config.tolerance,
                           lambda keep: bank.for_band(keep)[1])
     choice = dataclasses.replace(choice, basis=chosen)

@@ -86,6 +86,9 @@ class ModalBasis:
         self.omega = np.empty(0)
         self.vectors = np.empty((self.n_dof, 0))
         self.complete = False
+        #: the banks of added coordinates built on this basis, by derivative directions
+        #: (:func:`~modal_spring_ros.core.simulations.coordinates.shared_bank`)
+        self.banks: dict[int, object] = {}
         if self.dense:
             self._compute_dense()
         else:

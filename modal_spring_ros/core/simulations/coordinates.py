@@ -20,6 +20,8 @@ import numpy as np
 BASES = ('rest', 'derivatives')
 #: Ids of added coordinates start here (rest modes are ids 0, 1, ...).
 ADDED_ID = 1 << 40
+#: guards the banks of every basis (:func:`shared_bank`)
+_BANKS_LOCK = threading.Lock()
 
 
 class AddedCoordinateBank:
@@ -151,3 +153,18 @@ class ActiveSet:
 
 
 EMPTY_SET = ActiveSet(np.empty(0, dtype=np.int64), np.empty(0, dtype=bool), np.empty(0))
+
+
+def shared_bank(basis: ModalBasis, directions: int) -> AddedCoordinateBank:
+    """
+    Return the bank of ``basis``'s added coordinates for ``directions``, one per pair.
+
+    Every run built on a basis (a parameter change rebuilding it, a node's first run and the
+    one it prepares next) shares it: a band's derivatives are computed once, and keep their ids.
+    """
+    with _BANKS_LOCK:
+        bank = basis.banks.get(int(directions))
+        if bank is None:
+            bank = basis.banks[int(directions)] = AddedCoordinateBank(basis, directions,
+                                                                      basis.progress)
+        return bank
