@@ -256,6 +256,22 @@ def test_training_gives_up_early_where_sampling_cannot_pay(sheet_10x10):
     assert again._forces.sample.gave_up and again._forces.sample.seconds == 0.0  # cached
 
 
+def test_training_reports_its_snapshot_run_a_tenth_at_a_time(tmp_path):
+    """On a large scene the run with every spring is most of training: it says how far it is."""
+    model = MassSpringModel(load_scene('sheet_10x10'))
+    basis = ModalBasis(model, samples=SampleCache(tmp_path))
+    said = []
+    ModalSimulation(model, basis, FilterBand('lowpass', 0, 9, 'index'),
+                    ModalSettings(dt=1e-3, basis_kind='rest', forces=SAMPLED_2),
+                    progress=said.append)
+    run = [line for line in said if line.startswith('spring sample snapshot run')]
+    steps = [int(line.split('step ')[1].split(' of ')[0]) for line in run]
+    total = int(run[0].rsplit(' of ', 1)[1])
+    assert len(run) == 9 and steps == sorted(steps) and steps[-1] < total
+    assert said.index(run[-1]) < next(k for k, line in enumerate(said)
+                                      if line.startswith('sampling springs:'))
+
+
 #: trains sheet_32x32's spring sample in a fresh process and prints a digest of it
 TRAIN_AND_DIGEST = """
 import hashlib

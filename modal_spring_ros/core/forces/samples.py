@@ -49,12 +49,14 @@ class CacheEntryError(ValueError):
 
 
 def training_snapshots(exact: ExactForces, omega2: np.ndarray, damping: np.ndarray,
-                       dt: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+                       dt: float, seed: int = 0, progress: Callable[[str], None] | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
     """
     (training, held-out) snapshots of the coordinates.
 
     A short exact run from rest (the scene released under its loads), alternately, and random
-    states around it.
+    states around it. ``progress`` hears how far the run is, a tenth at a time (on a large
+    scene it is the longest part of training).
     """
     fastest = math.sqrt(max(float(omega2.max()), 1e-300))
     dt = max(dt, min(2.0 * math.pi / fastest / TRAINING_STEPS_PER_PERIOD,
@@ -63,6 +65,7 @@ def training_snapshots(exact: ExactForces, omega2: np.ndarray, damping: np.ndarr
     stepper = integrator('explicit' if dt < 2.0 / fastest else 'average')
     steps = max(min(int(round(TRAINING_RUN_S / dt)), TRAINING_STEPS), RUN_SNAPSHOTS)
     every = max(steps // RUN_SNAPSHOTS, 1)
+    tenth = max(steps // 10, 1)
     q = v = np.zeros(omega2.size)
     a = exact(q, 0.0) - damping * v
     run = []
@@ -71,6 +74,8 @@ def training_snapshots(exact: ExactForces, omega2: np.ndarray, damping: np.ndarr
         q, v, a, _ = stepper.step(q, v, a, dt, lambda x: exact(x, t), ops)
         if k % every == 0:
             run.append(q.copy())
+        if progress is not None and k % tenth == 0 and k // tenth < 10:
+            progress(f'spring sample snapshot run (every spring): step {k} of {steps}')
     run = np.array(run)
     rng = np.random.default_rng(seed)
     spread = run.std(axis=0) + 1e-12 * np.abs(run).max()
@@ -200,6 +205,6 @@ def trained_sample(exact: ExactForces, omega2: np.ndarray, damping: np.ndarray,
                    progress: Callable[[str], None] | None = None) -> SpringSample:
     """Return a sample trained on the snapshots of the scene's own motion (its time: both)."""
     start = time.perf_counter()
-    snapshots, held_out = training_snapshots(exact, omega2, damping, dt)
+    snapshots, held_out = training_snapshots(exact, omega2, damping, dt, progress=progress)
     sample = train(exact, snapshots, held_out, TRAINING_SHARE * tolerance, progress)
     return dataclasses.replace(sample, seconds=time.perf_counter() - start)
