@@ -27,6 +27,8 @@ setup(
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
         # the live view (modal_spring_view): a Foxglove WebSocket server (MIT)
         'view': ['foxglove-sdk>=0.30,<1'],
+        # the benchmark's peer (modal_spring_bench --suite peer): Newton on Warp (Apache-2.0)
+        'peer': ['newton>=1.8,<2'],
         'test': ['pytest>=9.0', 'pytest-timeout', 'rosbags',
                  # a WebSocket client to check the live view as Foxglove sees it
                  'websockets',

@@ -22,7 +22,7 @@ import math
 from pathlib import Path
 from typing import Callable
 
-from modal_spring_ros.bench.promise import cpu_per_second, full_run_check
+from modal_spring_ros.bench.promise import converged_reference, cpu_per_second
 from modal_spring_ros.core.auto.measured_error import on_samples, trajectory, trajectory_error
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
@@ -68,11 +68,7 @@ def measure(scene_name: str, durations: tuple[float, ...], progress: Callable[[s
     scene = load_scene(scene_name)
     longest = max(durations)
     samples = int(round(longest / SAMPLE_S))
-    progress(f'{scene_name}: the full run converged in its step over {longest:g} s')
-    checked = full_run_check(scene, SAMPLE_S, samples, TOLERANCE)
-    if checked is None:
-        raise RuntimeError(f'{scene_name}: the reference did not converge')
-    reference, full, _ = checked
+    reference, full, _ = converged_reference(scene, SAMPLE_S, samples, TOLERANCE, progress)
     full_cpu = cpu_per_second(full, longest)
     full_run = trajectory(full, SAMPLE_S, samples)
     rows = []

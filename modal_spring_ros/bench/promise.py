@@ -112,6 +112,16 @@ def full_run_check(scene, sample_s: float, samples: int, tolerance: float
         step = baseline.dt / 2.0
 
 
+def converged_reference(scene, sample_s: float, samples: int, tolerance: float,
+                        progress: Callable[[str], None]) -> tuple[np.ndarray, Simulation, float]:
+    """:func:`full_run_check`, said in ``progress``; raises where the reference does not converge."""
+    progress(f'{scene.name}: the full run converged in its step over {samples * sample_s:g} s')
+    checked = full_run_check(scene, sample_s, samples, tolerance)
+    if checked is None:
+        raise RuntimeError(f'{scene.name}: the reference did not converge')
+    return checked
+
+
 def _measure(args: tuple[int, float]) -> dict:
     return measure(*args)
 

@@ -1,0 +1,139 @@
+"""
+Newton as a peer: a scene's mass-spring system stepped by Newton's semi-implicit solver.
+
+Newton (``pip install newton``, Apache-2.0, on NVIDIA Warp) is the physics engine robotics
+simulators build on; its ``SolverSemiImplicit`` on the CPU is the explicit method a user would
+otherwise run. :class:`NewtonRun` builds the same particles, masses, springs (stiffness and rest
+length), gravity and clamp as the scene (Newton's own float32 state), steps it as Newton's
+examples do, and offers what :func:`~modal_spring_ros.core.auto.measured_error.trajectory` and
+the benchmarks' timing read of a run (``dt``, ``model``, ``reset``, ``step``, ``displacement``):
+the free particles' displacement from rest in the clamp's frame.
+
+What the scene has and Newton's solver has not is refused (:class:`PeerRefused`): a turning
+clamp, modal damping ratios. Mass-proportional Rayleigh damping is a force ``-alpha m v`` (``v``
+relative to the clamp, as the core damps) written into the particles' force buffer before each
+step (where Newton's examples clear it); the stiffness-proportional term is each spring's
+damping ``kd = beta k`` (the same damping on the springs' material stiffness). Particle contact is switched off (the scene has none). Newton is
+optional: without it :data:`AVAILABLE` is false and :data:`MISSING` says how to install it.
+"""
+from __future__ import annotations
+
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.model.scene import Scene
+import numpy as np
+
+try:
+    import warp as wp
+    # no start-up banner or kernel-load lines in the benchmark's output (set before Newton)
+    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
+    import newton  # noqa: E402, I100
+except ImportError:     # the optional 'peer' extra is not installed
+    newton = wp = None
+
+#: Newton is installed
+AVAILABLE = newton is not None
+#: what the benchmark says where it is not
+MISSING = ("Newton is not installed (pip install '.[peer]', or pip install newton): "
+           'the peer rows are skipped')
+
+
+class PeerRefused(ValueError):
+    """A scene Newton's semi-implicit solver cannot run as the project does; says why."""
+
+
+if AVAILABLE:
+    @wp.kernel
+    def _before_step(fixed: wp.array(dtype=wp.int32), rest: wp.array(dtype=wp.vec3),
+                     offset: wp.vec3, velocity: wp.vec3, mass_alpha: wp.array(dtype=float),
+                     q: wp.array(dtype=wp.vec3), qd: wp.array(dtype=wp.vec3),
+                     force: wp.array(dtype=wp.vec3)):
+        """
+        Put clamped particles where the clamp is, moving as it does; start the free ones'.
+
+        forces with ``-alpha m (v - v_clamp)`` (zero without mass damping). One launch a step.
+        """
+        tid = wp.tid()
+        if fixed[tid] != 0:
+            q[tid] = rest[tid] + offset
+            qd[tid] = velocity
+            force[tid] = wp.vec3(0.0, 0.0, 0.0)
+        else:
+            force[tid] = -mass_alpha[tid] * (qd[tid] - velocity)
+
+
+def refusal(scene: Scene) -> str:
+    """Return why Newton's semi-implicit solver cannot run ``scene`` as the project does, or ''."""
+    if scene.anchor_motion.rotates:
+        return 'the clamp turns (the peer moves clamps that translate)'
+    if scene.damping.ratio:
+        return 'modal damping ratios have no counterpart in physical coordinates'
+    return ''
+
+
+class NewtonRun:
+    """
+    A scene stepped by Newton's ``SolverSemiImplicit`` at ``dt`` on the CPU.
+
+    :raises PeerRefused: a scene the peer cannot run (:func:`refusal`).
+    :raises RuntimeError: Newton is not installed.
+    """
+
+    def __init__(self, scene: Scene, dt: float):
+        if not AVAILABLE:
+            raise RuntimeError(MISSING)
+        reason = refusal(scene)
+        if reason:
+            raise PeerRefused(f"scene '{scene.name}': {reason}")
+        self.scene, self.dt = scene, float(dt)
+        self.model = MassSpringModel(scene)
+        self.coordinates = 3 * scene.n_particles
+        builder = newton.ModelBuilder(gravity=tuple(float(g) for g in scene.gravity))
+        builder.add_particles(pos=[tuple(p) for p in scene.rest_positions],
+                              vel=[(0.0, 0.0, 0.0)] * scene.n_particles,
+                              mass=np.where(scene.fixed, 0.0, scene.mass).tolist())
+        beta = float(scene.damping.rayleigh_beta)
+        for (i, j), k in zip(scene.springs.tolist(), np.asarray(scene.stiffness).tolist()):
+            builder.add_spring(i, j, k, beta * k, 0.0)
+        self._newton = builder.finalize(device='cpu')
+        self._newton.particle_grid = None       # no particle contact: the scene has none
+        self._newton.spring_rest_length.assign(np.asarray(scene.rest_length, dtype=np.float32))
+        self._solver = newton.solvers.SolverSemiImplicit(self._newton)
+        self._control = self._newton.control()  # made once, as Newton's examples do
+        self._mass_alpha = wp.array(float(scene.damping.rayleigh_alpha)
+                                    * np.where(scene.fixed, 0.0, scene.mass), dtype=float,
+                                    device='cpu')
+        self._fixed = wp.array(scene.fixed.astype(np.int32), dtype=wp.int32, device='cpu')
+        self._rest = wp.array(scene.rest_positions, dtype=wp.vec3, device='cpu')
+        self._free = np.flatnonzero(~scene.fixed)
+        self.reset()
+
+    def reset(self) -> None:
+        """Go back to rest at t = 0."""
+        self._state, self._next = self._newton.state(), self._newton.state()
+        self.steps = 0
+
+    @property
+    def time(self) -> float:
+        return self.steps * self.dt
+
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` steps: the clamp placed at the step's start, then Newton's step."""
+        motion, count = self.scene.anchor_motion, self.scene.n_particles
+        for _ in range(n):
+            t = self.time
+            wp.launch(_before_step, dim=count, device='cpu',
+                      inputs=[self._fixed, self._rest, wp.vec3(*motion.offset(t)),
+                              wp.vec3(*motion.velocity(t)), self._mass_alpha],
+                      outputs=[self._state.particle_q, self._state.particle_qd,
+                               self._state.particle_f])
+            self._solver.step(self._state, self._next, self._control, None, self.dt)
+            self._state, self._next = self._next, self._state
+            self.steps += 1
+
+    def displacement(self) -> np.ndarray:
+        """Free-DOF displacement from rest in the clamp's frame (the core's order), float64."""
+        x = self._state.particle_q.numpy().astype(float)
+        offset = self.scene.anchor_motion.offset(self.time)
+        u = x - self.scene.rest_positions - offset
+        return u[self._free][:, self.model.axes].reshape(-1)
