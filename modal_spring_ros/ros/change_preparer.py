@@ -179,11 +179,20 @@ class ChangePreparer:
                 self._cond.wait(left)
         return True
 
-    def stop(self, timeout: float = 5.0) -> None:
-        """Stop taking changes; a change being prepared is abandoned (nothing committed)."""
+    def stopping(self) -> None:
+        """
+        Take no more changes, and let the one being prepared end without effect.
+
+        Nothing committed, nothing reverted: said before what it waits on is closed (the
+        worker process), so that its failure then is not taken for the change's.
+        """
         with self._cond:
             self._stopped = True
             self._cond.notify_all()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stop taking changes; a change being prepared is abandoned (nothing committed)."""
+        self.stopping()
         if self._thread is not threading.current_thread():
             self._thread.join(timeout)
 

@@ -3,13 +3,11 @@
 
 Wiring only. The simulation thread (:mod:`~modal_spring_ros.ros.simulation_thread`) steps at a
 fixed ``sim.dt`` and publishes on its own period (:mod:`~modal_spring_ros.ros.outputs`). The
-executor serves parameter requests (:mod:`~modal_spring_ros.ros.node_parameters`: validated on
-set, their slow part, such as modes computed in a worker process, planned by
-:mod:`~modal_spring_ros.ros.parameter_changes` in the change preparer's thread,
-:mod:`~modal_spring_ros.ros.change_preparer`, so no request waits behind a slow one, and
-committed after the set) and ``~/reset``, ``~/pause`` and ``~/step``, awaited without holding
-an executor thread. Every change reaches the simulation thread as one typed request
-(:mod:`~modal_spring_ros.ros.requests`).
+executor serves parameter requests (:mod:`~modal_spring_ros.ros.node_parameters`; their slow
+part is prepared off the services' thread, :mod:`~modal_spring_ros.ros.change_preparer`) and
+``~/reset``, ``~/pause`` and ``~/step``, awaited without holding an executor thread; every
+change reaches the simulation thread as one request (:mod:`~modal_spring_ros.ros.requests`), and
+streams before a spring sample is trained (:mod:`~modal_spring_ros.ros.start_up`).
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
 (Marker: the surface's triangles, or the springs' lines, when subscribed), ``/diagnostics``,
@@ -42,6 +40,7 @@ from modal_spring_ros.ros.plan_watch import beyond_message
 from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset, Step
 from modal_spring_ros.ros.run_pace import pace_reading
 from modal_spring_ros.ros.simulation_thread import SimulationThread
+from modal_spring_ros.ros.start_up import first_values
 from modal_spring_ros.ros.stop_signals import StopSignals
 from modal_spring_ros.ros.stream_settings import StreamSettings
 from modal_spring_ros.ros.stream_time import clock_warnings, StreamTime
@@ -57,13 +56,13 @@ from std_srvs.srv import SetBool, Trigger
 NODE_NAME = 'modal_spring'
 #: longest a service waits for the simulation thread to apply its request, s
 SERVICE_TIMEOUT_S = 5.0
-#: how often the executor wakes while a service awaits its answer (the timeout's resolution),
-#: how often the graph is searched for other nodes of this node's name, s
+#: how often the executor wakes while a service awaits (the timeout's resolution), and how
+#: often the graph is searched for other nodes of this node's name, s
 SERVICE_WAKE_S, NAMESAKE_CHECK_S = 0.25, 2.0
 #: the node's parts, stopped in this order (inputs first, the capture last), as attribute and
 #: method names: a node stopped while it starts stops the parts it has
-STOP_ORDER = (('_input_node', 'close'), ('_worker', 'close'), ('_preparer', 'stop'),
-              ('_thread', 'stop'), ('_outputs', 'close'))
+STOP_ORDER = (('_input_node', 'close'), ('_preparer', 'stopping'), ('_worker', 'close'),
+              ('_preparer', 'stop'), ('_thread', 'stop'), ('_outputs', 'close'))
 
 
 class ModalSpringNode(Node):
@@ -94,13 +93,13 @@ class ModalSpringNode(Node):
     def _build(self) -> None:
         """Build the run and every part of the node from the parameters; start no thread."""
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        config = config_from_parameters(values)
         log = self.get_logger()
-        # Sparse mode computations (large scenes) run in a worker process, so that they never
-        # hold this process's interpreter lock while the stream runs; shutting down (Ctrl-C)
-        # cancels them.
+        # Modes and spring samples of large scenes are computed in a worker process (never
+        # holding this interpreter's lock while the stream runs); shutting down cancels them.
         self._worker = WorkerProcess('modal_spring_modes', cancelled=lambda: not self._running())
-        sim = build_simulation(load_scene(values['scene'], log.info), config,
+        scene = load_scene(values['scene'], log.info)
+        first = first_values(config_from_parameters(values), scene)
+        sim = build_simulation(scene, config_from_parameters(dict(values, **first)),
                                progress=log.info, worker=self._worker, samples=sample_cache(),
                                memory_available=available_memory())
         sim.check_stable('sim.dt')
@@ -110,13 +109,14 @@ class ModalSpringNode(Node):
             settings_changed=lambda: self._thread.settings_changed(),
             enable_clock=lambda: self._outputs.enable_clock())
         self._preparer = self._params.preparer
+        self._params.start_from(first)
         # published time goes on from where it was (a managed node configured again)
         self._time = StreamTime(getattr(self, '_time', StreamTime()).reached,
                                 moved=lambda offset: self._params.report(CLOCK_OFFSET, offset))
         self._report_parameter(FREQUENCIES, sim.basis.frequencies_hz.tolist(),
                                FREQUENCIES_DESCRIPTOR)
         self._report_parameter(CLOCK_OFFSET, self._time.offset, CLOCK_OFFSET_DESCRIPTOR)
-        scene = sim.model.scene
+        scene = sim.model.scene     # as the run has it (a loaded shape, a clamp following poses)
         self._outputs = NodeOutputs(self, scene, lambda: self._params.values,
                                     self._open_capture(sim), self._time)
         self._thread = SimulationThread(
@@ -153,9 +153,10 @@ class ModalSpringNode(Node):
             self.declare_parameter(name, value, descriptor)
 
     def _begin(self) -> None:
-        """Start streaming: the simulation thread and the inputs' thread."""
-        self._thread.start()
-        self._input_node.start()
+        """Start streaming (the simulation and inputs' threads); then prepare what waited."""
+        for part in (self._thread, self._input_node):
+            part.start()
+        self._params.prepare_asked()
 
     def _running(self) -> bool:
         return self._stop.running(self.context)
@@ -193,9 +194,8 @@ class ModalSpringNode(Node):
         """
         Set the parameters of the automatic plan's fallback (the watch found it beyond).
 
-        From a thread of its own (the simulation thread must not wait for the parameter
-        callbacks), atomically (``modal.auto`` off and ``method`` full are only valid together),
-        so that the parameters, ``/parameter_events`` and a capture say what runs from now on.
+        From a thread of its own, atomically (``modal.auto`` off and ``method`` full go
+        together): the parameters, ``/parameter_events`` and a capture say what runs from now.
         """
         values = {CONFIG_NAMES[name]: 0.0 if value is None else value
                   for name, value in settings.items()}

@@ -182,6 +182,20 @@ def test_stopping_abandons_a_change_being_prepared():
     assert p.request({'filter.high_hz': 6.0}) == (False, 'the node is shutting down')
 
 
+def test_a_change_failing_once_stopping_was_said_is_neither_reverted_nor_committed():
+    """The node closes the worker a change waits on after saying it stops: no false ERROR."""
+    gate = threading.Event()
+    rec = Recorder(refuse='modal_spring_modes ended during the call (closed)', gate=gate)
+    p = preparer(rec, answer_within_s=0.1)
+    assert ask(p, {'modal.forces': 'sampled'})[0]        # answered as pending
+    assert rec.entered.wait(5.0)
+    p.stopping()
+    gate.set()                                            # the worker closed: the call fails
+    p.stop()
+    assert rec.reverted == [] and rec.committed == []
+    assert p.state().reverted == ''
+
+
 @pytest.mark.parametrize('failure', [RuntimeError('a bug'), ZeroDivisionError()])
 def test_an_unexpected_failure_is_a_refusal_and_the_preparer_goes_on(failure):
     calls = []

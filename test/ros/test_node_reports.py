@@ -84,3 +84,40 @@ def test_the_node_streams_with_sampled_springs():
         assert _values(diags, '/sampled/')['spring forces'].startswith('sampled: ')
         for _, m in points:
             assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
+
+
+def test_a_large_scene_streams_while_its_spring_sample_is_trained(monkeypatch, tmp_path):
+    """
+    sheet_100x100 (39,402 springs) with modal.forces sampled and nothing in the sample cache.
+
+    The first frames come with refreshed springs (every spring every few steps) while the
+    sample is trained in the worker process (/diagnostics says what is prepared), then the run
+    takes the sample, its stream unbroken; the parameter reads sampled throughout.
+    """
+    monkeypatch.setenv('MODAL_SPRING_ROS_CACHE', str(tmp_path))      # trained, not loaded
+    with node_with_client('scene:=sheet_100x100', 'modal.forces:=sampled', 'modal.basis:=rest',
+                          'filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=15',
+                          namespace='staged') as (node, client):
+        points = client.collect(PointCloud2, '/staged/points', qos=500)
+        diags = client.collect(DiagnosticArray, '/diagnostics')
+
+        def reports():
+            return [{kv.key: kv.value for kv in d.status[0].values} for _, d in list(diags)
+                    if node_of(d.status[0]).startswith('/staged/')]
+
+        def training_while_streaming():
+            return any('tangent between' in r['spring forces']
+                       and "modal.forces='sampled'" in r['parameter changes pending']
+                       for r in reports())
+        assert wait_for(training_while_streaming, 120), reports()[-3:]
+        assert len(points) > 0          # frames before the sample: the stream did not wait
+        assert client.get_parameters('staged/modal_spring', 'modal.forces') == ['sampled']
+        assert wait_for(lambda: reports()[-1]['spring forces'].startswith('sampled: '), 180), \
+            reports()[-1]
+        assert _values(diags, '/staged/')['parameter changes pending'] == 'none'
+        assert client.get_parameters('staged/modal_spring', 'modal.forces') == ['sampled']
+        assert any(p.name.endswith('.npz') for p in tmp_path.rglob('*'))   # trained, kept
+        after = time.monotonic()
+        window = frames_since(points, after, 20)                          # streams on
+        for m in window:
+            assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
