@@ -188,10 +188,15 @@ def test_an_equalised_run_streams_its_gains_and_draws_its_response(tmp_path, cap
 
 
 def ramped_shake(tmp_path):
-    """Return a scene file: ``sheet_10x10`` shaken near its vertical mode, growing over 12 s."""
+    """
+    Return a scene file: ``sheet_10x10`` shaken near its vertical mode, growing over 12 s.
+
+    (3 cm at the end: at 2 cm the derivative basis, its pairs weighted by the shake's
+    amplification, follows the whole 9 s within 0.5 %.)
+    """
     scene = variant('sheet_10x10', anchor_motion=[
         {'axis': 'x', 'amplitude': 0.02, 'frequency_hz': 0.7, 'ramp_s': 1.0},
-        {'axis': 'z', 'amplitude': 0.02, 'frequency_hz': 9.5, 'ramp_s': 12.0}])
+        {'axis': 'z', 'amplitude': 0.03, 'frequency_hz': 9.5, 'ramp_s': 12.0}])
     path = tmp_path / 'ramped.yaml'
     path.write_text(scene_to_yaml(scene))
     return path
@@ -201,7 +206,7 @@ def test_a_plan_the_run_outgrows_is_caught_by_its_watch_and_falls_back(tmp_path,
     """
     The pilot's window sees a gentle shake; the shake grows into large deformation later.
 
-    Watched every 3 s, the plan measures 0.3 % from 3 s and is beyond 1 % from 6 s on: the run
+    Watched every 3 s, the plan measures 0.25 % from 3 s and is beyond 1 % from 6 s on: the run
     goes on as the full run from there, and a bag of it re-simulates through the fallback.
     """
     from modal_spring_ros.bags.reader import BagReader
