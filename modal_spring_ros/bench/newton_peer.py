@@ -13,8 +13,9 @@ What the scene has and Newton's solver has not is refused (:class:`PeerRefused`)
 clamp, modal damping ratios. Mass-proportional Rayleigh damping is a force ``-alpha m v`` (``v``
 relative to the clamp, as the core damps) written into the particles' force buffer before each
 step (where Newton's examples clear it); the stiffness-proportional term is each spring's
-damping ``kd = beta k`` (the same damping on the springs' material stiffness). Particle contact is switched off (the scene has none). Newton is
-optional: without it :data:`AVAILABLE` is false and :data:`MISSING` says how to install it.
+damping ``kd = beta k`` (the same damping on the springs' material stiffness). Particle
+contact is switched off (the scene has none). Newton is optional: without it :data:`AVAILABLE`
+is false and :data:`MISSING` says how to install it.
 """
 from __future__ import annotations
 

@@ -184,7 +184,7 @@ def chart(results: dict, path: Path) -> Path:
             peer = name == 'newton'
             ax.plot([r['cpu_per_s'] for r in mine], [max(r['error'], 1e-6) for r in mine],
                     's' if peer else 'o-', color='k' if peer else f'C{k % 10}', ms=5,
-                    lw=0.8, label="Newton semi-implicit" if peer else name)
+                    lw=0.8, label='Newton semi-implicit' if peer else name)
             for r in mine if peer else ():
                 ax.annotate(f"{r['dt'] * 1e3:.2g} ms", (r['cpu_per_s'], r['error']),
                             fontsize=7, xytext=(4, 2), textcoords='offset points')

@@ -114,7 +114,7 @@ def full_run_check(scene, sample_s: float, samples: int, tolerance: float
 
 def converged_reference(scene, sample_s: float, samples: int, tolerance: float,
                         progress: Callable[[str], None]) -> tuple[np.ndarray, Simulation, float]:
-    """:func:`full_run_check`, said in ``progress``; raises where the reference does not converge."""
+    """:func:`full_run_check`, said in ``progress``; raises where the reference cannot converge."""
     progress(f'{scene.name}: the full run converged in its step over {samples * sample_s:g} s')
     checked = full_run_check(scene, sample_s, samples, tolerance)
     if checked is None:
