@@ -45,9 +45,10 @@ OVERHEAD = 11 * 2**20
 MARGIN = 1.4
 #: Entries of a sparse LU factor of ``n`` DOF, ``c n^e``, by the scene's effective dimension
 #: (particles ~ layers^D, layers across its longest extent): (D, e, c) measured with the
-#: symmetric ordering of :func:`~.model.definite_factor.factor_definite` on cables, sheets and
-#: cubes of 1k-100k DOF (sheets of 1,800-80,000 DOF within 0.98-1.05), interpolated between them.
-FILL_BY_DIMENSION = ((1.0, 1.0, 10.0), (2.0, 1.273, 10.2), (3.0, 1.75, 1.35))
+#: nested dissection ordering of :func:`~.model.definite_factor.factor_definite` on strips,
+#: sheets and cubes of 4k-200k DOF (sheets of 1,700-200,000 DOF and cubes of 1,300-64,000
+#: within 0.90-1.0), interpolated between them.
+FILL_BY_DIMENSION = ((1.0, 1.0, 20.7), (2.0, 1.155, 26.7), (3.0, 1.467, 8.43))
 #: Vectors of n floats the eigensolver holds per Lanczos vector (ARPACK's workspace) and, beyond
 #: them, per mode computed (the Ritz vectors, the basis kept and the one it grows from).
 MODES_VECTORS_PER_LANCZOS = 1.2

@@ -140,7 +140,8 @@ class ModalBasis:
                 self._cholesky = scipy.linalg.cho_factor(self.model.stiffness_free.toarray())
             return scipy.linalg.cho_solve(self._cholesky, rhs)
         if self._solver is None:
-            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof)
+            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof,
+                                            self.model.free_points)
         return self._solver.solve(rhs)
 
     def call_with_solve(self, function: Callable[..., Any], *args: Any) -> Any:
@@ -153,7 +154,8 @@ class ModalBasis:
         if self.dense or self.worker is None:
             return function(self.solve_stiffness, *args)
         if self._solver is None:
-            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof)
+            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof,
+                                            self.model.free_points)
         return self.worker.call(_call_with_solve_in_worker, self._solver, function, args)
 
     def omega_max_estimate(self) -> float:
@@ -187,7 +189,8 @@ class ModalBasis:
         start = time.perf_counter()
         if self._solver is None:
             self.progress(f'factorising the {self.n_dof}-DOF stiffness (sparse LU)')
-            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof)
+            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof,
+                                            self.model.free_points)
         self.progress(f'computing the {count} lowest modes (shift-invert Lanczos, '
                       f'{self.n_dof} DOF)' + (' in a worker process' if self.worker else ''))
         if self.worker is None:
@@ -291,9 +294,11 @@ class ShiftInvertModes:
     kept for the next ones.
     """
 
-    def __init__(self, stiffness: sp.spmatrix, mass_dof: np.ndarray):
+    def __init__(self, stiffness: sp.spmatrix, mass_dof: np.ndarray,
+                 points: np.ndarray | None = None):
         self.k = stiffness.tocsc()
         self.mass_dof = np.asarray(mass_dof, dtype=float)
+        self.points = points  # where the particles are: the factor's ordering
         self.lam_scale = float(np.max(self.k.diagonal() / self.mass_dof))
         # A small negative shift keeps K - sigma M definite even when K is singular (a
         # mechanism, reported from the modes), and small enough that the same factor solves
@@ -308,7 +313,7 @@ class ShiftInvertModes:
     def _factorised(self):
         if self._factor is None:
             m = sp.diags(self.mass_dof).tocsc()
-            self._factor = factor_definite(self.k - self.sigma * m)
+            self._factor = factor_definite(self.k - self.sigma * m, points=self.points)
         return self._factor
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:

@@ -118,7 +118,8 @@ def settle(scene: Scene, progress: Callable[[str], None] | None = None) -> Scene
             scale = float(np.mean(hessian.diagonal() / mass))
             mu, mu_floor = 1e-3 * scale, 1e-12 * scale
         try:   # definite, unless the exact tangent is not
-            step = factor_definite(hessian + mu * mass_term, definite=not exact).solve(force)
+            step = factor_definite(hessian + mu * mass_term, definite=not exact,
+                                   points=shape.model.free_points).solve(force)
         except RuntimeError:  # a singular exact tangent: the convex one
             if not exact:
                 raise

@@ -48,6 +48,11 @@ class MassSpringModel:
         self._axes_index = np.ix_(self.axes, self.axes)
         self._layouts: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # see write_positions
 
+    @property
+    def free_points(self) -> np.ndarray:
+        """Return the free particles' rest positions (p, d), in their free DOF's order."""
+        return self.rest[self.free_particles]
+
     # -- stiffness and mass at rest ------------------------------------------------------------
     @functools.cached_property
     def stiffness_free(self) -> sp.csr_matrix:

@@ -35,6 +35,7 @@ class PhysicalOperators:
                  basis: ModalBasis | None):
         self.m = model.mass_dof
         self.k = model.stiffness_free
+        self.points = model.free_points  # the factors' ordering
         self.acceleration_floor = ROUNDOFF_SHARE * float(
             np.max(np.abs(model.gravity_force / self.m), initial=0.0))
         self.dt = dt
@@ -86,7 +87,8 @@ class PhysicalOperators:
         if self._c is None:
             return rhs / self.m
         if self._explicit is None:
-            self._explicit = factor_definite(sp.diags(self.m) + 0.5 * self.dt * self._c)
+            self._explicit = factor_definite(sp.diags(self.m) + 0.5 * self.dt * self._c,
+                                             points=self.points)
         return self._explicit.solve(rhs)
 
     def solve_average(self, rhs):
@@ -98,7 +100,7 @@ class PhysicalOperators:
             a = sp.diags(self.m) + h * h * self.k
             if self._c is not None:
                 a = a + h * self._c
-            self._average = factor_definite(a)
+            self._average = factor_definite(a, points=self.points)
         return self._average.solve(rhs)
 
 
