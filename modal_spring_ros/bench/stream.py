@@ -5,7 +5,9 @@ Publish rate and end-to-end latency of the node, seen by a subscriber in another
 
 The node runs as a user runs it (console script, own process) with ``stamp:=wall``; this
 process subscribes to its points and diagnostics and measures the receive rate and the
-latency (receipt time minus header stamp, both on this machine's clock).
+latency (receipt time minus header stamp, both on this machine's clock), and its start-up: the
+wall time from the command to the first cloud, and the CPU time the node's processes (its
+worker processes included) had used by then.
 """
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ import time
 from typing import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray
+from modal_spring_ros.bench.process_cpu import tree_cpu_seconds
 from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.context import Context
@@ -86,6 +89,7 @@ def measure(scene: str, params: list[str], seconds: float, startup_timeout: floa
             env[name] = value
         else:
             args += ['-p', p]
+    started = time.monotonic()
     node = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, start_new_session=True)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -105,6 +109,9 @@ def measure(scene: str, params: list[str], seconds: float, startup_timeout: floa
             ex.spin_once(timeout_sec=0.1)
         if not received:
             raise RuntimeError(f'no points from the node within {startup_timeout:.0f} s')
+        # start-up: from the command to the first cloud, and the CPU the node's processes took
+        first_frame_s = time.monotonic() - started
+        first_frame_cpu_s = tree_cpu_seconds(node.pid)
         progress(f'{scene}: streaming, measuring {seconds:g} s')
         warm = time.monotonic() + 2.0
         while time.monotonic() < warm:
@@ -138,6 +145,8 @@ def measure(scene: str, params: list[str], seconds: float, startup_timeout: floa
         'achieved_rtf': float(values.get('achieved real-time factor', 'nan')),
         'step_us': float(values.get('step time (us)', 'nan')),
         'modes': values.get('modes stepped'),
+        'first_frame_s': first_frame_s,
+        'first_frame_cpu_s': first_frame_cpu_s if first_frame_cpu_s is not None else float('nan'),
     }
 
 
@@ -156,11 +165,13 @@ def run(quick: bool, progress: Callable[[str], None], case: str | None = None) -
 def table(results: list[dict]) -> str:
     w = max([len('case')] + [len(r['label']) for r in results])
     lines = [f"{'case':{w}s} {'points':>7s} {'rate Hz':>8s} {'lat med ms':>10s} "
-             f"{'lat p95 ms':>10s} {'RTF':>6s} {'us/step':>9s}"]
+             f"{'lat p95 ms':>10s} {'RTF':>6s} {'us/step':>9s} {'1st frame s':>11s} "
+             f"{'its CPU s':>9s}"]
     for r in results:
         lines.append(f"{r['label']:{w}s} {r['particles']:7d} {r['rate_hz']:8.1f} "
                      f"{r['latency_median_ms']:10.2f} {r['latency_p95_ms']:10.2f} "
-                     f"{r['achieved_rtf']:6.2f} {r['step_us']:9.0f}")
+                     f"{r['achieved_rtf']:6.2f} {r['step_us']:9.0f} "
+                     f"{r['first_frame_s']:11.1f} {r['first_frame_cpu_s']:9.1f}")
     return '\n'.join(lines)
 
 

@@ -90,18 +90,20 @@ def _modal(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig,
     An explicit step the plan suggests beyond the stability limit of what it steps (the added
     coordinates included) gives way to ``AUTO_DT_SAFETY`` of that limit, unless it was given.
     """
+    from_limit = not keep_dt and not plan.dt   # the step from what the band steps
     settings = ModalSettings(
         dt=plan.dt or 1e-3, integrator=config.integrator, transition_s=config.transition_s,
         max_modes=config.max_modes, strain_limit=config.strain_limit,
         highest_hz=plan.highest_hz if math.isfinite(plan.highest_hz) else None,
         forces=force_options(plan.forces, plan.refresh, config.tolerance),
-        basis_kind=plan.basis_kind, derivative_directions=plan.directions)
+        basis_kind=plan.basis_kind, derivative_directions=plan.directions,
+        step_share=AUTO_DT_SAFETY if from_limit else None)
     sim: Simulation = ModalSimulation(model, basis, config.band, settings, mode_choice=choice,
                                       bank=bank, progress=basis.progress)
-    if keep_dt:
+    if keep_dt or from_limit:
         return sim
-    if not plan.dt or (conditionally_stable(config.integrator)
-                       and plan.dt >= STABILITY_SAFETY * sim.stability_limit()):
+    if conditionally_stable(config.integrator) and plan.dt >= STABILITY_SAFETY * (
+            sim.stability_limit()):
         return _within_stability(sim)
     return sim
 

@@ -50,9 +50,10 @@ MARGIN = 1.4
 #: within 0.90-1.0), interpolated between them.
 FILL_BY_DIMENSION = ((1.0, 1.0, 20.7), (2.0, 1.155, 26.7), (3.0, 1.467, 8.43))
 #: Vectors of n floats the eigensolver holds per Lanczos vector (ARPACK's workspace) and, beyond
-#: them, per mode computed (the Ritz vectors, the basis kept and the one it grows from).
-MODES_VECTORS_PER_LANCZOS = 1.2
-MODES_VECTORS_PER_MODE = 2.1
+#: them, per mode computed (the Ritz vectors, the basis kept and the one it grows from), fitted
+#: to the measured peaks (a run is built once, at its step: its stages' peaks no longer overlap)
+MODES_VECTORS_PER_LANCZOS = 0.9
+MODES_VECTORS_PER_MODE = 1.5
 #: Vectors of n floats a derivative pair holds (its solved vector, its share of the Gram's
 #: blocks).
 DERIVATIVE_VECTORS_PER_PAIR = 0.7

@@ -6,15 +6,17 @@ half-built state (a reset during a band fade).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 
 from modal_spring_ros.core.config import ConfigError, SimulationConfig
-from modal_spring_ros.core.factory import build_simulation, rebuild
+from modal_spring_ros.core.factory import AUTO_DT_SAFETY, build_simulation, rebuild
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.integrators import integrator, INTEGRATORS
 from modal_spring_ros.core.simulations import (FullSimulation, METHODS, MIN_DT_S, ModalSimulation,
                                                SimulationStatus, UnstableStepError)
+from modal_spring_ros.core.simulations.stepped_set import SteppedSet
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -62,6 +64,25 @@ def test_with_dt_keeps_the_automatic_choice(sheet):
     again = sim.with_dt(sim.dt / 2)
     assert again.mode_choice is sim.mode_choice and again.force_refresh == sim.force_refresh
     assert again.kept_modes.tolist() == sim.kept_modes.tolist()
+
+
+@pytest.mark.parametrize('basis', ['rest', 'derivatives'])
+def test_a_run_without_a_step_is_built_once_at_its_share_of_the_stability_limit(
+        sheet, basis, monkeypatch):
+    """The step comes from what the band steps, found before the forces are set up."""
+    sheet = dataclasses.replace(sheet, default_dt=None)
+    builds = []
+    original = SteppedSet.build
+    monkeypatch.setattr(SteppedSet, 'build', staticmethod(
+        lambda *args, **kwargs: builds.append(1) or original(*args, **kwargs)))
+    sim = build_simulation(sheet, SimulationConfig(band=FilterBand('lowpass', 0, 20, 'hz'),
+                                                   basis=basis))
+    assert len(builds) == 1
+    assert sim.dt == pytest.approx(AUTO_DT_SAFETY * sim.stability_limit(), rel=1e-12)
+    assert sim.settings.dt == sim.dt and sim.settings.step_share is None
+    given = build_simulation(sheet, SimulationConfig(band=FilterBand('lowpass', 0, 20, 'hz'),
+                                                     basis=basis, dt=sim.dt / 2))
+    assert given.dt == sim.dt / 2 and len(builds) == 2
 
 
 def test_a_reset_during_a_band_fade_settles_the_band_and_rests(sheet):

@@ -8,7 +8,8 @@ import time
 
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.worker import WorkerError, WorkerProcess
+from modal_spring_ros.core.threads import blas_threads
+from modal_spring_ros.core.worker import WORKER_THREADS, WorkerError, WorkerProcess
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -32,9 +33,32 @@ def test_calls_run_in_one_reused_child_and_its_errors_are_raised_here():
 def test_a_child_that_dies_is_reported_and_replaced():
     with WorkerProcess() as worker:
         child = worker.call(os.getpid)
-        with pytest.raises(WorkerError, match='exit code -9'):
+        with pytest.raises(WorkerError, match=r'killed \(SIGKILL: out of memory\?\)'):
             worker.call(os.kill, child, signal.SIGKILL)
         assert worker.call(os.getpid) not in (child, os.getpid())
+        child = worker.call(os.getpid)
+        with pytest.raises(WorkerError, match='killed by SIGSEGV'):
+            worker.call(os.kill, child, signal.SIGSEGV)
+
+
+def _sleep_and_count_threads(seconds: float) -> int:
+    time.sleep(seconds)
+    return blas_threads()
+
+
+def test_the_groups_stop_signals_leave_the_child_to_its_parent_and_it_runs_on_one_thread():
+    """Ctrl-C, ``timeout`` or a service manager signal the group: the call still answers."""
+    with WorkerProcess() as worker:
+        child = worker.call(os.getpid)
+        answers = []
+        caller = threading.Thread(
+            target=lambda: answers.append(worker.call(_sleep_and_count_threads, 1.0)))
+        caller.start()
+        time.sleep(0.3)
+        os.kill(child, signal.SIGTERM)
+        os.kill(child, signal.SIGINT)
+        caller.join(timeout=10.0)
+        assert answers == [WORKER_THREADS] and worker.call(os.getpid) == child
 
 
 def test_close_ends_a_call_in_progress_and_refuses_new_ones():

@@ -92,7 +92,15 @@ class ModalSimulation(Simulation):
         self._q = self._v = self._a = np.empty(0)
         self._gains = GainFade(np.ones((2, 0)))
         self._prepared = PreparedSets(self._build_set)
-        self._install(ActiveSet.settled(self.coordinates_for(self.select_modes(band))), None,
+        coordinates = self.coordinates_for(self.select_modes(band))
+        if settings.step_share is not None:
+            # the step from what is stepped, before the set is built (once, at that step)
+            limit = (stable_step_limit(float(self._bank.omega(coordinates).max()))
+                     if coordinates.size else math.inf)
+            if math.isfinite(limit):
+                self.dt = settings.step_share * limit
+            self.settings = dataclasses.replace(settings, dt=self.dt, step_share=None)
+        self._install(ActiveSet.settled(coordinates), None,
                       self._band)
         self.reset()
 

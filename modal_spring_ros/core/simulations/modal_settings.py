@@ -31,6 +31,8 @@ class ModalSettings:
     evaluated (a force model of :data:`~modal_spring_ros.core.forces.FORCES`). ``basis_kind``:
     ``rest`` (the paper's rest modes) or ``derivatives`` (each band also steps
     ``derivative_directions`` modal-derivative directions and the static load vectors).
+    ``step_share``: when set, ``dt`` becomes this share of the stability limit of what the band
+    steps, found before the run is built (``dt`` stays where nothing limits the step).
     """
 
     dt: float
@@ -43,3 +45,4 @@ class ModalSettings:
     forces: ForceOptions = ForceOptions()
     basis_kind: str = 'rest'
     derivative_directions: int = DEFAULT_DIRECTIONS
+    step_share: float | None = None
