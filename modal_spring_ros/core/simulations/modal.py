@@ -93,15 +93,11 @@ class ModalSimulation(Simulation):
         self._gains = GainFade(np.ones((2, 0)))
         self._prepared = PreparedSets(self._build_set)
         coordinates = self.coordinates_for(self.select_modes(band))
-        if settings.step_share is not None:
-            # the step from what is stepped, before the set is built (once, at that step)
-            limit = (stable_step_limit(float(self._bank.omega(coordinates).max()))
-                     if coordinates.size else math.inf)
-            if math.isfinite(limit):
-                self.dt = settings.step_share * limit
+        if settings.step_share is not None:  # the step from what is stepped: the set built once
+            limit = stable_step_limit(float(self._bank.omega(coordinates).max(initial=0.0)))
+            self.dt = settings.step_share * limit if math.isfinite(limit) else self.dt
             self.settings = dataclasses.replace(settings, dt=self.dt, step_share=None)
-        self._install(ActiveSet.settled(coordinates), None,
-                      self._band)
+        self._install(ActiveSet.settled(coordinates), None, self._band)
         self.reset()
 
     # -- the contract --------------------------------------------------------------------------
@@ -173,12 +169,7 @@ class ModalSimulation(Simulation):
         return stable_step_limit(float(self._bank.omega(self._set.modes).max()))
 
     def coordinates_for(self, keep: np.ndarray) -> np.ndarray:
-        """
-        Return the coordinates stepped for a band keeping rest modes ``keep``.
-
-        The coordinates stepped for a band keeping rest modes ``keep`` (computing what the basis
-        adds to them on first use; no state of the run changes).
-        """
+        """Return the coordinates stepped for rest modes ``keep`` (no state of the run changes)."""
         if self.basis_kind == 'rest':
             return keep
         return np.concatenate([keep, self._bank.for_band(keep)[0]])
