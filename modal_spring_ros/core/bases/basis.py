@@ -140,8 +140,7 @@ class ModalBasis:
                 self._cholesky = scipy.linalg.cho_factor(self.model.stiffness_free.toarray())
             return scipy.linalg.cho_solve(self._cholesky, rhs)
         if self._solver is None:
-            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof,
-                                            self.model.free_points)
+            self._solver = self._shift_invert()
         return self._solver.solve(rhs)
 
     def call_with_solve(self, function: Callable[..., Any], *args: Any) -> Any:
@@ -154,9 +153,12 @@ class ModalBasis:
         if self.dense or self.worker is None:
             return function(self.solve_stiffness, *args)
         if self._solver is None:
-            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof,
-                                            self.model.free_points)
+            self._solver = self._shift_invert()
         return self.worker.call(_call_with_solve_in_worker, self._solver, function, args)
+
+    def _shift_invert(self) -> ShiftInvertModes:
+        return ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof,
+                                self.model.free_points)
 
     def omega_max_estimate(self) -> float:
         """Largest circular frequency of the scene (exact when complete, else a Lanczos value)."""
@@ -189,8 +191,7 @@ class ModalBasis:
         start = time.perf_counter()
         if self._solver is None:
             self.progress(f'factorising the {self.n_dof}-DOF stiffness (sparse LU)')
-            self._solver = ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof,
-                                            self.model.free_points)
+            self._solver = self._shift_invert()
         self.progress(f'computing the {count} lowest modes (shift-invert Lanczos, '
                       f'{self.n_dof} DOF)' + (' in a worker process' if self.worker else ''))
         if self.worker is None:

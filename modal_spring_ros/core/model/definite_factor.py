@@ -43,10 +43,6 @@ class OrderedFactor:
         self._inverse[order] = np.arange(order.size)
 
     @property
-    def shape(self) -> tuple[int, int]:
-        return self._factor.shape
-
-    @property
     def nnz(self) -> int:
         """Entries of the factor (both triangles)."""
         return int(self._factor.L.nnz + self._factor.U.nnz)
@@ -56,22 +52,36 @@ class OrderedFactor:
         return self._factor.solve(np.ascontiguousarray(rhs[self._order]))[self._inverse]
 
 
+def elimination_order(matrix: sp.spmatrix, points: np.ndarray | None) -> np.ndarray | None:
+    """
+    Return the nested dissection order of a large ``matrix``; None: minimum degree's.
+
+    ``points`` (p, k): the positions of the particles whose coordinates the rows are (in blocks
+    per particle), or None. An order fits every matrix of the same size (its fill depends on the
+    pattern): matrices of one pattern, factored in turn, can share one.
+    """
+    if points is None or matrix.shape[0] < DISSECTION_MIN_ROWS:
+        return None
+    return nested_dissection(matrix, points)
+
+
 def factor_definite(matrix: sp.spmatrix, definite: bool = True,
-                    points: np.ndarray | None = None) -> spla.SuperLU | OrderedFactor:
+                    points: np.ndarray | None = None,
+                    order: np.ndarray | None = None) -> spla.SuperLU | OrderedFactor:
     """
     Return the sparse LU factor of a symmetric ``matrix``, positive definite unless told.
 
     A matrix that may be indefinite (``definite`` false: an exact tangent stiffness) keeps the
-    symmetric ordering but pivots off the diagonal where a diagonal entry is too small.
-    ``points`` (p, k), the positions of the particles whose coordinates the rows are (in blocks
-    per particle), let a large matrix be ordered by nested dissection; the factor solves in the
-    matrix's own order either way.
+    symmetric ordering but pivots off the diagonal where a diagonal entry is too small. The
+    rows are eliminated in ``order``, else in :func:`elimination_order`'s from ``points``; the
+    factor solves in the matrix's own order either way.
     """
     threshold = 0.0 if definite else INDEFINITE_PIVOT_THRESHOLD
-    if points is None or matrix.shape[0] < DISSECTION_MIN_ROWS:
+    if order is None:
+        order = elimination_order(matrix, points)
+    if order is None:
         return spla.splu(sp.csc_matrix(matrix), permc_spec='MMD_AT_PLUS_A',
                          diag_pivot_thresh=threshold, options=SUPERLU_OPTIONS)
-    order = nested_dissection(matrix, points)
     ordered = sp.csr_matrix(matrix)[order][:, order].tocsc()
     return OrderedFactor(spla.splu(ordered, permc_spec='NATURAL', diag_pivot_thresh=threshold,
                                    options=SUPERLU_OPTIONS), order)

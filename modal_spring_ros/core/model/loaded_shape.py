@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
-from modal_spring_ros.core.model.definite_factor import factor_definite
+from modal_spring_ros.core.model.definite_factor import elimination_order, factor_definite
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Scene, SceneError
 from modal_spring_ros.core.model.stiffness import assemble_stiffness, reduce_to_free
@@ -98,6 +98,7 @@ def settle(scene: Scene, progress: Callable[[str], None] | None = None) -> Scene
     energy, force = shape.evaluate(x)
     mass_term = sp.diags(mass)
     mu = mu_floor = 0.0
+    order = None  # the factors' elimination order: one for every step (one pattern)
     exact = False  # the full tangent, once the convex one makes full steps
     escapes = 0
     for iteration in range(1, MAX_ITERATIONS + 1):
@@ -117,9 +118,10 @@ def settle(scene: Scene, progress: Callable[[str], None] | None = None) -> Scene
         if not mu:
             scale = float(np.mean(hessian.diagonal() / mass))
             mu, mu_floor = 1e-3 * scale, 1e-12 * scale
+            order = elimination_order(hessian, shape.model.free_points)
         try:   # definite, unless the exact tangent is not
             step = factor_definite(hessian + mu * mass_term, definite=not exact,
-                                   points=shape.model.free_points).solve(force)
+                                   order=order).solve(force)
         except RuntimeError:  # a singular exact tangent: the convex one
             if not exact:
                 raise
