@@ -43,6 +43,19 @@ def variant(name: str, **changes):
     return scene_from_dict(data, source=f'{name} variant')
 
 
+def hanging_sheet(count: int) -> dict:
+    """Return ``sheet_316x316``'s definition with ``count`` x ``count`` particles (0.9 m, 1 kg)."""
+    return {
+        'name': f'sheet_{count}x{count}', 'dimension': 2, 'plane': 'xz',
+        'particles': {'lattice': {'counts': [count, count], 'spacing': 0.9 / (count - 1),
+                                  'origin': [0.0, 0.0, -0.9]}, 'mass': 1.0 / count ** 2},
+        'springs': {'connect': ['edges', 'diagonals'], 'stiffness': 1000.0},
+        'fixed': {'face': '+z'}, 'gravity': [0.0, 0.0, -9.81],
+        'damping': {'rayleigh': {'alpha': 1.2, 'beta': 0.0}},
+        'anchor_motion': [{'axis': 'x', 'amplitude': 0.02, 'frequency_hz': 0.7, 'ramp_s': 1.0}],
+    }
+
+
 def oscillator(k: float = 400.0, m: float = 0.25, gravity: float = 0.0):
     """One free mass on one spring (1D): omega = sqrt(k / m)."""
     return scene_from_dict({

@@ -8,12 +8,15 @@ import subprocess
 import threading
 import time
 
+from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.sim_time import SOURCE
 from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.pooled_executor import PooledExecutor
+from modal_spring_ros.ros.resimulate import resimulate
 from modal_spring_ros.ros.stop_signals import spin_until_stopped, StopSignals
 from modal_spring_ros.scenes.resources import executable
+import numpy as np
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -29,6 +32,34 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 def node_of(status) -> str:
     """Return the fully qualified name of the node a ``DiagnosticStatus`` is about."""
     return next((kv.value for kv in status.values if kv.key == 'node'), '')
+
+
+def streaming_statuses(diags: list, prefix: str) -> list:
+    """
+    Return the /diagnostics statuses of the node under ``prefix`` once it streams.
+
+    ``diags``: (receipt time, DiagnosticArray) as :meth:`Client.collect` keeps them; the statuses
+    a node publishes while it prepares its first frame (``starting: ...``) are left out.
+    """
+    return [d.status[0] for _, d in list(diags) if node_of(d.status[0]).startswith(prefix)
+            and not d.status[0].message.startswith('starting: ')]
+
+
+def assert_resimulates_exactly(capture, again, changes: int) -> int:
+    """
+    Re-simulate a node's capture (``record.bag``) into ``again``; return its frame count.
+
+    The capture is finalised with ``changes`` parameter events, and the re-run gives every
+    frame at its time, to float32 round-off.
+    """
+    recording = BagReader(capture)
+    assert recording.finalised and recording.topics['/parameter_events'].count == changes
+    count = resimulate(capture, again)
+    t_rec, x_rec = recording.points()
+    t_new, x_new = BagReader(again).points()
+    assert count == len(t_rec) and np.array_equal(t_new, t_rec)
+    np.testing.assert_allclose(x_new, x_rec, rtol=0, atol=2e-6)
+    return count
 
 
 def stderr_excerpt(err: str, size: int = 2000) -> str:

@@ -24,7 +24,6 @@ from modal_spring_ros.bags.qos import profiles_to_yaml
 from modal_spring_ros.bags.stamps import to_nanoseconds, to_time_msg
 from modal_spring_ros.bags.writer import BagWriter
 from modal_spring_ros.core.config import SimulationConfig
-from modal_spring_ros.scenes.writing import scene_to_yaml
 import numpy as np
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.parameter import Parameter
@@ -66,9 +65,9 @@ class RunBagWriter:
         self._cloud = CloudBuffer(scene.rest_positions)  # reused: each frame is written at once
         self.frame_id = frame_id
         self.node = node
-        self.writer = BagWriter(directory)
+        self.writer = BagWriter(directory, attachments=True)
         self.writer.add_topic(POINTS_TOPIC, 'sensor_msgs/msg/PointCloud2', points_qos_yaml())
-        record = {'source': source, 'scene_yaml': scene_to_yaml(scene), 'dt': dt,
+        record = {'source': source, 'dt': dt,
                   'frame_every': frame_every, 'duration': duration, 'frame_id': frame_id}
         if config is not None:
             record['config'] = config.to_dict()
@@ -81,7 +80,7 @@ class RunBagWriter:
             record.update(parameters=parameters, node=node, event_clock='sim')
             self.writer.add_topic('/parameter_events', 'rcl_interfaces/msg/ParameterEvent',
                                   parameter_events_qos_yaml())
-        self.writer.add_run_record(record)
+        self.writer.add_run_record(record, scene)
 
     def parameter_event(self, t: float, changed: dict) -> None:
         """

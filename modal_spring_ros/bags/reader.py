@@ -16,11 +16,14 @@ from typing import Iterator
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.records import Channel, Message, Metadata, Schema
+from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
 from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.bags.writer import BagError, RUN_RECORD
+from modal_spring_ros.core.model.scene import Scene
+from modal_spring_ros.scenes.scene_archive import scene_from_archive
+from modal_spring_ros.scenes.schema import scene_from_yaml
 import numpy as np
 from rclpy.serialization import deserialize_message
 import yaml
@@ -111,6 +114,8 @@ class BagReader:
     def _scan(self) -> None:
         self.topics: dict[str, TopicInfo] = {}
         self.records: dict[str, list[dict[str, str]]] = {}
+        #: the attachments' data by name (a run's scene)
+        self.attachments: dict[str, bytes] = {}
         self._channel_topic: dict[int, str] = {}
         self.finalised = True
         for f in self.files:
@@ -130,6 +135,8 @@ class BagReader:
                                         counts.get(cid, 0))
                     for rec in reader.iter_metadata():
                         self.records.setdefault(rec.name, []).append(dict(rec.metadata))
+                    for rec in reader.iter_attachments():
+                        self.attachments[rec.name] = bytes(rec.data)
             except BagError:
                 raise
             except Exception:  # not finalised (or damaged): stream what is there
@@ -153,6 +160,8 @@ class BagReader:
                             self.topics[topic].count += 1
                     elif isinstance(rec, Metadata):
                         self.records.setdefault(rec.name, []).append(dict(rec.metadata))
+                    elif isinstance(rec, Attachment):
+                        self.attachments[rec.name] = bytes(rec.data)
         except Exception as exc:
             if self.topics:
                 return  # the truncated tail of a killed writer's last chunk
@@ -260,6 +269,28 @@ class BagReader:
                 except ValueError:
                     merged[k] = v
         return merged
+
+    def scene(self) -> Scene | None:
+        """
+        Return the scene the run record holds, or None (a bag not written by this project).
+
+        Its archive (:data:`~modal_spring_ros.bags.writer.SCENE_ATTACHMENT`), or the YAML
+        text of bags written before scenes were archived.
+
+        :raises SceneError: a scene the scene checks refuse; BagError: an archive named and
+            missing.
+        """
+        rec = self.run_record()
+        source = f'{self.path} (scene)'
+        if 'scene_archive' in rec:
+            name = str(rec['scene_archive'])
+            if name not in self.attachments:
+                raise BagError(f"{self.path}: the run record's scene {name!r} is not attached "
+                               '(a bag cut short?)')
+            return scene_from_archive(self.attachments[name], source)
+        if 'scene_yaml' in rec:
+            return scene_from_yaml(str(rec['scene_yaml']), source=source)
+        return None
 
     def points(self, topic: str = '/points',
                times: dict[int, float] | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -16,7 +16,6 @@ from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.comparison import load_npz_run, RunData
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.limits import available_memory
-from modal_spring_ros.scenes.schema import scene_from_yaml
 
 
 def load_run(path: str | Path, topic: str = '/points') -> RunData:
@@ -34,8 +33,7 @@ def load_run(path: str | Path, topic: str = '/points') -> RunData:
     bag = BagReader(path)
     stamps, frames = bag.points(topic, simulation_times(bag, topic) or None)  # simulation time
     rec = bag.run_record()
-    scene = scene_from_yaml(rec['scene_yaml'], source=f'{path} (scene)') \
-        if 'scene_yaml' in rec else None
+    scene = bag.scene()
     label, band = '', None
     if 'config' in rec and scene is not None:
         config = SimulationConfig.from_dict(rec['config'])

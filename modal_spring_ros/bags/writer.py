@@ -33,6 +33,8 @@ from mcap.writer import CompressionType, IndexType, Writer
 from mcap_ros2._dynamic import serialize_dynamic
 from modal_spring_ros import __version__
 from modal_spring_ros.bags.message_definitions import full_definition, type_hash
+from modal_spring_ros.core.model.scene import Scene
+from modal_spring_ros.scenes.scene_archive import MEDIA_TYPE, scene_to_archive
 import yaml
 
 METADATA_VERSION = 9
@@ -41,6 +43,8 @@ ROS_DISTRO = 'jazzy'
 DEFAULT_CHUNK_SIZE = 786_432
 #: a chunk older than this (wall time, s) is closed, full or not
 DEFAULT_CHUNK_SECONDS = 1.0
+#: name of the attachment holding a run's scene (an archive of its arrays)
+SCENE_ATTACHMENT = 'scene.npz'
 #: name of the MCAP metadata record with the run's own description (scene, settings)
 RUN_RECORD = 'modal_spring_ros'
 
@@ -101,13 +105,14 @@ class BagWriter:
     """A rosbag2 MCAP bag being written. Use as a context manager or call :meth:`close`."""
 
     def __init__(self, directory: str | Path, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
-                 chunk_seconds: float = DEFAULT_CHUNK_SECONDS):
+                 chunk_seconds: float = DEFAULT_CHUNK_SECONDS, attachments: bool = False):
         """
         Return a chunk is closed (and put on disk) by size or by age.
 
         A chunk is closed (and put on disk) when it holds ``chunk_size`` bytes or when it is
         ``chunk_seconds`` old, whichever comes first: a writer that is killed loses at most about
-        that much.
+        that much. ``attachments``: the bag will hold attachments (a run record's scene,
+        :meth:`add_run_record`), and their index.
         """
         if not (isinstance(chunk_size, int) and chunk_size >= 1):
             raise BagError(f'chunk size ({chunk_size}) must be a whole number of bytes, '
@@ -123,10 +128,12 @@ class BagWriter:
             raise BagError(f'{self.directory}: cannot create: {exc.strerror or exc}') from None
         self.file_name = f'{self.directory.name}_0.mcap'
         self._fh = open(self.directory / self.file_name, 'wb')
-        # every index but the attachments': a bag has none, and an empty attachment
+        # the attachments' index only where there will be attachments: an empty attachment
         # index group is a summary offset that points at nothing (mcap doctor flags it)
+        self.attachments = attachments
+        indexes = IndexType.ALL if attachments else IndexType.ALL & ~IndexType.ATTACHMENT
         self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.NONE,
-                              index_types=IndexType.ALL & ~IndexType.ATTACHMENT)
+                              index_types=indexes)
         self._writer.start(profile='ros2', library=f'modal_spring_ros {__version__}')
         self._schemas: dict[str, int] = {}
         self._topics: dict[str, dict[str, Any]] = {}
@@ -218,14 +225,25 @@ class BagWriter:
         self.write(topic, canonical_cdr(self._topics[topic]['type'], msg), log_time_ns,
                    publish_time_ns)
 
-    def add_run_record(self, data: dict[str, Any]) -> None:
+    def add_run_record(self, data: dict[str, Any], scene: Scene | None = None) -> None:
         """
         Store the run's description in a ``modal_spring_ros`` metadata record.
 
-        The description is the scene YAML and the settings; values that are not strings are stored
-        as JSON.
+        The description is the settings (values that are not strings are stored as JSON) and,
+        when given, the ``scene``: an archive of its arrays
+        (:mod:`~modal_spring_ros.scenes.scene_archive`) attached as :data:`SCENE_ATTACHMENT`,
+        which the record's ``scene_archive`` names (a writer made with ``attachments``).
         """
+        data = dict(data)
         with self._writing():
+            if scene is not None:
+                if not self.attachments:
+                    raise BagError(f'{self.directory}: a scene needs a writer made with '
+                                   'attachments')
+                now = time.time_ns()
+                self._writer.add_attachment(now, now, SCENE_ATTACHMENT, MEDIA_TYPE,
+                                            scene_to_archive(scene))
+                data['scene_archive'] = SCENE_ATTACHMENT
             self._writer.add_metadata(RUN_RECORD, {
                 k: v if isinstance(v, str) else json.dumps(v) for k, v in data.items()})
 

@@ -20,7 +20,8 @@ from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.parameters import PARAMETERS
 from modal_spring_ros.ros.pooled_executor import PooledExecutor
 from modal_spring_ros.ros.publication_mode import prefer_asynchronous_publication
-from modal_spring_ros.ros.shared_memory import prefer_large_shared_memory, scene_argument
+from modal_spring_ros.ros.shared_memory import (POINT_BYTES, prefer_large_shared_memory,
+                                                scene_argument)
 from modal_spring_ros.ros.stop_signals import init_ros, spin_until_stopped, StopSignals
 from modal_spring_ros.scenes.declared_size import declared_particles
 from modal_spring_ros.scenes.resources import share_directory
@@ -72,7 +73,9 @@ def main(args: list[str] | None = None) -> int:
     prefer_asynchronous_publication()  # a frame's sending never holds the stepping thread
     # large clouds fit Fast DDS's shared-memory segment
     scene = scene_argument(ros_args, PARAMETERS['scene'][0])
-    prefer_large_shared_memory(share_directory(), declared_particles(scene))
+    particles = declared_particles(scene)
+    prefer_large_shared_memory(share_directory(),
+                               None if particles is None else particles * POINT_BYTES)
     init_ros(args)
     node = None
     try:

@@ -19,7 +19,6 @@ from modal_spring_ros.cli.common import fail, script_parser, split_ros_args
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.ros.recorder import DEFAULT_TOPICS, Recorder, snapshot_parameters
 from modal_spring_ros.scenes.resources import load_scene
-from modal_spring_ros.scenes.writing import scene_to_yaml
 import rclpy
 from rclpy.executors import ExternalShutdownException
 
@@ -62,24 +61,24 @@ def main(argv: list[str] | None = None) -> int:
     writer = None
     try:
         writer = BagWriter(args.output, chunk_size=args.chunk_size,
-                           chunk_seconds=args.chunk_seconds)
+                           chunk_seconds=args.chunk_seconds, attachments=True)
         # Subscribe first, then take the parameters: a change in between is then both in the
         # snapshot and on /parameter_events (harmless), never in neither.
         Recorder(node, writer, args.topics, target)
         params = snapshot_parameters(node, target, args.wait_for_node)
-        record = {'source': PROG, 'node': target}
+        record, scene = {'source': PROG, 'node': target}, None
         if params is None:
             node.get_logger().warning(f'node {target} did not answer: the bag will not hold '
                                       'its scene and parameters (no --resimulate)')
         else:
             record['parameters'] = params
             try:
-                record['scene_yaml'] = scene_to_yaml(load_scene(params.get('scene', '')))
+                scene = load_scene(params.get('scene', ''))
             except SceneError as exc:
                 node.get_logger().warning(f'scene not stored: {exc}')
             node.get_logger().info(f'stored {len(params)} parameters of node {target}'
-                                   + (' and its scene' if 'scene_yaml' in record else ''))
-        writer.add_run_record(record)
+                                   + (' and its scene' if scene is not None else ''))
+        writer.add_run_record(record, scene)
         end = None if args.duration is None else time.monotonic() + args.duration
         while rclpy.ok() and (end is None or time.monotonic() < end):
             rclpy.spin_once(node, timeout_sec=0.05)

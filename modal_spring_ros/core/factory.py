@@ -13,7 +13,7 @@ import math
 from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.pilot import Pilot
 from modal_spring_ros.core.auto.plan import PlanSettings
-from modal_spring_ros.core.bases.basis import ModalBasis, Progress
+from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis, Progress
 from modal_spring_ros.core.bases.basis_choice import choose_basis
 from modal_spring_ros.core.bases.mode_selection import (choose_modes, choose_refresh, choose_step,
                                                         ModeChoice, SHARE, STABILITY_SAFETY)
@@ -237,7 +237,9 @@ def build_simulation(scene: Scene, config: SimulationConfig, *,
         scene = dataclasses.replace(scene, anchor_motion=ClampFollower(
             config.follow_hz, scene.axes, home=clamp.mean(axis=0), reach_m=reach))
     model = MassSpringModel(scene)
-    basis = ModalBasis(model, progress=progress, worker=worker, samples=samples)
+    first = min(INITIAL_MODES, config.max_modes or INITIAL_MODES)  # no more than the run may use
+    basis = ModalBasis(model, initial_modes=first, progress=progress, worker=worker,
+                       samples=samples)
     sim = rebuild(model, basis, config)
     if not allow_unstable:
         sim.check_stable()

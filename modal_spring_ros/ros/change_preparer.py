@@ -64,6 +64,7 @@ class PreparerState:
 
     preparing: str = ''        # the parameters being prepared (name=value, ...), or empty
     reverted: str = ''         # the last change reverted recently, and why, or empty
+    since: float = 0.0         # when the change being prepared began (monotonic), or 0
 
 
 def describe(values: dict[str, Any]) -> str:
@@ -91,6 +92,7 @@ class ChangePreparer:
         self.answer_within_s = float(answer_within_s)
         self._cond = threading.Condition()
         self._current: _Change | None = None     # being prepared
+        self._since = 0.0                          # since when (monotonic)
         self._pending: _Change | None = None     # next, collecting newer requests
         self._stopped = False
         self._reverted = ('', -float('inf'))     # (what and why, monotonic time)
@@ -165,8 +167,9 @@ class ChangePreparer:
         with self._cond:
             busy = self._busy_with()
             what, when = self._reverted
+            since = self._since if self._current is not None else 0.0
         recent = time.monotonic() - when < REVERT_REPORT_S
-        return PreparerState(describe(busy) if busy else '', what if recent else '')
+        return PreparerState(describe(busy) if busy else '', what if recent else '', since)
 
     def wait_idle(self, timeout: float) -> bool:
         """Wait until nothing is being prepared or pending; True when idle."""
@@ -212,7 +215,7 @@ class ChangePreparer:
                 if self._stopped:
                     return
                 change, self._pending = self._pending, None
-                self._current = change
+                self._current, self._since = change, time.monotonic()
             try:
                 self._prepare_one(change)
             except Exception as exc:  # reverting failed: said on /diagnostics, the thread goes on

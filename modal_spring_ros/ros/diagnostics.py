@@ -53,6 +53,7 @@ class StreamReport:
     name: str = ''                     # this node's fully qualified name (for the namesakes)
     watched: str = 'off'               # what the watch of an automatic plan measured
     watch_beyond: str = ''             # a watched window beyond the tolerance, recently
+    progress: str = ''                 # the last progress line of a change being prepared
 
 
 @dataclasses.dataclass
@@ -152,6 +153,7 @@ def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, s
         'parameter changes pending': stream.parameters_preparing or 'none',
         'nodes with this name': str(stream.namesakes + 1),
         **({'anchor pose': stream.anchor} if stream.anchor else {}),
+        **({'progress': stream.progress} if stream.progress else {}),
     }
 
 
@@ -165,7 +167,25 @@ def diagnostic_array(status: SimulationStatus, stream: StreamReport, *, node: st
     in different namespaces apart.
     """
     level, message = level_and_message(status, stream)
-    values = {'node': node, **status_values(status, stream)}
+    return _array(level, message, {'node': node, **status_values(status, stream)},
+                  node=node, hardware_id=hardware_id, stamp=stamp)
+
+
+def starting_array(progress: str, elapsed_s: float, *, node: str, hardware_id: str,
+                   stamp: Time) -> DiagnosticArray:
+    """
+    Return the ``DiagnosticArray`` of a node still preparing its first frame.
+
+    The status :func:`diagnostic_array` names, OK, with the last ``progress`` line as its
+    message (``starting: computing the 8 lowest modes ...``) and how long the start has taken.
+    """
+    values = {'node': node, 'progress': progress, 'starting for (s)': f'{elapsed_s:.1f}'}
+    return _array(DiagnosticStatus.OK, f'starting: {progress}', values, node=node,
+                  hardware_id=hardware_id, stamp=stamp)
+
+
+def _array(level: bytes, message: str, values: dict[str, str], *, node: str, hardware_id: str,
+           stamp: Time) -> DiagnosticArray:
     name = f"{node.rsplit('/', 1)[-1]}: simulation"
     entry = DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id,
                              values=[KeyValue(key=k, value=v) for k, v in values.items()])

@@ -6,8 +6,8 @@ fixed ``sim.dt`` and publishes on its own period (:mod:`~modal_spring_ros.ros.ou
 executor serves parameter requests (:mod:`~modal_spring_ros.ros.node_parameters`; their slow
 part is prepared off the services' thread, :mod:`~modal_spring_ros.ros.change_preparer`) and
 ``~/reset``, ``~/pause`` and ``~/step``, awaited without holding an executor thread; every
-change reaches the simulation thread as one request (:mod:`~modal_spring_ros.ros.requests`), and
-streams before a spring sample is trained (:mod:`~modal_spring_ros.ros.start_up`).
+change reaches the simulation thread as one request (:mod:`~modal_spring_ros.ros.requests`);
+large scenes stream before all is prepared (:mod:`~modal_spring_ros.ros.start_up`).
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
 (Marker: the surface's triangles, or the springs' lines, when subscribed), ``/diagnostics``,
@@ -21,11 +21,11 @@ with ``anchor.source`` topic), ``/clicked_point`` (PointStamped), ``wrench`` (Wr
 from __future__ import annotations
 
 import contextlib
-import threading
 
 from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.core.config import POSE_SOURCES
 from modal_spring_ros.core.factory import build_simulation, rebuild
+from modal_spring_ros.core.memory_estimate import check_run_memory
 from modal_spring_ros.core.worker import WorkerProcess
 from modal_spring_ros.ros.input_node import InputNode
 from modal_spring_ros.ros.inputs import NodeInputs
@@ -34,21 +34,22 @@ from modal_spring_ros.ros.node_parameters import NodeParameters
 from modal_spring_ros.ros.outputs import NodeOutputs
 from modal_spring_ros.ros.parameter_changes import ChangePlanner
 from modal_spring_ros.ros.parameters import (CLOCK_OFFSET, CLOCK_OFFSET_DESCRIPTOR,
-                                             config_from_parameters, CONFIG_NAMES, FREQUENCIES,
+                                             config_from_parameters, FREQUENCIES,
                                              FREQUENCIES_DESCRIPTOR, PARAMETERS)
-from modal_spring_ros.ros.plan_watch import beyond_message
+from modal_spring_ros.ros.plan_watch import fall_back
 from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset, Step
 from modal_spring_ros.ros.run_pace import pace_reading
 from modal_spring_ros.ros.simulation_thread import SimulationThread
 from modal_spring_ros.ros.start_up import first_values
+from modal_spring_ros.ros.start_up_report import StartUpReport
 from modal_spring_ros.ros.stop_signals import StopSignals
 from modal_spring_ros.ros.stream_settings import StreamSettings
 from modal_spring_ros.ros.stream_time import clock_warnings, StreamTime
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.limits import available_memory
 from modal_spring_ros.scenes.resources import load_scene
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool, Trigger
@@ -94,14 +95,17 @@ class ModalSpringNode(Node):
         """Build the run and every part of the node from the parameters; start no thread."""
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
         log = self.get_logger()
-        # Modes and spring samples of large scenes are computed in a worker process (never
-        # holding this interpreter's lock while the stream runs); shutting down cancels them.
+        # large scenes' modes and samples: in a worker process (never this interpreter's lock)
         self._worker = WorkerProcess('modal_spring_modes', cancelled=lambda: not self._running())
         scene = load_scene(values['scene'], log.info)
-        first = first_values(config_from_parameters(values), scene)
-        sim = build_simulation(scene, config_from_parameters(dict(values, **first)),
-                               progress=log.info, worker=self._worker, samples=sample_cache(),
-                               memory_available=available_memory())
+        asked = config_from_parameters(values)
+        check_run_memory(scene, asked, available_memory())     # the run it settles on
+        first = first_values(asked, scene) if values['stream_early'] else {}
+        self._progress = StartUpReport(self, scene.name)
+        with self._progress:    # on /diagnostics until the run streams
+            sim = build_simulation(scene, config_from_parameters(dict(values, **first)),
+                                   progress=self._progress.progress, worker=self._worker,
+                                   samples=sample_cache())
         sim.check_stable('sim.dt')
         self._params = NodeParameters(
             self, ChangePlanner(sim.model, sim.basis), running=lambda: self._thread.sim,
@@ -123,8 +127,9 @@ class ModalSpringNode(Node):
             sim, self._outputs, self._stream_settings, rebuild=lambda: rebuild(
                 sim.model, sim.basis, config_from_parameters(self._params.applied())),
             computing_modes=lambda: self._preparer.busy, running=self._running,
-            node_report=self._report, on_watch_beyond=self._fall_back, pace=lambda: pace_reading(
-                self.get_clock(), self._params.values['publish_clock']))
+            node_report=self._report, pace=lambda: pace_reading(
+                self.get_clock(), self._params.values['publish_clock']),
+            on_watch_beyond=lambda window, plan: fall_back(self, window, plan, self._running))
         self._params.listen()
         follower = scene.anchor_motion if values['anchor.source'] in POSE_SOURCES else None
         self._input_node = InputNode(self)      # its own thread: a flood never starves the run
@@ -132,12 +137,16 @@ class ModalSpringNode(Node):
                                   self._thread.submit)
         services = ReentrantCallbackGroup()     # awaiting coroutines: no thread held
         self._answered = self.create_guard_condition(lambda: None, callback_group=services)
-        self.create_timer(SERVICE_WAKE_S, lambda: None, callback_group=services)
+        # wall-time chores on the steady clock: under use_sim_time a timer on the ROS clock
+        # keeps the executor spinning on a core (and the run waiting for the interpreter)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(SERVICE_WAKE_S, lambda: None, callback_group=services, clock=steady)
         self.create_service(Trigger, '~/reset', self._on_reset, callback_group=services)
         self.create_service(SetBool, '~/pause', self._on_pause, callback_group=services)
         self.create_service(Trigger, '~/step', self._on_step, callback_group=services)
         self._namesakes = 0
-        self.create_timer(NAMESAKE_CHECK_S, self._check_namesakes, callback_group=services)
+        self.create_timer(NAMESAKE_CHECK_S, self._check_namesakes, callback_group=services,
+                          clock=steady)
         status = sim.status()
         log.info(f'scene {scene.name}: {scene.n_particles} particles, {status.modes_computed} '
                  f'modes computed; {status.method}, {status.band}, {status.coordinates} '
@@ -168,12 +177,13 @@ class ModalSpringNode(Node):
 
     def _open_capture(self, sim) -> RunBagWriter | None:
         values = self._params.values
+        applied = self._params.applied()    # what runs (the values asked for come as changes)
         path = values['record.bag']
         if not path:
             return None
         bag = RunBagWriter(path, sim.model.scene, None, dt=sim.dt, frame_every=0, duration=0.0,
                            frame_id=values['frame_id'], source='modal_spring_node',
-                           parameters=dict(values), node=self.get_fully_qualified_name())
+                           parameters=applied, node=self.get_fully_qualified_name())
         self.get_logger().info(f'writing every frame to {path}')
         return bag
 
@@ -188,31 +198,8 @@ class ModalSpringNode(Node):
         state = self._preparer.state()
         return {'anchor': anchor, 'anchor_stale': stale,
                 'parameters_preparing': state.preparing, 'parameters_reverted': state.reverted,
+                'progress': self._progress.latest(state.since) if state.preparing else '',
                 'namesakes': self._namesakes, 'name': self.get_fully_qualified_name()}
-
-    def _fall_back(self, window, settings: dict) -> None:
-        """
-        Set the parameters of the automatic plan's fallback (the watch found it beyond).
-
-        From a thread of its own, atomically (``modal.auto`` off and ``method`` full go
-        together): the parameters, ``/parameter_events`` and a capture say what runs from now.
-        """
-        values = {CONFIG_NAMES[name]: 0.0 if value is None else value
-                  for name, value in settings.items()}
-        self.get_logger().warning(f'{beyond_message(window, settings)}: setting '
-                                  + ', '.join(f'{k}={v!r}' for k, v in values.items()))
-        threading.Thread(target=self._set_fallback, args=(values,), daemon=True,
-                         name='modal_spring_fallback').start()
-
-    def _set_fallback(self, values: dict) -> None:
-        try:
-            result = self.set_parameters_atomically(
-                [Parameter(name, value=value) for name, value in values.items()])
-        except Exception as exc:  # shutting down, or a parameter refused by its type
-            result = SetParametersResult(successful=False, reason=repr(exc))
-        if not result.successful and self._running():
-            self.get_logger().error(f'the fallback of the automatic plan was refused: '
-                                    f'{result.reason}')
 
     def _check_namesakes(self) -> None:
         found = count_namesakes(self)

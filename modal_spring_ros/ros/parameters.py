@@ -208,6 +208,10 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     'modal.max_modes': (DEFAULT_MAX_MODES, _descriptor(
         'Most modes computed on scenes too large for a dense eigensolver', _I, read_only=True,
         int_range=(1, 100_000))),
+    'stream_early': (True, _descriptor(
+        'On large scenes, stream on the lowest modes and refreshed springs while the rest of '
+        'the band and the spring sample are prepared; false: the first frame waits for them',
+        _B, read_only=True)),
 }
 
 #: The frequencies of the computed modes. Set by the node alone (more modes are computed when
@@ -224,7 +228,7 @@ CLOCK_OFFSET_DESCRIPTOR = _descriptor(
 #: ``filter.*`` parameters change the band of the running one
 REBUILD_PARAMETERS = frozenset({'method', 'integrator', 'sim.dt', 'modal.auto',
                                 'modal.tolerance', 'modal.horizon', 'modal.force_refresh',
-                                'modal.basis',
+                                'modal.basis', 'modal.max_modes',
                                 'modal.forces',
                                 'modal.derivative_directions'})
 #: parameters of the band

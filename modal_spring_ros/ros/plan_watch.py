@@ -14,11 +14,16 @@ recovery restarts the watch, a new simulation brings its own (or none).
 """
 from __future__ import annotations
 
+import threading
 import time
 from typing import Callable, Mapping
 
 from modal_spring_ros.core.auto.run_watch import RunWatch, watch_of, WatchedWindow
 from modal_spring_ros.core.simulations import Simulation
+from modal_spring_ros.ros.parameters import CONFIG_NAMES
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 #: What the node does when a watched window is beyond the tolerance: ``(window, settings)``, the
 #: configuration fields that rebuild what the run falls back to.
@@ -38,6 +43,34 @@ def beyond_message(window: WatchedWindow, settings: Mapping[str, object]) -> str
             else 'the whole band on a richer basis')
     return (f'automatic plan beyond its tolerance {window.tolerance:.2%}: '
             f'{window.describe()}; falling back to {what}')
+
+
+def fall_back(node: Node, window: WatchedWindow, settings: Mapping[str, object],
+              running: Callable[[], bool]) -> None:
+    """
+    Set ``node``'s parameters to the automatic plan's fallback (the watch found it beyond).
+
+    From a thread of its own, atomically (``modal.auto`` off and ``method`` full go together):
+    the parameters, ``/parameter_events`` and a capture say what runs from now. A refusal is
+    logged unless the node is no longer ``running``.
+    """
+    values = {CONFIG_NAMES[name]: 0.0 if value is None else value
+              for name, value in settings.items()}
+    node.get_logger().warning(f'{beyond_message(window, settings)}: setting '
+                              + ', '.join(f'{k}={v!r}' for k, v in values.items()))
+    threading.Thread(target=_set_fallback, args=(node, values, running), daemon=True,
+                     name='modal_spring_fallback').start()
+
+
+def _set_fallback(node: Node, values: dict, running: Callable[[], bool]) -> None:
+    try:
+        result = node.set_parameters_atomically(
+            [Parameter(name, value=value) for name, value in values.items()])
+    except Exception as exc:  # shutting down, or a parameter refused by its type
+        result = SetParametersResult(successful=False, reason=repr(exc))
+    if not result.successful and running():
+        node.get_logger().error(f'the fallback of the automatic plan was refused: '
+                                f'{result.reason}')
 
 
 class PlanWatch:

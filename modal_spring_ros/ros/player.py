@@ -5,6 +5,7 @@ Raw CDR, recorded timing, recorded QoS (the player of ``modal_spring_replay``).
 """
 from __future__ import annotations
 
+import contextlib
 import signal
 import time
 
@@ -12,7 +13,10 @@ from modal_spring_ros.bags.qos import playback_profile, profiles_from_yaml
 from modal_spring_ros.bags.reader import BagReader, message_class
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.ros.publication_mode import prefer_asynchronous_publication
+from modal_spring_ros.ros.shared_memory import cloud_transport, prefer_large_shared_memory
+from modal_spring_ros.scenes.resources import share_directory
 import rclpy
+from rclpy import get_rmw_implementation_identifier
 from rclpy.executors import ExternalShutdownException
 
 
@@ -39,8 +43,20 @@ def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool
     signal.signal(signal.SIGTERM, lambda *_: None)  # rclpy shuts down first, then this
     count = 0
     prefer_asynchronous_publication()  # a slow reader never holds the replay's clock
+    # large clouds over Fast DDS's large shared-memory segment, as the node sends them
+    largest = max((len(m.data) for m in _first_messages(bag, installed)), default=None)
+    prefer_large_shared_memory(share_directory(), largest)
     rclpy.init(args=ros_args)
-    node = rclpy.create_node('modal_spring_replay')
+    try:
+        node = rclpy.create_node('modal_spring_replay')
+    except Exception:
+        if rclpy.ok():
+            raise
+        return count        # stopped (Ctrl-C, SIGTERM) before it began: ROS is shut down
+    transport = cloud_transport(largest or 0, get_rmw_implementation_identifier(),
+                                share_directory())
+    if transport:
+        node.get_logger().info(transport)
     try:
         publishers = {}
         for t in topics:
@@ -91,3 +107,14 @@ def _installed(type_name: str) -> bool:
     except BagError:
         return False
     return True
+
+
+def _first_messages(bag: BagReader, topics: list[str]) -> list:
+    """Return the first message of each of ``topics`` that has one (their sizes)."""
+    firsts = []
+    for topic in topics:
+        with contextlib.closing(bag.messages([topic])) as messages:
+            first = next(messages, None)
+        if first is not None:
+            firsts.append(first)
+    return firsts

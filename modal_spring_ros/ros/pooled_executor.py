@@ -26,6 +26,8 @@ from rclpy.task import Future
 
 #: what a stop waits at most for callbacks that are running, s
 DRAIN_TIMEOUT_S = 10.0
+#: longest wait for a pool thread to start a callback handed over, s
+HANDOFF_WAIT_S = 0.05
 
 
 class PooledExecutor(Executor):
@@ -36,7 +38,8 @@ class PooledExecutor(Executor):
         self._pool = concurrent.futures.ThreadPoolExecutor(num_threads,
                                                            thread_name_prefix=name)
         self._logger = get_logger(name)
-        self._handed: list[tuple[object, concurrent.futures.Future]] = []
+        # (handler, its pool call, set once a pool thread has started it)
+        self._handed: list[tuple[object, concurrent.futures.Future, threading.Event]] = []
         self._handed_lock = threading.Lock()
 
     def spin_once(self, timeout_sec: float | None = None) -> None:
@@ -56,15 +59,25 @@ class PooledExecutor(Executor):
                 ConditionReachedException):
             return
         with self._handed_lock:
-            self._handed.append((handler, self._pool.submit(handler)))
+            queued = next((started for h, call, started in self._handed
+                           if h is handler and not call.done()), None)
+            if queued is None:
+                started = threading.Event()
+                self._handed.append((handler, self._pool.submit(_run, handler, started),
+                                     started))
+        if queued is not None:
+            # rclpy yields a task again until a thread runs it: handing it over again would
+            # spin this thread on a core (a /clock at 100 Hz under use_sim_time did, starving
+            # the run of the interpreter); wait for a pool thread to start it instead
+            queued.wait(HANDOFF_WAIT_S)
         for handler in self._take_finished():
             handler.result()                                # raises what the callback raised
 
     def _take_finished(self) -> list:
         """Remove and return the handlers whose pool call has ended."""
         with self._handed_lock:
-            finished = [h for h, call in self._handed if call.done()]
-            self._handed = [(h, call) for h, call in self._handed if not call.done()]
+            finished = [h for h, call, _ in self._handed if call.done()]
+            self._handed = [entry for entry in self._handed if not entry[1].done()]
         return finished
 
     def drain(self, timeout_sec: float | None = DRAIN_TIMEOUT_S) -> bool:
@@ -75,7 +88,7 @@ class PooledExecutor(Executor):
         collection). Return whether none is left running; a failure is logged, not lost.
         """
         with self._handed_lock:
-            running = [call for _, call in self._handed]
+            running = [call for _, call, _ in self._handed]
         _, left = concurrent.futures.wait(running, timeout=timeout_sec)
         for handler in self._take_finished():
             if not handler.done():
@@ -94,3 +107,9 @@ class PooledExecutor(Executor):
         finished = super().shutdown(timeout_sec)
         self._pool.shutdown(wait=drained, cancel_futures=True)
         return drained and finished
+
+
+def _run(handler, started: threading.Event) -> None:
+    """Run ``handler`` in a pool thread, saying first that it has started."""
+    started.set()
+    handler()

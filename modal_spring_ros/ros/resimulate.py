@@ -35,7 +35,6 @@ from modal_spring_ros.ros.parameters import (CLOCK_OFFSET, config_from_parameter
 from modal_spring_ros.ros.stream_time import stamps_in_simulation_time
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.limits import available_memory
-from modal_spring_ros.scenes.schema import scene_from_yaml
 from rclpy.parameter import parameter_value_to_python
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import PointCloud2
@@ -128,12 +127,12 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
     """
     bag = BagReader(bag_path)
     rec = bag.run_record()
-    if 'scene_yaml' not in rec or not ('config' in rec or 'parameters' in rec):
+    scene = bag.scene()
+    if scene is None or not ('config' in rec or 'parameters' in rec):
         raise BagError(f'{bag_path}: no run description (scene and settings); it was not '
                        'recorded by modal_spring_ros')
     if topic not in bag.topics:
         raise BagError(f'{bag_path}: no topic {topic}')
-    scene = scene_from_yaml(rec['scene_yaml'], source=f'{bag_path} (scene)')
     changes: list[tuple[int, int, dict]] = []
     if 'config' in rec:
         config = SimulationConfig.from_dict(rec['config'])

@@ -100,7 +100,7 @@ def scene_argument(ros_args: list[str], default: str) -> str:
     return given or from_files or default
 
 
-def prefer_large_shared_memory(share: Path, particles: int | None,
+def prefer_large_shared_memory(share: Path, cloud_bytes: int | None,
                                environ: MutableMapping[str, str] | None = None,
                                cwd: Path | None = None,
                                shm_free: Callable[[], int] = lambda: free_bytes(SHM_PATH)
@@ -108,15 +108,16 @@ def prefer_large_shared_memory(share: Path, particles: int | None,
     """
     Point Fast DDS at the large-segment profile where clouds need it; return whether it did.
 
-    ``particles``: the scene's, as declared (None: not known, nothing done); clouds that fit the
-    default segment need nothing (the profile's segment costs its size in /dev/shm). ``share``:
+    ``cloud_bytes``: the largest message to be published (a scene's cloud, as its size is
+    declared, or a bag's; None: not known, nothing done); clouds that fit the default segment
+    need nothing (the profile's segment costs its size in /dev/shm). ``share``:
     the package's share directory; ``environ``: the process environment by default (read by the
     middleware when the node is created); ``cwd``: the working directory by default.
     """
     environ = os.environ if environ is None else environ
     cwd = Path.cwd() if cwd is None else cwd
     profile = share / PROFILE
-    if (particles is None or particles * POINT_BYTES <= DEFAULT_SEGMENT_BYTES
+    if (cloud_bytes is None or cloud_bytes <= DEFAULT_SEGMENT_BYTES
             or not is_fast_dds(environ.get('RMW_IMPLEMENTATION', ''))
             or user_choice(environ, cwd) or not profile.is_file()
             or shm_free() < SHM_FREE_NEEDED):

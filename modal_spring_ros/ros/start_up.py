@@ -14,13 +14,26 @@ over, once it is ready (at once where the sample cache has it). ``modal.forces``
 ``sampled`` throughout: what was asked for, and what the run settles on; should the training
 fail, the parameter goes back to ``refreshed`` with the reason in the log, as a failed change
 does.
+
+Its modes come the same way. On scenes of :data:`STAGED_DOF` free coordinates and more, the
+Lanczos iteration for a band's modes costs seconds a mode set (``sheet_316x316``: 8 modes in
+3.1 s of CPU, 32 in 9.9 s, beside 2.8 s for the factor they share), so a band that reaches past
+the lowest :data:`FIRST_MODES` modes starts on those (``modal.max_modes`` at
+:data:`FIRST_MODES`: the band as asked, cut after its first modes), and the rest of the band is
+the first change: computed in the worker, whose factor of the stiffness is kept for it, and
+taken by the run with its state carried over, as a band that needs more modes is.
+``/diagnostics`` says ``preparing modal.max_modes=...`` meanwhile; the parameter reads what was
+asked for throughout.
 """
 from __future__ import annotations
 
 from typing import Any
 
 from modal_spring_ros.core.config import SAMPLE_MIN_SPRINGS, SimulationConfig
+from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.scene import Scene
+from modal_spring_ros.core.simulations import DEFAULT_MAX_MODES
+import numpy as np
 
 #: scenes with this many springs or more start before their sample is trained (the size from
 #: which the automatic choice samples springs, and training takes seconds)
@@ -29,14 +42,42 @@ STAGED_SPRINGS = SAMPLE_MIN_SPRINGS
 FIRST_FORCES = 'refreshed'
 
 
+#: scenes with this many free coordinates or more stream on their lowest modes first
+STAGED_DOF = 50_000
+#: the modes the first frames of such a scene are stepped with (at most)
+FIRST_MODES = 8
+
+
 def first_values(config: SimulationConfig, scene: Scene) -> dict[str, Any]:
     """
     Return the parameters the first run takes in place of the values asked for (or none).
 
-    Only a modal run asked for sampled springs (not the automatic plan, which measures the
-    forces it chooses) on a scene of :data:`STAGED_SPRINGS` springs or more.
+    A modal run (not the automatic plan, which measures what it chooses) starts with refreshed
+    springs where it asked for sampled ones on a scene of :data:`STAGED_SPRINGS` springs or more,
+    and on its lowest :data:`FIRST_MODES` modes where its band needs more of a scene of
+    :data:`STAGED_DOF` free coordinates or more.
     """
-    if (config.method != 'modal' or config.auto or config.forces != 'sampled'
-            or scene.n_springs < STAGED_SPRINGS):
+    if config.method != 'modal' or config.auto:
         return {}
-    return {'modal.forces': FIRST_FORCES}
+    first: dict[str, Any] = {}
+    if config.forces == 'sampled' and scene.n_springs >= STAGED_SPRINGS:
+        first['modal.forces'] = FIRST_FORCES
+    if (scene.n_free_dof >= STAGED_DOF and (config.max_modes or DEFAULT_MAX_MODES) > FIRST_MODES
+            and _starts_low(config.band)):
+        first['modal.max_modes'] = FIRST_MODES
+    return first
+
+
+def _starts_low(band: FilterBand) -> bool:
+    """
+    Tell whether ``band`` surely keeps some of the lowest :data:`FIRST_MODES` modes, and more.
+
+    By index that is known before any mode is; by frequency only a low-pass (or the whole
+    spectrum) surely keeps the lowest mode. Gain terms (in Hz) may take any mode out.
+    """
+    if band.gains:
+        return False
+    if band.by == 'index':
+        kept = band.keeps(np.zeros(FIRST_MODES))     # by index only the modes' count matters
+        return bool(kept.any()) and (not band.bounded_above or band.top >= FIRST_MODES)
+    return band.kind in ('allpass', 'lowpass')

@@ -6,8 +6,10 @@ Fields (``F`` frames, ``n`` particles, ``E`` springs):
 ``stiffness`` (E,), ``rest_length`` (E,), ``mass`` (n,), ``fixed`` (n,) bool, ``gravity`` (3,),
 ``damping_ratio`` (scalar h, 0 if unused), ``rayleigh_alpha``, ``rayleigh_beta``,
 ``frequencies_hz`` (the computed modes, ascending), ``kept_modes`` (indices in the last step),
-``dt``; plus ``method``, ``integrator``, ``band`` (text), ``scene_yaml`` (the full scene) and
-``diverged`` (empty, or the divergence message).
+``dt``; plus ``method``, ``integrator``, ``band`` (text), ``scene_archive`` (the full scene:
+the bytes of an ``.npz`` archive of its arrays, :mod:`~modal_spring_ros.scenes.scene_archive`;
+runs written before it hold ``scene_yaml``, its YAML text) and ``diverged`` (empty, or the
+divergence message).
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ from modal_spring_ros.core.auto.run_watch import RunWatch, WatchedWindow
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import DivergenceError, Simulation
 from modal_spring_ros.core.threads import stepping_threads
-from modal_spring_ros.scenes.writing import scene_to_yaml
+from modal_spring_ros.scenes.scene_archive import scene_to_archive
 import numpy as np
 
 #: least wall time between two progress reports of :func:`record`, s (a short run reports none)
@@ -53,7 +55,8 @@ class Run:
                 damping_ratio=s.damping.ratio, rayleigh_alpha=s.damping.rayleigh_alpha,
                 rayleigh_beta=s.damping.rayleigh_beta, frequencies_hz=self.frequencies_hz,
                 kept_modes=self.kept_modes, dt=self.dt, method=self.method,
-                integrator=self.integrator, band=self.band, scene_yaml=scene_to_yaml(s),
+                integrator=self.integrator, band=self.band,
+                scene_archive=np.frombuffer(scene_to_archive(s), dtype=np.uint8),
                 diverged=self.diverged)
 
 

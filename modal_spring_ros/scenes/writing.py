@@ -13,6 +13,15 @@ from modal_spring_ros.core.model.scene import Scene
 import numpy as np
 import yaml
 
+#: libyaml's safe dumper where PyYAML was built with it, else PyYAML's own (the same text)
+DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
+
+
+#: where each of a scene's arrays sits in its definition: name -> (section or None, key)
+ARRAY_PLACES = {'positions': ('particles', 'positions'), 'mass': ('particles', 'mass'),
+                'pairs': ('springs', 'pairs'), 'stiffness': ('springs', 'stiffness'),
+                'triangles': (None, 'triangles'), 'fixed': ('fixed', 'indices')}
+
 
 def scene_to_dict(scene: Scene) -> dict[str, Any]:
     """
@@ -20,25 +29,34 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
 
     What :func:`modal_spring_ros.scenes.schema.scene_from_dict` loads back.
     """
+    return with_arrays(scene_header(scene),
+                       {name: a.tolist() for name, a in scene_arrays(scene).items()})
+
+
+def scene_arrays(scene: Scene) -> dict[str, np.ndarray]:
+    """Return the scene's per-particle and per-spring arrays, by :data:`ARRAY_PLACES` name."""
+    arrays = {
+        # the shape as built: a scene about its loaded shape finds it again on load
+        'positions': scene.unloaded_positions if scene.loaded else scene.rest_positions,
+        'mass': scene.mass, 'pairs': scene.springs, 'stiffness': scene.stiffness,
+        'fixed': np.flatnonzero(scene.fixed)}
+    if scene.triangles is not None:
+        arrays['triangles'] = scene.triangles
+    return arrays
+
+
+def scene_header(scene: Scene) -> dict[str, Any]:
+    """Return the definition without its arrays (:func:`with_arrays` puts them back)."""
     return {
         'name': scene.name,
         'description': scene.description,
         'dimension': scene.dimension,
         **({'axis': 'xyz'[scene.axes[0]]} if scene.dimension == 1 else {}),
         **({'plane': ''.join('xyz'[a] for a in scene.axes)} if scene.dimension == 2 else {}),
-        # the shape as built: a scene about its loaded shape finds it again on load
         'reference': 'loaded' if scene.loaded else 'rest',
-        'particles': {
-            'positions': (scene.unloaded_positions if scene.loaded
-                          else scene.rest_positions).tolist(),
-            'mass': scene.mass.tolist(),
-        },
-        'springs': {
-            'pairs': scene.springs.tolist(),
-            'stiffness': scene.stiffness.tolist(),
-        },
-        **({'triangles': scene.triangles.tolist()} if scene.triangles is not None else {}),
-        'fixed': {'indices': np.flatnonzero(scene.fixed).tolist()},
+        'particles': {},
+        'springs': {},
+        'fixed': {},
         'gravity': scene.gravity.tolist(),
         'damping': {
             'ratio': scene.damping.ratio,
@@ -52,6 +70,24 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
     }
 
 
+def with_arrays(header: dict[str, Any], arrays: dict[str, Any]) -> dict[str, Any]:
+    """Return ``header`` (not changed) with ``arrays`` in their places (:data:`ARRAY_PLACES`)."""
+    data = {key: dict(value) if isinstance(value, dict) else value
+            for key, value in header.items()}
+    for name, value in arrays.items():
+        section, key = ARRAY_PLACES[name]
+        if section is None:
+            data[key] = value
+        elif isinstance(data.get(section, {}), dict):
+            data.setdefault(section, {})[key] = value
+    return data
+
+
 def scene_to_yaml(scene: Scene) -> str:
-    """Return :func:`scene_to_dict` as YAML text (keys in the file format's order)."""
-    return yaml.safe_dump(scene_to_dict(scene), sort_keys=False)
+    """
+    Return :func:`scene_to_dict` as YAML text (keys in the file format's order).
+
+    With libyaml's safe dumper where PyYAML has it (a 100k-particle scene in a second or two,
+    where PyYAML's own takes over ten: a node's capture writes its scene before streaming).
+    """
+    return yaml.dump(scene_to_dict(scene), Dumper=DUMPER, sort_keys=False)

@@ -24,6 +24,9 @@ MAX_BYTES = 16 * 1024 * 1024
 MAX_DEPTH = 16
 #: Most nodes the document may expand to, aliases counted at their full size.
 MAX_NODES = 5_000_000
+#: libyaml's safe loader where PyYAML was built with it (a 100k-particle scene: seconds, not a
+#: minute), else PyYAML's own; the same documents, values and errors
+LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 
 def read_scene_text(path: Path) -> str:
@@ -68,7 +71,7 @@ def load_yaml(text: str, source: str) -> Any:
                          f'{MAX_BYTES // (1024 * 1024)} MiB a scene may have')
     try:
         _check_structure(text, source)
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=LOADER)    # a safe loader: plain data only
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
@@ -88,7 +91,7 @@ def _check_structure(text: str, source: str) -> None:
     sizes: dict[str, int] = {}        # anchor -> expanded size of its node
     open_nodes: list[list] = []       # per open collection: [anchor, size so far]
     total = 0
-    for event in yaml.parse(text, Loader=yaml.SafeLoader):
+    for event in yaml.parse(text, Loader=LOADER):
         if isinstance(event, yaml.AliasEvent):
             size = sizes.get(event.anchor, 1)
         elif isinstance(event, yaml.ScalarEvent):

@@ -11,7 +11,7 @@ def test_one_case_is_picked_by_a_part_of_its_label():
     assert [label for label, _, _ in chosen] == [
         'sheet_316x316 (100k), sampled springs, Fast DDS default transports (UDP)']
     assert chosen[0][2][-1] == '--env=FASTDDS_BUILTIN_TRANSPORTS=DEFAULT'
-    assert len(stream.select_cases('100K', quick=False)) == 4          # any case
+    assert len(stream.select_cases('100K', quick=False)) == 5          # any case
     assert stream.select_cases(None, quick=True) == stream.CASES[:2]
     with pytest.raises(ValueError, match="--case 'nothing' matches no stream case"):
         stream.select_cases('nothing', quick=False)
@@ -35,3 +35,21 @@ def test_a_case_that_cannot_be_run_is_refused_before_any_work(argv, message, cap
     with pytest.raises(SystemExit) as exc:
         main(argv)
     assert exc.value.code == 2 and message in capsys.readouterr().err
+
+
+def _result(label: str, wall: float, cpu: float) -> dict:
+    return {'label': label, 'particles': 99856, 'rate_hz': 60.0, 'latency_median_ms': 1.0,
+            'latency_p95_ms': 2.0, 'achieved_rtf': 1.0, 'step_us': 20.0,
+            'first_frame_s': wall, 'first_frame_cpu_s': cpu}
+
+
+def test_the_start_up_is_a_ratio_against_the_same_run_s_baseline():
+    assert {stream.EARLY, stream.WAITING} <= {label for label, _, _ in stream.CASES}
+    (early,) = [p for label, _, p in stream.CASES if label == stream.EARLY]
+    (waiting,) = [p for label, _, p in stream.CASES if label == stream.WAITING]
+    assert waiting == early + ['stream_early:=false']
+    text = stream.table([_result(stream.EARLY, 9.0, 10.0), _result(stream.WAITING, 18.0, 25.0)])
+    assert text.splitlines()[-1] == (
+        'start-up of the 100k sheet: the first frame after 10.0 s of CPU streaming early, '
+        '25.0 s waiting for every mode: 2.50x less (2.00x in wall time)')
+    assert 'start-up' not in stream.table([_result(stream.EARLY, 9.0, 10.0)])

@@ -7,7 +7,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from modal_spring_ros.core.forces import ForceReport
 from modal_spring_ros.core.simulations import SimulationStatus
-from modal_spring_ros.ros.diagnostics import diagnostic_array, StreamReport
+from modal_spring_ros.ros.diagnostics import diagnostic_array, starting_array, StreamReport
 import pytest
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
@@ -131,3 +131,23 @@ def test_a_watched_plan_reports_its_windows_and_a_window_beyond_warns():
               'against the full run; falling back to the full run')
     entry, _ = _entry(stream=dataclasses.replace(STREAM, watched=beyond, watch_beyond=beyond))
     assert (entry.level, entry.message) == (WARN, beyond)
+
+
+def test_a_node_still_starting_says_what_it_prepares_under_the_running_name():
+    array = starting_array('computing the 8 lowest modes', 3.25, node='/robot/modal_spring',
+                           hardware_id='sheet_316x316', stamp=Time(sec=1))
+    (entry,) = array.status
+    values = {kv.key: kv.value for kv in entry.values}
+    assert (entry.level, entry.message) == (OK, 'starting: computing the 8 lowest modes')
+    assert entry.name == _entry()[0].name and entry.hardware_id == 'sheet_316x316'
+    assert values == {'node': '/robot/modal_spring', 'progress': 'computing the 8 lowest modes',
+                      'starting for (s)': '3.2'}
+
+
+def test_the_progress_of_a_change_being_prepared_is_reported_only_with_one():
+    assert 'progress' not in _entry()[1]
+    preparing = dataclasses.replace(STREAM, parameters_preparing='modal.max_modes=256',
+                                    progress='computing the 32 lowest modes')
+    values = _entry(stream=preparing)[1]
+    assert values['progress'] == 'computing the 32 lowest modes'
+    assert values['parameter changes pending'] == 'modal.max_modes=256'

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from ros_harness import (Client, frames_since, node_of, node_with_client, NodeProcess,
-                         stderr_excerpt, wait_for)
+                         stderr_excerpt, streaming_statuses, wait_for)
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
 
@@ -152,9 +152,8 @@ def test_params_file_is_accepted_as_ros2_run_would_pass_it(tmp_path):
     client = Client('params_client')
     diags = client.collect(Diag, '/diagnostics')
     try:
-        assert wait_for(lambda: any(node_of(d.status[0]).startswith('/params/')
-                                    for _, d in diags), 30)
-        status = next(d.status[0] for _, d in diags if node_of(d.status[0]).startswith('/params/'))
+        assert wait_for(lambda: streaming_statuses(diags, '/params/'), 30)
+        status = streaming_statuses(diags, '/params/')[0]
         values = {kv.key: kv.value for kv in status.values}
         assert values['band'] == 'lowpass <= 45 Hz' and values['method'] == 'modal'
     finally:

@@ -13,7 +13,7 @@ from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
-from ros_harness import frames_since, node_of, node_with_client, wait_for
+from ros_harness import frames_since, node_of, node_with_client, streaming_statuses, wait_for
 from sensor_msgs.msg import PointCloud2
 
 pytestmark = pytest.mark.ros
@@ -45,9 +45,8 @@ def test_node_automatic_mode_choice_is_reported():
     with node_with_client('modal.auto:=true', 'modal.tolerance:=0.05',
                           namespace='auto') as (node, client):
         diags = client.collect(DiagnosticArray, '/diagnostics')
-        assert wait_for(lambda: any(node_of(d.status[0]).startswith('/auto/') for _, d in diags),
-                        30)
-        status = next(d.status[0] for _, d in diags if node_of(d.status[0]).startswith('/auto/'))
+        assert wait_for(lambda: streaming_statuses(diags, '/auto/'), 30)
+        status = streaming_statuses(diags, '/auto/')[0]
         values = {kv.key: kv.value for kv in status.values}
         assert values['automatic mode choice'].startswith('5 modes up to 20.44 Hz')
         assert values['modes stepped'] == '5'
@@ -64,7 +63,7 @@ def test_node_automatic_mode_choice_is_reported():
 
 
 def _values(diags, prefix):
-    status = [d.status[0] for _, d in diags if node_of(d.status[0]).startswith(prefix)][-1]
+    status = streaming_statuses(diags, prefix)[-1]
     return {kv.key: kv.value for kv in status.values}
 
 
@@ -79,8 +78,7 @@ def test_the_node_streams_with_sampled_springs():
         points = client.collect(PointCloud2, '/sampled/points')
         diags = client.collect(DiagnosticArray, '/diagnostics')
         assert wait_for(lambda: len(points) > 10, 60)
-        assert wait_for(lambda: any(node_of(d.status[0]).startswith('/sampled/')
-                                    for _, d in diags), 10)
+        assert wait_for(lambda: streaming_statuses(diags, '/sampled/'), 10)
         assert _values(diags, '/sampled/')['spring forces'].startswith('sampled: ')
         for _, m in points:
             assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
@@ -102,8 +100,8 @@ def test_a_large_scene_streams_while_its_spring_sample_is_trained(monkeypatch, t
         diags = client.collect(DiagnosticArray, '/diagnostics')
 
         def reports():
-            return [{kv.key: kv.value for kv in d.status[0].values} for _, d in list(diags)
-                    if node_of(d.status[0]).startswith('/staged/')]
+            return [{kv.key: kv.value for kv in s.values}
+                    for s in streaming_statuses(diags, '/staged/')]
 
         def training_while_streaming():
             return any('tangent between' in r['spring forces']

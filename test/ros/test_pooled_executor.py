@@ -12,6 +12,7 @@ import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.context import Context
 from ros_harness import DOMAIN_ID, wait_for
+from std_msgs.msg import String
 
 
 class _Ros:
@@ -100,4 +101,39 @@ def test_a_failing_callback_is_raised_from_the_spin_loop():
                 ros.executor.spin_once(timeout_sec=0.05)
     finally:
         assert ros.executor.shutdown(timeout_sec=10.0)
+        ros.close()
+
+
+@pytest.mark.ros
+def test_a_callback_waiting_for_a_thread_is_handed_over_once_and_the_loop_does_not_spin():
+    """
+    A task rclpy yields again and again until a thread runs it is handed over once.
+
+    With every pool thread busy, the next message's task waits in the pool: the spin loop must
+    wait for a thread to take it, not hand it over again on every turn (under use_sim_time a
+    /clock at 100 Hz kept the node's spin loop on a core that way, and its run starved).
+    """
+    ros = _Ros('pool_busy')
+    release = threading.Event()
+    got: list[str] = []
+    ros.node.create_subscription(String, '/pool_busy', lambda m: (got.append(m.data),
+                                                                  release.wait(10.0)), 10,
+                                 callback_group=ros.group)
+    handed = []
+    real_submit = ros.executor._pool.submit
+    ros.executor._pool.submit = lambda *args: (handed.append(args), real_submit(*args))[1]
+    pub = ros.node.create_publisher(String, '/pool_busy', 10)
+    try:
+        ros.thread.start()
+        for k in range(4):          # two fill the threads, the others wait in the pool
+            pub.publish(String(data=str(k)))
+            time.sleep(0.05)
+        time.sleep(0.5)
+        assert sorted(got) == ['0', '1'] and len(handed) <= 4, len(handed)
+        release.set()
+        assert wait_for(lambda: sorted(got) == ['0', '1', '2', '3'], 10)
+    finally:
+        release.set()
+        ros.stop.requested.set()
+        ros.thread.join(30.0)
         ros.close()

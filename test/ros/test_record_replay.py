@@ -13,6 +13,7 @@ from modal_spring_ros.bags.sim_time import simulation_times
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.ros.parameters import CLOCK_OFFSET
 from modal_spring_ros.ros.resimulate import frame_times, parameter_changes, resimulate
+from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
 from ros_harness import Client, console_script, frames_since, NodeProcess, wait_for
@@ -49,6 +50,21 @@ def test_replay_delivers_exactly_the_recorded_messages_with_their_timing():
     got = np.diff([t for t, _ in received])
     assert abs(got.sum() - sent.sum()) < 0.1 * sent.sum()
     assert np.median(np.abs(got - sent)) < 0.004
+
+
+@pytest.mark.parametrize('after_s', [0.05, 0.3, 0.8])
+def test_a_replay_stopped_as_it_starts_ends_cleanly(after_s):
+    """Ctrl-C at any moment of the start (ROS coming up, the node being made, playing)."""
+    player = subprocess.Popen([console_script('modal_spring_replay'),
+                               str(BAGS / 'sheet_10x10_lowpass_0_14'), '--loop'],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(after_s)
+    player.send_signal(signal.SIGINT)
+    out, err = player.communicate(timeout=30)
+    # 130: stopped before playing (as a shell reports Ctrl-C); 0: after, saying how many it
+    # played; never a traceback
+    assert player.returncode in (0, 130) and 'Traceback' not in err, err
+    assert out.startswith('played ') == (player.returncode == 0), out
 
 
 def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
@@ -98,7 +114,9 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
     record = bag.run_record()
     assert record['parameters']['scene'] == 'sheet_10x10'
     assert record['parameters']['filter.type'] == 'allpass'
-    assert 'particles:' in record['scene_yaml']                 # the full definition
+    assert record['scene_archive'] == 'scene.npz'               # the full definition
+    np.testing.assert_array_equal(bag.scene().rest_positions,
+                                  load_scene('sheet_10x10').rest_positions)
     # header stamp (the node's clock: system time by default) as publish time, receive time as
     # log time
     first = next(bag.messages(['/rec/points']))

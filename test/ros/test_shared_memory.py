@@ -9,19 +9,25 @@ node started as users start it has a segment of the profile's size in /dev/shm, 
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
 import time
 
-from modal_spring_ros.ros.shared_memory import (cloud_transport, prefer_large_shared_memory,
-                                                PROFILE, PROFILES_VARIABLE, scene_argument,
+from helpers import hanging_sheet
+from modal_spring_ros.bags.capture import RunBagWriter
+from modal_spring_ros.ros.shared_memory import (cloud_transport, POINT_BYTES,
+                                                prefer_large_shared_memory, PROFILE,
+                                                PROFILES_VARIABLE, scene_argument,
                                                 SEGMENT_BYTES, SHM_FREE_NEEDED, SHM_PATH)
 from modal_spring_ros.scenes.declared_size import declared_particles
 from modal_spring_ros.scenes.resources import share_directory
+from modal_spring_ros.scenes.schema import scene_from_dict
 import pytest
-from ros_harness import NodeProcess, wait_for
+from ros_harness import console_script, NodeProcess, wait_for
 
 SHARE = share_directory()
 PLENTY = lambda: 10 * SHM_FREE_NEEDED  # noqa: E731
-LARGE = 99_856                         # the 100k sheet: 1.6 MB clouds
+LARGE = 99_856 * POINT_BYTES           # the 100k sheet's 1.6 MB clouds
 
 
 def test_the_node_takes_the_profile_unless_the_user_chose(tmp_path):
@@ -51,9 +57,9 @@ def test_only_fast_dds_gets_a_fast_dds_profile(tmp_path, rmw, taken):
 
 def test_only_clouds_beyond_the_default_segment_get_it(tmp_path):
     # the segment is filled when Fast DDS creates it: 32 MB of /dev/shm for every node else
-    for particles, taken in ((None, False), (100, False), (32_768, False), (32_769, True)):
+    for size, taken in ((None, False), (1600, False), (524_288, False), (524_289, True)):
         env: dict[str, str] = {}
-        assert prefer_large_shared_memory(SHARE, particles, env, tmp_path, PLENTY) == taken
+        assert prefer_large_shared_memory(SHARE, size, env, tmp_path, PLENTY) == taken
 
 
 def test_the_scene_is_read_from_the_command_line_as_rcl_reads_it(tmp_path):
@@ -69,7 +75,7 @@ def test_the_scene_is_read_from_the_command_line_as_rcl_reads_it(tmp_path):
     assert scene_argument(['--ros-args', '--params-file', str(tmp_path / 'none.yaml')],
                           'x') == 'x'
     # what each declares, read without building it
-    assert declared_particles('sheet_316x316') == LARGE
+    assert declared_particles('sheet_316x316') * POINT_BYTES == LARGE
     assert declared_particles('sheet_10x10') == 100
     assert declared_particles('cloth_3d') == 400
     assert declared_particles('no_such_scene') is None
@@ -140,3 +146,30 @@ def test_the_node_of_a_large_scene_has_the_large_segment(monkeypatch, transports
     finally:
         code, _, err = node.interrupt(timeout=60.0)
     assert code == 0, err[-2000:]
+
+
+@pytest.mark.skipif(not SHM_PATH.is_dir(), reason='no /dev/shm on this system')
+def test_a_replay_of_large_clouds_has_the_large_segment(tmp_path, monkeypatch):
+    """A bag of 0.6 MB clouds is played back as the node sent them: over the large segment."""
+    for name in ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE',
+                 'RMW_IMPLEMENTATION', 'FASTDDS_BUILTIN_TRANSPORTS'):
+        monkeypatch.delenv(name, raising=False)
+    scene = scene_from_dict(hanging_sheet(200))       # 40,000 points
+    bag = RunBagWriter(tmp_path / 'large', scene, None, dt=1e-3, frame_every=0, duration=0.0,
+                       parameters={'scene': 'sheet_200x200'}, node='/modal_spring')
+    for k in range(5):
+        bag.frame(0.1 * k, scene.rest_positions)
+    bag.close()
+    before = set(_segments())
+    player = subprocess.Popen([console_script('modal_spring_replay'), str(tmp_path / 'large'),
+                               '--loop'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True, start_new_session=True)
+    try:
+        assert wait_for(lambda: any(size >= SEGMENT_BYTES
+                                    for size in _new_segments(before).values()), 60)
+        time.sleep(1.0)                     # playing (a stop before it plays is tested too)
+    finally:
+        player.send_signal(signal.SIGINT)
+        _, err = player.communicate(timeout=30)
+    assert player.returncode == 0, err
+    assert '0.6 MB clouds over shared memory (32 MB segment)' in err, err

@@ -1,20 +1,32 @@
-"""Which runs start streaming before their spring sample is trained (ros/start_up.py)."""
+"""Which runs start streaming before their spring sample or their modes are ready (start_up)."""
 from __future__ import annotations
 
 import dataclasses
 
+from helpers import hanging_sheet
 from modal_spring_ros.core.config import SimulationConfig
-from modal_spring_ros.ros.start_up import first_values, STAGED_SPRINGS
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.ros.start_up import FIRST_MODES, first_values, STAGED_DOF, STAGED_SPRINGS
 from modal_spring_ros.scenes.resources import load_scene
+from modal_spring_ros.scenes.schema import scene_from_dict
 import pytest
 
 SAMPLED = SimulationConfig(forces='sampled')
+#: the lowest 32 modes, as the stream benchmark asks
+LOWEST_32 = FilterBand('lowpass', high=31.0, by='index')
 
 
 @pytest.fixture(scope='module')
 def large():
     scene = load_scene('sheet_100x100')
-    assert scene.n_springs >= STAGED_SPRINGS
+    assert scene.n_springs >= STAGED_SPRINGS and scene.n_free_dof < STAGED_DOF
+    return scene
+
+
+@pytest.fixture(scope='module')
+def huge():
+    scene = scene_from_dict(hanging_sheet(160))
+    assert scene.n_free_dof >= STAGED_DOF
     return scene
 
 
@@ -34,3 +46,34 @@ def test_a_scene_below_the_size_starts_as_asked():
     scene = load_scene('sheet_32x32')
     assert scene.n_springs < STAGED_SPRINGS
     assert first_values(SAMPLED, scene) == {}
+
+
+@pytest.mark.parametrize('band', [
+    LOWEST_32, FilterBand(), FilterBand('lowpass', high=40.0),
+    FilterBand('lowpass', high=40.0, order=4), FilterBand('highpass', low=3.0, by='index'),
+    FilterBand('bandstop', low=2.0, high=5.0, by='index'),
+    FilterBand('bandpass', low=7.0, high=20.0, by='index')])
+def test_a_huge_scene_streams_its_lowest_modes_first_where_the_band_keeps_more(huge, band):
+    config = SimulationConfig(forces='sampled', band=band)
+    assert first_values(config, huge) == {'modal.forces': 'refreshed',
+                                          'modal.max_modes': FIRST_MODES}
+    assert first_values(dataclasses.replace(config, forces='exact'), huge) == {
+        'modal.max_modes': FIRST_MODES}
+
+
+@pytest.mark.parametrize('band', [
+    FilterBand('lowpass', high=FIRST_MODES - 1.0, by='index'),    # no more than the first
+    FilterBand('bandpass', low=FIRST_MODES, high=31.0, by='index'),   # none of the first
+    FilterBand('highpass', low=10.0), FilterBand('bandpass', low=5.0, high=30.0),
+    FilterBand('bandstop', low=0.1, high=30.0),     # by frequency: the lowest may be out
+    FilterBand('lowpass', high=40.0, gains=('0:10:-80',))])
+def test_a_huge_scene_starts_as_asked_where_its_first_modes_may_not_serve(huge, band):
+    config = SimulationConfig(forces='exact', band=band)
+    assert first_values(config, huge) == {}
+
+
+def test_a_huge_scene_starts_as_asked_when_it_may_compute_no_more_modes(huge):
+    config = SimulationConfig(band=LOWEST_32, max_modes=FIRST_MODES)
+    assert first_values(config, huge) == {}
+    config = SimulationConfig(band=LOWEST_32, auto=True)
+    assert first_values(config, huge) == {}

@@ -16,7 +16,7 @@ from modal_spring_ros.core.model.scene import Scene, SceneError
 from modal_spring_ros.scenes import limits
 from modal_spring_ros.scenes.resources import builtin_scene_dir, builtin_scene_names, load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
-from modal_spring_ros.scenes.yaml_reading import MAX_BYTES
+from modal_spring_ros.scenes.yaml_reading import LOADER, MAX_BYTES
 import pytest
 import yaml
 
@@ -37,7 +37,11 @@ def _replace(text: str, old: str, new: str) -> str:
 
 CASES = {
     'alias bomb': (BOMB, 'aliases expand to more than'),
-    'deep nesting': ('[' * 5000 + ']' * 5000, 'nested deeper than 16 levels'),
+    'deep nesting': ('[' * 100 + ']' * 100, 'nested deeper than 16 levels'),
+    # libyaml refuses 1000 levels itself, before the check
+    'very deep nesting': ('[' * 5000 + ']' * 5000, 'nested deeper than 16 levels'
+                          if LOADER is yaml.SafeLoader else
+                          'invalid YAML at line 1, column 1001: exceeded maximum nesting depth'),
     'syntax error': ('name: [1, 2\nfoo: bar: baz\n', 'invalid YAML at line 2, column 4'),
     'float dimension': (_replace(SHEET, 'dimension: 2', 'dimension: 2.0'),
                         'dimension: must be 1, 2 or 3, got 2.0'),
