@@ -20,6 +20,7 @@ import time
 from typing import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray
+from modal_spring_ros.bench.busy_load import BusyLoad
 from modal_spring_ros.bench.process_cpu import tree_cpu_seconds
 from modal_spring_ros.scenes.resources import executable
 import rclpy
@@ -31,10 +32,16 @@ from sensor_msgs.msg import PointCloud2
 #: send clouds over 0.5 MB over UDP (the node otherwise takes the large-segment profile for them,
 #: ros/shared_memory.py)
 FAST_DDS_DEFAULTS = '--env=FASTDDS_BUILTIN_TRANSPORTS=DEFAULT'
+#: a case's load beside the node (``--busy=N``): N processes each spinning on a core
+#: (:mod:`~modal_spring_ros.bench.busy_load`) from before the node starts until it is stopped
+BUSY = '--busy='
 #: the paper's method on the lowest 32 rest modes (the node's default adds their derivatives)
 _REST_32 = ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31',
             'modal.basis:=rest']
 
+#: the 10k sheet beside two busy processes, and the same case on a quiet machine
+BUSY_CASE = 'sheet_100x100, modal 32 modes, two busy processes beside it'
+QUIET_CASE = 'sheet_100x100, modal 32 modes'
 #: the start-up's baseline: the node waits for every mode of the band before its first frame
 WAITING = 'sheet_316x316 (100k), modal 32 modes, the first frame waiting for all (baseline)'
 #: the case it is the baseline of (the node streams on the lowest modes while the rest come)
@@ -46,6 +53,7 @@ MAX_DOMAIN_ID = 232
 CASES = [
     ('sheet_10x10, modal all modes', 'sheet_10x10', []),
     ('sheet_100x100, modal 32 modes', 'sheet_100x100', _REST_32),
+    (BUSY_CASE, 'sheet_100x100', _REST_32 + [f'{BUSY}2']),
     ('sheet_100x100, modal 32 modes + derivatives, sampled springs', 'sheet_100x100',
      ['filter.type:=lowpass', 'filter.by:=index', 'filter.high_mode:=31',
       'modal.forces:=sampled']),
@@ -84,17 +92,31 @@ def select_cases(case: str | None, quick: bool) -> list[tuple[str, str, list[str
 
 def measure(scene: str, params: list[str], seconds: float, startup_timeout: float,
             progress: Callable[[str], None]) -> dict:
+    """
+    Start the node on ``scene`` with ``params`` and measure its stream (see the module).
 
+    ``params`` are node parameters, and the case's own ``--env=NAME=VALUE`` (the node's
+    environment) and ``--busy=N`` (N busy processes beside it throughout).
+    """
     domain = domain_id()
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     exe = executable('modal_spring_node')
     args = [str(exe), '--ros-args', '-p', f'scene:={scene}', '-p', 'stamp:=wall']
+    busy = 0
     for p in params:
         if p.startswith('--env='):
             name, value = p[len('--env='):].split('=', 1)
             env[name] = value
+        elif p.startswith(BUSY):
+            busy = int(p[len(BUSY):])
         else:
             args += ['-p', p]
+    with BusyLoad(busy):
+        return _measure(args, env, domain, scene, seconds, startup_timeout, progress)
+
+
+def _measure(args: list[str], env: dict, domain: int, scene: str, seconds: float,
+             startup_timeout: float, progress: Callable[[str], None]) -> dict:
     started = time.monotonic()
     node = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, start_new_session=True)
@@ -179,6 +201,13 @@ def table(results: list[dict]) -> str:
                      f"{r['achieved_rtf']:6.2f} {r['step_us']:9.0f} "
                      f"{r['first_frame_s']:11.1f} {r['first_frame_cpu_s']:9.1f}")
     by_label = {r['label']: r for r in results}
+    if QUIET_CASE in by_label and BUSY_CASE in by_label:
+        quiet, busy = by_label[QUIET_CASE], by_label[BUSY_CASE]
+        latency = busy['latency_median_ms'] / quiet['latency_median_ms']
+        lines.append('beside two busy processes the 10k sheet streams at '
+                     f"{busy['rate_hz'] / quiet['rate_hz']:.2f}x the quiet rate, real-time "
+                     f"factor {busy['achieved_rtf']:.2f} (quiet {quiet['achieved_rtf']:.2f}), "
+                     f'median latency {latency:.1f}x')
     if EARLY in by_label and WAITING in by_label:
         early, waiting = by_label[EARLY], by_label[WAITING]
         lines.append('start-up of the 100k sheet: the first frame after '

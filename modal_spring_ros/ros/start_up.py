@@ -22,8 +22,9 @@ the lowest :data:`FIRST_MODES` modes starts on those (``modal.max_modes`` at
 :data:`FIRST_MODES`: the band as asked, cut after its first modes), and the rest of the band is
 the first change: computed in the worker, whose factor of the stiffness is kept for it, and
 taken by the run with its state carried over, as a band that needs more modes is.
-``/diagnostics`` says ``preparing modal.max_modes=...`` meanwhile; the parameter reads what was
-asked for throughout.
+``/diagnostics`` says ``parameter changes pending: modal.max_modes=256`` meanwhile, with the
+worker's ``progress``; the parameter reads what was asked for throughout. ``stream_early``
+false waits for all of it instead.
 """
 from __future__ import annotations
 
@@ -40,8 +41,6 @@ import numpy as np
 STAGED_SPRINGS = SAMPLE_MIN_SPRINGS
 #: the forces the first frames are stepped with while the sample trains
 FIRST_FORCES = 'refreshed'
-
-
 #: scenes with this many free coordinates or more stream on their lowest modes first
 STAGED_DOF = 50_000
 #: the modes the first frames of such a scene are stepped with (at most)

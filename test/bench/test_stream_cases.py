@@ -53,3 +53,15 @@ def test_the_start_up_is_a_ratio_against_the_same_run_s_baseline():
         'start-up of the 100k sheet: the first frame after 10.0 s of CPU streaming early, '
         '25.0 s waiting for every mode: 2.50x less (2.00x in wall time)')
     assert 'start-up' not in stream.table([_result(stream.EARLY, 9.0, 10.0)])
+
+
+def test_the_busy_case_runs_beside_two_busy_processes_and_is_a_ratio_to_the_quiet_one():
+    (busy,) = [p for label, _, p in stream.CASES if label == stream.BUSY_CASE]
+    (quiet,) = [p for label, _, p in stream.CASES if label == stream.QUIET_CASE]
+    assert busy == quiet + [f'{stream.BUSY}2']
+    slow = dict(_result(stream.BUSY_CASE, 3.0, 4.0), rate_hz=45.0, achieved_rtf=0.75,
+                latency_median_ms=3.0)
+    text = stream.table([_result(stream.QUIET_CASE, 3.0, 4.0), slow])
+    assert text.splitlines()[-1] == (
+        'beside two busy processes the 10k sheet streams at 0.75x the quiet rate, real-time '
+        'factor 0.75 (quiet 1.00), median latency 3.0x')
