@@ -22,8 +22,7 @@ from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.bags.writer import BagError, RUN_RECORD
 from modal_spring_ros.core.model.scene import Scene
-from modal_spring_ros.scenes.scene_archive import scene_from_archive
-from modal_spring_ros.scenes.schema import scene_from_yaml
+from modal_spring_ros.scenes.scene_archive import recorded_scene
 import numpy as np
 from rclpy.serialization import deserialize_message
 import yaml
@@ -281,16 +280,13 @@ class BagReader:
             missing.
         """
         rec = self.run_record()
-        source = f'{self.path} (scene)'
-        if 'scene_archive' in rec:
-            name = str(rec['scene_archive'])
-            if name not in self.attachments:
-                raise BagError(f"{self.path}: the run record's scene {name!r} is not attached "
-                               '(a bag cut short?)')
-            return scene_from_archive(self.attachments[name], source)
-        if 'scene_yaml' in rec:
-            return scene_from_yaml(str(rec['scene_yaml']), source=source)
-        return None
+        name = str(rec.get('scene_archive', ''))
+        if name and name not in self.attachments:
+            raise BagError(f"{self.path}: the run record's scene {name!r} is not attached "
+                           '(a bag cut short?)')
+        return recorded_scene(self.attachments.get(name) if name else None,
+                              str(rec['scene_yaml']) if 'scene_yaml' in rec else None,
+                              f'{self.path} (scene)')
 
     def points(self, topic: str = '/points',
                times: dict[int, float] | None = None) -> tuple[np.ndarray, np.ndarray]:

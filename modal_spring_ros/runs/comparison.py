@@ -14,8 +14,7 @@ import dataclasses
 from pathlib import Path
 
 from modal_spring_ros.core.model.scene import Scene
-from modal_spring_ros.scenes.scene_archive import scene_from_archive
-from modal_spring_ros.scenes.schema import scene_from_yaml
+from modal_spring_ros.scenes.scene_archive import recorded_scene
 import numpy as np
 
 
@@ -41,21 +40,14 @@ class RunData:
         return self.scene.rest_positions if self.scene is not None else self.positions[0]
 
 
-def _recorded_scene(data, source: str) -> Scene | None:
-    """Return the scene a run holds: its archive, or the YAML of older runs, or None."""
-    if 'scene_archive' in data:
-        return scene_from_archive(data['scene_archive'].tobytes(), source)
-    if 'scene_yaml' in data:
-        return scene_from_yaml(str(data['scene_yaml']), source=source)
-    return None
-
-
 def load_npz_run(path: str | Path) -> RunData:
     """Return a ``modal_spring_sim`` ``.npz`` run as arrays. Raises RunError."""
     path = Path(path)
     try:
         data = np.load(path)
-        scene = _recorded_scene(data, f'{path} (scene)')
+        scene = recorded_scene(
+            data['scene_archive'].tobytes() if 'scene_archive' in data else None,
+            str(data['scene_yaml']) if 'scene_yaml' in data else None, f'{path} (scene)')
         band = None
         if data['frequencies_hz'].size and data['kept_modes'].size:
             kept = data['frequencies_hz'][data['kept_modes']]

@@ -21,7 +21,7 @@ import io
 import zipfile
 
 from modal_spring_ros.core.model.scene import Scene, SceneError
-from modal_spring_ros.scenes.schema import scene_from_dict
+from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
 from modal_spring_ros.scenes.writing import (ARRAY_PLACES, DUMPER, scene_arrays, scene_header,
                                              with_arrays)
 from modal_spring_ros.scenes.yaml_reading import load_yaml
@@ -69,6 +69,20 @@ def scene_from_archive(data: bytes, source: str) -> Scene:
         raise SceneError(f'{source}: scene archive header is not a mapping')
     return scene_from_dict(with_arrays(definition, {n: a.tolist() for n, a in arrays.items()}),
                            source=source)
+
+
+def recorded_scene(archive: bytes | None, yaml_text: str | None, source: str) -> Scene | None:
+    """
+    Return the scene a run's record holds: its ``archive``, else its YAML text, else None.
+
+    Bags and runs written before scenes were archived hold the YAML text of
+    :func:`~modal_spring_ros.scenes.writing.scene_to_yaml`.
+    """
+    if archive is not None:
+        return scene_from_archive(archive, source)
+    if yaml_text is not None:
+        return scene_from_yaml(yaml_text, source=source)
+    return None
 
 
 def _entries(data: bytes, source: str) -> dict[str, np.ndarray]:

@@ -1,9 +1,11 @@
 """
 A scene written out in the scene file format: every particle and spring listed.
 
-What :func:`modal_spring_ros.scenes.schema.scene_from_dict` (and a scene file) loads back: runs
-and bags keep the scene they ran as this text, so that a run can be re-simulated from its record
-alone.
+What :func:`modal_spring_ros.scenes.schema.scene_from_dict` (and a scene file) loads back. The
+definition splits into its arrays and the rest (:func:`scene_arrays`, :func:`scene_header`):
+runs and bags keep the scene they ran that way
+(:mod:`~modal_spring_ros.scenes.scene_archive`), so that a run can be re-simulated from its
+record alone, at any size.
 """
 from __future__ import annotations
 
