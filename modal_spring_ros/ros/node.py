@@ -138,7 +138,7 @@ class ModalSpringNode(Node):
         services = ReentrantCallbackGroup()     # awaiting coroutines: no thread held
         self._answered = self.create_guard_condition(lambda: None, callback_group=services)
         # wall-time chores on the steady clock: under use_sim_time a timer on the ROS clock
-        # keeps the executor spinning on a core (and the run waiting for the interpreter)
+        # would stop with a paused /clock (and with it the services' wake-ups)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(SERVICE_WAKE_S, lambda: None, callback_group=services, clock=steady)
         self.create_service(Trigger, '~/reset', self._on_reset, callback_group=services)
