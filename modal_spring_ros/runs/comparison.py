@@ -82,7 +82,7 @@ def align(a: RunData, b: RunData) -> tuple[np.ndarray, np.ndarray]:
 
 
 def energy(run: RunData) -> np.ndarray | None:
-    """Mechanical energy per frame (springs + gravity + kinetic by central differences)."""
+    """Mechanical energy per frame (springs, bending, gravity, kinetic by central differences)."""
     if run.scene is None or run.t.size < 3:
         return None
     s = run.scene
@@ -90,6 +90,9 @@ def energy(run: RunData) -> np.ndarray | None:
     i, j = s.springs[:, 0], s.springs[:, 1]
     length = np.linalg.norm(x[:, j] - x[:, i], axis=2)
     spring = 0.5 * ((length - s.rest_length) ** 2 * s.stiffness).sum(axis=1)
+    if s.bending is not None:   # 1/2 sum_h |sum_i w_hi x_hi|^2, every frame at once
+        bent = np.einsum('hi,fhid->fhd', s.bending.weights, x[:, s.bending.hinges])
+        spring = spring + 0.5 * np.einsum('fhd,fhd->f', bent, bent)
     free = ~s.fixed
     gravity = -(x[:, free] @ s.gravity * s.mass[free]).sum(axis=1)
     v = np.gradient(x[:, free], run.t, axis=0)

@@ -1,9 +1,14 @@
 """
 A mesh made a mass-spring network: particles, springs, masses and stiffness from a material.
 
-**Surfaces** (cloth, shells): a spring on every triangle edge and a bending spring across every
-interior edge (between the two vertices opposite it); each vertex carries a third of its
-triangles' area times ``density`` (kg/m^2).
+**Surfaces** (cloth, shells): a spring on every triangle edge; each vertex carries a third of its
+triangles' area times ``density`` (kg/m^2). ``bending`` is the bending stiffness ``D`` (N m, as
+a plate's ``E t^3 / 12``). A surface flat as built (a cloth, a flag) bends by the quadratic
+bending model (:mod:`~modal_spring_ros.core.model.bending`): a fold of ``theta`` across an
+interior edge ``e`` costs ``1/2 c_e theta^2``, ``c_e = 3 D |e|^2 / (A_1 + A_2)``, what converges
+as the mesh is refined. A surface curved as built (a shell) bends by a spring across every
+interior edge, between the two vertices opposite it, of stiffness ``c_e / l^2`` (``l`` its
+length): a curved hinge's fold changes that distance at first order.
 
 **Volumes** (solids): a tetrahedral mesh's edges are the springs; a closed surface is filled
 first: points on a regular lattice inside it (spaced so that there are about as many as the
@@ -17,8 +22,7 @@ tetrahedra's volume times ``density`` (kg/m^3).
 "Approximate simulation of elastic membranes by triangulated spring meshes"): a spring gets
 ``stiffness * (sum of its cells' areas or volumes) / length^2``, so that a finer mesh of the same
 object has the same low frequencies (a surface's ``stiffness`` is a membrane stiffness, N/m, like
-``E t``; a volume's a modulus, Pa). A bending spring gets ``bending`` times that of an edge
-spanning the two triangles.
+``E t``; a volume's a modulus, Pa).
 
 Every problem is a :class:`~modal_spring_ros.core.model.scene.SceneError` naming the mesh and
 what is wrong with it (no cells, degenerate or duplicate cells, an open surface where a volume
@@ -28,6 +32,8 @@ from __future__ import annotations
 
 import dataclasses
 
+from modal_spring_ros.core.model.bending import (Bending, flat_surface_bending, hinge_quads,
+                                                 is_flat)
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.inside import inside_closed_surface
 from modal_spring_ros.scenes.mesh_files import MeshData
@@ -50,13 +56,14 @@ class Material:
 
 @dataclasses.dataclass(frozen=True)
 class Network:
-    """Particles (n, 3), masses (n,), springs (E, 2) i < j, stiffness (E,), skin triangles."""
+    """Particles (n, 3), masses (n,), springs (E, 2) i < j, stiffness (E,), skin, bending."""
 
     positions: np.ndarray
     mass: np.ndarray
     springs: np.ndarray
     stiffness: np.ndarray
     triangles: np.ndarray
+    bending: Bending | None = None
 
 
 def surface_network(mesh: MeshData, material: Material, name: str) -> Network:
@@ -67,17 +74,21 @@ def surface_network(mesh: MeshData, material: Material, name: str) -> Network:
     edges, owners = _cell_edges(tri, ((0, 1), (1, 2), (2, 0)))
     area_sum = np.bincount(owners[1], weights=area[owners[0]], minlength=len(edges))
     pairs, stiffness = [edges], [material.stiffness * area_sum / _lengths(x, edges) ** 2]
-    if material.bending > 0.0:
-        hinge, weight = _hinges(tri, owners, len(edges), area)
-        if hinge.size:
-            keep = _lengths(x, hinge) > 0.0
-            pairs.append(hinge[keep])
-            stiffness.append(material.bending * material.stiffness * weight[keep]
-                             / _lengths(x, hinge[keep]) ** 2)
+    bending = None
+    if material.bending > 0.0 and is_flat(x):
+        bending = flat_surface_bending(x, tri, material.bending)
+    elif material.bending > 0.0:
+        quads, cells = hinge_quads(tri)
+        span = quads[:, 2:]
+        keep = _lengths(x, span) > 0.0
+        fold = (3.0 * material.bending * _lengths(x, quads[:, :2]) ** 2
+                / area[cells].sum(axis=1))
+        pairs.append(np.sort(span[keep], axis=1))
+        stiffness.append(fold[keep] / _lengths(x, span[keep]) ** 2)
     mass = material.density * np.bincount(tri.ravel(), weights=np.repeat(area / 3.0, 3),
                                           minlength=len(x))
     springs, k = _merged_pairs(np.concatenate(pairs), np.concatenate(stiffness))
-    return Network(x, mass, springs, k, tri)
+    return Network(x, mass, springs, k, tri, bending)
 
 
 def volume_network(mesh: MeshData, material: Material, name: str) -> Network:
@@ -186,24 +197,6 @@ def _cell_edges(cells: np.ndarray, local: tuple[tuple[int, int], ...]
     edges, index = np.unique(ends.reshape(-1, 2), axis=0, return_inverse=True)
     cell = np.repeat(np.arange(cells.shape[0]), len(local))
     return edges.astype(np.int64), np.stack([cell, index.ravel()])
-
-
-def _hinges(tri: np.ndarray, owners: np.ndarray, n_edges: int, area: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray]:
-    """Vertex pairs across each edge shared by exactly two triangles, and their two areas."""
-    order = np.argsort(owners[1], kind='stable')
-    edge_of, cell_of = owners[1][order], owners[0][order]
-    local = order % 3                                   # which edge of its triangle (0, 1, 2)
-    counts = np.bincount(edge_of, minlength=n_edges)
-    starts = np.cumsum(counts) - counts
-    two = np.flatnonzero(counts == 2)
-    first, second = starts[two], starts[two] + 1
-    # edge k of a triangle joins corners k and k + 1: the corner opposite it is k + 2
-    a = tri[cell_of[first], (local[first] + 2) % 3]
-    b = tri[cell_of[second], (local[second] + 2) % 3]
-    pairs = np.sort(np.stack([a, b], axis=1), axis=1)
-    keep = pairs[:, 0] != pairs[:, 1]
-    return pairs[keep], (area[cell_of[first]] + area[cell_of[second]])[keep]
 
 
 def _merged_pairs(pairs: np.ndarray, stiffness: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

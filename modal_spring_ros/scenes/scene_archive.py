@@ -5,9 +5,10 @@ A scene as an archive of arrays: how the project's bags and runs keep the scene 
 text, right for a file a person reads, but a 100k-particle sheet takes 22 MB of it: beyond the
 16 MiB a scene's text may have (:mod:`~modal_spring_ros.scenes.yaml_reading`), and seconds to
 write and tens of seconds to read. Here the scene's arrays (positions, masses, spring pairs and
-stiffness, fixed particles, triangles: :data:`~modal_spring_ros.scenes.writing.ARRAY_PLACES`)
-are kept as ``.npy`` entries of an uncompressed ``.npz`` archive, beside a ``header`` entry with
-the rest of the definition as YAML: 12 MB for that sheet, written in a tenth of a second.
+stiffness, fixed particles, triangles, bending hinges:
+:data:`~modal_spring_ros.scenes.writing.ARRAY_PLACES`) are kept as ``.npy`` entries of an
+uncompressed ``.npz`` archive, beside a ``header`` entry with the rest of the definition as
+YAML: 12 MB for that sheet, written in a tenth of a second.
 
 Read back, an archive is input like any scene file: its entries are checked before any is
 loaded (known names only, at most :data:`MAX_ARCHIVE_BYTES` declared, no pickled objects), each
@@ -30,8 +31,9 @@ import yaml
 
 #: the entry holding the definition's other fields, as YAML text
 HEADER = 'header'
-#: the dimensions of each array: (particles, 3), (springs, 2), (triangles, 3), else one
-ARRAY_DIMENSIONS = {'positions': 2, 'pairs': 2, 'triangles': 2}
+#: the dimensions of each array: (particles, 3), (springs, 2), (triangles, 3), (hinges, 4),
+#: else one
+ARRAY_DIMENSIONS = {'positions': 2, 'pairs': 2, 'triangles': 2, 'hinges': 2, 'hinge_weights': 2}
 #: most bytes an archive's entries may declare (a 1M-particle sheet takes about 130 MB)
 MAX_ARCHIVE_BYTES = 1024 ** 3
 #: the media type of an archive stored on its own (an MCAP attachment)

@@ -16,6 +16,7 @@ from modal_spring_ros.core.model.loaded_shape import needs_loaded_shape, settle
 from modal_spring_ros.core.model.scene import Damping, Scene, SceneError
 from modal_spring_ros.core.motion.anchor_motion import (AnchorMotion, RotationComponent,
                                                         SineComponent)
+from modal_spring_ros.scenes.bending_fields import listed_bending
 from modal_spring_ros.scenes.fields import AXES, DEFAULT_PLANE, FieldReader, PLANES, short
 from modal_spring_ros.scenes.fixed_regions import fixed_particles
 from modal_spring_ros.scenes.lattice import lattice_springs
@@ -55,7 +56,7 @@ class _SceneParser(FieldReader):
         data = self.mapping(data, 'scene')
         known = {'name', 'description', 'dimension', 'axis', 'plane', 'particles', 'springs',
                  'fixed', 'gravity', 'damping', 'anchor_motion', 'simulation', 'reference',
-                 'mesh', 'material', 'triangles'}
+                 'mesh', 'material', 'triangles', 'bending'}
         unknown = sorted(set(data) - known, key=str)
         if unknown:
             raise self.fail(unknown[0], f"unknown key (known keys: {', '.join(sorted(known))})")
@@ -77,10 +78,11 @@ class _SceneParser(FieldReader):
             axes = (0, 1, 2)
 
         if 'mesh' in data:
-            positions, mass, pairs, stiffness, triangles = self.mesh(data, dimension)
+            positions, mass, pairs, stiffness, triangles, bending = self.mesh(data, dimension)
         else:
             positions, mass, pairs, stiffness = self.listed(data, axes)
             triangles = self.triangles(data.get('triangles'), positions.shape[0])
+            bending = listed_bending(self, data.get('bending'), positions)
         rest_length = self.check_springs(pairs, positions)
         fixed = fixed_particles(self, data.get('fixed'), positions)
         self.check_connected(pairs, positions.shape[0])
@@ -135,6 +137,7 @@ class _SceneParser(FieldReader):
             default_duration=duration,
             description=str(data.get('description', '')),
             triangles=None if triangles is None else frozen(triangles),
+            bending=bending,
         )
         if reference == 'loaded' or (reference == 'auto' and needs_loaded_shape(scene)):
             try:
@@ -164,7 +167,7 @@ class _SceneParser(FieldReader):
         """Return what :meth:`listed` does, and the skin's triangles, built from a mesh."""
         if dimension != 3:
             raise self.fail('mesh', 'a mesh scene is 3D: give dimension: 3')
-        for key in ('particles', 'springs', 'triangles'):
+        for key in ('particles', 'springs', 'triangles', 'bending'):
             if key in data:
                 raise self.fail(key, 'a mesh scene takes its particles, springs and '
                                 f'triangles from its mesh: leave {key} out')
@@ -173,7 +176,7 @@ class _SceneParser(FieldReader):
         if bad.size:
             raise self.fail('mesh', f'vertex {int(bad[0])} has no mass (on no cell)')
         return (network.positions, network.mass, network.springs, network.stiffness,
-                network.triangles)
+                network.triangles, network.bending)
 
     def triangles(self, value: Any, n: int) -> np.ndarray | None:
         """Read the triangles a listed scene shows as its mesh; None when not given."""

@@ -22,7 +22,8 @@ DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
 #: where each of a scene's arrays sits in its definition: name -> (section or None, key)
 ARRAY_PLACES = {'positions': ('particles', 'positions'), 'mass': ('particles', 'mass'),
                 'pairs': ('springs', 'pairs'), 'stiffness': ('springs', 'stiffness'),
-                'triangles': (None, 'triangles'), 'fixed': ('fixed', 'indices')}
+                'triangles': (None, 'triangles'), 'fixed': ('fixed', 'indices'),
+                'hinges': ('bending', 'hinges'), 'hinge_weights': ('bending', 'weights')}
 
 
 def scene_to_dict(scene: Scene) -> dict[str, Any]:
@@ -44,6 +45,9 @@ def scene_arrays(scene: Scene) -> dict[str, np.ndarray]:
         'fixed': np.flatnonzero(scene.fixed)}
     if scene.triangles is not None:
         arrays['triangles'] = scene.triangles
+    if scene.bending is not None:
+        arrays['hinges'] = scene.bending.hinges
+        arrays['hinge_weights'] = scene.bending.weights
     return arrays
 
 

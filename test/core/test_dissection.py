@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from modal_spring_ros.core.bases.basis import ShiftInvertModes
 from modal_spring_ros.core.model.definite_factor import (DISSECTION_MIN_ROWS, factor_definite,
-                                                         OrderedFactor)
+                                                         negative_pivots, OrderedFactor)
 from modal_spring_ros.core.model.dissection import nested_dissection
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.scenes.sized import sized_scene
@@ -83,3 +83,21 @@ def test_rows_that_are_not_blocks_of_the_particles_are_refused():
     model, matrix = _shifted('sheet', 10)
     with pytest.raises(ValueError, match='not blocks'):
         nested_dissection(matrix, model.free_points[:-1])
+
+
+@pytest.mark.parametrize('ordered', [False, True])
+def test_negative_pivots_count_the_negative_eigenvalues(ordered):
+    """Sylvester's law of inertia: a stiffness shifted past its lowest modes has that many."""
+    model, _ = _shifted('sheet', 48)
+    k = model.stiffness_free.tocsc()
+    mass = sp.diags(model.mass_dof)
+    order = nested_dissection(k, model.free_points) if ordered else None
+    omega2 = ShiftInvertModes(k, model.mass_dof).lowest(6)[0]
+    assert negative_pivots(k, order=order) == 0
+    for below in (1, 3, 5):   # shifted between modes below and below + 1
+        shift = 0.5 * (omega2[below - 1] + omega2[below])
+        assert negative_pivots((k - shift * mass).tocsc(), order=order) == below
+    singular = (k - omega2[0] * mass).tolil()
+    singular[0, :] = 0.0
+    singular[:, 0] = 0.0
+    assert negative_pivots(singular.tocsc(), order=order) >= 1

@@ -3,11 +3,14 @@ from __future__ import annotations
 
 import dataclasses
 
+from helpers import cloth_mesh, write_obj
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.bases.derivatives import tangent_derivative
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.forces.exact import ExactForces
+from modal_spring_ros.core.model import loaded_shape
+from modal_spring_ros.core.model.definite_factor import negative_pivots
 from modal_spring_ros.core.model.loaded_shape import needs_loaded_shape
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping, SceneError
@@ -147,3 +150,50 @@ def test_the_built_in_cloth_oscillates_at_its_loaded_shape_frequencies():
     measured = np.fft.rfftfreq(padded, every * sim.dt)[np.argmax(spectra, axis=0)]
     np.testing.assert_allclose(measured, expected, rtol=0.02)
     assert np.all(np.diff(measured) > 0.0)                         # five distinct peaks
+
+
+def corner_cloth(tmp_path, count: int = 8):
+    """Return the definition of a mesh cloth hanging from the two corners of its top edge."""
+    vertices, faces = cloth_mesh(count)
+    return {'dimension': 3,
+            'mesh': {'file': str(write_obj(tmp_path / 'c.obj', vertices, faces)),
+                     'kind': 'surface'},
+            'material': {'density': 0.2, 'stiffness': 400.0, 'bending': 1e-4},
+            'fixed': {'near': [{'point': [0.0, 0.0, 0.0], 'radius': 1e-3},
+                               {'point': [0.5, 0.0, 0.0], 'radius': 1e-3}]},
+            'gravity': [0.0, 0.0, -G]}
+
+
+def test_a_large_tangent_is_checked_for_buckling_by_its_factor_alike(monkeypatch):
+    """
+    The sparse check (negative pivots, then modes just below zero) finds what dense eigh does.
+
+    A lattice cloth held by two corners, without bending, buckles as it settles: equilibria the
+    search leaves along their buckling modes. Checked the sparse way, it hangs in the same shape
+    (or its mirror image: the same spectrum), with a definite tangent.
+    """
+    dense = hanging_cloth()
+    counted = []
+
+    def counting(matrix, **kwargs):
+        counted.append(negative_pivots(matrix, **kwargs))
+        return counted[-1]
+    monkeypatch.setattr(loaded_shape, 'DENSE_LIMIT', 0)
+    monkeypatch.setattr(loaded_shape, 'negative_pivots', counting)
+    sparse = hanging_cloth()
+    assert counted[-1] == 0 and max(counted) > 0          # it buckled, and ends definite
+    spectra = []
+    for scene in (dense, sparse):
+        basis = ModalBasis(MassSpringModel(scene))
+        basis.ensure_count(4)
+        spectra.append(basis.frequencies_hz[:4])
+    np.testing.assert_allclose(spectra[1], spectra[0], rtol=1e-6)
+
+
+def test_a_search_at_the_round_off_of_its_forces_ends_there(tmp_path, monkeypatch):
+    """With a tolerance no force can meet, the search ends when its force stops falling."""
+    monkeypatch.setattr(loaded_shape, 'FORCE_RTOL', 1e-30)
+    scene = scene_from_dict(corner_cloth(tmp_path))
+    model = MassSpringModel(scene)
+    left = np.max(np.abs(model.free_force(np.zeros(model.n_free_dof), 0.0)))
+    assert 0.0 < left <= loaded_shape.STALLED_RTOL * np.max(np.abs(model.gravity_force))

@@ -92,6 +92,13 @@ class ExactForces(ForceModel):
         self._gravity = self._load_matrix[:, 0].copy()
         self._kl = self._k * self._l
         self.last_max_strain = 0.0
+        # the bending of a flat surface: linear, -B (X + u), exact on any coordinates
+        self._bend = self._bend_const = None
+        if model.bending_free is not None:
+            self._bend, self._bend_const = model.bending_free, model.bending_rest_force.copy()
+            if basis is not None:
+                self._bend = np.ascontiguousarray(basis.T @ (self._bend @ basis))
+                self._bend_const = basis.T @ self._bend_const
 
     @classmethod
     def build(cls, context: ForceContext, options: ForceOptions) -> 'ExactForces':
@@ -108,10 +115,21 @@ class ExactForces(ForceModel):
         return delta.reshape(self.dimension, -1)
 
     def __call__(self, q: np.ndarray, t: float) -> np.ndarray:
-        """Total generalized force: springs (eq. 20) plus the loads at time ``t``."""
-        f = self.spring_forces(q)
+        """Total generalized force: springs (eq. 20), bending, and the loads at time ``t``."""
+        f = self.elastic_forces(q)
         f += self.loads(t)
         return f
+
+    def elastic_forces(self, q: np.ndarray) -> np.ndarray:
+        """Return the springs' generalized force plus the bending's (sets ``last_max_strain``)."""
+        return self.add_bending(self.spring_forces(q), q)
+
+    def add_bending(self, force: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Add the bending's generalized force at ``q`` to ``force`` (in place; returned)."""
+        if self._bend is not None:
+            force -= self._bend @ q
+            force += self._bend_const
+        return force
 
     def spring_forces(self, q: np.ndarray) -> np.ndarray:
         """
@@ -151,7 +169,7 @@ class ExactForces(ForceModel):
 
     def tangent(self, q: np.ndarray, chunk: int = TANGENT_CHUNK) -> np.ndarray:
         """
-        Tangent stiffness ``-dQ_spring/dq`` at ``q`` (dense, m x m; at rest ``Phi^T K Phi``).
+        Tangent stiffness ``-dQ_elastic/dq`` at ``q`` (dense, m x m; at rest ``Phi^T K Phi``).
 
         Per spring the tangent of ``k (1 - l/L) delta`` is ``a I + b n n^T`` with
         ``a = k (1 - l/L)``, ``b = k l / L``, ``n = delta / L``; summed over the springs as
@@ -173,6 +191,8 @@ class ExactForces(ForceModel):
             for c in range(d):
                 out += g[c].T @ (a[start:stop, None] * g[c])
             out += h.T @ (b[start:stop, None] * h)
+        if self._bend is not None:
+            out += self._bend.toarray() if sp.issparse(self._bend) else self._bend
         return 0.5 * (out + out.T)
 
     def strain_sensitivity(self, chunk: int = TANGENT_CHUNK) -> float:

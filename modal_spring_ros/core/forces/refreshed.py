@@ -56,7 +56,7 @@ def static_equilibrium(forces: ExactForces, omega2: np.ndarray
     if not np.any(gravity) or not np.all(omega2 > 0.0):
         return q, not np.any(gravity)
     for _ in range(STATIC_ITERATIONS):
-        step = (forces.spring_forces(q) + gravity) / omega2
+        step = (forces.elastic_forces(q) + gravity) / omega2
         q += step
         if not np.all(np.isfinite(q)):
             break
@@ -137,7 +137,7 @@ class RefreshedForces(ForceModel):
                 self.last_max_strain = bound
         if force is None:
             self.evaluations += 1
-            spring = self.exact.spring_forces(q)
+            spring = self.exact.elastic_forces(q)
             if self._q is not None and t >= self._t and not self.fell_back:
                 continued = self._continued(q - self._q)
                 scale = max(float(np.linalg.norm(spring)), self._scale)

@@ -121,7 +121,7 @@ class SampledForces(ForceModel):
                 f'{sample.held_out_error:.2%}, run-time {self.max_sample_error:.2%}')
 
     def __call__(self, q: np.ndarray, t: float) -> np.ndarray:
-        force = self.spring_forces(q)
+        force = self.exact.add_bending(self.spring_forces(q), q)   # bending: linear, exact
         force += self.exact.loads(t)
         return force
 

@@ -15,7 +15,8 @@ Hessian so that every step is a descent direction, and a Levenberg term ``mu M``
 directions with no stiffness yet (the flat start); a backtracking line search on the energy keeps
 each step downhill, and a small, seeded out-of-plane nudge at the start lets the descent leave a
 flat saddle (a cloth hanging from its corners wrinkles). It ends where the force on every free
-particle is below :data:`FORCE_RTOL` of its weight and the tangent has no negative mode: an
+particle is below :data:`FORCE_RTOL` of its weight (or the descent has stalled at the round-off of
+the forces, below :data:`STALLED_RTOL` of it) and the tangent has no negative mode: an
 equilibrium that would buckle is left along its buckling mode, and the descent goes on.
 """
 from __future__ import annotations
@@ -23,7 +24,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
-from modal_spring_ros.core.model.definite_factor import elimination_order, factor_definite
+from modal_spring_ros.core.model.definite_factor import (elimination_order, factor_definite,
+                                                         negative_pivots)
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Scene, SceneError
 from modal_spring_ros.core.model.stiffness import assemble_stiffness, reduce_to_free
@@ -37,6 +39,11 @@ import scipy.sparse.linalg as spla
 FORCE_RTOL = 1e-8
 #: most Newton steps before the search is given up
 MAX_ITERATIONS = 400
+#: a search whose largest force has not fallen by a tenth in this many steps in a row has reached
+#: the round-off of its forces: found, if the force left is below STALLED_RTOL of the largest
+#: weight (a fine mesh's many small weights hang from springs whose forces are far larger)
+STALLED_STEPS = 3
+STALLED_RTOL = 1e-5
 #: the start is nudged across the object by this share of its size (seeded: reproducible)
 NUDGE = 1e-5
 #: equilibria left along a buckling mode before the last one found is taken
@@ -100,19 +107,21 @@ def settle(scene: Scene, progress: Callable[[str], None] | None = None) -> Scene
     mu = mu_floor = 0.0
     order = None  # the factors' elimination order: one for every step (one pattern)
     exact = False  # the full tangent, once the convex one makes full steps
-    escapes = 0
+    escapes = stalled = 0
     for iteration in range(1, MAX_ITERATIONS + 1):
         residual = float(np.max(np.abs(force)))
-        if residual <= tolerance:
+        if residual <= tolerance or (stalled >= STALLED_STEPS
+                                     and residual <= STALLED_RTOL / FORCE_RTOL * tolerance):
             # Newton's steps stop at any equilibrium: one that buckles (a compressed cloth
             # with a softer shape beside it) is left along its buckling mode
-            direction = _unstable_direction(shape.hessian(x, compression=True), mass_term)
+            direction = _unstable_direction(shape.hessian(x, compression=True), mass_term, order)
             if direction is None or escapes == MAX_ESCAPES:
                 break
             escapes += 1
             x.reshape(-1)[free_dof] += ESCAPE * size * direction
             energy, force = shape.evaluate(x)
             exact = False
+            stalled = 0
             continue
         hessian = shape.hessian(x, compression=exact)
         if not mu:
@@ -131,6 +140,7 @@ def settle(scene: Scene, progress: Callable[[str], None] | None = None) -> Scene
             exact = False
             continue
         x, energy, force, taken = shape.line_search(x, energy, force, step)
+        stalled = stalled + 1 if float(np.max(np.abs(force))) > 0.9 * residual else 0
         mu = max(mu * (0.3 if taken == 1.0 else 10.0), mu_floor)
         exact = taken == 1.0
         if progress is not None and iteration % 10 == 0:
@@ -151,22 +161,42 @@ def settle(scene: Scene, progress: Callable[[str], None] | None = None) -> Scene
                                unloaded_positions=scene.rest_positions)
 
 
-def _unstable_direction(tangent: sp.csr_matrix, mass: sp.dia_matrix) -> np.ndarray | None:
-    """Return the tangent's most negative mode (largest entry 1), or None when it has none."""
+def _unstable_direction(tangent: sp.csr_matrix, mass: sp.dia_matrix,
+                        order: np.ndarray | None = None) -> np.ndarray | None:
+    """
+    Return the tangent's most negative mode (largest entry 1), or None when it has none.
+
+    A large tangent is first factored (in ``order``): its negative pivots are its negative
+    eigenvalues, so a definite one needs no eigenvalue (30 s for a 10,000-vertex cloth's, against
+    1 s for the factor), and an indefinite one's are sought just below zero, where buckling
+    modes are, a few more than it has.
+    """
     scale = float(np.mean(tangent.diagonal() / mass.diagonal()))
     if tangent.shape[0] <= DENSE_LIMIT:
         values, vectors = scipy.linalg.eigh(tangent.toarray(), mass.toarray(),
                                             subset_by_index=(0, 0))
     else:
-        values, vectors = spla.eigsh(tangent.tocsc(), k=1, M=mass.tocsc(),
-                                     sigma=-1e-3 * scale, which='LM')
+        negatives = negative_pivots(tangent, order=order)
+        if not negatives:
+            return None
+        values = vectors = None
+        for sigma in (-1e-6 * scale, -1e-3 * scale):  # near zero; then wider
+            shifted = factor_definite(tangent - sigma * mass, definite=False, order=order)
+            found, shapes = spla.eigsh(
+                tangent.tocsc(), k=min(negatives + 4, tangent.shape[0] - 1), M=mass.tocsc(),
+                sigma=sigma, which='LM', OPinv=spla.LinearOperator(
+                    tangent.shape, matvec=shifted.solve, dtype=float))
+            lowest = int(np.argmin(found))
+            values, vectors = found[lowest:lowest + 1], shapes[:, lowest:lowest + 1]
+            if values[0] < -UNSTABLE_RTOL * scale:
+                break
     if values[0] >= -UNSTABLE_RTOL * scale:
         return None
     return vectors[:, 0] / np.max(np.abs(vectors[:, 0]))
 
 
 class _Energy:
-    """Potential energy of a scene's springs and weight, its force and its convex Hessian."""
+    """Potential energy of a scene's springs, bending and weight, its force, its convex Hessian."""
 
     def __init__(self, model: MassSpringModel):
         self.model = model
@@ -181,7 +211,7 @@ class _Energy:
     def evaluate(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         """Energy, and the force on the free DOF (minus its gradient), at positions ``x``."""
         u = x.reshape(-1)[self.free_dof] - self.model.rest.reshape(-1)[self.free_dof]
-        force = self.model.physical_forces.spring_forces(u) + self.weight
+        force = self.model.physical_forces.elastic_forces(u) + self.weight
         energy = self.model.energy(x, np.zeros(u.size))
         return energy['spring'] + energy['gravity'], force
 
@@ -194,7 +224,10 @@ class _Energy:
         """
         full = assemble_stiffness(x, self.scene.springs, self.k, x.shape[1], self.rest,
                                   compression=compression)
-        return reduce_to_free(full, self.free_dof)
+        hessian = reduce_to_free(full, self.free_dof)
+        if self.model.bending_free is not None:  # constant: the bending is quadratic
+            hessian = (hessian + self.model.bending_free).tocsr()
+        return hessian
 
     def line_search(self, x: np.ndarray, energy: float, force: np.ndarray, step: np.ndarray
                     ) -> tuple[np.ndarray, float, np.ndarray, float]:

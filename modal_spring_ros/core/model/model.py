@@ -65,7 +65,43 @@ class MassSpringModel:
         s = self.scene
         full = assemble_stiffness(s.rest_positions[:, self.axes], s.springs, s.stiffness,
                                   s.dimension, s.rest_length if s.loaded else None)
-        return reduce_to_free(full, self.free_dof)
+        stiffness = reduce_to_free(full, self.free_dof)
+        if self.bending_free is not None:
+            stiffness = (stiffness + self.bending_free).tocsr()
+        return stiffness
+
+    # -- bending (a surface flat as built) -----------------------------------------------------
+    @functools.cached_property
+    def _bending_matrix(self) -> sp.csr_matrix | None:
+        """``kron(B, I_d)`` on every particle's coordinates, or None without bending."""
+        bending = self.scene.bending
+        if bending is None or not bending.count:
+            return None
+        return sp.kron(bending.matrix(self.scene.n_particles), sp.identity(self.dimension),
+                       format='csr')
+
+    @functools.cached_property
+    def bending_free(self) -> sp.csr_matrix | None:
+        """Return the bending's (constant) stiffness on the free DOF, or None without bending."""
+        if self._bending_matrix is None:
+            return None
+        return reduce_to_free(self._bending_matrix, self.free_dof)
+
+    @functools.cached_property
+    def bending_fixed(self) -> sp.csr_matrix | None:
+        """Return the bending's rows of the free DOF, columns of the fixed DOF (None: none)."""
+        if self._bending_matrix is None:
+            return None
+        fixed = (self.fixed_particles[:, None] * self.dimension
+                 + np.arange(self.dimension)).ravel()
+        return self._bending_matrix[self.free_dof][:, fixed].tocsr()
+
+    @functools.cached_property
+    def bending_rest_force(self) -> np.ndarray | None:
+        """Return the bending force on the free DOF at the reference shape (None: no bending)."""
+        if self._bending_matrix is None:
+            return None
+        return -(self._bending_matrix @ self.rest.ravel())[self.free_dof]
 
     @functools.cached_property
     def spring_difference(self) -> sp.csr_matrix:
@@ -194,7 +230,7 @@ class MassSpringModel:
 
     def energy(self, x: np.ndarray, v: np.ndarray) -> dict[str, float]:
         """
-        Kinetic, spring and gravity energy of the free particles.
+        Kinetic, spring (with the bending's) and gravity energy of the free particles.
 
         ``x``: (n, d) positions; ``v``: free-DOF velocity in the inertial frame (relative
         velocity plus the base velocity).
@@ -202,6 +238,8 @@ class MassSpringModel:
         _, length = self.spring_vectors(x)
         kinetic = 0.5 * float(np.dot(self.mass_dof * v, v))
         spring = 0.5 * float(np.dot(self._k, (length - self._l) ** 2))
+        if self._bending_matrix is not None:   # the bending's energy counts as the springs'
+            spring += 0.5 * float(x.ravel() @ (self._bending_matrix @ x.ravel()))
         xf = x[self.free_particles].ravel()
         gravity = -float(np.dot(self.gravity_force, xf))
         return {'kinetic': kinetic, 'spring': spring, 'gravity': gravity,

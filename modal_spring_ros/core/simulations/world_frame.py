@@ -39,10 +39,13 @@ class PrescribedClampForces(ExactForces):
         self._rest_deltas = self._delta_rest.copy()
         self._fixed_rest = model.rest[model.fixed_particles]
         self._model = model
+        self._bend_rest = None if self._bend_const is None else self._bend_const.copy()
 
     def __call__(self, u: np.ndarray, t: float) -> np.ndarray:
         moved = self._model.frame(t).carry(self._fixed_rest) - self._fixed_rest
         self._delta_rest = self._rest_deltas + self._fixed_difference @ moved.ravel()
+        if self._bend_rest is not None:  # the bending's pull of the moved fixed particles
+            self._bend_const = self._bend_rest - self._model.bending_fixed @ moved.ravel()
         return super().__call__(u, t)
 
     def loads(self, t: float) -> np.ndarray:
