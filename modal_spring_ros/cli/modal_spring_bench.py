@@ -1,7 +1,8 @@
 """
 ``modal_spring_bench``: the project's benchmarks, as suites, with their results on disk.
 
-    modal_spring_bench [--suite steps,stream,tradeoff,promise,auto,response,scale,headline,peer]
+    modal_spring_bench [--suite steps,stream,tradeoff,promise,auto,response,scale,headline,peer,
+                                meshes]
                        [--quick]
                        [--case TEXT]
                        [--out DIR]
@@ -18,7 +19,10 @@ particles: the memory estimate against the measured peak, set-up, step and frame
 that stream at 60 Hz, with CSV and a PNG chart), ``headline`` (the README's figures over whole
 runs of 1 s and 5 s: the cost at 1 % error of ``--auto`` and of sampled springs against the full
 run's, with CSV), ``peer`` (the resonance scenes at 1 % against Newton's semi-implicit run, an
-optional peer: error and CPU per simulated second of each, with CSV and a PNG chart). Results
+optional peer: error and CPU per simulated second of each, with CSV and a PNG chart), ``meshes``
+(a 10,000-vertex cloth and a 10,000-particle solid brought as mesh files: load and precompute
+time with progress, the modal step and frame against the full run's, cost per simulated
+second). Results
 are printed as tables and written to ``DIR/<suite>.json``. Progress goes to stderr.
 """
 from __future__ import annotations
@@ -27,15 +31,15 @@ import json
 from pathlib import Path
 import sys
 
-from modal_spring_ros.bench import (auto_scenes, headline, memory, peer, promise, response,
-                                    steps, stream, tradeoff)
+from modal_spring_ros.bench import (auto_scenes, headline, memory, meshes, peer, promise,
+                                    response, steps, stream, tradeoff)
 from modal_spring_ros.cli.common import fail, script_parser
 
 PROG = 'modal_spring_bench'
 #: suite name -> module with run(quick, progress), table(results), write_outputs(...)
 SUITES = {'steps': steps, 'stream': stream, 'tradeoff': tradeoff, 'promise': promise,
           'auto': auto_scenes, 'response': response, 'scale': memory,
-          'headline': headline, 'peer': peer}
+          'headline': headline, 'peer': peer, 'meshes': meshes}
 
 
 def main(argv: list[str] | None = None) -> int:
