@@ -12,6 +12,9 @@ from helpers import cloth_mesh, write_obj
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces.exact import ExactForces
+from modal_spring_ros.core.forces.refreshed import RefreshedForces
+from modal_spring_ros.core.forces.sampled import SampledForces
+from modal_spring_ros.core.forces.sampling import SpringSample
 from modal_spring_ros.core.model.bending import flat_surface_bending, is_flat
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping, SceneError
@@ -152,6 +155,31 @@ def test_a_turning_clamp_with_bending_in_its_frame_converges_to_the_full_run_in_
         errors.append(np.sqrt(num / den))
     assert errors[1] < 5e-3, errors
     assert errors[1] < 0.7 * errors[0], errors           # falls with the step
+
+
+def test_sampled_and_refreshed_forces_take_the_bending_exactly(tmp_path):
+    """
+    The bending is linear: every force model adds it exactly, whatever it does with the springs.
+
+    A sample of every spring at weight 1 is the exact spring force, so sampled forces must be
+    the exact total; refreshed forces continue along a tangent that holds the bending.
+    """
+    model = MassSpringModel(cloth(tmp_path))
+    basis = ModalBasis(model)
+    basis.ensure_count(12)
+    phi = basis.vectors[:, :12]
+    exact = ExactForces(model, phi)
+    every = SpringSample(np.arange(exact.n_springs), np.ones(exact.n_springs), 0.0, 0.0, 0.0)
+    sampled = SampledForces(exact, every, tolerance=0.5)
+    refreshed = RefreshedForces(exact, basis.omega[:12] ** 2, 10, 1e-3)
+    q = 1e-7 * np.random.default_rng(3).standard_normal(12)   # about 1 um: linear
+    total = exact(q, 0.0)
+    bending = exact.add_bending(np.zeros(12), q)
+    assert np.linalg.norm(bending) > 1e-3 * np.linalg.norm(total)   # a model without it fails
+    np.testing.assert_allclose(sampled(q, 0.0), total, rtol=1e-10, atol=1e-14)
+    refreshed(np.zeros(12), 0.0)                        # an evaluation, then continued
+    continued = refreshed(q, 1e-3)
+    assert np.linalg.norm(continued - total) < 1e-3 * np.linalg.norm(total - exact(0 * q, 0.0))
 
 
 def test_a_scene_keeps_its_bending_in_files_and_archives(tmp_path):
