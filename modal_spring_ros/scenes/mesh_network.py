@@ -3,7 +3,8 @@ A mesh made a mass-spring network: particles, springs, masses and stiffness from
 
 **Surfaces** (cloth, shells): a spring on every triangle edge; each vertex carries a third of its
 triangles' area times ``density`` (kg/m^2). ``bending`` is the bending stiffness ``D`` (N m, as
-a plate's ``E t^3 / 12``). A surface flat as built (a cloth, a flag) bends by the quadratic
+a plate's ``E t^3 / 12``). A surface flat as built (a cloth, a flag; within 1e-4 of its size
+of a plane, and then moved onto it) bends by the quadratic
 bending model (:mod:`~modal_spring_ros.core.model.bending`): a fold of ``theta`` across an
 interior edge ``e`` costs ``1/2 c_e theta^2``, ``c_e = 3 D |e|^2 / (A_1 + A_2)``, what converges
 as the mesh is refined. A surface curved as built (a shell) bends by a spring across every
@@ -32,8 +33,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from modal_spring_ros.core.model.bending import (Bending, flat_surface_bending, hinge_quads,
-                                                 is_flat)
+from modal_spring_ros.core.model.bending import (Bending, flat_surface_bending, flattened,
+                                                 hinge_quads, is_flat)
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.inside import inside_closed_surface
 from modal_spring_ros.scenes.mesh_files import MeshData
@@ -73,11 +74,13 @@ def surface_network(mesh: MeshData, material: Material, name: str) -> Network:
     area = _areas(x, tri)
     edges, owners = _cell_edges(tri, ((0, 1), (1, 2), (2, 0)))
     area_sum = np.bincount(owners[1], weights=area[owners[0]], minlength=len(edges))
-    pairs, stiffness = [edges], [material.stiffness * area_sum / _lengths(x, edges) ** 2]
     bending = None
-    if material.bending > 0.0 and is_flat(x):
+    flat = material.bending > 0.0 and is_flat(x)
+    if flat:
+        x = flattened(x)   # moved by at most FLAT_SURFACE_RTOL of its size: exactly flat
         bending = flat_surface_bending(x, tri, material.bending)
-    elif material.bending > 0.0:
+    pairs, stiffness = [edges], [material.stiffness * area_sum / _lengths(x, edges) ** 2]
+    if material.bending > 0.0 and not flat:
         quads, cells = hinge_quads(tri)
         span = quads[:, 2:]
         keep = _lengths(x, span) > 0.0

@@ -220,3 +220,17 @@ def test_bad_bending_in_a_scene_file_is_refused_in_one_line(tmp_path, change, pr
 def test_a_mesh_scene_does_not_take_listed_bending(tmp_path):
     with pytest.raises(SceneError, match='bending: a mesh scene takes'):
         cloth(tmp_path, reference='rest', bending={'hinges': [], 'weights': []})
+
+
+def test_a_cloth_written_to_six_decimals_is_still_flat_and_bends_as_one(tmp_path):
+    """A mesh file's rounding leaves a cloth off its plane by 1e-6 of its size: flattened."""
+    vertices, faces = cloth_mesh(6)
+    rough = vertices + [0.0, 1e-6, 0.0] * np.random.default_rng(4).uniform(-1, 1, (36, 1))
+    path = write_obj(tmp_path / 'rough.obj', np.round(rough, 6), faces)
+    again = scene_from_dict({
+        'dimension': 3, 'reference': 'rest', 'mesh': {'file': str(path), 'kind': 'surface'},
+        'material': {'density': 0.2, 'stiffness': 400.0, 'bending': BENDING},
+        'fixed': {'box': {'min': [-1, -1, -0.001], 'max': [1, 1, 0.001]}}})
+    assert again.bending is not None and is_flat(again.rest_positions)
+    assert np.max(np.abs(again.rest_positions - np.round(rough, 6))) < 2e-6
+    assert np.max(again.bending.residual(again.rest_positions)) < 1e-12
