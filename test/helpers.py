@@ -8,11 +8,12 @@ import io
 import os
 from pathlib import Path
 
+from modal_spring_ros.bench import meshes
+from modal_spring_ros.bench.meshes import write_obj  # noqa: F401 (the tests' too)
 from modal_spring_ros.scenes.resources import load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict
 from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
-from scipy.spatial import Delaunay
 
 #: the repository (a source checkout)
 REPO = Path(__file__).resolve().parents[1]
@@ -57,23 +58,9 @@ def hanging_sheet(count: int) -> dict:
     }
 
 
-def write_obj(path: Path, vertices, faces) -> Path:
-    """Write a Wavefront OBJ mesh of ``vertices`` and triangles ``faces``; return its path."""
-    lines = [f'v {x:.9f} {y:.9f} {z:.9f}' for x, y, z in vertices]
-    lines += [f'f {a + 1} {b + 1} {c + 1}' for a, b, c in faces]
-    path.write_text('\n'.join(lines) + '\n')
-    return path
-
-
 def cloth_mesh(count: int, size: float = 0.5, jitter: float = 0.25, seed: int = 1):
     """Return a square cloth in the x-z plane (top edge at z = 0), irregularly triangulated."""
-    h = size / (count - 1)
-    u, v = np.meshgrid(np.arange(count) * h, np.arange(count) * h)
-    p = np.column_stack([u.ravel(), v.ravel()])
-    inner = np.all((p > 1e-9) & (p < size - 1e-9), axis=1)
-    p[inner] += np.random.default_rng(seed).uniform(-jitter, jitter, (inner.sum(), 2)) * h
-    faces = Delaunay(p).simplices
-    return np.column_stack([p[:, 0], np.zeros(len(p)), p[:, 1] - size]), faces
+    return meshes.cloth_mesh(count, size, seed, top=0.0, jitter=jitter)
 
 
 def oscillator(k: float = 400.0, m: float = 0.25, gravity: float = 0.0):

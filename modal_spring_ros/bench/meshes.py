@@ -45,14 +45,20 @@ QUICK_CASES = [('cloth, 900 vertices, hanging from its top edge', 'cloth', 30),
                ('solid, 500-vertex skin filled', 'solid', 500)]
 
 
-def cloth_mesh(side: int, size: float = 0.5, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """Return a square cloth in the x-z plane, top edge at z = 1, irregularly triangulated."""
+def cloth_mesh(side: int, size: float = 0.5, seed: int = 1, top: float = 1.0,
+               jitter: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return a square cloth in the x-z plane, its top edge at z = ``top``, irregularly meshed.
+
+    ``side`` x ``side`` vertices, the inner ones moved at random (seeded) by up to ``jitter`` of
+    their spacing, then Delaunay triangles.
+    """
     h = size / (side - 1)
     u, v = np.meshgrid(np.arange(side) * h, np.arange(side) * h)
     p = np.column_stack([u.ravel(), v.ravel()])
     inner = np.all((p > 1e-9) & (p < size - 1e-9), axis=1)
-    p[inner] += np.random.default_rng(seed).uniform(-0.25, 0.25, (int(inner.sum()), 2)) * h
-    return np.column_stack([p[:, 0], np.zeros(len(p)), p[:, 1] + 1.0 - size]), \
+    p[inner] += np.random.default_rng(seed).uniform(-jitter, jitter, (int(inner.sum()), 2)) * h
+    return np.column_stack([p[:, 0], np.zeros(len(p)), p[:, 1] + top - size]), \
         Delaunay(p).simplices
 
 
@@ -90,11 +96,12 @@ def scene_text(kind: str, mesh_file: str) -> str:
             + 'gravity: [0.0, 0.0, -9.81]\n')
 
 
-def write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
-    """Write a Wavefront OBJ file of ``vertices`` and triangles ``faces``."""
+def write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray) -> Path:
+    """Write a Wavefront OBJ file of ``vertices`` and triangles ``faces``; return its path."""
     lines = [f'v {x:.9f} {y:.9f} {z:.9f}' for x, y, z in vertices]
     lines += [f'f {a + 1} {b + 1} {c + 1}' for a, b, c in faces]
     path.write_text('\n'.join(lines) + '\n')
+    return path
 
 
 def _measure(kind: str, size: int, folder: str, batches: int, out: mp.Queue) -> None:
