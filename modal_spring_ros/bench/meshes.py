@@ -21,12 +21,11 @@ from __future__ import annotations
 import multiprocessing as mp
 from pathlib import Path
 import resource
-import statistics
 import tempfile
 import time
 from typing import Callable
 
-from modal_spring_ros.bench.steps import frame_costs
+from modal_spring_ros.bench.steps import frame_costs, median_step_seconds
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
@@ -126,15 +125,10 @@ def _measure(kind: str, size: int, folder: str, batches: int, out: mp.Queue) -> 
               'load_s': loaded - start, 'precompute_s': precomputed - loaded}
     for name, sim in (('modal', modal), ('full', full)):
         steps = max(1, int(0.02 / sim.dt)) if name == 'modal' else 20
-        sim.step(steps)  # warm-up
-        times = []
-        for _ in range(batches):
-            t0 = time.perf_counter()
-            sim.step(steps)
-            times.append((time.perf_counter() - t0) / steps)
-        result[f'{name}_step_us'] = 1e6 * statistics.median(times)
+        step_s = median_step_seconds(sim, batches, steps)
+        result[f'{name}_step_us'] = 1e6 * step_s
         result[f'{name}_dt'] = sim.dt
-        result[f'{name}_cpu_per_sim_s'] = statistics.median(times) / sim.dt
+        result[f'{name}_cpu_per_sim_s'] = step_s / sim.dt
     result.update(frame_costs(modal, batches))
     result['peak_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out.put(('result', result))

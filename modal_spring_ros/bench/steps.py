@@ -62,16 +62,22 @@ def _measure(scene_name: str, method: str, modes: int | None, dt: float, refresh
         basis = ModalBasis(model, initial_modes=8)  # for the damping and stability limit
         basis_seconds = time.perf_counter() - start
         sim = FullSimulation(model, dt=dt, basis=basis)
+    step_s = median_step_seconds(sim, batches, batch_steps)
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    out.put({'step_us': 1e6 * step_s, 'basis_s': basis_seconds,
+             'peak_mb': peak_mb, 'dt': dt,
+             **(frame_costs(sim, batches) if method != 'full' else {})})
+
+
+def median_step_seconds(sim, batches: int, batch_steps: int) -> float:
+    """Return the median time of one step over ``batches`` batches, after one for warm-up, s."""
     sim.step(batch_steps)  # warm-up
     times = []
     for _ in range(batches):
         t0 = time.perf_counter()
         sim.step(batch_steps)
         times.append((time.perf_counter() - t0) / batch_steps)
-    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    out.put({'step_us': 1e6 * statistics.median(times), 'basis_s': basis_seconds,
-             'peak_mb': peak_mb, 'dt': dt,
-             **(frame_costs(sim, batches) if method != 'full' else {})})
+    return statistics.median(times)
 
 
 def frame_costs(sim, batches: int) -> dict:
