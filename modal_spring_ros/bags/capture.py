@@ -62,7 +62,7 @@ class RunBagWriter:
         through :meth:`parameter_event`, stamped with the simulation time they took effect at.
         """
         self.scene = scene
-        self._cloud = CloudBuffer(scene.rest_positions)  # reused: each frame is written at once
+        self._cloud: CloudBuffer | None = None  # made at the first frame of positions, reused
         self.frame_id = frame_id
         self.node = node
         self.writer = BagWriter(directory, attachments=True)
@@ -126,9 +126,15 @@ class RunBagWriter:
         ``log_time_ns``: when re-creating a recorded frame, its original log time, so that both
         bags read in the same order.
         """
+        if self._cloud is None:
+            self._cloud = CloudBuffer(self.scene.rest_positions)
+        self._cloud.write(positions)
+        self.cloud_frame(t, self._cloud, log_time_ns)
+
+    def cloud_frame(self, t: float, cloud: CloudBuffer, log_time_ns: int | None = None) -> None:
+        """Write one frame at simulation time ``t`` from a cloud written (a node's own)."""
         stamp = to_time_msg(t)
-        self._cloud.points[:, :3] = positions
-        msg = self._cloud.message(Header(stamp=stamp, frame_id=self.frame_id))
+        msg = cloud.message(Header(stamp=stamp, frame_id=self.frame_id))
         ns = to_nanoseconds(stamp)
         log = log_time_ns if log_time_ns is not None else self._log_time()
         self.writer.write_message(POINTS_TOPIC, msg, self._epoch_ns + ns if log is None else log,

@@ -32,7 +32,7 @@ def to_pointcloud2(positions: np.ndarray, rest_positions: np.ndarray, header: He
                    ) -> PointCloud2:
     """Return a cloud of ``positions`` (n, 3), each point's displacement from rest beside it."""
     cloud = CloudBuffer(rest_positions)
-    cloud.points[:, :3] = positions
+    cloud.write(positions)
     return cloud.message(header)
 
 
@@ -40,35 +40,58 @@ class CloudBuffer:
     """
     One cloud's bytes, written in place frame after frame: no array or copy per frame.
 
-    :attr:`points` is an (n, 4) float32 view of the bytes the message carries (``x``, ``y``,
-    ``z``, ``displacement``): write the positions into ``points[:, :3]``, then :meth:`message`
-    fills in the displacement and returns a cloud whose ``data`` is those bytes. The next frame
-    writes over them, so publish (or serialise) a message before the next one is written.
+    A frame is written either from positions (:meth:`write`) or, cheaper, from each particle's
+    movement from its rest position, axis by axis: a run writes it into :attr:`movement` (a
+    (3, n) float32 array), then :meth:`write_movement` adds it to the rest positions column by
+    column. Either way the displacement column follows from the movement, :attr:`points` (an
+    (n, 4) float32 view of the bytes: ``x``, ``y``, ``z``, ``displacement``) holds the frame
+    and :meth:`message` returns a cloud whose ``data`` is those bytes. The next frame writes over
+    them, so publish (or serialise) a message before the next one is written.
     """
 
     def __init__(self, rest_positions: np.ndarray):
         n = rest_positions.shape[0]
         self._bytes = array.array('B', bytes(16 * n))  # what rclpy takes as uint8[] as it is
         self.points = np.frombuffer(self._bytes, dtype='<f4').reshape(n, 4)
-        self._rest = np.zeros((n, 4), dtype='<f4')  # a fourth column of zeros: contiguous rows
-        self._rest[:, :3] = rest_positions
-        self._moved = np.empty((n, 4), dtype='<f4')
-        self._distance = np.empty(n, dtype='<f4')
+        #: each particle's movement from rest, axis by axis: (3, n) float32, C-contiguous
+        self.movement = np.zeros((3, n), dtype=np.float32)
+        # axis by axis as well: every pass below runs over contiguous rows (numpy's loops over
+        # rows of three or four values are several times slower)
+        self._rest = np.array(rest_positions.T, dtype=np.float32, order='C')
+        self._distance = np.zeros(n, dtype=np.float32)
+
+    def write(self, positions: np.ndarray) -> None:
+        """Write a frame of ``positions`` (n, 3), as they are in float32."""
+        self.points[:, :3] = positions
+        np.subtract(positions.T, self._rest, out=self.movement)
+        self._write_distance()
+
+    def write_run(self, run) -> None:
+        """Write a frame of a run: its particles' movement (``run.movement_into``), then it."""
+        run.movement_into(self.movement)
+        self.write_movement()
+
+    def write_movement(self) -> None:
+        """Write a frame of the rest positions plus :attr:`movement`."""
+        for axis in range(3):
+            np.add(self._rest[axis], self.movement[axis], out=self.points[:, axis])
+        self._write_distance()
+
+    def _write_distance(self) -> None:
+        np.einsum('ij,ij->j', self.movement, self.movement, out=self._distance)
+        np.sqrt(self._distance, out=self._distance)
+        self.points[:, 3] = self._distance
 
     def finite(self) -> bool:
         """
-        Tell whether every value written is finite: one pass over the bytes, summed in float64.
+        Tell whether the frame written is finite: one pass over its displacements.
 
-        The displacement column holds the last message's values (finite, or zeros) meanwhile.
+        A point off the float32 range, or not finite, has a displacement that is not finite.
         """
-        return math.isfinite(float(np.add.reduce(self.points.reshape(-1), dtype=np.float64)))
+        return math.isfinite(float(np.add.reduce(self._distance, dtype=np.float64)))
 
     def message(self, header: Header) -> PointCloud2:
-        """Return the cloud of the positions written, each point's displacement beside them."""
-        self.points[:, 3] = 0.0
-        np.subtract(self.points, self._rest, out=self._moved)
-        np.einsum('ij,ij->i', self._moved, self._moved, out=self._distance)
-        np.sqrt(self._distance, out=self.points[:, 3])
+        """Return the cloud of the frame written."""
         n = self.points.shape[0]
         msg = PointCloud2(check_fields=True, header=header, height=1, width=n, fields=_FIELDS,
                           is_bigendian=False, point_step=16, row_step=16 * n, is_dense=True)

@@ -155,9 +155,8 @@ class NodeOutputs:
         if self._tf is not None:
             motion = sim.model.scene.anchor_motion.frame(sim.time)
             self._tf.publish(motion.rotation, motion.translation, stamp)
-        positions = cloud.points[:, :3]
         if self._bag is not None:
-            self._capture(lambda: self._bag.frame(sim.time, positions))
+            self._capture(lambda: self._bag.cloud_frame(sim.time, cloud))
         if values['publish_clock'] and self._clock is not None:
             self._clock.publish(Clock(clock=to_time_msg(published)))
         if not self._announced:
@@ -171,7 +170,8 @@ class NodeOutputs:
                 f"{self._points.topic_name} at {values['publish_rate_hz']:g} Hz, frame "
                 f"'{values['frame_id']}'" + (f'; {transport}' if transport else ''))
         if mesh and self._cells.size and self._mesh.get_subscription_count() > 0:
-            self._mesh.publish(mesh_marker(positions, rest, self._cells, header, self._width))
+            self._mesh.publish(mesh_marker(cloud.points[:, :3], rest, self._cells, header,
+                                           self._width))
 
     def _capture(self, write: Callable[[], None]) -> None:
         """

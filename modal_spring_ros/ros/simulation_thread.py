@@ -298,7 +298,7 @@ class SimulationThread:
         scene = self.sim.model.scene
         if self._cloud is None or self._cloud_scene is not scene:  # once per scene
             self._cloud, self._cloud_scene = CloudBuffer(scene.rest_positions), scene
-        self.sim.positions_into(self._cloud.points)  # in place: no array per frame
+        self._cloud.write_run(self.sim)  # in place: no array per frame
         if not self._cloud.finite():  # defensive: the engine never returns these
             self._on_divergence(DivergenceError('non-finite positions', self.sim.time,
                                                 self.sim.steps))

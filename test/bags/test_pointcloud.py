@@ -3,8 +3,13 @@ from __future__ import annotations
 
 from modal_spring_ros.bags.pointcloud import (CloudBuffer, distance_from_rest, from_pointcloud2,
                                               to_pointcloud2, xyz)
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.scenes.resources import load_scene
+from modal_spring_ros.scenes.schema import scene_from_dict
+from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 import pytest
 from std_msgs.msg import Header
@@ -32,19 +37,32 @@ def test_a_cloud_buffer_is_written_in_place_frame_after_frame():
     rest = rng.normal(size=(40, 3))
     cloud = CloudBuffer(rest)
     first = rest + 0.01
-    cloud.points[:, :3] = first
+    cloud.write(first)
     assert cloud.finite()
     msg = cloud.message(Header(frame_id='world'))
     np.testing.assert_allclose(xyz(msg), first, atol=1e-6)
     np.testing.assert_allclose(from_pointcloud2(msg)['displacement'], np.sqrt(3) * 0.01,
                                rtol=1e-4)
-    cloud.points[:, :3] = rest  # the next frame: the same bytes, no new array
+    cloud.write(rest)  # the next frame: the same bytes, no new array
     again = cloud.message(Header(frame_id='world'))
     assert again.data is msg.data and np.all(from_pointcloud2(again)['displacement'] < 1e-6)
-    cloud.points[7, 1] = np.nan
-    assert not cloud.finite()
-    cloud.points[7, 1] = np.inf
-    assert not cloud.finite()
+    movement = rng.normal(scale=0.1, size=(3, 40))  # a frame from each particle's movement
+    cloud.movement[...] = movement
+    cloud.write_movement()
+    assert cloud.finite()
+    np.testing.assert_allclose(xyz(msg), rest + movement.T, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(from_pointcloud2(msg)['displacement'],
+                               np.linalg.norm(movement, axis=0), rtol=1e-6)
+    for bad in (np.nan, np.inf, 1e30):  # 1e30: off float32's range once squared
+        positions = rest.copy()
+        positions[7, 1] = bad
+        cloud.write(positions)
+        assert not cloud.finite()
+        cloud.movement[1, 7] = bad
+        cloud.write_movement()
+        assert not cloud.finite()
+        cloud.write(rest)
+        assert cloud.finite()
 
 
 def test_distance_from_rest_is_the_euclidean_distance():
@@ -81,20 +99,34 @@ def test_positions_put_each_free_particle_at_rest_plus_base_plus_displacement():
                                rtol=0, atol=1e-15)
 
 
-@pytest.mark.parametrize('scene', ['sheet_10x10', 'sheet_10x10_swing', 'cantilever_3d'])
-def test_positions_written_in_place_are_the_run_s_positions_in_float32(scene):
-    from modal_spring_ros.core.config import SimulationConfig
-    from modal_spring_ros.core.factory import build_simulation
-    from modal_spring_ros.core.filter_band import FilterBand
-    sim = build_simulation(load_scene(scene), SimulationConfig())
+def sheet_in_the_xy_plane():
+    """Return a small 2D sheet whose axes are x and y (rows next to each other in a frame)."""
+    data = scene_to_dict(load_scene('sheet_10x10'))
+    data.update(name='sheet_xy', plane='xy', gravity=[0.0, -9.81],
+                particles={'lattice': {'counts': [6, 5], 'spacing': 0.1}, 'mass': 0.01},
+                springs={'connect': ['edges', 'diagonals'], 'stiffness': 1000.0},
+                fixed={'indices': list(range(6))},
+                anchor_motion=[{'axis': 'y', 'amplitude': 0.01, 'frequency_hz': 2.0}])
+    return scene_from_dict(data)
+
+
+# a 2D scene in x-z with moving clamps, one turning, a 3D one, a 2D one in x-y
+@pytest.mark.parametrize('scene', ['sheet_10x10', 'sheet_10x10_swing', 'cantilever_3d', 'xy'])
+def test_frames_written_in_place_are_the_run_s_positions_in_float32(scene):
+    scene = sheet_in_the_xy_plane() if scene == 'xy' else load_scene(scene)
+    sim = build_simulation(scene, SimulationConfig())
     sim.step(300)
     sim.set_band(FilterBand('lowpass', 0, 5, 'index'), 0.5)  # the frames of a fade, too
     sim.step(100)
     cloud = CloudBuffer(sim.model.scene.rest_positions)
     for _ in range(2):  # the second frame writes over the first
         sim.step(50)
-        sim.positions_into(cloud.points)
+        cloud.write_run(sim)
         reference = sim.positions()
         assert np.abs(reference - reference[0]).max() > 1e-3
         np.testing.assert_allclose(cloud.points[:, :3], reference, rtol=0,
                                    atol=3e-7 * np.abs(reference).max())
+        distance = distance_from_rest(reference, scene.rest_positions)
+        assert distance.max() > 1e-4
+        np.testing.assert_allclose(cloud.points[:, 3], distance, rtol=0,
+                                   atol=1e-6 * distance.max())

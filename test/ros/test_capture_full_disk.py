@@ -43,7 +43,7 @@ def test_a_full_disk_stops_the_capture_once_and_the_stream_goes_on(tmp_path, mon
         cloud = CloudBuffer(sim.model.scene.rest_positions)
         for _ in range(3000):                         # far more than the disk holds
             sim.step(10)
-            sim.positions_into(cloud.points)
+            cloud.write_run(sim)
             outputs.frame(sim, cloud, False)          # never raises
         assert outputs.recording_stopped.startswith('recording stopped: ')
         assert 'No space left on device' in outputs.recording_stopped

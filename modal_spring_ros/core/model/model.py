@@ -46,7 +46,6 @@ class MassSpringModel:
         self._inv_l = 1.0 / self._l
         self._frame: tuple[tuple[float, int], RigidFrame] | None = None
         self._axes_index = np.ix_(self.axes, self.axes)
-        self._layouts: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # see write_positions
 
     @property
     def free_points(self) -> np.ndarray:
@@ -166,29 +165,40 @@ class MassSpringModel:
         x.reshape(-1)[self.free_dof] += u  # flat index: several times faster than by rows
         return x
 
-    def write_positions(self, out: np.ndarray, u: np.ndarray, t: float) -> None:
+    def frame_shapes(self, phi: np.ndarray) -> np.ndarray:
         """
-        Write ``X + u + p`` (a clamp that only translates) into the first columns of ``out``.
+        Return the shapes ``phi`` in float32, laid out axis by axis over every particle.
 
-        ``out``: (n, m) float32, C-contiguous; ``u``: float32 free-DOF displacement. The rest
-        positions in that layout (other columns zero) and the flat indices of the free DOF in it
-        are made once per width.
+        Row ``k n + i`` holds particle ``i``'s shape along the scene's ``k``-th axis (zeros for a
+        clamped particle), so ``shapes @ q`` is every particle's movement axis by axis: what
+        :meth:`write_movement` writes for a frame, with no scatter. Float32 halves the memory a
+        frame reads; a frame's values are float32.
         """
-        rest, index = self._output_layout(out.shape[1])
-        np.copyto(out, rest)  # whole rows: a contiguous copy
-        offset = self.anchor_offset(t)
-        if np.any(offset):
-            out[:, self.axes] += offset.astype(np.float32)
-        flat = out.reshape(-1)  # a view: ``out`` is contiguous
-        flat[index] += u
+        n, d = self.scene.n_particles, self.dimension
+        rows = np.arange(self.n_free_dof)
+        shapes = np.zeros((d * n, phi.shape[1]), dtype=np.float32)
+        shapes[(rows % d) * n + self.free_particles[rows // d]] = phi
+        return shapes
 
-    def _output_layout(self, width: int) -> tuple[np.ndarray, np.ndarray]:
-        if width not in self._layouts:
-            particle, axis = np.divmod(self.free_dof, self.dimension)
-            rest = np.zeros((self.scene.n_particles, width), dtype=np.float32)
-            rest[:, :3] = self.scene.rest_positions
-            self._layouts[width] = rest, particle * width + np.asarray(self.axes)[axis]
-        return self._layouts[width]
+    def write_movement(self, out: np.ndarray, shapes: np.ndarray, q: np.ndarray,
+                       t: float) -> None:
+        """
+        Write each particle's movement from rest, ``u + p``, into ``out`` (a translating clamp).
+
+        ``out``: (3, n) float32, C-contiguous, one row per world axis; ``shapes`` from
+        :meth:`frame_shapes`; ``q``: float32 coordinates. The rows of axes the scene does not
+        move are zero.
+        """
+        d, first = self.dimension, self.axes[0]
+        if self.axes == list(range(first, first + d)):  # rows next to each other: one product
+            np.matmul(shapes, q, out=out[first:first + d].reshape(-1))
+        else:
+            out[self.axes] = (shapes @ q).reshape(d, -1)
+        for axis in {0, 1, 2}.difference(self.axes):
+            out[axis] = 0.0
+        for axis, offset in zip(self.axes, self.anchor_offset(t)):
+            if offset:
+                out[axis] += np.float32(offset)
 
     def world_velocity(self, u: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """

@@ -293,23 +293,23 @@ class Simulation(abc.ABC):
         x = self.model.positions(self.shown_displacement(), self.time)
         return self.model.positions3(x)
 
-    def positions_into(self, out: np.ndarray) -> None:
+    def movement_into(self, out: np.ndarray) -> None:
         """
-        Write the particles' positions into the first three columns of ``out``.
+        Write each particle's movement from its rest position in the world into ``out``.
 
-        ``out``: (n, m) float32, C-contiguous, ``m >= 3`` (a cloud's points; its other columns
-        are left as they are). A run whose displacement is cheap in float32
-        (:meth:`_displacement32`) and whose clamp only translates writes them in place, with no
-        float64 array per frame.
+        ``out``: (3, n) float32, C-contiguous, one row per world axis (a cloud's
+        :attr:`~modal_spring_ros.bags.pointcloud.CloudBuffer.movement`). A run that keeps its
+        shapes for frames (:meth:`_frame_coordinates`) and whose clamp only translates writes it
+        with one product in float32, with no array per frame.
         """
-        u = None if self.model.rotates else self._displacement32()
-        if u is None:
-            out[:, :3] = self.positions()
+        q = None if self.model.rotates else self._frame_coordinates()
+        if q is None:
+            out[...] = (self.positions() - self.model.scene.rest_positions).T
         else:
-            self.model.write_positions(out, u, self.time)
+            self.model.write_movement(out, q[0], q[1], self.time)
 
-    def _displacement32(self) -> np.ndarray | None:
-        """Return the displacement in float32 when that is cheaper (None: it is not)."""
+    def _frame_coordinates(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Return the frame shapes and float32 coordinates shown (None: the run has none)."""
         return None
 
     def energy(self) -> dict[str, float]:

@@ -288,7 +288,7 @@ class ModalSimulation(Simulation):
             q[kept], v[kept], a[kept] = self._q[where], self._v[where], self._a[where]
         self._phi, self._omega2, self._damp = stepped.phi, stepped.omega2, stepped.damping
         self._ops, self._forces, self._frame = stepped.ops, stepped.forces, stepped.frame
-        self._phi32 = stepped.phi32
+        self._frame_shapes = stepped.frame_shapes
         self._q, self._v, self._a = q, v, a
         self._gains.retarget(self._set.modes, new.modes, gains,
                              instant or old is None or self.transition_s <= 0.0)
@@ -352,9 +352,9 @@ class ModalSimulation(Simulation):
             return self.displacement()
         return self._phi @ (self._gains.now[0] * self._q)
 
-    def _displacement32(self) -> np.ndarray:
+    def _frame_coordinates(self) -> tuple[np.ndarray, np.ndarray]:
         q = self._q if self._gains.unit_output else self._gains.now[0] * self._q
-        return self._phi32 @ q.astype(np.float32)  # half the memory read per frame
+        return self._frame_shapes, q.astype(np.float32)
 
     def velocity(self) -> np.ndarray:
         return self._phi @ self._v

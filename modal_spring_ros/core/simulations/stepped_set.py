@@ -24,7 +24,7 @@ class SteppedSet:
     ops: DiagonalOperators
     forces: ForceModel
     frame: FrameLoads | None   # a turning clamp's inertial loads on these coordinates
-    phi32: np.ndarray          # the shapes in float32, for the frames (made with the set)
+    frame_shapes: np.ndarray   # the shapes for the frames (model.frame_shapes), with the set
 
     @classmethod
     def build(cls, model: MassSpringModel, bank: AddedCoordinateBank, modes: np.ndarray,
@@ -50,4 +50,4 @@ class SteppedSet:
                                basis.worker, basis.samples)
         floor = ROUNDOFF_SHARE * float(np.max(np.abs(exact.gravity()), initial=0.0))
         return cls(phi, omega**2, damp, DiagonalOperators(1.0, damp, omega**2, dt, floor),
-                   build_forces(context, forces), exact.frame, phi.astype(np.float32))
+                   build_forces(context, forces), exact.frame, model.frame_shapes(phi))
