@@ -60,9 +60,10 @@ DERIVATIVE_VECTORS_PER_PAIR = 0.7
 #: Vectors of n floats a stepped coordinate adds (the stepped shapes gathered from the basis;
 #: their transpose and float32 copy take the eigensolver's freed workspace).
 RUN_VECTORS_PER_COORDINATE = 1.0
-#: Spring vectors (d x E floats) a spring sample's training holds at once (each training
-#: snapshot's per-spring forces, and its products with the residual).
-SAMPLE_SPRING_VECTORS = 190
+#: Spring vectors (d x E floats) a spring sample's training holds at once (each of its 60
+#: training snapshots' per-spring forces, and one chunk of snapshots' products with the
+#: residual: :data:`~modal_spring_ros.core.forces.sampling.SNAPSHOT_CHUNK`).
+SAMPLE_SPRING_VECTORS = 80
 #: Dense eigensolver (every mode of a small scene): n x n matrices held at once.
 DENSE_MATRICES = 4
 

@@ -17,7 +17,7 @@ the totals. It is solved greedily: springs drawn from those whose contributions 
 with what is still missing join the sample in batches, the weights of the sample are solved with
 ``scipy.optimize.nnls``, springs whose weight drops to zero leave, until the training error is
 below the tolerance. ``A`` is never built whole: its product with the residual is one product
-with ``G`` per snapshot.
+with ``G`` per chunk of snapshots.
 """
 from __future__ import annotations
 
@@ -40,6 +40,10 @@ POOL = 400
 SPREAD = 10
 #: Most greedy rounds.
 MAX_ROUNDS = 200
+#: Snapshots whose products with ``G`` are held at once: the correlation with the residual is
+#: summed over chunks of this many, so that training holds its snapshots' per-spring forces and
+#: one chunk's products, not a second and third array as large as the forces.
+SNAPSHOT_CHUNK = 8
 #: A sample that needs this share of the springs and still misses the tolerance cannot pay (it
 #: would cost about as much as every spring): training gives up and says so.
 MAX_SAMPLE_SHARE = 0.9
@@ -64,6 +68,27 @@ class SpringSample:
 def _g_times(forces, r: np.ndarray) -> np.ndarray:
     """``G r`` for columns ``r`` (m, S), as (S, d, E)."""
     return forces.g_product(r).T.reshape(-1, forces.dimension, forces.n_springs)
+
+
+def _correlation(forces, per_spring: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """Return ``-sum_s f_e(q_s) . (G r_s)_e`` for every spring ``e`` (E,), a chunk at a time."""
+    count = per_spring.shape[0]
+    r = residual.reshape(count, -1)
+    total = np.zeros(per_spring.shape[2])
+    for start in range(0, count, SNAPSHOT_CHUNK):
+        chunk = slice(start, start + SNAPSHOT_CHUNK)
+        total -= np.einsum('sde,sde->e', per_spring[chunk], _g_times(forces, r[chunk].T))
+    return total
+
+
+def _per_spring_forces(forces, snapshots: np.ndarray) -> np.ndarray:
+    """(S, d, E) each spring's force vector on each snapshot, written into one array."""
+    first = forces.spring_force_vectors(snapshots[0])
+    out = np.empty((len(snapshots),) + first.shape)
+    out[0] = first
+    for s in range(1, len(snapshots)):
+        out[s] = forces.spring_force_vectors(snapshots[s])
+    return out
 
 
 def _columns(forces, per_spring: np.ndarray, springs: np.ndarray) -> np.ndarray:
@@ -97,7 +122,7 @@ def train(forces, snapshots: np.ndarray, held_out: np.ndarray,
     ``tolerance`` (relative, each snapshot), checked on ``held_out``.
     """
     start = time.perf_counter()
-    per_spring = np.stack([forces.spring_force_vectors(q) for q in snapshots])   # (S, d, E)
+    per_spring = _per_spring_forces(forces, snapshots)                          # (S, d, E)
     totals = np.stack([forces.spring_forces(q) for q in snapshots])             # (S, m)
     scale = 1.0 / np.maximum(np.linalg.norm(totals, axis=1), 1e-300)            # per snapshot
     b = (totals * scale[:, None]).ravel()
@@ -115,8 +140,7 @@ def train(forces, snapshots: np.ndarray, held_out: np.ndarray,
     for rounds in range(1, MAX_ROUNDS + 1):
         # correlation of each spring's column with the residual, over its norm:
         # -sum_s f_e(q_s) . (G r_s)_e / |A_e|
-        g_r = _g_times(forces, residual.reshape(len(snapshots), -1).T)        # (S, d, E)
-        correlation = -np.einsum('sde,sde->e', per_spring, g_r) / norms
+        correlation = _correlation(forces, per_spring, residual) / norms
         correlation[chosen] = -np.inf
         top = min(SPREAD * POOL, n_springs - chosen.size)
         best = np.argpartition(-correlation, top - 1)[:top] if top > 0 else chosen[:0]
