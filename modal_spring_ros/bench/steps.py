@@ -106,7 +106,7 @@ def _frame_costs(sim, batches: int) -> dict:
                 work()
             times.append((time.perf_counter() - t0) / 10)
         return 1e6 * statistics.median(times)
-    lean = {'positions': median_us(lambda: sim.movement_into(cloud.movement)),
+    lean = {'movement': median_us(lambda: sim.movement_into(cloud.movement)),
             'cloud': median_us(cloud.write_movement),
             'serialise': median_us(lambda: serialize_message(cloud.message(header)))}
     rest = sim.model.scene.rest_positions

@@ -302,11 +302,12 @@ class Simulation(abc.ABC):
         shapes for frames (:meth:`_frame_coordinates`) and whose clamp only translates writes it
         with one product in float32, with no array per frame.
         """
-        q = None if self.model.rotates else self._frame_coordinates()
-        if q is None:
+        frame = None if self.model.rotates else self._frame_coordinates()
+        if frame is None:
             out[...] = (self.positions() - self.model.scene.rest_positions).T
         else:
-            self.model.write_movement(out, q[0], q[1], self.time)
+            shapes, q = frame
+            self.model.write_movement(out, shapes, q, self.time)
 
     def _frame_coordinates(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Return the frame shapes and float32 coordinates shown (None: the run has none)."""
