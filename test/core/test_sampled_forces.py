@@ -16,8 +16,11 @@ from helpers import variant
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces import ForceOptions
+from modal_spring_ros.core.forces.exact import ExactForces
 from modal_spring_ros.core.forces.sampled import check_spacing, SampledForces
-from modal_spring_ros.core.forces.sampling import MAX_SAMPLE_SHARE, SpringSample
+from modal_spring_ros.core.forces.sampling import (_correlation, _per_spring_forces,
+                                                   MAX_SAMPLE_SHARE, SNAPSHOT_CHUNK,
+                                                   SpringSample)
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import ModalSettings, ModalSimulation
 from modal_spring_ros.runs.sample_cache import SampleCache
@@ -297,3 +300,20 @@ def test_training_gives_the_same_sample_in_every_process():
         digests.append(out[-2:])
     assert int(digests[0][0]) > 0
     assert digests[0] == digests[1]
+
+
+def test_training_sums_its_correlation_over_chunks_of_snapshots_exactly():
+    model = MassSpringModel(load_scene('sheet_10x10'))
+    basis = ModalBasis(model, initial_modes=8)
+    exact = ExactForces(model, basis.vectors[:, :8])
+    rng = np.random.default_rng(5)
+    snapshots = 0.01 * rng.standard_normal((SNAPSHOT_CHUNK * 2 + 3, 8))  # a chunk left over
+    per_spring = _per_spring_forces(exact, snapshots)
+    np.testing.assert_array_equal(
+        per_spring, np.stack([exact.spring_force_vectors(q) for q in snapshots]))
+    residual = rng.standard_normal(snapshots.size)
+    g_r = exact.g_product(residual.reshape(len(snapshots), -1).T).T.reshape(per_spring.shape)
+    whole = -np.einsum('sde,sde->e', per_spring, g_r)
+    assert np.abs(whole).max() > 0.0
+    np.testing.assert_allclose(_correlation(exact, per_spring, residual), whole, rtol=1e-12,
+                               atol=1e-12 * np.abs(whole).max())
