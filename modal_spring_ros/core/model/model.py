@@ -189,11 +189,9 @@ class MassSpringModel:
         :meth:`frame_shapes`; ``q``: float32 coordinates. The rows of axes the scene does not
         move are zero.
         """
-        d, first = self.dimension, self.axes[0]
-        if self.axes == list(range(first, first + d)):  # rows next to each other: one product
-            np.matmul(shapes, q, out=out[first:first + d].reshape(-1))
-        else:
-            out[self.axes] = (shapes @ q).reshape(d, -1)
+        n = self.scene.n_particles
+        for k, axis in enumerate(self.axes):  # one product per axis, straight into its row
+            np.matmul(shapes[k * n:(k + 1) * n], q, out=out[axis])
         for axis in {0, 1, 2}.difference(self.axes):
             out[axis] = 0.0
         for axis, offset in zip(self.axes, self.anchor_offset(t)):
