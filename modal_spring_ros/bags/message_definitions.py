@@ -15,6 +15,7 @@ from pathlib import Path
 import re
 import sys
 
+from modal_spring_ros.bags.message_types import split_type_name, TypeRefused
 from modal_spring_ros.scenes.ament_index import package_share
 
 DELIMITER = '=' * 80 + '\n'
@@ -33,18 +34,12 @@ def share_directory(package: str) -> Path:
     return share if share is not None else Path(sys.prefix) / 'share' / package
 
 
-def _split(type_name: str) -> tuple[str, str, str]:
-    parts = type_name.split('/')
-    if len(parts) == 2:
-        return parts[0], 'msg', parts[1]
-    if len(parts) == 3:
-        return parts[0], parts[1], parts[2]
-    raise ValueError(f"invalid message type name '{type_name}'")
-
-
 @functools.lru_cache(maxsize=None)
 def msg_text(type_name: str) -> str:
-    package, kind, name = _split(type_name)
+    try:
+        package, kind, name = split_type_name(type_name)
+    except TypeRefused as exc:
+        raise DefinitionNotFound(str(exc)) from None
     path = share_directory(package) / kind / f'{name}.msg'
     try:
         return path.read_text(encoding='utf-8')
@@ -69,7 +64,7 @@ def full_definition(type_name: str) -> str:
     def expand(name: str) -> str:
         text = msg_text(name)
         out = text
-        for dep in dependencies(text, _split(name)[0]):
+        for dep in dependencies(text, split_type_name(name)[0]):
             if dep not in seen:
                 seen.add(dep)
                 out += '\n' + DELIMITER + f'MSG: {dep}\n' + expand(dep)
@@ -81,7 +76,10 @@ def full_definition(type_name: str) -> str:
 @functools.lru_cache(maxsize=None)
 def type_hash(type_name: str) -> str:
     """Return the RIHS01 type description hash of ``type_name`` (empty when unknown)."""
-    package, kind, name = _split(type_name)
+    try:
+        package, kind, name = split_type_name(type_name)
+    except TypeRefused:
+        return ''
     path = share_directory(package) / kind / f'{name}.json'
     try:
         data = json.loads(path.read_text(encoding='utf-8'))

@@ -8,7 +8,6 @@ it was finalised (every complete chunk is read back).
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import json
 from pathlib import Path
 import struct
@@ -18,6 +17,7 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
+from modal_spring_ros.bags.message_types import message_class, TypeRefused
 from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.bags.writer import BagError, RUN_RECORD
@@ -65,16 +65,6 @@ def _bag_information(meta: Path) -> dict:
                        f'{paths!r:.60}')
     info['relative_file_paths'] = paths
     return info
-
-
-def message_class(type_name: str):
-    """Return the rclpy message class of ``pkg/msg/Type`` (the package must be installed)."""
-    package, kind, name = type_name.split('/') if type_name.count('/') == 2 else \
-        (type_name.split('/')[0], 'msg', type_name.split('/')[-1])
-    try:
-        return getattr(importlib.import_module(f'{package}.{kind}'), name)
-    except (ImportError, AttributeError):
-        raise BagError(f'message type {type_name} is not installed') from None
 
 
 class BagReader:
@@ -247,9 +237,15 @@ class BagReader:
         """
         Return the message as an rclpy object (rclpy's own CDR deserializer).
 
+        Its type name is the bag's: it resolves only to an installed interface
+        (:mod:`~modal_spring_ros.bags.message_types`), and never chooses what is imported.
+
         :raises BagError: its type is not installed, or its bytes are not a valid message.
         """
-        cls = message_class(message.type_name)
+        try:
+            cls = message_class(message.type_name)
+        except TypeRefused as exc:
+            raise BagError(f'{self.path}: message on {message.topic}: {exc}') from None
         try:
             return deserialize_message(message.data, cls)
         except Exception as exc:  # rclpy raises several kinds for damaged CDR

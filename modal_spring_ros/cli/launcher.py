@@ -14,6 +14,9 @@ library's ``except BaseException``) would lose it, and the node would start stre
 the user pressed Ctrl-C. A remembered interrupt ends the run before ``main``. Where SIGINT is
 ignored (a shell's background job), it stays ignored, as for any program.
 
+The working directory is taken off the import path first (:func:`safe_path`): nothing in a
+folder of data is imported.
+
 A crash in native code (the middleware, a BLAS) prints every thread's Python stack on stderr
 (:mod:`faulthandler`) before the process ends, so a report says where it happened.
 """
@@ -22,6 +25,7 @@ from __future__ import annotations
 import faulthandler
 import functools
 import importlib
+import os
 import signal
 import sys
 
@@ -42,7 +46,20 @@ SCRIPTS = ('modal_spring_sim', 'modal_spring_node', 'modal_spring_bench', 'modal
 
 def run(script: str) -> int:
     """Import the module of console script ``script`` and run its ``main``."""
+    safe_path()
     return run_module(f'{__package__}.{script}')
+
+
+def safe_path() -> None:
+    """
+    Take the working directory off the import path, as ``python -P`` does.
+
+    A tool is run from folders of data (a downloaded bag, a scene's folder); a ``.py`` file
+    there must never be imported in place of a package. A ``PYTHONPATH`` with an empty entry
+    (a trailing ``:``, common in sourced setups) or a relative one (``.``) would otherwise put
+    it there: every entry that is not an absolute path is dropped.
+    """
+    sys.path[:] = [p for p in sys.path if os.path.isabs(p)]
 
 
 def install_hint(missing: str) -> str:

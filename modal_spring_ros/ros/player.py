@@ -9,8 +9,9 @@ import contextlib
 import signal
 import time
 
+from modal_spring_ros.bags.message_types import message_class, TypeRefused
 from modal_spring_ros.bags.qos import playback_profile, profiles_from_yaml
-from modal_spring_ros.bags.reader import BagReader, message_class
+from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.ros.publication_mode import prefer_asynchronous_publication
 from modal_spring_ros.ros.shared_memory import cloud_transport, prefer_large_shared_memory
@@ -63,7 +64,7 @@ def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool
             info = bag.topics[t]
             try:
                 cls = message_class(info.type_name)
-            except BagError as exc:
+            except TypeRefused as exc:
                 node.get_logger().warning(f'skipping {t}: {exc}')
                 continue
             qos = playback_profile(profiles_from_yaml(info.offered_qos_profiles))
@@ -104,7 +105,7 @@ def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool
 def _installed(type_name: str) -> bool:
     try:
         message_class(type_name)
-    except BagError:
+    except TypeRefused:
         return False
     return True
 

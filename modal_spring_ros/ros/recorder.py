@@ -18,10 +18,10 @@ import struct
 import time
 
 from modal_spring_ros.bags.message_definitions import msg_text
+from modal_spring_ros.bags.message_types import message_class, TypeRefused
 from modal_spring_ros.bags.qos import profiles_to_yaml
-from modal_spring_ros.bags.reader import message_class
 from modal_spring_ros.bags.sim_time import SIM_TIME_TOPIC
-from modal_spring_ros.bags.writer import BagError, BagWriter
+from modal_spring_ros.bags.writer import BagWriter
 from modal_spring_ros.ros.outputs import DIAGNOSTICS_TOPIC, MESH_TOPIC, POINTS_TOPIC
 from rcl_interfaces.srv import GetParameters, ListParameters
 import rclpy
@@ -77,7 +77,7 @@ class Recorder:
             type_name = types[topic][0]
             try:
                 cls = message_class(type_name)
-            except BagError as exc:
+            except TypeRefused as exc:
                 self.node.get_logger().warning(f'not recording {topic}: {exc}')
                 self.subscribed[topic] = None
                 continue

@@ -2,9 +2,11 @@
 Where an installed ROS package's folders are: the ament index, with or without ROS.
 
 On a ROS install or in a colcon workspace ``ament_index_python`` answers. A pip install without
-the ROS extra has no ``ament_index_python``; the index is only a folder convention (a package
-is installed under a prefix that holds ``share/ament_index/resource_index/packages/<name>``), so
-the same lookup is made over ``AMENT_PREFIX_PATH`` and this interpreter's prefix.
+the ROS extra has no ``ament_index_python``, and the PyPI wheels set no ``AMENT_PREFIX_PATH``;
+the index is only a folder convention (a package is installed under a prefix that holds
+``share/ament_index/resource_index/packages/<name>``), so where ``ament_index_python`` is missing
+or does not know the package, the same lookup is made over ``AMENT_PREFIX_PATH`` and this
+interpreter's prefix.
 """
 from __future__ import annotations
 
@@ -26,7 +28,7 @@ def package_prefix(name: str) -> Path | None:
         try:
             return Path(get_package_prefix(name))
         except (PackageNotFoundError, LookupError, ValueError, OSError):  # OSError: no index
-            return None
+            pass        # the PyPI wheels set no AMENT_PREFIX_PATH: their index is sys.prefix's
     prefixes = [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
     for prefix in [*prefixes, sys.prefix]:
         if (Path(prefix) / MARKERS / name).is_file():
