@@ -11,6 +11,7 @@ import subprocess
 import sys
 from typing import Callable, Iterator, NoReturn
 
+from modal_spring_ros.core.auto.budget import PLANNING_SHARE
 from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.config import DEFAULT_WATCH_S, SimulationConfig
 from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand
@@ -179,6 +180,12 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
                         '(in place of --basis)')
     g.add_argument('--tolerance', type=float, default=0.01,
                    help='predicted relative error for --auto (default 0.01)')
+    g.add_argument('--planning-share', type=share_or_none, default=PLANNING_SHARE,
+                   metavar='SHARE',
+                   help='with --auto: the most its planning may spend, as a share of the full '
+                        'run over --duration (a pilot that would cost more, or more than the '
+                        f'plan could save, is not run: the full run is; default '
+                        f'{PLANNING_SHARE:g}; none: not budgeted)')
     g.add_argument('--watch', type=float, default=None, metavar='SECONDS',
                    help="with --auto: measure the plan's error again from the run's own state "
                         'every SECONDS of the run, and fall back to the full run (or a richer '
@@ -209,7 +216,8 @@ OPTION_NAMES = {'method': '--method', 'auto': '--auto', 'integrator': '--integra
                 'strain_limit': '--strain-limit', 'tolerance': '--tolerance',
                 'force_refresh': '--force-refresh', 'basis': '--basis',
                 'derivative_directions': '--derivative-directions', 'forces': '--forces',
-                'horizon_s': '--duration', 'watch_s': '--watch', 'type': '--filter',
+                'horizon_s': '--duration', 'watch_s': '--watch',
+                'planning_share': '--planning-share', 'type': '--filter',
                 'low_hz': '--low-hz', 'high_hz': '--high-hz', 'order': '--order',
                 'gains': '--gain',
                 'acts_on': '--gains-act-on', 'damping': '--damping-ratio'}
@@ -276,7 +284,18 @@ def config_from_args(args: argparse.Namespace) -> SimulationConfig:
                             auto=args.auto, tolerance=args.tolerance,
                             force_refresh=args.force_refresh, basis=args.basis,
                             derivative_directions=args.derivative_directions,
-                            forces=args.forces, watch_s=args.watch).validate(OPTION_NAMES)
+                            forces=args.forces, watch_s=args.watch,
+                            planning_share=args.planning_share).validate(OPTION_NAMES)
+
+
+def share_or_none(text: str) -> float | None:
+    """Parse ``--planning-share``: a number, or ``none``."""
+    if text.strip().lower() == 'none':
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a share (a number) or none") from None
 
 
 def run_main(prog: str, body: Callable[[], int]) -> int:

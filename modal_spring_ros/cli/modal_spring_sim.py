@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
             bag = RunBagWriter(args.bag, sim.model.scene, config, dt=sim.dt,
                                frame_every=args.frame_every, duration=duration)
         start = time.perf_counter()
-        watch = watch_of(sim, config.watch_s)
+        watch = watch_of(sim, config.watch_s, run_s=duration)
         try:
             run = record(sim, duration, frame_every=args.frame_every,
                          on_progress=None if args.quiet else

@@ -11,6 +11,7 @@ import dataclasses
 import math
 from typing import Any, Mapping
 
+from modal_spring_ros.core.auto.budget import PLANNING_SHARE
 from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.bases.mode_selection import DEFAULT_TOLERANCE
 from modal_spring_ros.core.filter_band import FilterBand
@@ -73,6 +74,9 @@ class SimulationConfig:
     horizon_s: float | None = None     # the run auto's tolerance holds over; None: the scene's
     watch_s: float | None = None       # auto's plan re-measured every this many s; 0: never;
     #                                    None: every DEFAULT_WATCH_S within a share of its work
+    planning_share: float | None = PLANNING_SHARE  # what auto's planning may spend, as a share
+    #                                    of the full run over ``horizon_s`` (a run of that
+    #                                    length); None, or no ``horizon_s``: not budgeted
 
     def validate(self, names: Mapping[str, str] | None = None) -> 'SimulationConfig':
         """
@@ -120,6 +124,10 @@ class SimulationConfig:
                                              and 0.0 <= self.watch_s <= MAX_HORIZON_S):
             raise ConfigError(f"{name('watch_s')} ({self.watch_s}) must be a number of seconds "
                               f'from 0 (not watched) to {MAX_HORIZON_S:g}')
+        if self.planning_share is not None and not (math.isfinite(self.planning_share)
+                                                    and 0.0 < self.planning_share <= 1.0):
+            raise ConfigError(f"{name('planning_share')} ({self.planning_share}) must be a share "
+                              'above 0 and at most 1 of the full run')
         if self.auto and self.method != 'modal':
             raise ConfigError(f"{name('auto')} chooses modes: it needs {name('method')} modal")
         if self.band.shaped and self.method != 'modal':
@@ -147,10 +155,12 @@ class SimulationConfig:
         Return a configuration as :meth:`to_dict` wrote it.
 
         One written before the basis was a setting was a run of rest modes; one written before
-        automatic plans were watched while running was not watched.
+        automatic plans were watched while running was not watched; one written before
+        planning was budgeted was planned unbudgeted.
         """
         data = dict(data)
         data.setdefault('basis', 'rest')
         data.setdefault('watch_s', 0.0)      # recorded before runs were watched: not watched
+        data.setdefault('planning_share', None)
         band = data.pop('band', {}) or {}
         return cls(band=FilterBand(**band), **data)

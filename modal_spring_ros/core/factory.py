@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from modal_spring_ros.core.auto.budget import PlanningBudget
 from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.pilot import Pilot
 from modal_spring_ros.core.auto.plan import PlanSettings
@@ -129,6 +130,25 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     be brought within the tolerance (bands that keep every mode only). Not ``measured``: the
     plan as predicted, with no pilot.
     """
+    everything = config.band.kind == 'allpass'
+
+    def full(longest_dt: float, sample_s: float) -> Simulation:
+        # explicit, within its stability limit and no longer than ``longest_dt`` (the pilot
+        # chooses: the longest that measures within the tolerance, a converged one for a
+        # reference), landing on the pilot's samples
+        sim = FullSimulation(model, basis, config.band, dt=1e-3, integrator='explicit',
+                             strain_limit=config.strain_limit)
+        step = min(STABILITY_SAFETY * sim.stability_limit(), longest_dt)
+        return on_samples(sim, sample_s, step)
+
+    horizon_s = config.horizon_s or model.scene.default_duration
+    longest = full(math.inf, horizon_s)
+    # the step ``method full`` takes (the scene's, or half the stability limit), within stability
+    full_dt = min(model.scene.default_dt or AUTO_DT_SAFETY * longest.stability_limit(),
+                  longest.dt)
+    # a run of known length: what planning may spend is a share of its full run
+    budget = (PlanningBudget.for_run(longest, config.horizon_s, config.planning_share)
+              if everything else PlanningBudget())
     limit = min(config.max_modes or DEFAULT_MAX_MODES, basis.n_dof)
     choice = choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
     bank = shared_bank(basis, config.derivative_directions)
@@ -150,22 +170,12 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     if not measured:
         return make(plan)
 
-    def full(longest_dt: float, sample_s: float) -> Simulation:
-        # explicit, within its stability limit and no longer than ``longest_dt`` (the pilot
-        # chooses: the longest that measures within the tolerance, a converged one for a
-        # reference), landing on the pilot's samples
-        sim = FullSimulation(model, basis, config.band, dt=1e-3, integrator='explicit',
-                             strain_limit=config.strain_limit)
-        step = min(STABILITY_SAFETY * sim.stability_limit(), longest_dt)
-        return on_samples(sim, sample_s, step)
-
     def more_modes(hz: float) -> float | None:
         return _more_modes(basis, config.band, hz, limit)
 
-    everything = config.band.kind == 'allpass'
     pilot = Pilot(model, config.tolerance, make, full if everything else None, more_modes,
                   basis.frequencies_hz[choice.modes], can_halve_step=not keep_dt,
-                  horizon_s=config.horizon_s or model.scene.default_duration)
+                  horizon_s=horizon_s, budget=budget, full_dt=full_dt)
     sim, report = pilot.run(plan)
     sim.pilot = report
     if report.method == 'modal':

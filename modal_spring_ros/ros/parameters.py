@@ -289,6 +289,7 @@ def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
         derivative_directions=values.get('modal.derivative_directions', DEFAULT_DIRECTIONS),
         forces=values.get('modal.forces', 'exact'),
         horizon_s=values.get('modal.horizon', 0.0) or None,
+        planning_share=None,    # a stream has no length: planning is paid once, saved after
         watch_s=values.get('modal.watch', DEFAULT_WATCH_S),
         anchor=values.get('anchor.source', 'scene'),
         follow_hz=values.get('anchor.follow_hz', DEFAULT_FOLLOW_HZ),

@@ -152,7 +152,8 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
                            memory_available=available_memory())
     # a recorded configuration's watch falls back where the run did (a node's fallback is a
     # recorded parameter change)
-    watch = watch_of(sim, config.watch_s) if values is None else None
+    watch = (watch_of(sim, config.watch_s, run_s=float(rec.get('duration', 0.0)) or None)
+             if values is None else None)
     frame_s = max(1, int(rec.get('frame_every', 0) or 1)) * sim.dt
     exact = rec.get('event_clock') == 'sim'   # the node's capture: frames and events in sim time
     frames = frame_times(bag, topic,

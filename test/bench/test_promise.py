@@ -12,18 +12,28 @@ def test_one_random_scene_is_planned_checked_and_charted(tmp_path):
     assert row['refused'] == ''
     # the independent check: over 3 s against the converged full run, within 2 T
     assert 0.0 < row['achieved'] <= 0.02 and 0.0 < row['printed'] <= 0.01
-    # the baseline is the full run at the longest step meeting T, timed in the same process
+    # the baselines: the full run at its default step and at the longest step meeting T,
+    # timed in the same process; what auto costs is the whole run, planning included
     assert row['full_error'] <= 0.01 and row['full_cpu_per_s'] > 0
     assert row['cost_ratio'] == pytest.approx(row['auto_cpu_per_s'] / row['full_cpu_per_s'])
+    assert row['auto_whole_s'] == pytest.approx(row['plan_cpu_s'] + 3.0 * row['auto_cpu_per_s'])
+    assert row['whole_vs_default'] == pytest.approx(row['auto_whole_s'] / row['default_whole_s'])
+    assert row['default_error'] >= 0.0 and row['default_dt'] >= row['full_dt']
     refused = dict(row, seed=2, refused='modal.auto cannot measure a plan for this scene')
-    worse = dict(row, seed=3, achieved=0.015, cost_ratio=2.0)
+    worse = dict(row, seed=3, achieved=0.015, cost_ratio=2.0, whole_vs_at_t=2.0,
+                 whole_vs_default=3.0, default_error=0.0)
     results = {'rows': [row, refused, worse],
                'summary': promise.summary([row, refused, worse])}
     (s,) = results['summary']
     assert (s['scenes'], s['refused']) == (3, 1)
     assert s['within_t'] == np.mean([row['achieved'] <= 0.01, False])
     assert s['within_2t'] == 1.0 and s['worst_ratio'] == pytest.approx(1.5)
-    assert s['max_cost_ratio'] == 2.0
+    assert s['max_cost_ratio'] == max(2.0, row['cost_ratio'])
+    assert s['max_whole_vs_at_t'] == max(2.0, row['whole_vs_at_t'])
+    # only where the full run at its default step meets T
+    assert s['max_whole_vs_default'] == max(
+        [3.0] + [row['whole_vs_default']] * (row['default_error'] <= 0.01))
+    assert s['default_meets_t'] == 1 + (row['default_error'] <= 0.01)
     assert '1.0%' in promise.table(results).splitlines()[1]
     promise.write_outputs(results, tmp_path, lambda msg: None)
     assert (tmp_path / 'promise.png').stat().st_size > 10_000

@@ -104,9 +104,18 @@ def test_console_script_runs_as_a_user_would(tmp_path):
 
 
 def test_auto_option_reports_its_choice(capsys):
+    # a 0.05 s run: measuring a plan would cost more than the whole full run
     assert main(['--auto', '--tolerance', '0.05', '--duration', '0.05', '--quiet']) == 0
     out = capsys.readouterr().out
+    assert 'method     full physical (180 DOF)' in out
+    assert 'measured   full run chosen (measuring a plan would cost at least' in out
+    assert 'beyond the planning budget of' in out and "(20% of the full run's)" in out
+    # not budgeted, the plan is chosen and measured
+    assert main(['--auto', '--tolerance', '0.05', '--duration', '0.05', '--quiet',
+                 '--planning-share', 'none']) == 0
+    out = capsys.readouterr().out
     assert 'auto       5 modes up to 20.44 Hz, predicted error 3.26%' in out
+    assert 'measured   measured error' in out
     with pytest.raises(SystemExit):
         main(['--auto', '--method', 'full', '--duration', '0.01', '--quiet'])
     assert '--auto chooses modes' in capsys.readouterr().err
@@ -213,7 +222,8 @@ def test_a_plan_the_run_outgrows_is_caught_by_its_watch_and_falls_back(tmp_path,
     from modal_spring_ros.ros.resimulate import resimulate
     bag = tmp_path / 'ramped'
     assert main(['--scene', str(ramped_shake(tmp_path)), '--auto', '--duration', '9',
-                 '--watch', '3', '--frame-every', '40', '--bag', str(bag)]) == 0
+                 '--watch', '3', '--frame-every', '40', '--bag', str(bag),
+                 '--planning-share', 'none']) == 0      # the plan is measured, then watched
     out, err = capsys.readouterr()
     within = [line for line in err.splitlines() if line.startswith('[modal_spring_sim] watched')]
     assert len(within) == 1 and ' from t = 3 s against the full run' in within[0]
@@ -232,3 +242,21 @@ def test_a_plan_the_run_outgrows_is_caught_by_its_watch_and_falls_back(tmp_path,
     t_new, x_new = BagReader(again).points()
     assert np.array_equal(t_new, t_rec)
     np.testing.assert_allclose(x_new, x_rec, rtol=0, atol=2e-6)
+
+
+def test_a_run_longer_than_its_pilot_window_is_watched_at_least_once(capsys):
+    """
+    A run longer than one window is watched once, however long its interval.
+
+    sheet_10x10 over 5 s (a 3 s window; watching every 10 s would cost more than a quarter of
+    the plan, so its interval is far longer): one window, the run's last, from its own state.
+    """
+    assert main(['--auto', '--duration', '5', '--quiet', '--planning-share', 'none']) == 0
+    out = capsys.readouterr().out
+    watched = [line for line in out.splitlines() if line.startswith('watched ')]
+    assert len(watched) == 1 and watched[0].startswith('watched    1 window: last ')
+    start = float(watched[0].split('from t = ')[1].split(' s')[0])
+    window = float(watched[0].split(' over ')[1].split(' s')[0])
+    assert start > 1.0 and start + window == pytest.approx(5.0, abs=0.05)
+    error = float(watched[0].split('last ')[1].split('%')[0]) / 100
+    assert 0.0 < error <= 0.01

@@ -24,14 +24,15 @@ SAMPLE_S = 0.02
 DURATION_S = 3.0
 
 
-def converged_full_run(scene, sample_s: float, samples: int) -> np.ndarray:
+def converged_full_run(scene, sample_s: float, samples: int, must: bool = True
+                       ) -> np.ndarray | None:
     """Return the full run converged in its step (to 10 % of the tolerance)."""
     full = build_simulation(scene, SimulationConfig(method='full'))
     found = converged_trajectory(
         lambda dt: on_samples(full, sample_s, dt), 0.2 * full.stability_limit(),
         sample_s, samples, 0.1 * TOLERANCE)
-    assert found is not None, 'the reference did not converge'
-    return found[0]
+    assert found is not None or not must, 'the reference did not converge'
+    return None if found is None else found[0]
 
 
 @pytest.mark.slow
@@ -48,10 +49,16 @@ def test_auto_meets_its_tolerance_on_random_scenes_or_refuses():
             assert 'modal.auto cannot measure' in str(exc)
             refused.append(seed)
             continue
-        assert sim.pilot is not None and sim.pilot.error <= TOLERANCE
+        # measured within T, or (planning beyond its budget) the full run, its step unmeasured
+        assert sim.pilot is not None and (sim.pilot.error <= TOLERANCE or (
+            sim.method == 'full' and np.isnan(sim.pilot.error)))
         samples = int(DURATION_S / SAMPLE_S)
         sample_s = sim.dt * max(1, round(SAMPLE_S / sim.dt))
-        reference = converged_full_run(scene, sample_s, samples)
+        reference = converged_full_run(scene, sample_s, samples, must=False)
+        if reference is None:            # the scene's physics diverges: so does the auto run
+            assert trajectory(sim, sample_s, samples) is None
+            refused.append(seed)
+            continue
         achieved[seed] = trajectory_error(trajectory(sim, sample_s, samples), reference)
     assert len(refused) <= 1, refused
     errors = np.array(list(achieved.values()))
@@ -92,13 +99,14 @@ def test_the_promise_holds_over_a_run_longer_than_the_pilot_window():
 
     Random scene 20 (undamped, a 1 s pilot window): planned for 6 s, its error over those 6 s
     against the converged full run is within the tolerance (planned for the window alone it
-    was 1.4 T over 3 s).
+    was 1.4 T over 3 s). Planning unbudgeted: measuring this 16-particle scene costs more than
+    its 6 s full run (:mod:`~modal_spring_ros.core.auto.budget` would take the full run).
     """
     horizon = 6.0
     scene = random_scene(20, max_particles=80)
     assert scene.damping.ratio == 0.0
     sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
-                                                   horizon_s=horizon))
+                                                   horizon_s=horizon, planning_share=None))
     assert sim.pilot.horizon_s == horizon and sim.pilot.window_s < horizon / 2
     sample_s = sim.dt * max(1, round(SAMPLE_S / sim.dt))
     samples = int(horizon / sample_s)

@@ -50,19 +50,20 @@ def against_reference(full: Callable[[float, float], Simulation],
 
 
 def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float,
-                     samples: int, horizon_s: float, budget: float, work_per_s: float
-                     ) -> tuple[Simulation, float]:
+                     samples: int, horizon_s: float, budget: float, work_per_s: float,
+                     first_dt: float = math.inf) -> tuple[Simulation, float]:
     """
     Return the full run at the longest step its own step doubling puts within ``budget``.
 
-    From the longest stable step, halved while the estimate (four thirds of the difference to
+    From the longest stable step (or ``first_dt``), halved while the estimate (four thirds of
+    the difference to
     the run at half the step, over ``horizon_s`` as :func:`horizon_error` extrapolates it) is
     over the budget and the runs' modelled work (us per simulated second, summed) stays within
     ``work_per_s``. Where it never meets the budget, the finest run measured is returned with
     its estimate, which then says so.
     """
     share = 1.0 / (1.0 - 0.5 ** STEP_ORDER)       # the coarse run's error / the difference
-    coarse = full(math.inf, sample_s)
+    coarse = full(first_dt, sample_s)
     coarse_run = trajectory(coarse, sample_s, samples)
     spent = work_per_second(coarse)
     while True:

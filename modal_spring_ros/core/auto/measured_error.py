@@ -60,7 +60,8 @@ def trajectory_error(run: np.ndarray | None, reference: np.ndarray) -> float:
 
 
 def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sample_s: float,
-                         samples: int, accuracy: float, work_per_s: float = math.inf
+                         samples: int, accuracy: float, work_per_s: float = math.inf,
+                         charge: Callable[[Simulation], None] | None = None
                          ) -> tuple[np.ndarray, float] | None:
     """
     Return a run's trajectory converged in its step, and the finer step it was computed at.
@@ -70,7 +71,8 @@ def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sam
     difference between its runs at ``h`` and ``h / 2``; the step is halved from ``step`` until
     that is within ``accuracy`` (relative), and the Richardson extrapolation of the last two is
     returned. None when it diverges, or when the modelled work of the runs so far passes
-    ``work_per_s`` (us per simulated second, summed over the runs).
+    ``work_per_s`` (us per simulated second, summed over the runs). ``charge(sim)`` is told of
+    each run before it is stepped (a planning budget counts it).
     """
     spent, coarse = 0.0, None
     while True:
@@ -78,6 +80,8 @@ def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sam
         spent += work_per_second(sim)
         if spent > work_per_s:
             return None
+        if charge is not None:
+            charge(sim)
         fine = trajectory(sim, sample_s, samples)
         if fine is None:
             return None

@@ -3,46 +3,30 @@ Measure, then trust: the automatic plan's error measured by a pilot run before i
 
 The automatic choice (:mod:`~modal_spring_ros.core.bases.mode_selection`,
 :mod:`~modal_spring_ros.core.bases.basis_choice`) *predicts* the error of a plan (modes, basis,
-forces, step). A prediction is a model of the error, and on a scene it was not tuned on it can
-be wrong many times over. Adaptive ODE solvers never trust a step until a second estimate says
-it is good; this module does the same for a whole plan:
+forces, step); on a scene it was not tuned on a prediction can be wrong many times over. As
+adaptive ODE solvers trust no step until a second estimate says it is good, the plan is run:
 
-1. **A pilot window** that excites what the scene excites (released under gravity from rest,
-   its clamp drive) and lasts a few periods of the slowest kept mode and of the drive
-   (1 to 3 s), or, for a drive near a kept mode, the time its response takes to build up
-   (:mod:`~modal_spring_ros.core.auto.pilot_window`): a drift model fitted to a shorter
-   window cannot see that build-up. Never longer than the run.
-2. **A reference** for that window: the full physical run (every DOF, every spring, explicit,
-   halved from its longest stable step until step doubling says it has converged) where the
-   band keeps everything and its cost is within ``REFERENCE_WORK``; otherwise the richer
-   sibling of the plan (an embedded pair: every spring on every step, the derivatives basis
-   with twice the directions, more modes where the band allows, a quarter of the step). The
-   sibling's step error is a sixteenth of the plan's (second-order schemes), so the difference
-   is divided by ``1 - (h_sibling / h_plan)^2`` (Richardson): exact for the plan's step
-   error, a few per cent high for the rest. A sibling still richer than a refined plan in
-   every respect (modes, directions, forces, a step at most half its step: the factor is then
-   4/3) is kept; otherwise a new one is made. A sibling shares what the modal coordinates
-   cannot follow (a cloth's slack regions are nonlinear from millimetres: plan and sibling
-   agreed to 0.06 % and were 100 % off the full run), so the full run is the reference
-   wherever it can be afforded, and where it cannot over the whole window it is run over the
-   window's start as far as the budget goes, and every run is measured against that too
-   (:mod:`~modal_spring_ros.core.auto.sibling_check`).
-3. **The measured error**: relative L2 of the free-DOF displacement in the clamp's frame over
-   the window's samples, against the reference (as the benchmark measures it). The promise is
-   over the run's *horizon* (its duration), which may be longer than the window: an undamped
-   scene's phase error keeps growing after it. Beyond the window the error is extrapolated by
-   a drift model (a constant plus a linear growth) fitted to the window's second half
-   (:func:`horizon_error`).
-4. **Refinement**: while the error is above ``PILOT_MARGIN`` of the tolerance, each refinement
-   the plan still has (exact forces, the derivatives basis, more derivative directions, more
-   modes, half the step) is tried alone and the one that measures lowest is kept (the cheaper
-   one on a near tie), for at most ``MAX_ROUNDS`` rounds.
-5. **The full run is a candidate**: where the band keeps every mode, the full run meets any
-   tolerance, and its cost per simulated second is compared with the plan's by a work model
-   fitted to measured step costs (deterministic: the same choice whatever the machine's load
-   or thread count). The cheaper of the two that meets the tolerance is chosen; a plan that
-   cannot be brought within the tolerance falls back to the full run, and says so
-   (:mod:`~modal_spring_ros.core.auto.full_candidate` measures it).
+1. **A pilot window** that excites what the scene excites (from rest under gravity, with its
+   clamp drive): a few periods of the slowest kept mode and of the drive, or a resonance's
+   build-up (:mod:`~modal_spring_ros.core.auto.pilot_window`); never longer than the run.
+2. **A reference** for it: the full run converged in its step (step doubling) where the band
+   keeps everything and the budget affords it; otherwise the plan's richer sibling, an embedded
+   pair (:mod:`~modal_spring_ros.core.auto.refinement`), its share of the plan's step error
+   taken out (Richardson), checked against the full run over as much of the window's start as
+   the budget affords (:mod:`~modal_spring_ros.core.auto.sibling_check`): a sibling shares
+   what the modal coordinates cannot follow. A plan cut at ``max_modes`` measured against a
+   sibling alone (cut the same way) is not trusted.
+3. **The error**: relative L2 of the free-DOF displacement in the clamp's frame over the
+   window's samples, extrapolated over the run by a drift model (:func:`horizon_error`).
+4. **Refinement** while it is above ``PILOT_MARGIN`` of the tolerance: each refinement left is
+   tried alone, the lowest (cheapest on a near tie) kept, for at most ``MAX_ROUNDS`` rounds;
+   a plan well within it has its step lengthened.
+5. **The full run is a candidate** (:mod:`~modal_spring_ros.core.auto.full_candidate`): the
+   cheaper of the two by a work model (no clock) that meets the tolerance is chosen.
+6. **A budget** (:mod:`~modal_spring_ros.core.auto.budget`): every run above is priced before
+   it is run, and a run of known length spends at most a share of its full run on them; where
+   the cheapest measurement does not fit, or would cost more than the plan could save, the
+   full run is the answer, at the step ``method full`` takes where that step is good.
 
 Everything here is deterministic: no wall-clock time enters a decision.
 """
@@ -52,14 +36,18 @@ import dataclasses
 import math
 from typing import Callable
 
+from modal_spring_ros.core.auto.budget import (PlanningBudget, REFERENCE_RUNS,
+                                               unplanned_full, worth_measuring)
 from modal_spring_ros.core.auto.full_candidate import (against_reference, BY_ITSELF,
-                                                       by_step_doubling, STEP_ORDER)
+                                                       by_step_doubling)
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, horizon_error,
                                                        on_samples, trajectory, trajectory_error)
 from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PilotReport, PlanSettings
+from modal_spring_ros.core.auto.refinement import (lengthened, refinements, richer,
+                                                   shared_step_error, still_richer)
 from modal_spring_ros.core.auto.run_watch import WatchReference
-from modal_spring_ros.core.auto.sibling_check import full_run_start
+from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK, full_run_start
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import Simulation
@@ -76,14 +64,6 @@ SAMPLES = 120
 REFERENCE_WORK = 5e6
 #: The reference's own error (by step doubling) must be within this share of the tolerance.
 REFERENCE_ACCURACY = 0.1
-#: The richer sibling's step is made this many times shorter than the plan's, and kept for a
-#: refined plan while it is at least ``SIBLING_KEPT`` times shorter.
-SIBLING_REFINEMENT, SIBLING_KEPT = 4.0, 2.0
-#: Longest step a plan is lengthened to, as a share of its explicit stability limit (below
-#: ``mode_selection.STABILITY_SAFETY``, beyond which a plan's step is cut to a safe one).
-LONGEST_STEP = 0.85
-#: Most derivative directions a refinement asks for.
-MAX_PILOT_DIRECTIONS = 96
 #: A candidate within this factor of another's measured error counts as a tie (cheaper wins).
 TIE = 1.1
 #: The full run replaces a plan within the tolerance where the work model prices the plan above
@@ -102,15 +82,20 @@ class Pilot:
     does not keep every mode: the full run is then neither reference nor candidate);
     ``more_modes(hz)`` the next mode limit above ``hz`` the band allows (None: none);
     ``can_halve_step``: the step is the plan's to choose (not given by the user);
-    ``horizon_s``: how long the run is, s (the tolerance holds over it; None: the window).
+    ``horizon_s``: how long the run is, s (the tolerance holds over it; None: the window);
+    ``budget``: what measuring may spend (:mod:`~modal_spring_ros.core.auto.budget`; None:
+    not budgeted); ``full_dt``: the full run's default step (the one ``method full`` takes).
     """
 
     def __init__(self, model: MassSpringModel, tolerance: float,
                  make: Callable[[PlanSettings], Simulation],
                  full: Callable[[float, float], Simulation] | None,
                  more_modes: Callable[[float], float | None], kept_hz: np.ndarray,
-                 can_halve_step: bool = True, horizon_s: float | None = None):
+                 can_halve_step: bool = True, horizon_s: float | None = None,
+                 budget: PlanningBudget | None = None, full_dt: float = math.inf):
         self.model = model
+        self.full_dt = full_dt
+        self.budget = budget if budget is not None else PlanningBudget()
         self.can_halve_step = can_halve_step
         self.tolerance = float(tolerance)
         self.make = make
@@ -139,20 +124,32 @@ class Pilot:
         sample_s = sim.dt * max(1, int(round(self.window_s / SAMPLES / sim.dt)))
         self._sample_s = sample_s
         samples = max(1, int(math.ceil(self.window_s / sample_s)))
-        reference, against = self._reference(plan, sim, sample_s, samples)
+        if self.full is not None and self.budget.bounded:
+            sibling = work_per_second(self._build(richer(plan, sim.dt, self.more_modes)))
+            why = worth_measuring(self.budget, self.full(math.inf, sample_s), sim, sibling,
+                                  self.window_s, self.horizon_s)
+            if why:
+                return self._unplanned(why)
+        found = self._reference(plan, sim, sample_s, samples)
+        if found is None:
+            return self._unplanned('no reference for a plan within the planning budget')
+        reference, against = found
         budget = PILOT_MARGIN * self.tolerance
         error = planned = self._error(sim, reference, sample_s)
         refined: list[str] = []
         stale = False     # the plan was refined as far as its richer sibling in some respect
         for _ in range(2 * MAX_ROUNDS):
             if error <= budget and stale:
-                reference, against, error = self._remeasured(plan, sim, sample_s, samples)
+                reference, against, error = self._remeasured(plan, sim, sample_s, samples,
+                                                             (reference, against, error))
                 stale = False
             if error <= budget or len(refined) >= MAX_ROUNDS:
                 break
             options = []
             for name, candidate in self._refinements(plan):
                 trial = self._build(candidate)
+                if not self._affords(trial):
+                    continue                         # beyond what the budget has left
                 measured = self._error(trial, reference, sample_s)
                 options.append((measured, work_per_second(trial), name, candidate, trial))
             if not options:
@@ -165,17 +162,24 @@ class Pilot:
                 break                                # nothing helps any more
             error = measured
             refined.append(name)
-            stale = not self._still_poorer(plan, sim)
+            stale = self._sibling is not None and not still_richer(
+                *self._sibling, plan, sim.dt, self.more_modes)
         if stale:
-            reference, against, error = self._remeasured(plan, sim, sample_s, samples)
+            reference, against, error = self._remeasured(plan, sim, sample_s, samples,
+                                                         (reference, against, error))
         if error <= budget and self.can_halve_step:
-            plan, sim, error, longer = self._lengthened(plan, sim, error, reference, sample_s)
+            def measured(trial: Simulation) -> float | None:
+                return (self._error(trial, reference, sample_s) if self._affords(trial)
+                        else None)
+            plan, sim, error, longer = lengthened(plan, sim, error, budget, self._build,
+                                                  measured)
             refined.extend(['a longer step'] if longer else [])
         self._sampling = (sample_s, samples, reference, against)
         sim, report = self._choose(sim, error, planned, against, tuple(refined))
         window_error = report.error if report.method == 'full' else self._measured[id(sim)][1]
         return sim, dataclasses.replace(report, horizon_s=self.horizon_s,
-                                        window_error=window_error, tolerance=self.tolerance)
+                                        window_error=window_error, tolerance=self.tolerance,
+                                        planning=self.budget.describe())
 
     def watch_reference(self, sim: Simulation) -> WatchReference:
         """
@@ -205,32 +209,17 @@ class Pilot:
                               work + work_per_second(reference()))
 
     # -- internals -----------------------------------------------------------------------------
-    def _lengthened(self, plan: PlanSettings, sim: Simulation, error: float,
-                    reference: np.ndarray, sample_s: float
-                    ) -> tuple[PlanSettings, Simulation, float, bool]:
-        """
-        Return the plan at the longest step (up to ``LONGEST_STEP`` of its limit) within budget.
+    def _unplanned(self, reason: str) -> tuple[Simulation, PilotReport]:
+        """Return the full run, its step checked within what the budget has left."""
+        full, report = unplanned_full(self.full, self.budget, self.full_dt, self.window_s,
+                                      self.horizon_s, self.tolerance, PILOT_MARGIN, SAMPLES,
+                                      reason)
+        self._fallback = full
+        return full, dataclasses.replace(report, planning=self.budget.describe())
 
-        A plan well within its budget pays for accuracy nobody asked for. Its step is
-        lengthened (at most doubled) to where its step error (second order) would reach 90 % of
-        the budget, and kept where the measured error is within it; twice at most. Whether any
-        longer step was kept is returned last.
-        """
-        budget, longer = PILOT_MARGIN * self.tolerance, False
-        for _ in range(2):
-            reach = (0.9 * budget / error) ** (1.0 / STEP_ORDER) if error > 0.0 else 2.0
-            step = min(min(2.0, reach) * sim.dt, LONGEST_STEP * sim.stability_limit())
-            if step <= sim.dt * 1.1:
-                return plan, sim, error, longer
-            candidate = dataclasses.replace(plan, dt=step)
-            trial = self._build(candidate)
-            if trial.dt <= sim.dt * 1.05:
-                return plan, sim, error, longer
-            measured = self._error(trial, reference, sample_s)
-            if measured > budget:
-                return plan, sim, error, longer
-            plan, sim, error, longer = candidate, trial, measured, True
-        return plan, sim, error, longer
+    def _affords(self, sim: Simulation) -> bool:
+        """Tell whether the budget pays for ``sim`` over the window."""
+        return self.budget.affords(work_per_second(sim) * self.window_s)
 
     def _build(self, settings: PlanSettings) -> Simulation:
         """
@@ -250,6 +239,7 @@ class Pilot:
         the share of the step error the sibling shares.
         """
         run = trajectory(sim, sample_s, len(reference))
+        self.budget.charge(sim, len(reference) * sample_s)
         shared = self._shared(sim)
         start = 0.0
         if self._sibling is not None and self._start is not None:
@@ -260,55 +250,51 @@ class Pilot:
 
     def _shared(self, sim: Simulation) -> float:
         """Return the Richardson factor for ``sim`` against the sibling (1: the full run)."""
-        if self._sibling is None:
-            return 1.0
-        ratio = self._sibling[1] / sim.dt
-        finer = ratio <= (1.0 + 1e-6) / SIBLING_KEPT
-        return 1.0 / (1.0 - ratio ** STEP_ORDER) if finer else 1.0
+        return 1.0 if self._sibling is None else shared_step_error(self._sibling[1], sim.dt)
 
-    def _still_poorer(self, plan: PlanSettings, sim: Simulation) -> bool:
-        """Return whether the sibling is still richer than the refined ``plan`` everywhere."""
-        if self._sibling is None:
-            return True
-        richer, dt = self._sibling
-        return (sim.dt * (1.0 + 1e-6) >= SIBLING_KEPT * dt
-                and (plan.highest_hz < richer.highest_hz
-                     or self.more_modes(plan.highest_hz) is None)
-                and (plan.basis_kind == 'rest' or plan.directions < richer.directions
-                     or plan.directions >= MAX_PILOT_DIRECTIONS))
-
-    def _remeasured(self, plan: PlanSettings, sim: Simulation, sample_s: float, samples: int
-                    ) -> tuple[np.ndarray, str, float]:
+    def _remeasured(self, plan: PlanSettings, sim: Simulation, sample_s: float, samples: int,
+                    last: tuple[np.ndarray, str, float]) -> tuple[np.ndarray, str, float]:
         """
         Measure a refined plan against a sibling richer than *it*.
 
         A sibling made for the first plan can be the refined plan itself, and would measure 0.
+        Where the budget affords no new reference, the last one stands (and its measurement).
         """
-        reference, against = self._reference(plan, sim, sample_s, samples)
+        kept = self._sibling, self._measured
+        found = self._reference(plan, sim, sample_s, samples)
+        if found is None:
+            self._sibling, self._measured = kept
+            return last
+        reference, against = found
         return reference, against, self._error(sim, reference, sample_s)
 
     def _reference(self, plan: PlanSettings, sim: Simulation, sample_s: float, samples: int
-                   ) -> tuple[np.ndarray, str]:
+                   ) -> tuple[np.ndarray, str] | None:
         """
         Return the reference for ``plan`` (built as ``sim``): the full run, or a richer sibling.
 
-        The sibling's step is ``SIBLING_REFINEMENT`` times shorter than the step ``sim`` was
-        built with (a plan's step can be cut to its stability limit when built: refining the
-        plan's own could give the same run).
+        The sibling (:func:`~.refinement.richer`) steps a quarter of the step ``sim`` was built
+        with (a plan's step can be cut to its stability limit when built: refining the plan's
+        own could give the same run). Each is priced before it is run: the full run's
+        step doubling at ``DOUBLING_WORK`` runs over the window, the sibling at its own work.
+        None where the budget affords neither.
         """
+        settings = richer(plan, sim.dt, self.more_modes)
+        sibling = self._build(settings)
+        full_fits = self.full is not None and self.budget.affords(
+            DOUBLING_WORK * work_per_second(self.full(math.inf, sample_s)) * self.window_s)
+        if not (full_fits or self._affords(sibling)):
+            return None
         self._sibling, self._measured = None, {}
-        if self.full is not None:
+        if full_fits:
             found = self._converged_full_run(sample_s, samples)
             if found is not None:
                 return found, 'the full run'
-        richer = dataclasses.replace(
-            plan, forces='exact', refresh=1, basis_kind='derivatives',
-            directions=min(MAX_PILOT_DIRECTIONS, 2 * plan.directions),
-            highest_hz=self.more_modes(plan.highest_hz) or plan.highest_hz,
-            dt=min(plan.dt, sim.dt) / SIBLING_REFINEMENT)
-        sibling = self._build(richer)
+            if not self._affords(sibling):
+                return None
         reference = trajectory(sibling, sample_s, samples)
-        self._sibling = (richer, sibling.dt)
+        self.budget.charge(sibling, samples * sample_s)
+        self._sibling = (settings, sibling.dt)
         if reference is None:
             raise ValueError('modal.auto cannot measure a plan for this scene: the full run is '
                              'beyond its pilot budget and the richer modal plan diverges; run '
@@ -316,7 +302,10 @@ class Pilot:
         if self.full is not None and not self._start_sought:
             self._start_sought = True
             self._start = full_run_start(self.full, sample_s, samples,
-                                         REFERENCE_ACCURACY * self.tolerance, REFERENCE_WORK)
+                                         REFERENCE_ACCURACY * self.tolerance, self._afforded())
+            if self._start is not None:
+                self.budget.charge(self.full(math.inf, sample_s),
+                                   DOUBLING_WORK * len(self._start) * sample_s)
         if self._start is None:
             return reference, 'a richer plan'
         return reference, (f'a richer plan and the full run over its first '
@@ -327,27 +316,24 @@ class Pilot:
         step = self.full(math.inf, sample_s).dt
         found = converged_trajectory(lambda dt: self.full(dt, sample_s), step, sample_s,
                                      samples, REFERENCE_ACCURACY * self.tolerance,
-                                     REFERENCE_WORK / self.window_s)
+                                     self._afforded() / self.window_s,
+                                     lambda sim: self.budget.charge(sim, samples * sample_s))
         if found is None:
             return None
         reference, self._reference_dt = found
         return reference
 
+    def _cut(self, sim: Simulation) -> bool:
+        """Tell whether ``sim``'s modes stop at the mode limit while the band keeps more."""
+        return (sim.method == 'modal' and sim.kept_modes.size < self.model.n_free_dof
+                and self.more_modes(sim.highest_hz or math.inf) is None)
+
     def _refinements(self, plan: PlanSettings):
-        if plan.forces != 'exact':
-            yield 'exact forces', dataclasses.replace(plan, forces='exact', refresh=1)
-        if plan.basis_kind == 'rest':
-            yield 'derivatives basis', dataclasses.replace(plan, basis_kind='derivatives')
-        elif plan.directions < MAX_PILOT_DIRECTIONS:
-            yield 'more directions', dataclasses.replace(
-                plan, directions=min(MAX_PILOT_DIRECTIONS, 2 * plan.directions))
-        more = self.more_modes(plan.highest_hz)
-        if more is not None:
-            yield 'more modes', dataclasses.replace(plan, highest_hz=more)
-        if self.can_halve_step:
-            yield 'half the step', dataclasses.replace(
-                plan, dt=plan.dt / 2,
-                refresh=plan.refresh * 2 if plan.forces == 'refreshed' else 1)
+        return refinements(plan, self.more_modes, self.can_halve_step, self._reference_dt)
+
+    def _afforded(self) -> float:
+        """Return what a full reference may cost, us: ``REFERENCE_WORK``, within the budget."""
+        return min(REFERENCE_WORK, self.budget.remaining_us)
 
     def _choose(self, sim: Simulation, error: float, planned: float, against: str,
                 refined: tuple[str, ...]) -> tuple[Simulation, PilotReport]:
@@ -358,11 +344,15 @@ class Pilot:
         self._fallback = full
         ratio = work_per_second(sim) / work_per_second(full)
         report = PilotReport(error, planned, self.window_s, against, refined, 'modal', ratio)
-        if error <= self.tolerance and ratio <= FULL_RUN_TIE:
+        cut = self._cut(sim) and 'the full run' not in against
+        if error <= self.tolerance and ratio <= FULL_RUN_TIE and not cut:
             return sim, report
         reason = (f'no plan within {self.tolerance:.2%} after refining: the best measured '
-                  f'{error:.2%}'
-                  if error > self.tolerance else f'cheaper: the plan needs {ratio:.2g} x its work')
+                  f'{error:.2%}' if error > self.tolerance else
+                  f'the plan is cut at max_modes ({sim.kept_modes.size} of '
+                  f'{self.model.n_free_dof} modes) and measured {error:.2%} only against '
+                  'a richer plan cut the same way' if cut else
+                  f'cheaper: the plan needs {ratio:.2g} x its work')
         return full, dataclasses.replace(report, error=full_error, method='full', cost_ratio=1.0,
                                          reason=reason, against=full_against)
 
@@ -379,6 +369,16 @@ class Pilot:
         """
         sample_s, samples, reference, _ = self._sampling
         budget = PILOT_MARGIN * self.tolerance
+        longest = self.full(math.inf, sample_s)
+        if not self.budget.affords(REFERENCE_RUNS * work_per_second(longest) * self.window_s):
+            # the budget is spent: the converged reference's step, or a check within what is left
+            if against == 'the full run':
+                return (self.full(self._reference_dt * (1.0 + 1e-9), sample_s),
+                        REFERENCE_ACCURACY * self.tolerance, BY_ITSELF)
+            full, report = unplanned_full(self.full, self.budget, self.full_dt, self.window_s,
+                                          self.horizon_s, self.tolerance, PILOT_MARGIN,
+                                          SAMPLES, 'the budget was spent')
+            return full, report.error, report.against
         if against != 'the full run' and error > self.tolerance:
             full, full_error = by_step_doubling(self.full, sample_s, samples, self.horizon_s,
                                                 budget, REFERENCE_WORK / self.window_s)

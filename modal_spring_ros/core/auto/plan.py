@@ -45,6 +45,7 @@ class PilotReport:
     horizon_s: float = 0.0          # the run the promise is for, s (0: the window)
     window_error: float = math.nan  # the chosen plan's error measured over the window
     tolerance: float = math.nan     # what the plan was to meet
+    planning: str = ''              # what planning spent of its budget
 
     def _over(self) -> str:
         """Say how the error was found: measured over the window, extrapolated beyond."""
@@ -54,12 +55,16 @@ class PilotReport:
                 f'{self.against} over {self.window_s:.3g} s, drift extrapolated)')
 
     def describe(self) -> str:
+        spent = f'; {self.planning}' if self.planning else ''
         if self.method == 'full':
             beyond = (f'; NOT within {self.tolerance:.2%}: the full run did not converge to it '
                       f'at any step the pilot could afford' if self.error > self.tolerance
                       else '')
-            return (f'full run chosen ({self.reason}): error {self.error:.2%} {self._over()}; '
-                    f'the modal plan as first made: {self.planned_error:.2%}{beyond}')
+            error = (f'error {self.error:.2%} {self._over()}' if math.isfinite(self.error)
+                     else 'its step error not measured (no check within the planning budget)')
+            first = (f'; the modal plan as first made: {self.planned_error:.2%}'
+                     if math.isfinite(self.planned_error) else '')
+            return f'full run chosen ({self.reason}): {error}{first}{beyond}{spent}'
         steps = f", refined: {', '.join(self.refined)}" if self.refined else ''
         return (f'measured error {self.error:.2%} {self._over()}{steps}; work '
-                f'{self.cost_ratio:.2g} x the full run')
+                f'{self.cost_ratio:.2g} x the full run{spent}')

@@ -46,22 +46,24 @@ def watchable(model: MassSpringModel) -> bool:
     return isinstance(model.scene.anchor_motion, AnchorMotion)
 
 
-def watch_of(sim: Simulation, interval_s: float | None, budget: float | None = None
-             ) -> 'RunWatch | None':
+def watch_of(sim: Simulation, interval_s: float | None, budget: float | None = None,
+             run_s: float | None = None) -> 'RunWatch | None':
     """
     Return a watch of ``sim`` (see :class:`RunWatch`), or None.
 
     ``interval_s`` None: every ``DEFAULT_INTERVAL_S``, or less often where watching would cost
-    more than ``budget`` (by default ``WORK_SHARE`` of the plan's work). None is returned for a
-    run that is not an automatic plan, an interval of 0, or a clamp that follows poses.
+    more than ``budget`` (by default ``WORK_SHARE`` of the plan's work). ``run_s``: the run's
+    length, where it has one (a run longer than the pilot's window is watched at least once).
+    None is returned for a run that is not an automatic plan, an interval of 0, or a clamp
+    that follows poses.
     """
     if sim.watch_reference is None or interval_s == 0.0 or not watchable(sim.model):
         return None
     if interval_s is not None:
-        return RunWatch(sim.watch_reference, interval_s)
+        return RunWatch(sim.watch_reference, interval_s, run_s=run_s)
     if budget is None:
         budget = WORK_SHARE * sim.watch_reference.plan_work
-    return RunWatch(sim.watch_reference, DEFAULT_INTERVAL_S, budget)
+    return RunWatch(sim.watch_reference, DEFAULT_INTERVAL_S, budget, run_s)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -210,11 +212,15 @@ class RunWatch:
     """
 
     def __init__(self, reference: WatchReference, interval_s: float = DEFAULT_INTERVAL_S,
-                 budget: float | None = None):
+                 budget: float | None = None, run_s: float | None = None):
         """
         Watch every ``interval_s`` of simulated time, or less often within ``budget``.
 
         ``budget``: the work watching may cost, us per simulated second (modelled; None: any).
+        ``run_s``: the run's length (None: it streams until stopped). A run longer than one
+        window is watched at least once: its first window starts no later than one window
+        before its end (the pilot measured the first window from rest; this one starts from
+        the state the run has reached, and ends with the run).
         """
         if not (math.isfinite(interval_s) and interval_s > 0.0):
             raise ValueError(f'watch interval ({interval_s}) must be a positive number of '
@@ -225,7 +231,11 @@ class RunWatch:
         if budget is not None:
             self.interval_s = max(self.interval_s, reference.window_s * reference.shadow_work
                                   / budget if budget > 0.0 else math.inf)
-        self._next: float | None = None   # when the next window starts (None: an interval on)
+        #: when the first window starts, after the run's start (or a restart)
+        self.first_s = self.interval_s
+        if run_s is not None and run_s > reference.window_s * (1.0 + 1e-9):
+            self.first_s = min(self.interval_s, run_s - reference.window_s)
+        self._next: float | None = None   # when the next window starts (None: the first)
         self._shadow: _Shadow | None = None
         self._runs: list[Simulation] | None = None    # the plan's copy and the reference
         self.windows = 0
@@ -245,7 +255,7 @@ class RunWatch:
         """
         if self._shadow is None:
             if self._next is None:      # the pilot measured the first window from rest
-                self._next = sim.time + self.interval_s
+                self._next = sim.time + self.first_s
             if sim.time + 0.5 * sim.dt < self._next:
                 return None
             if self._runs is None or self._runs[0].method != sim.method:
@@ -263,7 +273,7 @@ class RunWatch:
 
     def restart(self) -> None:
         """
-        Drop the window under way and watch again an interval on (a reset, a band change).
+        Drop the window under way and watch again as from a start (a reset, a band change).
 
         The plan's copy is made again from the run's state then.
         """

@@ -22,13 +22,24 @@ import numpy as np
 import scipy.sparse as sp
 
 
+#: Lowest modes a full run of a scene too large for every mode damps exactly by its modal
+#: ratio; beyond them the ratio's mass-proportional match at the highest of them takes over.
+RATIO_MODES = 32
+
+
 class PhysicalOperators:
     """
     ``M`` (lumped), ``C`` and ``K`` of the free DOF in physical coordinates.
 
-    Damping is Rayleigh ``alpha M + beta K`` (sparse) when the scene has no modal ratio; with a
-    modal ratio ``h`` it is the paper's equivalent ``c = M Phi C Phi^T M`` over every mode, which
-    needs the complete (dense) basis.
+    Damping is Rayleigh ``alpha M + beta K`` (sparse) when the scene has no modal ratio. With a
+    modal ratio ``h`` it is the paper's equivalent ``c = M Phi C Phi^T M``: over every mode
+    where the scene is small enough for the complete (dense) basis; otherwise over its lowest
+    ``RATIO_MODES`` modes (which carry the motion), with a mass-proportional term
+    ``2 h omega_k M`` beyond them (exact at the highest of them, ``h omega_k / omega`` above:
+    never more than ``h``, so it costs the explicit step nothing), the scene's Rayleigh terms
+    added: ``C = (alpha + 2 h omega_k) M + beta K + M Phi_k D Phi_k^T M`` with ``D`` what makes
+    each of the ``k`` modes' damping exactly ``2 h omega_i + alpha + beta omega_i^2``. Its
+    solves are the Rayleigh ones with a rank-``k`` correction (Woodbury).
     """
 
     def __init__(self, model: MassSpringModel, damping: Damping, dt: float,
@@ -42,12 +53,9 @@ class PhysicalOperators:
         self.damping = damping
         self._modal = None
         self._c = None
-        if damping.ratio != 0.0:
-            if basis is None or not basis.complete:
-                raise ValueError(
-                    'full method with a modal damping ratio needs every mode (equivalent '
-                    f'damping c = M Phi C Phi^T M); this scene has {model.n_free_dof} free DOF, '
-                    'above the dense limit. Use Rayleigh damping (damping.rayleigh) instead.')
+        self._low = None          # (U = M Phi_k, D): the rank-k part of a ratio's damping
+        alpha, beta = damping.rayleigh_alpha, damping.rayleigh_beta
+        if damping.ratio != 0.0 and basis is not None and basis.complete:
             phi = basis.vectors
             cm = damping.modal_coefficients(basis.omega)
             self._modal = (phi, cm, basis.omega)
@@ -55,9 +63,22 @@ class PhysicalOperators:
             # with B = Phi diag(c s) Phi^T, s = 1 / (1 + dt/2 c)  (Phi Phi^T = M^-1 since
             # Phi^T M Phi = I, and s = 1 - dt/2 c s): one n x n product per step
             self._explicit_b = (phi * (cm / (1.0 + 0.5 * dt * cm))[None, :]) @ phi.T
-        elif damping.rayleigh_alpha or damping.rayleigh_beta:
-            self._c = (sp.diags(damping.rayleigh_alpha * self.m)
-                       + damping.rayleigh_beta * self.k).tocsc()
+            return
+        if damping.ratio != 0.0:
+            if basis is None:
+                raise ValueError('full method with a modal damping ratio needs the modes it '
+                                 'damps (a basis)')
+            count = min(RATIO_MODES, basis.n_dof - 2)
+            basis.ensure_count(count)
+            phi, omega = basis.vectors[:, :count], basis.omega[:count]
+            tail = 2.0 * damping.ratio * float(omega[-1])
+            alpha += tail
+            self._low = (self.m[:, None] * phi,
+                         damping.modal_coefficients(omega) - alpha - beta * omega ** 2)
+        if alpha or beta:
+            self._c = (sp.diags(alpha * self.m) + beta * self.k).tocsc()
+        self._mass_only = not beta       # (M + x C_rayleigh) is diagonal
+        self._alpha = alpha
         self._explicit = None
         self._average = None
 
@@ -69,9 +90,11 @@ class PhysicalOperators:
         if self._modal is not None:
             phi, cm, _ = self._modal
             return self.m * (phi @ (cm * (phi.T @ (self.m * v))))
-        if self._c is not None:
-            return self._c @ v
-        return 0.0
+        out = self._c @ v if self._c is not None else 0.0
+        if self._low is not None:
+            u, d = self._low
+            out = out + u @ (d * (u.T @ v))
+        return out
 
     def stiff(self, u):
         return self.k @ u
@@ -87,9 +110,10 @@ class PhysicalOperators:
         if self._c is None:
             return rhs / self.m
         if self._explicit is None:
-            self._explicit = factor_definite(sp.diags(self.m) + 0.5 * self.dt * self._c,
-                                             points=self.points)
-        return self._explicit.solve(rhs)
+            self._explicit = self._solver(
+                sp.diags(self.m) + 0.5 * self.dt * self._c,
+                (1.0 + 0.5 * self.dt * self._alpha) * self.m if self._mass_only else None)
+        return self._explicit(rhs)
 
     def solve_average(self, rhs):
         h = 0.5 * self.dt
@@ -100,8 +124,32 @@ class PhysicalOperators:
             a = sp.diags(self.m) + h * h * self.k
             if self._c is not None:
                 a = a + h * self._c
-            self._average = factor_definite(a, points=self.points)
-        return self._average.solve(rhs)
+            self._average = self._solver(a, None)
+        return self._average(rhs)
+
+    def _solver(self, a, diagonal):
+        """
+        Return the solve of ``a + (dt / 2) U D U^T`` (``a`` sparse, or ``diagonal`` given).
+
+        The rank-``k`` part by Woodbury: ``A^-1 r - W (I + h D U^T W)^-1 h D U^T A^-1 r`` with
+        ``W = A^-1 U``, made once.
+        """
+        if diagonal is not None:
+            def base(r):
+                return r / (diagonal if r.ndim == 1 else diagonal[:, None])
+        else:
+            base = factor_definite(a.tocsc(), points=self.points).solve
+        if self._low is None:
+            return base
+        u, d = self._low
+        w = base(u)
+        hd = 0.5 * self.dt * d
+        correction = np.linalg.solve(np.eye(d.size) + hd[:, None] * (u.T @ w), np.diag(hd))
+
+        def solve(r):
+            x = base(r)
+            return x - w @ (correction @ (u.T @ x))
+        return solve
 
 
 class FullSimulation(Simulation):

@@ -65,6 +65,8 @@ class WorldFrameRun:
         self.model = model
         self.forces = PrescribedClampForces(model)
         self._ops = ops
+        #: what an implicit step's iteration may leave (turning does not change its size)
+        self.acceleration_floor = ops.acceleration_floor
         self._free_rest = model.rest[model.free_particles]
         self._frame = model.frame(0.0)
 

@@ -1,0 +1,157 @@
+"""
+What planning may cost: a share of the full run it would replace.
+
+Users pay whole runs. A plan that steps a hundred times cheaper but took several full runs'
+worth of pilots to choose is a loss, so planning is budgeted as an adaptive solver budgets its
+error estimate: the full run's cost over the run's length is known before anything is measured
+(its step from its stability limit, its cost from the work model,
+:mod:`~modal_spring_ros.core.auto.work_model`), and measuring may spend at most
+``PLANNING_SHARE`` of it. Where even the cheapest measurement (the full reference over the
+pilot's window by step doubling, and the plan once) passes that, or would cost more than the
+plan could save, there is nothing to win: the full run is the answer, its step checked by its
+own step doubling over as much of the window as the budget affords (:func:`unplanned_full`).
+
+A run with no length (the node streams until it is stopped) has no budget: whatever planning
+costs, it is paid once and saved every second after.
+
+Everything is in modelled work (us of one core): no clock is read, so the same scene and run
+length give the same choice on any machine and under any load.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Callable
+
+from modal_spring_ros.core.auto.full_candidate import BY_ITSELF, by_step_doubling
+from modal_spring_ros.core.auto.plan import PilotReport
+from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK
+from modal_spring_ros.core.auto.work_model import work_per_second
+from modal_spring_ros.core.simulations import Simulation
+
+#: Share of the full run's projected work (over the run's length) that planning may spend.
+PLANNING_SHARE = 0.2
+#: A step-doubling check of the full run covers at least this many samples.
+MIN_CHECK_SAMPLES = 8
+#: The full reference over a window costs its run at a step and at half of it: three runs' worth.
+REFERENCE_RUNS = 3.0
+
+
+@dataclasses.dataclass
+class PlanningBudget:
+    """
+    Modelled work planning may spend, and what it has spent (us of one core).
+
+    :ivar limit_us: what it may spend (``inf``: not budgeted).
+    :ivar full_us: the full run's projected work over the run (``inf``: no length).
+    """
+
+    limit_us: float = math.inf
+    full_us: float = math.inf
+    spent_us: float = 0.0
+
+    @classmethod
+    def for_run(cls, full: Simulation, run_s: float | None,
+                share: float | None = PLANNING_SHARE) -> 'PlanningBudget':
+        """Budget ``share`` of ``full``'s work over ``run_s`` (None for either: unbudgeted)."""
+        if run_s is None or share is None:
+            return cls()
+        projected = work_per_second(full) * run_s
+        return cls(share * projected, projected)
+
+    @property
+    def bounded(self) -> bool:
+        return math.isfinite(self.limit_us)
+
+    @property
+    def remaining_us(self) -> float:
+        return max(0.0, self.limit_us - self.spent_us)
+
+    def affords(self, work_us: float) -> bool:
+        """Tell whether ``work_us`` more stays within the limit."""
+        return self.spent_us + work_us <= self.limit_us
+
+    def charge(self, sim: Simulation, seconds: float) -> None:
+        """Count ``sim`` stepped over ``seconds`` of simulated time."""
+        self.spent_us += work_per_second(sim) * seconds
+
+    def describe(self) -> str:
+        """Say what planning spent of what budget ('' where it has none)."""
+        if not self.bounded:
+            return ''
+        return (f'planning {self.spent_us / 1e6:.3g} s of CPU (modelled) of its budget '
+                f'{self.limit_us / 1e6:.3g} s, {self.limit_us / self.full_us:.0%} of the full '
+                f"run's {self.full_us / 1e6:.3g} s")
+
+
+def measuring_floor(full: Simulation, plan: Simulation, sibling_us: float,
+                    window_s: float) -> float:
+    """
+    Return the least a pilot can spend, us: the plan once, and the cheaper reference.
+
+    The full reference costs the full run's step doubling (priced at ``DOUBLING_WORK`` runs at
+    its longest stable step); the plan's richer sibling ``sibling_us`` per simulated second.
+    """
+    return window_s * (work_per_second(plan)
+                       + min(DOUBLING_WORK * work_per_second(full), sibling_us))
+
+
+def worth_measuring(budget: PlanningBudget, full: Simulation, plan: Simulation,
+                    sibling_us: float, window_s: float, run_s: float) -> str:
+    """
+    Return why measuring ``plan`` is not worth it ('' where it is).
+
+    Not within the budget, or costing more than the plan could save over ``run_s`` (the plan's
+    work against the full run's).
+    """
+    if not budget.bounded:
+        return ''
+    floor = measuring_floor(full, plan, sibling_us, window_s)
+    saving = (work_per_second(full) - work_per_second(plan)) * run_s
+    if not budget.affords(floor):
+        return (f'measuring a plan would cost at least {floor / 1e6:.3g} s of CPU (modelled), '
+                f'beyond the planning budget of {budget.limit_us / 1e6:.3g} s '
+                f"({budget.limit_us / budget.full_us:.0%} of the full run's)")
+    if floor >= saving:
+        return (f'measuring a plan would cost {floor / 1e6:.3g} s of CPU (modelled), more than '
+                f'it could save ({max(saving, 0.0) / 1e6:.3g} s)')
+    return ''
+
+
+def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningBudget,
+                   default_dt: float, window_s: float, horizon_s: float, tolerance: float,
+                   margin: float, samples: int, reason: str) -> tuple[Simulation, PilotReport]:
+    """
+    Return the full run at the step ``--method full`` takes, checked; or at the one it needs.
+
+    The default step (``default_dt``: the scene's, or half the stability limit) is checked by
+    step doubling (against its run at half the step) over as much of the window's start as the
+    budget affords, at least ``MIN_CHECK_SAMPLES`` of its ``samples``. Where that start is
+    within ``margin * tolerance``, the default step is the answer: the run costs what the full
+    run a user would have run costs, and its error is reported over the start it was measured
+    on (a drift fitted to a fraction of the slowest period extrapolates the start's transient,
+    not a drift). Where it is not, the default run misses the tolerance too, so it is no
+    baseline to stay near: the step is halved by step doubling over the whole window, its error
+    extrapolated over ``horizon_s``, whatever that costs (on random scenes the full run needed
+    a tenth to a fortieth of its stability limit to meet 1 % over 3 s).
+    """
+    sample_s = window_s / samples
+    rate = work_per_second(full(default_dt, sample_s))
+    affordable = budget.remaining_us / (REFERENCE_RUNS * rate * sample_s) if rate > 0 else 0
+    count = int(min(samples, max(MIN_CHECK_SAMPLES, affordable)))
+    checked_s = count * sample_s
+    over_s = horizon_s if count == samples else checked_s
+    sim, error = by_step_doubling(full, sample_s, count, over_s, margin * tolerance, math.inf,
+                                  first_dt=default_dt)
+    budget.spent_us += REFERENCE_RUNS * work_per_second(sim) * checked_s
+    if sim.dt < full(default_dt, sample_s).dt * (1.0 - 1e-9) and count < samples:
+        reason += ('; the default step missed the tolerance over the first '
+                   f'{checked_s:.2g} s: the step needed was found over the whole window, '
+                   'beyond the budget')
+        sim, error = by_step_doubling(full, sample_s, samples, horizon_s, margin * tolerance,
+                                      math.inf, first_dt=sim.dt)
+        budget.spent_us += REFERENCE_RUNS * work_per_second(sim) * window_s
+        checked_s, over_s = window_s, horizon_s
+    report = PilotReport(error, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0, reason=reason,
+                         horizon_s=over_s, window_error=error, tolerance=tolerance)
+    return sim, report
