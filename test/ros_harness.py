@@ -23,8 +23,10 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import TimeReference
 
-# One DDS domain per test session, loopback discovery only: parallel sessions stay apart.
-DOMAIN_ID = 20 + os.getpid() % 70
+# The ROS_DOMAIN_ID a user set is kept; otherwise one DDS domain per test session, so that
+# parallel sessions stay apart. Discovery on loopback only.
+DOMAIN_ID = (int(os.environ['ROS_DOMAIN_ID']) if os.environ.get('ROS_DOMAIN_ID', '').isdigit()
+             else 20 + os.getpid() % 70)
 os.environ['ROS_DOMAIN_ID'] = str(DOMAIN_ID)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
