@@ -10,9 +10,10 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from modal_spring_ros.core.auto.budget import PlanningBudget
+from modal_spring_ros.core.auto.budget import PlanningBudget, unplanned_full
 from modal_spring_ros.core.auto.measured_error import on_samples
-from modal_spring_ros.core.auto.pilot import Pilot
+from modal_spring_ros.core.auto.pilot import Pilot, PILOT_MARGIN, SAMPLES as PILOT_SAMPLES
+from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PlanSettings
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis, Progress
 from modal_spring_ros.core.bases.basis_choice import choose_basis
@@ -149,6 +150,15 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     # a run of known length: what planning may spend is a share of its full run
     budget = (PlanningBudget.for_run(longest, config.horizon_s, config.planning_share)
               if everything else PlanningBudget())
+    if measured and budget.small:
+        # less than a plan's set-up could save: the full run, before any mode is chosen
+        window = min(pilot_window(model, basis.frequencies_hz[:1]), horizon_s)
+        sim, report = unplanned_full(
+            full, budget, full_dt, window, horizon_s, config.tolerance, PILOT_MARGIN,
+            PILOT_SAMPLES, f'the whole full run costs {budget.full_us / 1e6:.3g} s of CPU '
+            '(modelled): less than choosing and building a plan')
+        sim.pilot = dataclasses.replace(report, planning=budget.describe())
+        return sim
     limit = min(config.max_modes or DEFAULT_MAX_MODES, basis.n_dof)
     choice = choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
     bank = shared_bank(basis, config.derivative_directions)

@@ -58,24 +58,44 @@ def test_the_budget_is_a_share_of_the_full_run_over_the_run():
             SimulationConfig(auto=True, planning_share=bad).validate()
 
 
-def test_a_run_too_short_to_measure_a_plan_for_is_the_full_run_at_its_default_step():
+def test_a_run_too_short_to_choose_a_plan_for_is_the_full_run_at_its_default_step():
     """
-    A pilot that would cost more than the run is not run: the full run is.
+    A run whose full run costs less than choosing a plan: no mode is chosen.
 
-    sheet_10x10 over 1 s: a pilot (the full reference by step doubling over its window) would
-    cost several full runs; the full run at the scene's step is run, its step checked.
+    sheet_10x10 over 1 s (0.017 s of CPU, modelled): the full run at the scene's step, checked
+    by its own step doubling over the start its budget affords.
     """
     scene = load_scene('sheet_10x10')
     sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
                                                    horizon_s=1.0))
     report = sim.pilot
-    assert sim.method == 'full' and report.method == 'full'
+    assert sim.method == 'full' and report.method == 'full' and sim.mode_choice is None
     assert 0.95 * scene.default_dt < sim.dt <= scene.default_dt  # method full's, on samples
+    assert report.reason.startswith('the whole full run costs 0.0165 s of CPU (modelled)')
+    assert report.error <= 0.8 * TOLERANCE and report.against == 'its own run at half the step'
+    assert "20% of the full run's" in report.describe()
+    assert error_against_converged(scene, sim, 1.0) <= TOLERANCE
+
+
+@pytest.mark.slow
+def test_a_run_too_short_to_measure_a_plan_for_is_the_full_run():
+    """
+    A pilot that would cost more than the budget is not run: the full run is.
+
+    sheet_32x32 over 10 s (a full run of 2 s of CPU, modelled): the cheapest measurement of
+    its plan (the plan and its reference over a 3 s window) is beyond the 20 % budget.
+    """
+    scene = load_scene('sheet_32x32')
+    sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
+                                                   horizon_s=10.0))
+    report = sim.pilot
+    assert sim.method == 'full' and sim.mode_choice is None
     assert report.reason.startswith('measuring a plan would cost at least')
     assert 'beyond the planning budget' in report.reason
-    assert report.error <= 0.8 * TOLERANCE and report.against == 'its own run at half the step'
-    assert 'planning ' in report.describe() and "20% of the full run's" in report.describe()
-    assert error_against_converged(scene, sim, 1.0) <= TOLERANCE
+    spent = float(report.planning.split('planning ')[1].split(' s')[0])
+    budget = float(report.planning.split('of its budget ')[1].split(' s')[0])
+    assert 0.0 < spent <= budget
+    assert error_against_converged(scene, sim, 3.0) <= TOLERANCE
 
 
 @pytest.mark.slow

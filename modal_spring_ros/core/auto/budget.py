@@ -31,8 +31,12 @@ from modal_spring_ros.core.simulations import Simulation
 
 #: Share of the full run's projected work (over the run's length) that planning may spend.
 PLANNING_SHARE = 0.2
+#: A run whose full run costs less than this (modelled us) is run as the full run without
+#: planning: choosing modes and building a plan's coordinates take tens to hundreds of
+#: milliseconds that the work model does not count, as much as such a run could save.
+SMALL_RUN_US = 1e6
 #: A step-doubling check of the full run covers at least this many samples.
-MIN_CHECK_SAMPLES = 8
+MIN_CHECK_SAMPLES = 2
 #: The full reference over a window costs its run at a step and at half of it: three runs' worth.
 REFERENCE_RUNS = 3.0
 
@@ -58,6 +62,11 @@ class PlanningBudget:
             return cls()
         projected = work_per_second(full) * run_s
         return cls(share * projected, projected)
+
+    @property
+    def small(self) -> bool:
+        """Tell whether the whole full run costs less than ``SMALL_RUN_US``: too little to plan."""
+        return self.full_us < SMALL_RUN_US
 
     @property
     def bounded(self) -> bool:
