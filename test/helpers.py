@@ -8,11 +8,11 @@ import io
 import os
 from pathlib import Path
 
-from modal_spring_ros.bench import meshes
-from modal_spring_ros.bench.meshes import write_obj  # noqa: F401 (the tests' too)
+from modal_spring_ros.bench.costs import meshes
+from modal_spring_ros.bench.costs.meshes import write_obj  # noqa: F401 (the tests' too)
+from modal_spring_ros.scenes.files.writing import scene_to_dict
 from modal_spring_ros.scenes.resources import load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict
-from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 
 #: the repository (a source checkout)

@@ -12,9 +12,9 @@ from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.sim_time import SOURCE
 from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.ros.node import ModalSpringNode
-from modal_spring_ros.ros.pooled_executor import PooledExecutor
-from modal_spring_ros.ros.resimulate import resimulate
-from modal_spring_ros.ros.stop_signals import spin_until_stopped, StopSignals
+from modal_spring_ros.ros.process.pooled_executor import PooledExecutor
+from modal_spring_ros.ros.process.stop_signals import spin_until_stopped, StopSignals
+from modal_spring_ros.ros.tools.resimulate import resimulate
 from modal_spring_ros.scenes.resources import executable
 import numpy as np
 import rclpy

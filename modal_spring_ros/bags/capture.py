@@ -100,8 +100,8 @@ class RunBagWriter:
         Record an input that took effect at simulation time ``t`` on ``topic``.
 
         An input is a stamped message the node took (a pose the clamp followed, a clicked point:
-        :mod:`~modal_spring_ros.ros.input_kinds`), kept as received but for its header, stamped
-        with ``t``.
+        :mod:`~modal_spring_ros.ros.inputs.input_kinds`), kept as received but for its header,
+        stamped with ``t``.
         """
         type_name = _type_name(message)
         self.writer.add_topic(topic, type_name, points_qos_yaml())

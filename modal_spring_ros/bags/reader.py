@@ -22,7 +22,7 @@ from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.bags.writer import BagError, RUN_RECORD
 from modal_spring_ros.core.model.scene import Scene
-from modal_spring_ros.scenes.scene_archive import recorded_scene
+from modal_spring_ros.scenes.files.scene_archive import recorded_scene
 import numpy as np
 from rclpy.serialization import deserialize_message
 import yaml

@@ -15,7 +15,7 @@ from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.comparison import load_npz_run, RunData
 from modal_spring_ros.runs.sample_cache import sample_cache
-from modal_spring_ros.scenes.limits import available_memory
+from modal_spring_ros.scenes.fields.limits import available_memory
 
 
 def load_run(path: str | Path, topic: str = '/points') -> RunData:

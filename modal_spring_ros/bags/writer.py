@@ -34,7 +34,7 @@ from mcap_ros2._dynamic import serialize_dynamic
 from modal_spring_ros import __version__
 from modal_spring_ros.bags.message_definitions import full_definition, type_hash
 from modal_spring_ros.core.model.scene import Scene
-from modal_spring_ros.scenes.scene_archive import MEDIA_TYPE, scene_to_archive
+from modal_spring_ros.scenes.files.scene_archive import MEDIA_TYPE, scene_to_archive
 import yaml
 
 METADATA_VERSION = 9
@@ -231,7 +231,7 @@ class BagWriter:
 
         The description is the settings (values that are not strings are stored as JSON) and,
         when given, the ``scene``: an archive of its arrays
-        (:mod:`~modal_spring_ros.scenes.scene_archive`) attached as :data:`SCENE_ATTACHMENT`,
+        (:mod:`~modal_spring_ros.scenes.files.scene_archive`) attached as :data:`SCENE_ATTACHMENT`,
         which the record's ``scene_archive`` names (a writer made with ``attachments``).
         """
         data = dict(data)

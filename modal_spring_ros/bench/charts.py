@@ -5,7 +5,7 @@ import math
 from pathlib import Path
 
 from matplotlib.figure import Figure
-from modal_spring_ros.bench.analysis import pareto
+from modal_spring_ros.bench.accuracy.analysis import pareto
 
 COLORS = {'full explicit': 'C3', 'full average': 'C1', 'modal explicit': 'C0',
           'modal refreshed': 'C4', 'modal average': 'C2', 'modal auto': 'k',

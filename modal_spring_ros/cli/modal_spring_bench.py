@@ -31,8 +31,16 @@ import json
 from pathlib import Path
 import sys
 
-from modal_spring_ros.bench import (auto_scenes, headline, memory, meshes, peer, promise,
-                                    response, steps, stream, tradeoff)
+from modal_spring_ros.bench.accuracy import auto_scenes
+from modal_spring_ros.bench.accuracy import headline
+from modal_spring_ros.bench.accuracy import promise
+from modal_spring_ros.bench.accuracy import response
+from modal_spring_ros.bench.accuracy import tradeoff
+from modal_spring_ros.bench.costs import memory
+from modal_spring_ros.bench.costs import meshes
+from modal_spring_ros.bench.costs import steps
+from modal_spring_ros.bench.costs import stream
+from modal_spring_ros.bench.peers import peer
 from modal_spring_ros.cli.common import fail, script_parser
 
 PROG = 'modal_spring_bench'

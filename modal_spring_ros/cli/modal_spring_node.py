@@ -18,12 +18,12 @@ from modal_spring_ros.core.worker import WorkerError
 from modal_spring_ros.ros.managed_node import ManagedModalSpringNode
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.parameters import PARAMETERS
-from modal_spring_ros.ros.pooled_executor import PooledExecutor
-from modal_spring_ros.ros.publication_mode import prefer_asynchronous_publication
-from modal_spring_ros.ros.shared_memory import (POINT_BYTES, prefer_large_shared_memory,
-                                                scene_argument)
-from modal_spring_ros.ros.stop_signals import init_ros, spin_until_stopped, StopSignals
-from modal_spring_ros.scenes.declared_size import declared_particles
+from modal_spring_ros.ros.process.pooled_executor import PooledExecutor
+from modal_spring_ros.ros.process.shared_memory import (POINT_BYTES, prefer_large_shared_memory,
+                                                        scene_argument)
+from modal_spring_ros.ros.process.stop_signals import init_ros, spin_until_stopped, StopSignals
+from modal_spring_ros.ros.stream.publication_mode import prefer_asynchronous_publication
+from modal_spring_ros.scenes.files.declared_size import declared_particles
 from modal_spring_ros.scenes.resources import share_directory
 import rclpy
 from rclpy.exceptions import ParameterException

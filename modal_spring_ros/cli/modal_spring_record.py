@@ -4,7 +4,7 @@
     modal_spring_record --output DIR [--topics points sim_time mesh /diagnostics /parameter_events]
                         [--node modal_spring] [--duration S]
 
-See :mod:`modal_spring_ros.ros.recorder` for what is stored and how.
+See :mod:`modal_spring_ros.ros.tools.recorder` for what is stored and how.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from modal_spring_ros.bags.writer import (BagError, BagWriter, check_new_bag_pat
                                           DEFAULT_CHUNK_SECONDS, DEFAULT_CHUNK_SIZE)
 from modal_spring_ros.cli.common import fail, script_parser, split_ros_args
 from modal_spring_ros.core.model.scene import SceneError
-from modal_spring_ros.ros.recorder import DEFAULT_TOPICS, Recorder, snapshot_parameters
+from modal_spring_ros.ros.tools.recorder import DEFAULT_TOPICS, Recorder, snapshot_parameters
 from modal_spring_ros.scenes.resources import load_scene
 import rclpy
 from rclpy.executors import ExternalShutdownException

@@ -15,8 +15,8 @@ import sys
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.cli.common import fail, run_main, script_parser, split_ros_args
-from modal_spring_ros.ros.player import play
-from modal_spring_ros.ros.resimulate import resimulate
+from modal_spring_ros.ros.tools.player import play
+from modal_spring_ros.ros.tools.resimulate import resimulate
 
 PROG = 'modal_spring_replay'
 

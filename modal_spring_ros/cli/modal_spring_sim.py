@@ -30,7 +30,7 @@ from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.response_chart import draw_response
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.runs.sample_cache import sample_cache
-from modal_spring_ros.scenes.limits import available_memory
+from modal_spring_ros.scenes.fields.limits import available_memory
 from modal_spring_ros.scenes.resources import load_scene
 
 PROG = 'modal_spring_sim'

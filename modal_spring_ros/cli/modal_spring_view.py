@@ -17,9 +17,9 @@ import subprocess
 import sys
 
 from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args, stop_child
-from modal_spring_ros.ros.live_view import (DEFAULT_MAX_RATE_HZ, DEFAULT_PORT, foxglove,
-                                            LiveView, SDK_MISSING)
-from modal_spring_ros.ros.stop_signals import spin_until_stopped
+from modal_spring_ros.ros.process.stop_signals import spin_until_stopped
+from modal_spring_ros.ros.tools.live_view import (DEFAULT_MAX_RATE_HZ, DEFAULT_PORT, foxglove,
+                                                  LiveView, SDK_MISSING)
 from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor

@@ -15,7 +15,7 @@ next one grows, so the stages add up rather than take turns.
 
 Pure: counts in, bytes out; :func:`run_size` reads the counts from a scene and a run's options,
 :func:`check_run_memory` refuses a run that does not fit in the memory it is handed (the front
-ends pass :func:`~modal_spring_ros.scenes.limits.available_memory`) before any stage runs.
+ends pass :func:`~modal_spring_ros.scenes.fields.limits.available_memory`) before any stage runs.
 """
 from __future__ import annotations
 

@@ -21,7 +21,7 @@ from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError
 from modal_spring_ros.ros.node import ModalSpringNode, STOP_ORDER
-from modal_spring_ros.ros.stop_signals import StopSignals
+from modal_spring_ros.ros.process.stop_signals import StopSignals
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 

@@ -1,22 +1,24 @@
 """
 ``modal_spring_node``: steps the modal simulation and streams it as ``sensor_msgs/PointCloud2``.
 
-Wiring only. The simulation thread (:mod:`~modal_spring_ros.ros.simulation_thread`) steps at a
-fixed ``sim.dt`` and publishes on its own period (:mod:`~modal_spring_ros.ros.outputs`). The
-executor serves parameter requests (:mod:`~modal_spring_ros.ros.node_parameters`; their slow
-part is prepared off the services' thread, :mod:`~modal_spring_ros.ros.change_preparer`) and
-``~/reset``, ``~/pause`` and ``~/step``, awaited without holding an executor thread; every
-change reaches the simulation thread as one request (:mod:`~modal_spring_ros.ros.requests`);
-large scenes stream before all is prepared (:mod:`~modal_spring_ros.ros.start_up`).
+Wiring only. The simulation thread (:mod:`~modal_spring_ros.ros.stream.simulation_thread`) steps at
+a fixed ``sim.dt`` and publishes on its own period (:mod:`~modal_spring_ros.ros.stream.outputs`).
+The executor serves parameter requests (:mod:`~modal_spring_ros.ros.changes.node_parameters`; their
+slow part is prepared off the services' thread,
+:mod:`~modal_spring_ros.ros.changes.change_preparer`) and ``~/reset``, ``~/pause`` and ``~/step``,
+awaited without holding an executor thread; every change reaches the simulation thread as one
+request (:mod:`~modal_spring_ros.ros.changes.requests`); large scenes stream before all is prepared
+(:mod:`~modal_spring_ros.ros.stream.start_up`).
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
 (Marker: the surface's triangles, or the springs' lines, when subscribed), ``/diagnostics``,
-``/tf`` (the object's and the clamp's frames, :mod:`~modal_spring_ros.ros.tf`), and ``/clock`` when
-``publish_clock`` is true. Subscriptions (:mod:`~modal_spring_ros.ros.inputs`, on the companion
-node ``<name>_inputs``, :mod:`~modal_spring_ros.ros.input_node`): ``anchor_pose`` (PoseStamped,
-with ``anchor.source`` topic), ``/clicked_point`` (PointStamped), ``wrench`` (WrenchStamped),
-``/tf`` and ``/tf_static``. Services: ``~/reset`` (Trigger), ``~/pause`` (SetBool), ``~/step``
-(Trigger, while paused). See docs/node.md.
+``/tf`` (the object's and the clamp's frames, :mod:`~modal_spring_ros.ros.frames.tf`), and
+``/clock`` when ``publish_clock`` is true. Subscriptions
+(:mod:`~modal_spring_ros.ros.inputs.subscriptions`, on the companion node ``<name>_inputs``,
+:mod:`~modal_spring_ros.ros.inputs.input_node`): ``anchor_pose`` (PoseStamped, with
+``anchor.source`` topic), ``/clicked_point`` (PointStamped), ``wrench`` (WrenchStamped), ``/tf``
+and ``/tf_static``. Services: ``~/reset`` (Trigger), ``~/pause`` (SetBool), ``~/step`` (Trigger,
+while paused). See docs/node.md.
 """
 from __future__ import annotations
 
@@ -27,26 +29,26 @@ from modal_spring_ros.core.config import POSE_SOURCES
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.memory_estimate import check_run_memory
 from modal_spring_ros.core.worker import WorkerProcess
-from modal_spring_ros.ros.input_node import InputNode
-from modal_spring_ros.ros.inputs import NodeInputs
-from modal_spring_ros.ros.namesakes import count_namesakes, namesakes_warning
-from modal_spring_ros.ros.node_parameters import NodeParameters
-from modal_spring_ros.ros.outputs import NodeOutputs
-from modal_spring_ros.ros.parameter_changes import ChangePlanner
+from modal_spring_ros.ros.changes.node_parameters import NodeParameters
+from modal_spring_ros.ros.changes.parameter_changes import ChangePlanner
+from modal_spring_ros.ros.changes.requests import applied_within, Pause, Request, Reset, Step
+from modal_spring_ros.ros.inputs.input_node import InputNode
+from modal_spring_ros.ros.inputs.subscriptions import NodeInputs
 from modal_spring_ros.ros.parameters import (CLOCK_OFFSET, CLOCK_OFFSET_DESCRIPTOR,
                                              config_from_parameters, FREQUENCIES,
                                              FREQUENCIES_DESCRIPTOR, PARAMETERS)
-from modal_spring_ros.ros.plan_watch import fall_back
-from modal_spring_ros.ros.requests import applied_within, Pause, Request, Reset, Step
-from modal_spring_ros.ros.run_pace import pace_reading
-from modal_spring_ros.ros.simulation_thread import SimulationThread
-from modal_spring_ros.ros.start_up import first_values
-from modal_spring_ros.ros.start_up_report import StartUpReport
-from modal_spring_ros.ros.stop_signals import StopSignals
-from modal_spring_ros.ros.stream_settings import StreamSettings
-from modal_spring_ros.ros.stream_time import clock_warnings, StreamTime
+from modal_spring_ros.ros.process.namesakes import count_namesakes, namesakes_warning
+from modal_spring_ros.ros.process.stop_signals import StopSignals
+from modal_spring_ros.ros.stream.outputs import NodeOutputs
+from modal_spring_ros.ros.stream.plan_watch import fall_back
+from modal_spring_ros.ros.stream.run_pace import pace_reading
+from modal_spring_ros.ros.stream.simulation_thread import SimulationThread
+from modal_spring_ros.ros.stream.start_up import first_values
+from modal_spring_ros.ros.stream.start_up_report import StartUpReport
+from modal_spring_ros.ros.stream.stream_settings import StreamSettings
+from modal_spring_ros.ros.stream.stream_time import clock_warnings, StreamTime
 from modal_spring_ros.runs.sample_cache import sample_cache
-from modal_spring_ros.scenes.limits import available_memory
+from modal_spring_ros.scenes.fields.limits import available_memory
 from modal_spring_ros.scenes.resources import load_scene
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType

@@ -14,7 +14,7 @@ import dataclasses
 from pathlib import Path
 
 from modal_spring_ros.core.model.scene import Scene
-from modal_spring_ros.scenes.scene_archive import recorded_scene
+from modal_spring_ros.scenes.files.scene_archive import recorded_scene
 import numpy as np
 
 

@@ -1,15 +1,14 @@
 """
 A recorded run as arrays, and its ``.npz`` file: everything needed to re-check it independently.
 
-Fields (``F`` frames, ``n`` particles, ``E`` springs):
-``t`` (F,), ``positions`` (F, n, 3) float64, ``rest_positions`` (n, 3), ``springs`` (E, 2) int,
-``stiffness`` (E,), ``rest_length`` (E,), ``mass`` (n,), ``fixed`` (n,) bool, ``gravity`` (3,),
-``damping_ratio`` (scalar h, 0 if unused), ``rayleigh_alpha``, ``rayleigh_beta``,
-``frequencies_hz`` (the computed modes, ascending), ``kept_modes`` (indices in the last step),
-``dt``; plus ``method``, ``integrator``, ``band`` (text), ``scene_archive`` (the full scene:
-the bytes of an ``.npz`` archive of its arrays, :mod:`~modal_spring_ros.scenes.scene_archive`;
-runs written before it hold ``scene_yaml``, its YAML text) and ``diverged`` (empty, or the
-divergence message).
+Fields (``F`` frames, ``n`` particles, ``E`` springs): ``t`` (F,), ``positions`` (F, n, 3) float64,
+``rest_positions`` (n, 3), ``springs`` (E, 2) int, ``stiffness`` (E,), ``rest_length`` (E,),
+``mass`` (n,), ``fixed`` (n,) bool, ``gravity`` (3,), ``damping_ratio`` (scalar h, 0 if unused),
+``rayleigh_alpha``, ``rayleigh_beta``, ``frequencies_hz`` (the computed modes, ascending),
+``kept_modes`` (indices in the last step), ``dt``; plus ``method``, ``integrator``, ``band``
+(text), ``scene_archive`` (the full scene: the bytes of an ``.npz`` archive of its arrays,
+:mod:`~modal_spring_ros.scenes.files.scene_archive`; runs written before it hold ``scene_yaml``,
+its YAML text) and ``diverged`` (empty, or the divergence message).
 """
 from __future__ import annotations
 
@@ -22,7 +21,7 @@ from modal_spring_ros.core.auto.run_watch import RunWatch, WatchedWindow
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import DivergenceError, Simulation
 from modal_spring_ros.core.threads import stepping_threads
-from modal_spring_ros.scenes.scene_archive import scene_to_archive
+from modal_spring_ros.scenes.files.scene_archive import scene_to_archive
 import numpy as np
 
 #: least wall time between two progress reports of :func:`record`, s (a short run reports none)

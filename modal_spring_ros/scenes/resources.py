@@ -13,8 +13,8 @@ from typing import Callable
 
 from modal_spring_ros.core.model.scene import Scene, SceneError
 from modal_spring_ros.scenes.ament_index import package_prefix, package_share
+from modal_spring_ros.scenes.files.yaml_reading import read_scene_text
 from modal_spring_ros.scenes.schema import scene_from_yaml
-from modal_spring_ros.scenes.yaml_reading import read_scene_text
 
 PACKAGE_NAME = 'modal_spring_ros'
 

@@ -16,13 +16,14 @@ from modal_spring_ros.core.model.loaded_shape import needs_loaded_shape, settle
 from modal_spring_ros.core.model.scene import Damping, Scene, SceneError
 from modal_spring_ros.core.motion.anchor_motion import (AnchorMotion, RotationComponent,
                                                         SineComponent)
-from modal_spring_ros.scenes.bending_fields import listed_bending
-from modal_spring_ros.scenes.fields import AXES, DEFAULT_PLANE, FieldReader, PLANES, short
-from modal_spring_ros.scenes.fixed_regions import fixed_particles
+from modal_spring_ros.scenes.fields.bending_fields import listed_bending
+from modal_spring_ros.scenes.fields.fixed_regions import fixed_particles
+from modal_spring_ros.scenes.fields.limits import (available_memory, BYTES_PER_PARTICLE, LIMITS,
+                                                   MAX_STEPS)
+from modal_spring_ros.scenes.fields.mesh_fields import mesh_network
+from modal_spring_ros.scenes.fields.reader import AXES, DEFAULT_PLANE, FieldReader, PLANES, short
+from modal_spring_ros.scenes.files.yaml_reading import load_yaml
 from modal_spring_ros.scenes.lattice import lattice_springs
-from modal_spring_ros.scenes.limits import available_memory, BYTES_PER_PARTICLE, LIMITS, MAX_STEPS
-from modal_spring_ros.scenes.mesh_fields import mesh_network
-from modal_spring_ros.scenes.yaml_reading import load_yaml
 import numpy as np
 
 #: what a scene's modes are taken about: ``rest`` (the shape as built), ``loaded`` (the static
@@ -36,7 +37,7 @@ def scene_from_yaml(text: str, source: str = '<scene>', default_name: str = 'sce
     """
     Parse and validate a scene from YAML text.
 
-    Parsing stays within the bounds of :mod:`~modal_spring_ros.scenes.yaml_reading`.
+    Parsing stays within the bounds of :mod:`~modal_spring_ros.scenes.files.yaml_reading`.
     ``progress`` hears of long work (finding the shape a cloth hangs in).
     """
     return scene_from_dict(load_yaml(text, source), source=source, default_name=default_name,

@@ -8,9 +8,9 @@ from modal_spring_ros.bags.capture import RunBagWriter
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.writer import BagError, BagWriter, SCENE_ATTACHMENT
 from modal_spring_ros.core.model.scene import SceneError
+from modal_spring_ros.scenes.files.scene_archive import MEDIA_TYPE
+from modal_spring_ros.scenes.files.writing import scene_to_yaml
 from modal_spring_ros.scenes.resources import load_scene
-from modal_spring_ros.scenes.scene_archive import MEDIA_TYPE
-from modal_spring_ros.scenes.writing import scene_to_yaml
 import numpy as np
 import pytest
 

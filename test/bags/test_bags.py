@@ -22,7 +22,7 @@ from modal_spring_ros.bags.qos import profiles_from_yaml
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.reference_bags import RUNS
 from modal_spring_ros.bags.writer import BagError, BagWriter
-from modal_spring_ros.ros.resimulate import resimulate
+from modal_spring_ros.ros.tools.resimulate import resimulate
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest

@@ -7,9 +7,9 @@ from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.scenes.files.writing import scene_to_dict
 from modal_spring_ros.scenes.resources import load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict
-from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 import pytest
 from std_msgs.msg import Header

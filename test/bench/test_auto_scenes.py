@@ -1,7 +1,7 @@
 """The built-in scenes' benchmark: the plan as predicted against the plan measured, one run."""
 from __future__ import annotations
 
-from modal_spring_ros.bench import auto_scenes
+from modal_spring_ros.bench.accuracy import auto_scenes
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import predicted_simulation
 from modal_spring_ros.scenes.resources import load_scene

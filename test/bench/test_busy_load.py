@@ -4,8 +4,8 @@ from __future__ import annotations
 import os
 import time
 
-from modal_spring_ros.bench.busy_load import BusyLoad
-from modal_spring_ros.bench.process_cpu import tree_cpu_seconds
+from modal_spring_ros.bench.costs.busy_load import BusyLoad
+from modal_spring_ros.bench.costs.process_cpu import tree_cpu_seconds
 import pytest
 
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import csv
 
-from modal_spring_ros.bench import headline
+from modal_spring_ros.bench.accuracy import headline
 from modal_spring_ros.core.auto.measured_error import trajectory_error
 import numpy as np
 import pytest

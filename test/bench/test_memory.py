@@ -1,7 +1,7 @@
 """The memory estimate bounds the peak a run really reaches, measured in a process of its own."""
 from __future__ import annotations
 
-from modal_spring_ros.bench.memory import measure_in_child
+from modal_spring_ros.bench.costs.memory import measure_in_child
 from modal_spring_ros.core.filter_band import FilterBand
 import pytest
 

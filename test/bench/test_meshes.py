@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 
-from modal_spring_ros.bench import meshes
+from modal_spring_ros.bench.costs import meshes
 from modal_spring_ros.core.model.bending import is_flat
 from modal_spring_ros.scenes.schema import scene_from_yaml
 import numpy as np

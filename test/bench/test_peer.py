@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 
 from helpers import variant
-from modal_spring_ros.bench import newton_peer, peer
+from modal_spring_ros.bench.peers import newton_peer, peer
 from modal_spring_ros.core.auto.measured_error import on_samples, trajectory, trajectory_error
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation

@@ -6,7 +6,7 @@ import subprocess
 import sys
 import time
 
-from modal_spring_ros.bench.process_cpu import tree_cpu_seconds
+from modal_spring_ros.bench.costs.process_cpu import tree_cpu_seconds
 import pytest
 
 #: a parent that burns 0.3 s of CPU and a child of its own that burns 0.6 s, then both wait

@@ -1,7 +1,7 @@
 """The promise benchmark: one random scene planned, checked independently, summarised, drawn."""
 from __future__ import annotations
 
-from modal_spring_ros.bench import promise
+from modal_spring_ros.bench.accuracy import promise
 import numpy as np
 import pytest
 

@@ -7,7 +7,7 @@ ratios within 5 %.
 """
 from __future__ import annotations
 
-from modal_spring_ros.bench import response
+from modal_spring_ros.bench.accuracy import response
 import pytest
 
 

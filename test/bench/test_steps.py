@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 import multiprocessing as mp
 
-from modal_spring_ros.bench.steps import _measure
+from modal_spring_ros.bench.costs.steps import _measure
 import pytest
 
 

@@ -1,7 +1,7 @@
 """The stream benchmark picks its cases and its DDS domain as a user asks (no node started)."""
 from __future__ import annotations
 
-from modal_spring_ros.bench import stream
+from modal_spring_ros.bench.costs import stream
 from modal_spring_ros.cli.modal_spring_bench import main
 import pytest
 

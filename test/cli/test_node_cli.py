@@ -9,8 +9,8 @@ import time
 
 from modal_spring_ros.cli.launcher import EXIT_INTERRUPTED
 from modal_spring_ros.ros.parameters import PARAMETERS
-from modal_spring_ros.ros.pooled_executor import PooledExecutor
-from modal_spring_ros.ros.stop_signals import spin_until_stopped
+from modal_spring_ros.ros.process.pooled_executor import PooledExecutor
+from modal_spring_ros.ros.process.stop_signals import spin_until_stopped
 import pytest
 import rclpy
 from rclpy.context import Context

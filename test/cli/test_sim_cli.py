@@ -12,8 +12,8 @@ from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation
 from modal_spring_ros.runs.run import record
+from modal_spring_ros.scenes.files.writing import scene_to_yaml
 from modal_spring_ros.scenes.resources import load_scene
-from modal_spring_ros.scenes.writing import scene_to_yaml
 import numpy as np
 import pytest
 
@@ -219,7 +219,7 @@ def test_a_plan_the_run_outgrows_is_caught_by_its_watch_and_falls_back(tmp_path,
     goes on as the full run from there, and a bag of it re-simulates through the fallback.
     """
     from modal_spring_ros.bags.reader import BagReader
-    from modal_spring_ros.ros.resimulate import resimulate
+    from modal_spring_ros.ros.tools.resimulate import resimulate
     bag = tmp_path / 'ramped'
     assert main(['--scene', str(ramped_shake(tmp_path)), '--auto', '--duration', '9',
                  '--watch', '3', '--frame-every', '40', '--bag', str(bag),

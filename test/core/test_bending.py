@@ -22,9 +22,9 @@ from modal_spring_ros.core.motion.anchor_motion import (AnchorMotion, RotationCo
                                                         SineComponent)
 from modal_spring_ros.core.simulations import FullSimulation, ModalSettings, ModalSimulation
 from modal_spring_ros.runs import comparison
-from modal_spring_ros.scenes.scene_archive import scene_from_archive, scene_to_archive
+from modal_spring_ros.scenes.files.scene_archive import scene_from_archive, scene_to_archive
+from modal_spring_ros.scenes.files.writing import scene_to_dict
 from modal_spring_ros.scenes.schema import scene_from_dict
-from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 import pytest
 

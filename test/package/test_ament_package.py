@@ -374,7 +374,7 @@ def _node_command(node: dict, tmp_path: Path) -> list[str]:
 def test_the_launch_file_starts_the_node_with_its_arguments(colcon_install, tmp_path):
     from diagnostic_msgs.msg import DiagnosticArray
     from modal_spring_ros.ros.node import NODE_NAME
-    from modal_spring_ros.ros.outputs import POINTS_TOPIC
+    from modal_spring_ros.ros.stream.outputs import POINTS_TOPIC
     from modal_spring_ros.scenes.resources import load_scene
     from sensor_msgs.msg import PointCloud2
     share = colcon_install / PACKAGE / 'share' / PACKAGE
@@ -420,7 +420,7 @@ def test_rviz_starts_only_when_asked_with_the_installed_view(colcon_install):
 def test_the_rviz_view_shows_what_the_node_publishes():
     from modal_spring_ros.bags.pointcloud import FIELD_NAMES
     from modal_spring_ros.ros.node import NODE_NAME
-    from modal_spring_ros.ros.outputs import MESH_TOPIC, POINTS_TOPIC
+    from modal_spring_ros.ros.stream.outputs import MESH_TOPIC, POINTS_TOPIC
     from modal_spring_ros.ros.parameters import PARAMETERS
     view = yaml.safe_load((REPO / RVIZ_FILE).read_text())['Visualization Manager']
     displays = {d['Class']: d for d in view['Displays']}
@@ -433,7 +433,7 @@ def test_the_rviz_view_shows_what_the_node_publishes():
     assert 'rviz_default_plugins/TF' in displays                    # the node's frames
     # RViz's own tools are all there (a Tools list replaces the defaults), Publish Point
     # sending on the topic the node pulls from
-    from modal_spring_ros.ros.input_kinds import CLICKED_POINT
+    from modal_spring_ros.ros.inputs.input_kinds import CLICKED_POINT
     tools = {t['Class']: t for t in view['Tools']}
     assert tools['rviz_default_plugins/PublishPoint']['Topic']['Value'] == CLICKED_POINT.topic
     assert {'Interact', 'MoveCamera', 'Select', 'FocusCamera', 'Measure', 'SetInitialPose',
@@ -475,7 +475,7 @@ def test_the_shipped_parameter_file_holds_the_node_s_own_defaults():
 def test_the_large_cloud_profile_sends_a_100k_cloud_through_shared_memory():
     import xml.etree.ElementTree as ET
 
-    from modal_spring_ros.ros.shared_memory import PROFILE, SEGMENT_BYTES
+    from modal_spring_ros.ros.process.shared_memory import PROFILE, SEGMENT_BYTES
     from modal_spring_ros.scenes.resources import load_scene
     ns = {'f': 'http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles'}
     root = ET.parse(REPO / PROFILE).getroot()

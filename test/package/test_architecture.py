@@ -21,6 +21,12 @@ PACKAGE = 'modal_spring_ros'
 LAYERS = ['core', 'scenes', 'runs', 'bags', 'ros', 'bench', 'cli']
 MAX_MODULE_LINES = 400
 MAX_NODE_LINES = 250
+#: the ROS layer's rooms, lowest first (the top-level modules are rooms of their own): a room
+#: imports from the rooms before it only
+ROS_ROOMS = ['process', 'frames', 'parameters', 'changes', 'inputs', 'stream', 'tools', 'node',
+             'managed_node']
+#: most modules side by side in one folder: beyond it, rooms by concept
+MAX_FOLDER_MODULES = 12
 
 
 def _modules() -> dict[str, object]:
@@ -96,6 +102,35 @@ def test_the_checks_see_a_violation():
     graph = _graph()
     assert 'modal_spring_ros.core.factory' in graph['modal_spring_ros.ros.node']
     assert _layer('modal_spring_ros.ros.node') > _layer('modal_spring_ros.core.factory')
+
+
+def _ros_room(module: str) -> int:
+    return ROS_ROOMS.index(module.split('.')[2])
+
+
+def test_the_ros_rooms_import_only_downward():
+    """``ros/`` is in rooms by concept; a room imports from the rooms before it only."""
+    ros = {m: deps for m, deps in _graph().items() if m.startswith(f'{PACKAGE}.ros.')}
+    assert {m.split('.')[2] for m in ros} == set(ROS_ROOMS)
+    upward = [f'{m} -> {d}' for m, deps in ros.items() for d in deps
+              if d.startswith(f'{PACKAGE}.ros.') and _ros_room(d) > _ros_room(m)]
+    assert not upward, 'imports from a lower ROS room to a higher one:\n' + '\n'.join(upward)
+    # the check sees what it looks for: the node imports the stream room, not the reverse
+    assert any(d.startswith(f'{PACKAGE}.ros.stream.') for d in ros[f'{PACKAGE}.ros.node'])
+    assert _ros_room(f'{PACKAGE}.ros.node') > _ros_room(f'{PACKAGE}.ros.stream.outputs')
+
+
+def test_every_room_says_what_it_holds_and_no_folder_is_crowded():
+    """Each subpackage has a docstring; no folder holds more than a dozen modules side by side."""
+    for init in (REPO / PACKAGE).rglob('__init__.py'):
+        doc = ast.get_docstring(ast.parse(init.read_text()))
+        assert doc and len(doc.split()) >= 5, f'{init}: a room says what it holds'
+    crowded = {}
+    for folder in {p.parent for p in (REPO / PACKAGE).rglob('*.py')}:
+        count = len([p for p in folder.glob('*.py') if p.name != '__init__.py'])
+        if count > MAX_FOLDER_MODULES:
+            crowded[str(folder.relative_to(REPO))] = count
+    assert not crowded, f'folders beyond {MAX_FOLDER_MODULES} modules: {crowded}'
 
 
 def test_the_core_imports_no_ros_mcap_or_matplotlib():

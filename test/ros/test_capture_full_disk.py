@@ -11,9 +11,9 @@ from modal_spring_ros.bags.pointcloud import CloudBuffer
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.ros.diagnostics import StreamReport
-from modal_spring_ros.ros.outputs import NodeOutputs
 from modal_spring_ros.ros.parameters import PARAMETERS
+from modal_spring_ros.ros.stream.diagnostics import StreamReport
+from modal_spring_ros.ros.stream.outputs import NodeOutputs
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest

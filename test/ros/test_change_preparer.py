@@ -5,7 +5,7 @@ import contextlib
 import threading
 import time
 
-from modal_spring_ros.ros.change_preparer import ChangePreparer, ChangeRefused
+from modal_spring_ros.ros.changes.change_preparer import ChangePreparer, ChangeRefused
 import pytest
 
 
@@ -78,7 +78,7 @@ def test_a_quick_change_is_answered_with_its_outcome_and_committed_once_it_is_se
 
 
 def test_a_change_whose_parameters_are_never_set_is_dropped_and_reported(monkeypatch):
-    monkeypatch.setattr('modal_spring_ros.ros.change_preparer.SET_WITHIN_S', 0.3)
+    monkeypatch.setattr('modal_spring_ros.ros.changes.change_preparer.SET_WITHIN_S', 0.3)
     rec = Recorder()
     p = preparer(rec, answer_within_s=10.0)
     try:

@@ -7,7 +7,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from modal_spring_ros.core.forces import ForceReport
 from modal_spring_ros.core.simulations import SimulationStatus
-from modal_spring_ros.ros.diagnostics import diagnostic_array, starting_array, StreamReport
+from modal_spring_ros.ros.stream.diagnostics import diagnostic_array, starting_array, StreamReport
 import pytest
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 
-from modal_spring_ros.ros.frame_tree import FrameTree, quaternion_from_matrix, Transform
+from modal_spring_ros.ros.frames.frame_tree import FrameTree, quaternion_from_matrix, Transform
 import numpy as np
 import pytest
 

@@ -5,8 +5,9 @@ from geometry_msgs.msg import PointStamped, WrenchStamped
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.motion.pull import nearest_free_particle
-from modal_spring_ros.ros.frame_tree import Transform
-from modal_spring_ros.ros.input_kinds import CLICKED_POINT, recorded_messages, WRENCH, WrenchAt
+from modal_spring_ros.ros.frames.frame_tree import Transform
+from modal_spring_ros.ros.inputs.input_kinds import (CLICKED_POINT, recorded_messages, WRENCH,
+                                                     WrenchAt)
 from modal_spring_ros.ros.parameters import PARAMETERS
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np

@@ -17,10 +17,10 @@ from geometry_msgs.msg import PointStamped, PoseStamped
 from helpers import variant
 from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.ros.input_node import InputNode
-from modal_spring_ros.ros.resimulate import resimulate
+from modal_spring_ros.ros.inputs.input_node import InputNode
+from modal_spring_ros.ros.tools.resimulate import resimulate
+from modal_spring_ros.scenes.files.writing import scene_to_dict
 from modal_spring_ros.scenes.resources import load_scene
-from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 import pytest
 import rclpy
@@ -422,8 +422,8 @@ class _NodeStub:
 
 def test_a_flood_of_bad_poses_is_counted_and_logged_once_per_period():
     from modal_spring_ros.core.motion.clamp_follower import ClampFollower
-    from modal_spring_ros.ros.input_kinds import ANCHOR_POSE
-    from modal_spring_ros.ros.inputs import NodeInputs, WARN_PERIOD_S
+    from modal_spring_ros.ros.inputs.input_kinds import ANCHOR_POSE
+    from modal_spring_ros.ros.inputs.subscriptions import NodeInputs, WARN_PERIOD_S
     node, submitted = _NodeStub(), []
     inputs = NodeInputs(node, ClampFollower(5.0, (0, 2)), lambda: {
         'frame_id': 'world', 'anchor.source': 'topic', 'anchor.max_jump_m': 0.2,
@@ -449,11 +449,11 @@ def test_a_new_input_is_one_entry_of_the_table_subscribed_applied_recorded_and_r
     from modal_spring_ros.bags.capture import RunBagWriter
     from modal_spring_ros.core.config import SimulationConfig
     from modal_spring_ros.core.factory import build_simulation
-    from modal_spring_ros.ros.input_kinds import INPUTS, InputKind
-    from modal_spring_ros.ros.inputs import NodeInputs
-    from modal_spring_ros.ros.resimulate import recorded_inputs
-    from modal_spring_ros.ros.simulation_thread import SimulationThread
-    from modal_spring_ros.ros.stream_settings import StreamSettings
+    from modal_spring_ros.ros.inputs.input_kinds import INPUTS, InputKind
+    from modal_spring_ros.ros.inputs.subscriptions import NodeInputs
+    from modal_spring_ros.ros.tools.resimulate import recorded_inputs
+    from modal_spring_ros.ros.stream.simulation_thread import SimulationThread
+    from modal_spring_ros.ros.stream.stream_settings import StreamSettings
     applied = []
 
     def nudge(sim, message, values):

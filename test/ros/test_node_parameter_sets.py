@@ -6,7 +6,7 @@ change reaches the simulation thread (rclcpp's rule for on-set callbacks: no sid
 """
 from __future__ import annotations
 
-from modal_spring_ros.ros.requests import ChangeBand
+from modal_spring_ros.ros.changes.requests import ChangeBand
 import pytest
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter

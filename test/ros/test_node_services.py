@@ -10,8 +10,8 @@ from __future__ import annotations
 import threading
 import time
 
+from modal_spring_ros.ros.changes.requests import Pause, Reset
 from modal_spring_ros.ros.node import SERVICE_TIMEOUT_S
-from modal_spring_ros.ros.requests import Pause, Reset
 import pytest
 from ros_harness import Client, node_in_process, wait_for
 from std_srvs.srv import SetBool, Trigger

@@ -9,7 +9,7 @@ from __future__ import annotations
 import threading
 
 from modal_spring_ros.ros import node as node_module
-from modal_spring_ros.ros.input_node import InputNode
+from modal_spring_ros.ros.inputs.input_node import InputNode
 from modal_spring_ros.ros.node import ModalSpringNode
 import pytest
 import rclpy

@@ -15,9 +15,9 @@ from geometry_msgs.msg import PointStamped, TransformStamped, WrenchStamped
 from helpers import variant
 from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.ros.resimulate import resimulate
+from modal_spring_ros.ros.tools.resimulate import resimulate
+from modal_spring_ros.scenes.files.writing import scene_to_dict
 from modal_spring_ros.scenes.resources import load_scene
-from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy

@@ -10,8 +10,8 @@ from __future__ import annotations
 import contextlib
 import time
 
-from modal_spring_ros.ros import recorder
-from modal_spring_ros.ros.recorder import snapshot_parameters
+from modal_spring_ros.ros.tools import recorder
+from modal_spring_ros.ros.tools.recorder import snapshot_parameters
 import pytest
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, ListParameters

@@ -13,7 +13,7 @@ import math
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.ros.plan_watch import PlanWatch
+from modal_spring_ros.ros.stream.plan_watch import PlanWatch
 from modal_spring_ros.scenes.resources import load_scene
 import pytest
 

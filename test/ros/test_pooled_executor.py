@@ -5,8 +5,8 @@ import gc
 import threading
 import time
 
-from modal_spring_ros.ros.pooled_executor import PooledExecutor
-from modal_spring_ros.ros.stop_signals import spin_until_stopped, StopSignals
+from modal_spring_ros.ros.process.pooled_executor import PooledExecutor
+from modal_spring_ros.ros.process.stop_signals import spin_until_stopped, StopSignals
 import pytest
 import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup

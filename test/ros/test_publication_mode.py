@@ -5,9 +5,9 @@ import os
 import subprocess
 import sys
 
-from modal_spring_ros.ros.publication_mode import (ASYNCHRONOUS, MODE_VARIABLE,
-                                                   prefer_asynchronous_publication,
-                                                   QOS_FROM_XML_VARIABLE)
+from modal_spring_ros.ros.stream.publication_mode import (ASYNCHRONOUS, MODE_VARIABLE,
+                                                          prefer_asynchronous_publication,
+                                                          QOS_FROM_XML_VARIABLE)
 import pytest
 
 
@@ -44,7 +44,7 @@ rclpy.init = init
 
 @pytest.mark.parametrize('call', [
     'from modal_spring_ros.cli.modal_spring_node import main; main([])',
-    'from modal_spring_ros.ros.player import play; from unittest import mock; '
+    'from modal_spring_ros.ros.tools.player import play; from unittest import mock; '
     'bag = mock.MagicMock(topics={"/points": mock.MagicMock(type_name="sensor_msgs/msg/Point'
     'Cloud2")}); play(bag, ["/points"])'])
 @pytest.mark.parametrize('given, expected', [(None, ASYNCHRONOUS), ('SYNCHRONOUS', 'SYNCHRONOUS')])

@@ -13,7 +13,7 @@ from modal_spring_ros.bags.run_loading import load_run
 from modal_spring_ros.bags.sim_time import simulation_times
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.ros.parameters import CLOCK_OFFSET
-from modal_spring_ros.ros.resimulate import frame_times, parameter_changes, resimulate
+from modal_spring_ros.ros.tools.resimulate import frame_times, parameter_changes, resimulate
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest

@@ -1,7 +1,7 @@
-"""The simulation time a run owes by the clock it keeps pace with (``ros/run_pace.py``)."""
+"""The simulation time a run owes by the clock it keeps pace with (``ros/stream/run_pace.py``)."""
 from __future__ import annotations
 
-from modal_spring_ros.ros.run_pace import pace_reading, RunPace
+from modal_spring_ros.ros.stream.run_pace import pace_reading, RunPace
 import pytest
 
 

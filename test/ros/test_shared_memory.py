@@ -1,5 +1,5 @@
 """
-Large clouds over shared memory (``ros/shared_memory.py``), decided and seen in the node.
+Large clouds over shared memory (``ros/process/shared_memory.py``), decided and seen in the node.
 
 The choice (the package's large-segment Fast DDS profile unless the user chose, another RMW
 runs, or /dev/shm cannot hold it), the start line's sentence for each case, and over DDS: the
@@ -15,11 +15,11 @@ import time
 
 from helpers import hanging_sheet
 from modal_spring_ros.bags.capture import RunBagWriter
-from modal_spring_ros.ros.shared_memory import (cloud_transport, POINT_BYTES,
-                                                prefer_large_shared_memory, PROFILE,
-                                                PROFILES_VARIABLE, scene_argument,
-                                                SEGMENT_BYTES, SHM_FREE_NEEDED, SHM_PATH)
-from modal_spring_ros.scenes.declared_size import declared_particles
+from modal_spring_ros.ros.process.shared_memory import (cloud_transport, POINT_BYTES,
+                                                        prefer_large_shared_memory, PROFILE,
+                                                        PROFILES_VARIABLE, scene_argument,
+                                                        SEGMENT_BYTES, SHM_FREE_NEEDED, SHM_PATH)
+from modal_spring_ros.scenes.files.declared_size import declared_particles
 from modal_spring_ros.scenes.resources import share_directory
 from modal_spring_ros.scenes.schema import scene_from_dict
 import pytest

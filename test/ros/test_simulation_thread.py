@@ -13,10 +13,11 @@ from helpers import variant
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.ros.input_kinds import CLICKED_POINT
-from modal_spring_ros.ros.requests import ChangeBand, Pause, ReplaceSimulation, Reset, TakeInput
-from modal_spring_ros.ros.simulation_thread import SimulationThread
-from modal_spring_ros.ros.stream_settings import StreamSettings
+from modal_spring_ros.ros.changes.requests import (ChangeBand, Pause, ReplaceSimulation, Reset,
+                                                   TakeInput)
+from modal_spring_ros.ros.inputs.input_kinds import CLICKED_POINT
+from modal_spring_ros.ros.stream.simulation_thread import SimulationThread
+from modal_spring_ros.ros.stream.stream_settings import StreamSettings
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -269,7 +270,7 @@ def test_a_divergence_that_comes_back_every_time_is_held_and_reported_once(
         running, monkeypatch):
     """The same input again and again must not loop through divergences forever."""
     from modal_spring_ros.core.simulations import DivergenceError
-    from modal_spring_ros.ros.divergence_streak import MAX_RECOVERIES
+    from modal_spring_ros.ros.stream.divergence_streak import MAX_RECOVERIES
     thread, out = running()
     sim = thread.sim
     real = sim._step_once

@@ -14,8 +14,8 @@ import threading
 import time
 
 from modal_spring_ros.ros.node import ModalSpringNode
-from modal_spring_ros.ros.pooled_executor import PooledExecutor
-from modal_spring_ros.ros.stop_signals import spin_until_stopped, STOP_SIGNALS, StopSignals
+from modal_spring_ros.ros.process.pooled_executor import PooledExecutor
+from modal_spring_ros.ros.process.stop_signals import spin_until_stopped, STOP_SIGNALS, StopSignals
 import pytest
 import rclpy
 from rclpy.context import Context

@@ -7,8 +7,8 @@ import time
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from modal_spring_ros.ros.parameters import CLOCK_OFFSET
-from modal_spring_ros.ros.stream_time import (clock_warnings, stamps_in_simulation_time,
-                                              StreamTime)
+from modal_spring_ros.ros.stream.stream_time import (clock_warnings, stamps_in_simulation_time,
+                                                     StreamTime)
 import numpy as np
 import pytest
 from ros_harness import frames_since, node_of, node_with_client, SimTimes, wait_for

@@ -7,10 +7,10 @@ from helpers import cloth_mesh, write_obj
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import SceneError
-from modal_spring_ros.scenes.inside import inside_closed_surface
+from modal_spring_ros.scenes.files.writing import scene_to_dict
+from modal_spring_ros.scenes.meshes.inside import inside_closed_surface
 from modal_spring_ros.scenes.resources import load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict
-from modal_spring_ros.scenes.writing import scene_to_dict
 import numpy as np
 import pytest
 

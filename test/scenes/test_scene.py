@@ -9,9 +9,9 @@ from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.simulations import FullSimulation
+from modal_spring_ros.scenes.files.writing import scene_to_dict, scene_to_yaml
 from modal_spring_ros.scenes.resources import builtin_scene_names, load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
-from modal_spring_ros.scenes.writing import scene_to_dict, scene_to_yaml
 import numpy as np
 import pytest
 

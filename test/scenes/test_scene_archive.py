@@ -5,10 +5,10 @@ import io
 import zipfile
 
 from modal_spring_ros.core.model.scene import SceneError
-from modal_spring_ros.scenes import scene_archive
+from modal_spring_ros.scenes.files import scene_archive
+from modal_spring_ros.scenes.files.scene_archive import scene_from_archive, scene_to_archive
+from modal_spring_ros.scenes.files.writing import scene_header, scene_to_yaml
 from modal_spring_ros.scenes.resources import load_scene
-from modal_spring_ros.scenes.scene_archive import scene_from_archive, scene_to_archive
-from modal_spring_ros.scenes.writing import scene_header, scene_to_yaml
 import numpy as np
 import pytest
 

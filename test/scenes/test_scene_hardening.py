@@ -13,10 +13,10 @@ import re
 
 from modal_spring_ros.cli.modal_spring_sim import main
 from modal_spring_ros.core.model.scene import Scene, SceneError
-from modal_spring_ros.scenes import limits
+from modal_spring_ros.scenes.fields import limits
+from modal_spring_ros.scenes.files.yaml_reading import LOADER, MAX_BYTES
 from modal_spring_ros.scenes.resources import builtin_scene_dir, builtin_scene_names, load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict, scene_from_yaml
-from modal_spring_ros.scenes.yaml_reading import LOADER, MAX_BYTES
 import pytest
 import yaml
 

@@ -1,0 +1,400 @@
+"""
+The node's simulation thread.
+
+Steps at a fixed ``dt``, publishes on its own period, applies state changes between steps, and
+survives anything a step or a change can raise. It alone changes the running simulation: requests
+(:mod:`modal_spring_ros.ros.changes.requests`) are applied one at a time between two steps, in the
+order they came. The thread is supervised: a divergence sends the run back to rest; any other
+exception is reported as ERROR on ``/diagnostics`` with its message, the run goes back to rest (or,
+if it cannot even reset, to a simulation rebuilt from the settings), and it goes on.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from typing import Callable
+
+from modal_spring_ros.bags.pointcloud import CloudBuffer
+from modal_spring_ros.core.simulations import DivergenceError, Simulation, SimulationStatus
+from modal_spring_ros.core.threads import stepping_threads
+from modal_spring_ros.ros.changes.requests import (ChangeBand, drained, Pause, ReplaceSimulation,
+                                                   Request, Reset, Step, StepRefused, TakeInput,
+                                                   without_superseded)
+from modal_spring_ros.ros.inputs.input_kinds import recorded_messages
+from modal_spring_ros.ros.stream.diagnostics import StreamReport, StreamWindow
+from modal_spring_ros.ros.stream.divergence_streak import DivergenceStreak, HeldError
+from modal_spring_ros.ros.stream.outputs import Outputs
+from modal_spring_ros.ros.stream.plan_watch import FallBack, PlanWatch
+from modal_spring_ros.ros.stream.run_pace import Reading, RunPace, wall_pace
+from modal_spring_ros.ros.stream.stream_settings import StreamSettings
+
+#: wall time between two diagnostics messages, s
+DIAGNOSTICS_PERIOD_S = 1.0
+#: wait before trying again when even recovering failed, s
+RECOVERY_RETRY_S = 0.5
+#: share of the publish period left before a frame when the watch's shadows stop (plan_watch)
+FRAME_MARGIN = 0.25
+#: share of the publish period a frame's steps may take after it is due (a run that cannot keep
+#: up drops its debt beyond one frame: its frames keep their rate, its real-time factor falls)
+FRAME_LATENESS = 0.75
+
+
+class SimulationThread:
+    """Steps ``sim`` and publishes through ``outputs``; :meth:`submit` changes it."""
+
+    def __init__(self, sim: Simulation, outputs: Outputs,
+                 settings: Callable[[], StreamSettings],
+                 rebuild: Callable[[], Simulation],
+                 computing_modes: Callable[[], bool] = lambda: False,
+                 running: Callable[[], bool] = lambda: True,
+                 node_report: Callable[[], dict] = dict,
+                 on_watch_beyond: FallBack = lambda window, settings: None,
+                 pace: Callable[[], Reading] = wall_pace):
+        """
+        Step ``sim`` and publish through ``outputs`` with the ``settings`` of the moment.
+
+        ``rebuild``: a fresh run of the current settings at rest (recovery's last resort);
+        ``computing_modes``: whether a request computes modes now; ``running``: False once the
+        node shuts down (the thread then ends instead of reporting its publishers gone);
+        ``node_report``: the node's :class:`StreamReport` fields; ``on_watch_beyond``: falls an
+        automatic plan back (:mod:`~.plan_watch`); ``pace``: the clock it keeps pace with.
+        """
+        self._running = running
+        self._node_report = node_report
+        self.sim = sim
+        self.paused = False
+        self._suspended = False  # a managed node inactive: no steps, no frames
+        self._outputs = outputs
+        self._settings = settings
+        self._rebuild = rebuild
+        self._computing_modes = computing_modes
+        self._requests: queue.Queue[Request] = queue.Queue()
+        self._stop = threading.Event()
+        self._wake = threading.Event()  # the settings changed: stop waiting out the old period
+        self._window = StreamWindow()
+        self._frames = 0
+        self._last_frame = 0.0
+        self._cloud: CloudBuffer | None = None  # the frames' bytes, reused (see _publish_frame)
+        self._cloud_scene = None
+        self._divergences = 0
+        self._streak = DivergenceStreak()
+        self._last_divergence = ''
+        self._diverged_recently = False
+        self._last_status = sim.status()
+        self._pace = RunPace(pace, sim.time)
+        self._plan_watch = PlanWatch(on_watch_beyond)
+        self._thread = threading.Thread(target=self._run, name='modal_spring_sim', daemon=True)
+
+    # -- from other threads --------------------------------------------------------------------
+    def start(self) -> None:
+        self._thread.start()
+
+    def submit(self, request: Request) -> Request:
+        """Queue a state change; the thread applies it between two steps."""
+        self._requests.put(request)
+        return request
+
+    def settings_changed(self) -> None:
+        """
+        Make the thread read its settings now.
+
+        A new publish rate then takes effect at once instead of after the old period (0.1 Hz
+        to 60 Hz once meant ten seconds without a frame).
+        """
+        self._wake.set()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        self._stop.set()
+        self._wake.set()
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
+            self._thread.join(timeout)
+        self._fail_pending('the node is shutting down')
+
+    def suspend(self) -> None:
+        """Stop stepping and publishing frames until :meth:`resume` (diagnostics go on)."""
+        self._suspended = True
+
+    def resume(self) -> None:
+        """Step and publish again, from where the run was (its time does not jump)."""
+        self._reanchor(window_valid=False)
+        self._suspended = False
+        self._wake.set()
+
+    @property
+    def alive(self) -> bool:
+        return self._thread.is_alive()
+
+    # -- the thread ----------------------------------------------------------------------------
+    def _active(self) -> bool:
+        return not self._stop.is_set() and self._running()
+
+    @stepping_threads()         # steps and frames on one BLAS thread (core.threads)
+    def _run(self) -> None:
+        while self._active():
+            try:
+                self._loop()
+            except Exception as exc:  # supervised: report, recover, go on
+                if not self._active():
+                    return
+                self._recover(f'simulation thread failed: {exc!r}')
+
+    def _loop(self) -> None:
+        next_publish = next_mesh = time.monotonic()
+        next_diagnostics = next_publish + DIAGNOSTICS_PERIOD_S
+        self._start_window(valid=True)
+        published_time = None
+        period = None
+        while self._active():
+            settings = self._settings()
+            if period != 1.0 / settings.publish_rate_hz:  # a new rate counts from now
+                period = 1.0 / settings.publish_rate_hz
+                next_publish = min(next_publish, time.monotonic() + period)
+            rtf = settings.realtime_factor
+            if self._apply_requests():
+                published_time = None
+            behind = False
+            still = self.paused or self.held or self._suspended
+            if not still:
+                if rtf > 0.0:
+                    target, jumped = self._pace.owed(self.sim.time, rtf)
+                    if jumped:
+                        self._start_window(valid=False)
+                    self._step_until(target, next_publish + FRAME_LATENESS * period)
+                    behind = self.sim.time + self.sim.dt < target
+                    if target - self.sim.time > rtf * period:  # could not keep up: the debt
+                        # beyond one frame's steps is dropped (the frames keep their rate)
+                        self._pace.anchor(self.sim.time + rtf * period, at_last_reading=True)
+                else:  # as fast as possible: as many steps as fit until the frame is due
+                    self._step_until(float('inf'), next_publish)
+            now = time.monotonic()
+            # woken before the frame is due (a setting changed): the frame stays on its grid
+            due = now >= next_publish
+            # a held run goes on publishing its held state: the stream never goes silent
+            if due and (self.sim.time != published_time or self.held) and not (
+                    self.paused or self._suspended):
+                mesh = now >= next_mesh and settings.mesh_rate_hz > 0
+                self._publish_frame(mesh)
+                published_time = self.sim.time
+                if mesh:
+                    next_mesh = now + 1.0 / settings.mesh_rate_hz
+            if now >= next_diagnostics:
+                self._publish_diagnostics(settings, error=self.held)
+                next_diagnostics = now + DIAGNOSTICS_PERIOD_S
+            if due:
+                next_publish += period
+                if next_publish < now:
+                    next_publish = now + period
+            if not still:   # in the idle time before the next frame (behind: one sample)
+                self._plan_watch.step(self.sim, settings.watch_s,
+                                      next_publish - FRAME_MARGIN * period)
+            if (rtf > 0.0 and not behind) or still:   # behind: step on towards the next frame
+                self._wake.wait(max(0.0, next_publish - time.monotonic()))
+                self._wake.clear()
+
+    def _step_until(self, target: float, deadline: float) -> None:
+        """
+        Step until the simulation reaches ``target`` or the wall clock passes ``deadline``.
+
+        The target is reached to half a step; at least one step is taken when the target is ahead.
+        """
+        w = self._window
+        sim = self.sim
+        while sim.time + 0.5 * sim.dt < target:
+            start = time.perf_counter()
+            try:
+                sim.step()
+            except DivergenceError as exc:
+                self._on_divergence(exc)
+                return
+            w.step_seconds += time.perf_counter() - start
+            w.steps += 1
+            if time.monotonic() > deadline:
+                return
+
+    def _apply_requests(self) -> bool:
+        """
+        Apply every queued request, in order; True when one was applied.
+
+        One a newer one of its kind directly follows is answered, not applied
+        (:func:`~modal_spring_ros.ros.changes.requests.without_superseded`).
+        """
+        applied = False
+        for request in without_superseded(drained(self._requests)):
+            try:
+                message = self._apply(request)
+            except (HeldError, StepRefused) as exc:  # said once (held), or not an error
+                request.finish(False, str(exc))
+                continue
+            except Exception as exc:  # refused: the run is as it was before the request
+                request.finish(False, f'could not apply: {exc}')
+                self._report_error(f'could not apply {type(request).__name__}: {exc!r}')
+                continue
+            request.finish(True, message)
+            applied = True
+        return applied
+
+    def _apply(self, request: Request) -> str:
+        """Apply one request; returns what happened. Raises with the run unchanged."""
+        handlers: dict[type, Callable[[Request], str]] = {
+            ChangeBand: self._change_band, ReplaceSimulation: self._replace,
+            Reset: self._reset, Pause: self._pause, Step: self._step, TakeInput: self._take_input}
+        return handlers[type(request)](request)
+
+    held = property(lambda self: self._streak.held, doc='Why the run is held, or empty.')
+
+    def _take_input(self, request: TakeInput) -> str:
+        self._streak.refuse_while_held()
+        message = request.kind.apply(self.sim, request.received, request.values)
+        self._outputs.received(self.sim, recorded_messages(request.kind, request.received))
+        return message
+
+    def _change_band(self, request: ChangeBand) -> str:
+        self.sim.set_band(request.band, request.transition_s)
+        self._plan_watch.band_changed(self.sim)
+        self._outputs.changed(self.sim, request.changed)
+        return f'band {request.band.describe()}'
+
+    def _replace(self, request: ReplaceSimulation) -> str:
+        request.simulation.take_over(self.sim)
+        self.sim = request.simulation
+        self._outputs.changed(self.sim, request.changed)
+        self._reanchor(window_valid=False)
+        return f'{self.sim.method} run continues'
+
+    def _reset(self, request: Reset) -> str:
+        self.sim.model.scene.anchor_motion.clear()  # a followed clamp forgets its poses
+        self.sim.reset()
+        self._streak.clear()
+        self._plan_watch.restart()
+        self._reanchor(window_valid=False)
+        return 'back to the rest state at t = 0'
+
+    def _pause(self, request: Pause) -> str:
+        self.paused = request.paused
+        self._reanchor(window_valid=False)
+        return 'paused' if request.paused else 'running'
+
+    def _step(self, request: Step) -> str:
+        """Advance one frame period (times the real-time factor, when set) and publish it."""
+        if not self.paused:
+            raise StepRefused('stepping is for a paused run: call ~/pause with true first')
+        self._streak.refuse_while_held()
+        settings, steps, divergences = self._settings(), self._window.steps, self._divergences
+        self._step_until(self.sim.time + (settings.realtime_factor or 1.0)
+                         / settings.publish_rate_hz, float('inf'))
+        if self._divergences != divergences:
+            raise StepRefused(f'{self._last_divergence} (reported on /diagnostics)')
+        self._last_frame = 0.0      # a stepped frame after a pause: no gap in the stream
+        self._publish_frame(settings.mesh_rate_hz > 0)
+        return f'stepped {self._window.steps - steps} steps to t = {self.sim.time:.6g} s'
+
+    def _fail_pending(self, why: str) -> None:
+        for request in drained(self._requests):
+            request.finish(False, why)
+
+    # -- frames and reports --------------------------------------------------------------------
+    def _publish_frame(self, mesh: bool) -> None:
+        scene = self.sim.model.scene
+        if self._cloud is None or self._cloud_scene is not scene:  # once per scene
+            self._cloud, self._cloud_scene = CloudBuffer(scene.rest_positions), scene
+        self._cloud.write_run(self.sim)  # in place: no array per frame
+        if not self._cloud.finite():  # defensive: the engine never returns these
+            self._on_divergence(DivergenceError('non-finite positions', self.sim.time,
+                                                self.sim.steps))
+            return
+        self._outputs.frame(self.sim, self._cloud, mesh)
+        now = time.monotonic()
+        w = self._window
+        if self._last_frame:
+            w.longest_gap = max(w.longest_gap, now - self._last_frame)
+        self._last_frame = now
+        self._frames += 1
+        w.frames += 1
+        w.computing_modes |= self._computing_modes()
+
+    def _report(self, settings: StreamSettings, error: str = '') -> StreamReport:
+        w = self._window
+        clock_span, clock_stopped = self._pace.since(w.pace)   # the clock the run follows
+        achieved = (self.sim.time - w.sim_time) / clock_span if clock_span > 0 else 0.0
+        return StreamReport(
+            window_s=time.monotonic() - w.wall, window_valid=w.valid, clock_stopped=clock_stopped,
+            achieved_rtf=achieved if w.valid else 0.0, requested_rtf=settings.realtime_factor,
+            publish_period_s=1.0 / settings.publish_rate_hz,
+            step_us=1e6 * w.step_seconds / max(w.steps, 1), frames=self._frames,
+            frames_in_window=w.frames, longest_gap_s=w.longest_gap,
+            computing_modes=w.computing_modes or self._computing_modes(), paused=self.paused,
+            strain_warning=settings.strain_warning, divergences=self._divergences,
+            last_divergence=self._last_divergence,
+            diverged_recently=self._diverged_recently, error=error, **self._plan_watch.report(),
+            **self._node_report())
+
+    def _status(self) -> SimulationStatus:
+        """Return the simulation's status, or the last one read when it cannot give one."""
+        try:
+            self._last_status = self.sim.status()
+        except Exception:  # reported by whoever called; the last good status stands in
+            pass
+        return self._last_status
+
+    def _publish_diagnostics(self, settings: StreamSettings, error: str = '') -> None:
+        self._outputs.diagnostics(self._status(), self._report(settings, error))
+        self._start_window(valid=True)
+        if not error:
+            self._diverged_recently = False
+
+    def _start_window(self, valid: bool) -> None:
+        self._window = StreamWindow(time.monotonic(), self.sim.time, valid, pace=self._pace.read(),
+                                    computing_modes=self._computing_modes())
+        self._last_frame = 0.0
+
+    def _reanchor(self, window_valid: bool) -> None:
+        self._pace.anchor(self.sim.time)
+        if not window_valid:
+            self._window.valid = False
+            self._last_frame = 0.0
+
+    # -- failures ------------------------------------------------------------------------------
+    def _on_divergence(self, exc: DivergenceError) -> None:
+        self._divergences += 1
+        self._last_divergence = str(exc)
+        self._diverged_recently = True
+        if self._streak.diverged(exc):
+            self._outputs.log('error', self.held)
+            self._publish_diagnostics(self._settings(), error=self.held)
+        else:
+            self._outputs.log('error', f'{exc}; back to the rest state')
+            self._publish_diagnostics(self._settings(),
+                                      error=f'{exc}; recovered: back to the rest state')
+        self._to_rest()
+
+    def _report_error(self, message: str) -> None:
+        """Log and publish ERROR; never raises (it is what failures end in)."""
+        try:
+            self._outputs.log('error', message)
+            self._outputs.diagnostics(self._last_status, self._report(self._settings(), message))
+        except Exception as exc:  # publishing itself failed (shutting down): log only
+            try:
+                self._outputs.log('error', f'{message} (not reported: {exc!r})')
+            except Exception:
+                pass
+
+    def _recover(self, message: str) -> None:
+        self._report_error(f'{message}; recovered: back to the rest state')
+        if not self._to_rest():
+            self._stop.wait(RECOVERY_RETRY_S)
+
+    def _to_rest(self) -> bool:
+        """Reset; if the simulation cannot, continue with a rebuilt one. False if both fail."""
+        try:
+            self.sim.reset()
+        except Exception as exc:
+            self._report_error(f'reset failed: {exc!r}; rebuilding the simulation')
+            try:
+                self.sim = self._rebuild()
+            except Exception as again:
+                self._report_error(f'rebuilding the simulation failed: {again!r}')
+                return False
+        self._plan_watch.restart()
+        self._reanchor(window_valid=False)
+        return True

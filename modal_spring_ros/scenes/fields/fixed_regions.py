@@ -1,0 +1,96 @@
+"""
+A scene file's ``fixed`` field: which particles the clamp holds.
+
+```yaml
+fixed: {indices: [0, 9]}                      # by number
+fixed: {face: +z}                             # the particles on a face of the bounding box
+fixed: {box: {min: [x, y, z], max: [x, y, z]}}  # inside an axis-aligned box (edges included)
+fixed: {near: {point: [x, y, z], radius: r}}  # within r of a point; a list of them for several
+```
+
+Any of them together: a particle is fixed when any of them holds it. Each region must hold at
+least one particle (a region that misses the object is a typo, not a choice).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from modal_spring_ros.scenes.fields.limits import LIMITS
+from modal_spring_ros.scenes.fields.reader import AXES, FieldReader
+import numpy as np
+
+FIXED_KEYS = ('indices', 'face', 'box', 'near')
+
+
+def fixed_particles(reader: FieldReader, spec: Any, positions: np.ndarray) -> np.ndarray:
+    """Return the (n,) bool mask of the particles the scene's ``fixed`` field names."""
+    n = positions.shape[0]
+    if spec is None:
+        raise reader.fail('fixed', 'missing: at least one particle must be fixed, otherwise '
+                          'the stiffness has rigid-body zero modes')
+    spec = reader.mapping(spec, 'fixed')
+    unknown = sorted(set(spec) - set(FIXED_KEYS), key=str)
+    if unknown:
+        raise reader.fail(f'fixed.{unknown[0]}',
+                          f"unknown key (use {', '.join(FIXED_KEYS)})")
+    fixed = np.zeros(n, dtype=bool)
+    if 'indices' in spec:
+        idx = spec['indices']
+        if not isinstance(idx, (list, tuple)):
+            raise reader.fail('fixed.indices', 'must be a list of particle indices')
+        for k, v in enumerate(idx):
+            if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < n:
+                raise reader.fail(f'fixed.indices[{k}]',
+                                  f'particle index {v!r} out of range (0..{n - 1})')
+            fixed[v] = True
+    if 'face' in spec:
+        face = spec['face']
+        if not isinstance(face, str) or len(face) != 2 or face[0] not in '+-' \
+                or face[1] not in AXES:
+            raise reader.fail('fixed.face', f'must be one of +x -x +y -y +z -z, got {face!r}')
+        coord = positions[:, AXES[face[1]]]
+        edge = coord.max() if face[0] == '+' else coord.min()
+        tol = 1e-9 * max(1.0, float(np.ptp(positions)))
+        fixed |= np.abs(coord - edge) <= tol
+    if 'box' in spec:
+        fixed |= _held(reader, 'fixed.box', _in_box(reader, spec['box'], positions))
+    if 'near' in spec:
+        near = spec['near']
+        for k, item in enumerate(near if isinstance(near, (list, tuple)) else [near]):
+            field = f'fixed.near[{k}]' if isinstance(near, (list, tuple)) else 'fixed.near'
+            fixed |= _held(reader, field, _near(reader, item, field, positions))
+    if not fixed.any():
+        raise reader.fail('fixed', 'no particle is fixed: at least one must be, otherwise the '
+                          'stiffness has rigid-body zero modes')
+    if fixed.all():
+        raise reader.fail('fixed', 'every particle is fixed: nothing can move')
+    return fixed
+
+
+def _in_box(reader: FieldReader, spec: Any, positions: np.ndarray) -> np.ndarray:
+    spec = reader.mapping(spec, 'fixed.box')
+    reader.known_keys(spec, 'fixed.box', ('min', 'max'))
+    low = reader.vector3(reader.required(spec, 'min', 'fixed.box'), 'fixed.box.min',
+                         LIMITS['position'])
+    high = reader.vector3(reader.required(spec, 'max', 'fixed.box'), 'fixed.box.max',
+                          LIMITS['position'])
+    if np.any(low > high):
+        raise reader.fail('fixed.box', 'min must not exceed max on any axis')
+    slack = 1e-9 * max(1.0, float(np.max(np.ptp(positions, axis=0))))
+    return np.all((positions >= low - slack) & (positions <= high + slack), axis=1)
+
+
+def _near(reader: FieldReader, spec: Any, field: str, positions: np.ndarray) -> np.ndarray:
+    spec = reader.mapping(spec, field)
+    reader.known_keys(spec, field, ('point', 'radius'))
+    point = reader.vector3(reader.required(spec, 'point', field), f'{field}.point',
+                           LIMITS['position'])
+    radius = reader.number(reader.required(spec, 'radius', field), f'{field}.radius',
+                           positive=True, limit=LIMITS['position'])
+    return np.linalg.norm(positions - point, axis=1) <= radius
+
+
+def _held(reader: FieldReader, field: str, mask: np.ndarray) -> np.ndarray:
+    if not mask.any():
+        raise reader.fail(field, 'holds no particle: the region misses the object')
+    return mask
