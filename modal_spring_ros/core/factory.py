@@ -25,11 +25,11 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces import ForceOptions
 from modal_spring_ros.core.forces.base import SampleStore
 from modal_spring_ros.core.integrators import conditionally_stable
+from modal_spring_ros.core.loads.pull import REACH_MIN_M
 from modal_spring_ros.core.memory_estimate import check_run_memory
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.motion.clamp_follower import ClampFollower
-from modal_spring_ros.core.motion.pull import REACH_MIN_M
 from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSettings,
                                                ModalSimulation, Simulation)
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank, shared_bank

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.motion.pull import (make_pull, nearest_free_particle, PullError,
-                                               REACH_MIN_M)
+from modal_spring_ros.core.loads.pull import (make_pull, nearest_free_particle, PullError,
+                                              REACH_MIN_M)
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest

@@ -12,7 +12,7 @@ from modal_spring_ros.core.auto.measured_error import on_samples, trajectory_err
 from modal_spring_ros.core.auto.run_watch import _State, RunWatch, watch_of, watchable
 from modal_spring_ros.core.config import ConfigError, SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.motion.pull import make_pull
+from modal_spring_ros.core.loads.pull import make_pull
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np

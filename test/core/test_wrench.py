@@ -6,8 +6,8 @@ import math
 from helpers import oscillator
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.motion.wrench import (default_radius, make_wrench, region,
-                                                 spread_wrench, WrenchError)
+from modal_spring_ros.core.loads.wrench import (default_radius, make_wrench, region, spread_wrench,
+                                                WrenchError)
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest

@@ -4,7 +4,7 @@ from __future__ import annotations
 from geometry_msgs.msg import PointStamped, WrenchStamped
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.motion.pull import nearest_free_particle
+from modal_spring_ros.core.loads.pull import nearest_free_particle
 from modal_spring_ros.ros.frames.frame_tree import Transform
 from modal_spring_ros.ros.inputs.input_kinds import (CLICKED_POINT, recorded_messages, WRENCH,
                                                      WrenchAt)

@@ -131,12 +131,11 @@ class _State:
     time: float
     u: np.ndarray
     v: np.ndarray
-    pull: object
-    wrench: object
+    loads: dict
 
     @classmethod
     def of(cls, sim: Simulation) -> '_State':
-        return cls(sim.time, sim.displacement(), sim.velocity(), sim.pull, sim.wrench)
+        return cls(sim.time, sim.displacement(), sim.velocity(), dict(sim.loads))
 
     def displacement(self) -> np.ndarray:
         return self.u

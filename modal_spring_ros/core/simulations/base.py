@@ -24,11 +24,10 @@ from modal_spring_ros.core.forces.exact import EXACT_REPORT
 from modal_spring_ros.core.integrators import conditionally_stable, Integrator
 from modal_spring_ros.core.integrators import integrator as make_integrator
 from modal_spring_ros.core.integrators import NonConvergence, Operators
+from modal_spring_ros.core.loads.applied import applied_loads
+from modal_spring_ros.core.loads.holder import LoadHolder
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
-from modal_spring_ros.core.motion.pull import Pull
-from modal_spring_ros.core.motion.wrench import AppliedWrench
-from modal_spring_ros.core.simulations.applied_loads import applied_loads
 from modal_spring_ros.core.threads import stepping_threads
 import numpy as np
 
@@ -93,7 +92,7 @@ class SimulationStatus:
     measured: str = 'off'              # what the automatic choice's pilot measured, and how
 
 
-class Simulation(abc.ABC):
+class Simulation(LoadHolder, abc.ABC):
     """What every method shares: time, state in physical terms, band, divergence checks."""
 
     #: registry name
@@ -120,10 +119,7 @@ class Simulation(abc.ABC):
         self._t0 = 0.0
         self.last_iterations = 1
         self.diverged: DivergenceError | None = None
-        #: a particle being pulled toward a point (:mod:`~modal_spring_ros.core.motion.pull`)
-        self.pull: Pull | None = None
-        #: a wrench pushing a region (:mod:`~modal_spring_ros.core.motion.wrench`)
-        self.wrench: AppliedWrench | None = None
+        self.loads = {}
 
     # -- what every method offers --------------------------------------------------------------
     #: the filter band, set by each method's constructor and by :meth:`set_band`
@@ -284,7 +280,7 @@ class Simulation(abc.ABC):
         self.time = self._t0 = 0.0
         self.steps = 0
         self.diverged = None
-        self.pull = self.wrench = None
+        self.loads = {}
         n = self.model.n_free_dof
         self.set_state(np.zeros(n), np.zeros(n))
 
@@ -324,21 +320,13 @@ class Simulation(abc.ABC):
     def take_over(self, other: 'Simulation') -> None:
         """Continue from another simulation's physical state and time (a settings change)."""
         self._t0, self.steps, self.time = other.time, 0, other.time
-        self.pull, self.wrench = other.pull, other.wrench
+        self.loads = dict(other.loads)
         self.set_state(other.displacement(), other.velocity())
-
-    def start_pull(self, pull: Pull | None) -> None:
-        """Pull a particle from now on (None: stop pulling). A reset ends it too."""
-        self.pull = pull
-
-    def start_wrench(self, wrench: AppliedWrench | None) -> None:
-        """Push a region with a wrench from now on (None: stop). A reset ends it too."""
-        self.wrench = wrench
 
     def _applied(self, displacement: Callable[[np.ndarray], np.ndarray], t: float,
                  in_world: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
-        """(free-DOF indices, forces) of the pull and the wrench at ``t``, or None."""
-        return applied_loads(self.model, self.pull, self.wrench, displacement, t, in_world)
+        """(free-DOF indices, forces) of every load at ``t``, or None."""
+        return applied_loads(self.model, self.loads, displacement, t, in_world)
 
     # -- stepping ------------------------------------------------------------------------------
     def step(self, count: int = 1) -> None:

@@ -239,7 +239,7 @@ class FullSimulation(Simulation):
     def _force(self, u: np.ndarray) -> np.ndarray:
         t = self.time + self.dt
         force = (self._world.force(u, t) if self._world is not None else self._forces(u, t))
-        if self.pull is not None or self.wrench is not None:
+        if self.loads:
             # world coordinates (a turning clamp stepped in the world): the loads' own forces
             loaded = self._applied(lambda dofs: u[dofs], t, in_world=self._world is not None)
             if loaded is not None:

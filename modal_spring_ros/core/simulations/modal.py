@@ -365,7 +365,7 @@ class ModalSimulation(Simulation):
 
     def _force(self, q: np.ndarray) -> np.ndarray:
         force = self._forces(q, self.time + self.dt)
-        if self.pull is not None or self.wrench is not None:
+        if self.loads:
             loaded = self._applied(lambda dofs: self._phi[dofs] @ q, self.time + self.dt)
             if loaded is not None:
                 force += loaded[1] @ self._phi[loaded[0]]

@@ -20,10 +20,10 @@ input is one entry of :data:`INPUTS`.
   accepted).
 - ``/clicked_point`` (``geometry_msgs/PointStamped``, what RViz's "Publish Point" tool sends):
   the particle nearest to the point is pulled toward it
-  (:mod:`~modal_spring_ros.core.motion.pull`).
+  (:mod:`~modal_spring_ros.core.loads.pull`).
 - ``wrench`` (``geometry_msgs/WrenchStamped``): a force and a torque at the origin of its frame,
   spread over the free particles within ``interaction.radius`` of it for
-  ``interaction.hold_s`` or until a zero wrench (:mod:`~modal_spring_ros.core.motion.wrench`).
+  ``interaction.hold_s`` or until a zero wrench (:mod:`~modal_spring_ros.core.loads.wrench`).
   Carried into the node's frame it becomes a :class:`WrenchAt` (the wrench on the node's axes
   and the point it acts at), which a capture keeps as two messages: the point on
   ``/wrench_point``, then the wrench on ``/wrench`` (``recorded_point_topic``).
@@ -36,8 +36,8 @@ from typing import Any, Callable
 
 from geometry_msgs.msg import (Point, PointStamped, Pose, PoseStamped, Quaternion, Vector3,
                                Wrench, WrenchStamped)
-from modal_spring_ros.core.motion.pull import make_pull, nearest_free_particle
-from modal_spring_ros.core.motion.wrench import default_radius, make_wrench
+from modal_spring_ros.core.loads.pull import make_pull, nearest_free_particle
+from modal_spring_ros.core.loads.wrench import default_radius, make_wrench
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.frames.frame_tree import Transform
 import numpy as np

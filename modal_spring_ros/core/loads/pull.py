@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import ClassVar
 
+from modal_spring_ros.core.loads.base import Load, WorldPositions
 import numpy as np
 
 #: Smallest margin of the reach around a scene's rest shape, m (a scene of one point has one).
@@ -22,7 +24,10 @@ class PullError(ValueError):
 
 
 @dataclasses.dataclass(frozen=True)
-class Pull:
+class Pull(Load):
+    """A free particle pulled toward a world point by a capped spring."""
+
+    name: ClassVar[str] = 'pull'
     particle: int          # scene index of a free particle
     slot: int              # its position among the free particles
     target: np.ndarray     # (d,) world point it is pulled toward
@@ -43,6 +48,14 @@ class Pull:
         if size > self.max_force:
             f *= self.max_force / size
         return f
+
+    def world_forces(self, model, world_positions: WorldPositions, t: float
+                     ) -> tuple[np.ndarray, np.ndarray] | None:
+        f = self.force(world_positions(np.array([self.slot]))[0], t)
+        if f is None:
+            return None
+        d = model.dimension
+        return np.arange(self.slot * d, (self.slot + 1) * d), f
 
 
 def nearest_free_particle(model, positions: np.ndarray, point: np.ndarray) -> int:

@@ -19,8 +19,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import ClassVar
 
-from modal_spring_ros.core.motion.pull import nearest_free_particle
+from modal_spring_ros.core.loads.base import Load, WorldPositions
+from modal_spring_ros.core.loads.pull import nearest_free_particle
 import numpy as np
 
 
@@ -29,7 +31,10 @@ class WrenchError(ValueError):
 
 
 @dataclasses.dataclass(frozen=True)
-class AppliedWrench:
+class AppliedWrench(Load):
+    """A wrench spread over the free particles near a point, fixed in world directions."""
+
+    name: ClassVar[str] = 'wrench'
     particles: np.ndarray  # (k,) scene indices of the free particles it acts on
     dofs: np.ndarray       # (k d,) their free-DOF indices, particle by particle
     forces: np.ndarray     # (k, d) world force on each, on the scene's axes, N
@@ -37,6 +42,10 @@ class AppliedWrench:
     torque: np.ndarray     # (3,) the total torque about the point applied (after the cap), N m
     capped: bool           # whether the cap scaled the wrench down
     until: float           # simulation time it ends, s
+
+    def world_forces(self, model, world_positions: WorldPositions, t: float
+                     ) -> tuple[np.ndarray, np.ndarray] | None:
+        return (self.dofs, self.forces.ravel()) if self.active(t) else None
 
 
 def spread_wrench(offsets: np.ndarray, force: np.ndarray, torque: np.ndarray) -> np.ndarray:

@@ -1,0 +1,48 @@
+"""
+A run that holds its loads: one per name, replaced whole, cleared by a reset, handed over whole.
+
+Every simulation is a :class:`LoadHolder` (:mod:`~modal_spring_ros.core.simulations.base`):
+its steps add the forces of :attr:`LoadHolder.loads` through the seat
+(:mod:`~modal_spring_ros.core.loads.applied`), its reset clears them, and a run that takes over
+from another (a settings change, a watch's shadow runs) takes every one of them.
+"""
+from __future__ import annotations
+
+from modal_spring_ros.core.loads.base import Load
+from modal_spring_ros.core.loads.pull import Pull
+from modal_spring_ros.core.loads.wrench import AppliedWrench
+
+
+class LoadHolder:
+    """The loads a run holds, by name (:class:`~modal_spring_ros.core.loads.base.Load`)."""
+
+    #: what acts on the particles from outside the scene, by name (a new dict on every change,
+    #: so that a copy handed over is never changed under its holder)
+    loads: dict[str, Load] = {}
+
+    def set_load(self, name: str, load: Load | None) -> None:
+        """Apply ``load`` under ``name`` from now on (None: remove it). A reset ends it too."""
+        if load is None:
+            self.loads = {k: v for k, v in self.loads.items() if k != name}
+        elif load.name != name:
+            raise ValueError(f'a {load.name} load set as {name!r}')
+        else:
+            self.loads = {**self.loads, name: load}
+
+    @property
+    def pull(self) -> Pull | None:
+        """The particle being pulled toward a point (:mod:`~modal_spring_ros.core.loads.pull`)."""
+        return self.loads.get(Pull.name)
+
+    @property
+    def wrench(self) -> AppliedWrench | None:
+        """The wrench pushing a region (:mod:`~modal_spring_ros.core.loads.wrench`)."""
+        return self.loads.get(AppliedWrench.name)
+
+    def start_pull(self, pull: Pull | None) -> None:
+        """Pull a particle from now on (None: stop pulling). A reset ends it too."""
+        self.set_load(Pull.name, pull)
+
+    def start_wrench(self, wrench: AppliedWrench | None) -> None:
+        """Push a region with a wrench from now on (None: stop). A reset ends it too."""
+        self.set_load(AppliedWrench.name, wrench)
