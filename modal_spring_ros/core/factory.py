@@ -150,17 +150,24 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     # a run of known length: what planning may spend is a share of its full run
     budget = (PlanningBudget.for_run(longest, config.horizon_s, config.planning_share)
               if everything else PlanningBudget())
+    limit = min(config.max_modes or DEFAULT_MAX_MODES, basis.n_dof)
+    # modes a small scene has anyway (dense): the step its response's period error allows the
+    # full run, a prediction of whether the default step meets the tolerance
+    choice = (choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
+              if basis.dense or not budget.small else None)
+    predicted = (choose_step(choice, 'explicit', config.tolerance, model.scene.damping)
+                 if basis.dense else math.inf)
     if measured and budget.small:
-        # less than a plan's set-up could save: the full run, before any mode is chosen
+        # less than a plan's set-up could save: the full run, before any plan is made
         window = min(pilot_window(model, basis.frequencies_hz[:1]), horizon_s)
         sim, report = unplanned_full(
             full, budget, full_dt, window, horizon_s, config.tolerance, PILOT_MARGIN,
             PILOT_SAMPLES, f'the whole full run costs {budget.full_us / 1e6:.3g} s of CPU '
-            '(modelled): less than choosing and building a plan')
+            '(modelled): less than choosing and building a plan', predicted)
         sim.pilot = dataclasses.replace(report, planning=budget.describe())
         return sim
-    limit = min(config.max_modes or DEFAULT_MAX_MODES, basis.n_dof)
-    choice = choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
+    if choice is None:
+        choice = choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
     bank = shared_bank(basis, config.derivative_directions)
     chosen = choose_basis(model, basis, choice.modes, SHARE * config.tolerance,
                           lambda keep: bank.for_band(keep)[1])
@@ -185,7 +192,7 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
 
     pilot = Pilot(model, config.tolerance, make, full if everything else None, more_modes,
                   basis.frequencies_hz[choice.modes], can_halve_step=not keep_dt,
-                  horizon_s=horizon_s, budget=budget, full_dt=full_dt)
+                  horizon_s=horizon_s, budget=budget, full_dt=(full_dt, predicted))
     sim, report = pilot.run(plan)
     sim.pilot = report
     if report.method == 'modal':

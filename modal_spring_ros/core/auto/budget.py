@@ -129,7 +129,8 @@ def worth_measuring(budget: PlanningBudget, full: Simulation, plan: Simulation,
 
 def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningBudget,
                    default_dt: float, window_s: float, horizon_s: float, tolerance: float,
-                   margin: float, samples: int, reason: str) -> tuple[Simulation, PilotReport]:
+                   margin: float, samples: int, reason: str,
+                   predicted_dt: float = math.inf) -> tuple[Simulation, PilotReport]:
     """
     Return the full run at the step ``--method full`` takes, checked; or at the one it needs.
 
@@ -142,9 +143,25 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     not a drift). Where it is not, the default run misses the tolerance too, so it is no
     baseline to stay near: the step is halved by step doubling over the whole window, its error
     extrapolated over ``horizon_s``, whatever that costs (on random scenes the full run needed
-    a tenth to a fortieth of its stability limit to meet 1 % over 3 s).
+    a tenth to a fortieth of its stability limit to meet 1 % over 3 s). A start can miss an
+    error that grows later: where ``predicted_dt`` (the step Newmark's period error of the
+    modes that carry the response allows, :func:`~modal_spring_ros.core.bases.mode_selection.
+    choose_step`) is shorter than the default, the default is taken to miss too, and the step
+    is found over the whole window from the longer of the two predictions' neighbours (twice the
+    predicted step, at most the default).
     """
     sample_s = window_s / samples
+    if predicted_dt < default_dt * (1.0 - 1e-9):
+        reason += ('; the default step is predicted beyond the tolerance (the period error of '
+                   'the modes that carry the response): the step needed was found over the '
+                   'whole window, beyond the budget')
+        sim, error = by_step_doubling(full, sample_s, samples, horizon_s, margin * tolerance,
+                                      math.inf, first_dt=min(default_dt, 2.0 * predicted_dt))
+        budget.spent_us += REFERENCE_RUNS * work_per_second(sim) * window_s
+        report = PilotReport(error, math.nan, window_s, BY_ITSELF, (), 'full', 1.0,
+                             reason=reason, horizon_s=horizon_s, window_error=error,
+                             tolerance=tolerance)
+        return sim, report
     rate = work_per_second(full(default_dt, sample_s))
     affordable = budget.remaining_us / (REFERENCE_RUNS * rate * sample_s) if rate > 0 else 0
     count = int(min(samples, max(MIN_CHECK_SAMPLES, affordable)))

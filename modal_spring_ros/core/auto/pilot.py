@@ -84,7 +84,8 @@ class Pilot:
     ``can_halve_step``: the step is the plan's to choose (not given by the user);
     ``horizon_s``: how long the run is, s (the tolerance holds over it; None: the window);
     ``budget``: what measuring may spend (:mod:`~modal_spring_ros.core.auto.budget`; None:
-    not budgeted); ``full_dt``: the full run's default step (the one ``method full`` takes).
+    not budgeted); ``full_dt``: the full run's default step (the one ``method full`` takes),
+    and the step its period error is predicted to need (``inf``: no prediction).
     """
 
     def __init__(self, model: MassSpringModel, tolerance: float,
@@ -92,7 +93,8 @@ class Pilot:
                  full: Callable[[float, float], Simulation] | None,
                  more_modes: Callable[[float], float | None], kept_hz: np.ndarray,
                  can_halve_step: bool = True, horizon_s: float | None = None,
-                 budget: PlanningBudget | None = None, full_dt: float = math.inf):
+                 budget: PlanningBudget | None = None,
+                 full_dt: tuple[float, float] = (math.inf, math.inf)):
         self.model = model
         self.full_dt = full_dt
         self.budget = budget if budget is not None else PlanningBudget()
@@ -211,9 +213,9 @@ class Pilot:
     # -- internals -----------------------------------------------------------------------------
     def _unplanned(self, reason: str) -> tuple[Simulation, PilotReport]:
         """Return the full run, its step checked within what the budget has left."""
-        full, report = unplanned_full(self.full, self.budget, self.full_dt, self.window_s,
+        full, report = unplanned_full(self.full, self.budget, self.full_dt[0], self.window_s,
                                       self.horizon_s, self.tolerance, PILOT_MARGIN, SAMPLES,
-                                      reason)
+                                      reason, self.full_dt[1])
         self._fallback = full
         return full, dataclasses.replace(report, planning=self.budget.describe())
 
@@ -375,9 +377,10 @@ class Pilot:
             if against == 'the full run':
                 return (self.full(self._reference_dt * (1.0 + 1e-9), sample_s),
                         REFERENCE_ACCURACY * self.tolerance, BY_ITSELF)
-            full, report = unplanned_full(self.full, self.budget, self.full_dt, self.window_s,
-                                          self.horizon_s, self.tolerance, PILOT_MARGIN,
-                                          SAMPLES, 'the budget was spent')
+            full, report = unplanned_full(self.full, self.budget, self.full_dt[0],
+                                          self.window_s, self.horizon_s, self.tolerance,
+                                          PILOT_MARGIN, SAMPLES, 'the budget was spent',
+                                          self.full_dt[1])
             return full, report.error, report.against
         if against != 'the full run' and error > self.tolerance:
             full, full_error = by_step_doubling(self.full, sample_s, samples, self.horizon_s,
