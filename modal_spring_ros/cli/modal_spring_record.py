@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init(args=[PROG] + ros_args)
     node = rclpy.create_node('modal_spring_recorder')
     target = node.resolve_topic_name(args.node) if not args.node.startswith('/') else args.node
-    writer = None
+    writer, error = None, ''
     try:
         writer = BagWriter(args.output, chunk_size=args.chunk_size,
                            chunk_seconds=args.chunk_seconds, attachments=True)
@@ -86,13 +86,18 @@ def main(argv: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except BagError as exc:
-        fail(PROG, str(exc))
+        error = str(exc)
     finally:
         if writer is not None:
-            writer.close()
-            print(f'wrote {args.output}: {writer.message_count} messages')
+            try:
+                writer.close()        # a full disk fails here too: said once, below
+                print(f'wrote {args.output}: {writer.message_count} messages')
+            except BagError as exc:
+                error = error or str(exc)
         node.destroy_node()
         rclpy.try_shutdown()
+    if error:
+        fail(PROG, f'{error} (the chunks written before stay readable)')
     return 0
 
 

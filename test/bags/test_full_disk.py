@@ -62,3 +62,26 @@ def test_a_bag_name_too_long_for_the_file_system_is_refused_up_front(tmp_path, c
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and 'too long for the file system' in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.ros
+def test_the_recorder_on_a_full_disk_says_one_line(tmp_path, monkeypatch, capsys):
+    """
+    The error is said once: finalising the bag on the same full disk raises it again.
+
+    The disk fills while the run record is written; closing the bag then fails the same way.
+    """
+    import ros_harness  # noqa: F401 (this session's DDS domain, loopback discovery)
+    from modal_spring_ros.cli.modal_spring_record import main as record_main
+
+    def full(self, *args, **kwargs):
+        raise BagError(f'{self.directory}: cannot write: No space left on device')
+    monkeypatch.setattr(BagWriter, 'add_run_record', full)
+    monkeypatch.setattr(BagWriter, 'close', full)
+    with pytest.raises(SystemExit) as info:
+        record_main(['--output', str(tmp_path / 'rec'), '--duration', '0.2',
+                     '--wait-for-node', '0.1', '--node', '/nobody_here'])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert 'No space left on device' in err and 'Traceback' not in err
+    assert err.count('modal_spring_record: error:') == 1
