@@ -1,7 +1,7 @@
 """
 ``modal_spring_replay``: play a bag back on its topics, or re-simulate it into a new bag.
 
-    modal_spring_replay BAG [--rate R] [--loop] [--topics T ...] [--wait-for-subscribers]
+    modal_spring_replay BAG [--rate R] [--loop] [--topics T ...] [--wait-for-subscribers [TOPIC]]
     modal_spring_replay BAG --resimulate OUT
 
 Playback publishes each message exactly as recorded (raw CDR) with its original timing
@@ -27,8 +27,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
     p.add_argument('--loop', action='store_true', help='play again from the start')
     p.add_argument('--topics', nargs='+', default=None, help='only these topics')
-    p.add_argument('--wait-for-subscribers', action='store_true',
-                   help='start only when every topic has a subscriber (up to 30 s)')
+    p.add_argument('--wait-for-subscribers', nargs='?', const='', default=None,
+                   metavar='TOPIC',
+                   help="start only when TOPIC has a subscriber, or without TOPIC the bag's "
+                        'clouds (every topic where it has none); up to 30 s')
     p.add_argument('--resimulate', metavar='OUT', default=None,
                    help='re-run the recorded simulation and write it to the new bag OUT')
     return p

@@ -13,6 +13,7 @@ from modal_spring_ros.bags.run_loading import load_run
 from modal_spring_ros.bags.sim_time import simulation_times
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.ros.parameters import CLOCK_OFFSET
+from modal_spring_ros.ros.tools import player as player_module
 from modal_spring_ros.ros.tools.resimulate import frame_times, parameter_changes, resimulate
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -24,14 +25,33 @@ from std_srvs.srv import Trigger
 pytestmark = pytest.mark.ros
 
 
-def test_replay_delivers_exactly_the_recorded_messages_with_their_timing():
-    bag = BagReader(BAGS / 'sheet_10x10_lowpass_0_14')
+def _with_another_topic(tmp_path) -> Path:
+    """Return the low-pass reference bag with a second topic no one here subscribes to."""
+    from modal_spring_ros.bags.writer import BagWriter
+    from std_msgs.msg import String
+    source = BagReader(BAGS / 'sheet_10x10_lowpass_0_14')
+    out = tmp_path / 'two_topics'
+    with BagWriter(out) as writer:
+        writer.add_topic('/points', 'sensor_msgs/msg/PointCloud2',
+                         source.topics['/points'].offered_qos_profiles)
+        writer.add_topic('/chatter', 'std_msgs/msg/String', '')
+        for m in source.messages(['/points']):
+            writer.write('/points', m.data, m.log_time_ns, m.publish_time_ns)
+            writer.write_message('/chatter', String(data='hello'), m.log_time_ns,
+                                 m.log_time_ns)
+    return out
+
+
+def test_replay_delivers_exactly_the_recorded_messages_with_their_timing(tmp_path):
+    bag = BagReader(_with_another_topic(tmp_path))
     recorded = list(bag.messages(['/points']))
     client = Client('replay_client')
     received: list[tuple[float, bytes]] = []
     client.node.create_subscription(PointCloud2, '/replay/points',
                                     lambda data: received.append((time.monotonic(), data)),
                                     500, raw=True)
+    assert len(bag.topics) > 1                # only the clouds have a subscriber
+    started = time.monotonic()
     player = subprocess.Popen([console_script('modal_spring_replay'), str(bag.path), '--rate',
                                '2.0', '--wait-for-subscribers', '--ros-args', '-r',
                                '/points:=/replay/points'], stdout=subprocess.PIPE,
@@ -39,6 +59,8 @@ def test_replay_delivers_exactly_the_recorded_messages_with_their_timing():
     try:
         out, err = player.communicate(timeout=60)
         assert player.returncode == 0, err
+        # it waited for the clouds' subscriber, not for every topic's (30 s, then anyway)
+        assert time.monotonic() - started < player_module.WAIT_S - 5.0
         assert wait_for(lambda: len(received) >= len(recorded), 5)
     finally:
         client.close()
@@ -51,6 +73,35 @@ def test_replay_delivers_exactly_the_recorded_messages_with_their_timing():
     got = np.diff([t for t, _ in received])
     assert abs(got.sum() - sent.sum()) < 0.1 * sent.sum()
     assert np.median(np.abs(got - sent)) < 0.004
+
+
+def test_replay_stops_cleanly_while_it_waits_for_subscribers():
+    """Ctrl-C while nothing subscribes: the player ends at once, with no traceback."""
+    bag = BAGS / 'sheet_10x10_lowpass_0_14'
+    player = subprocess.Popen([console_script('modal_spring_replay'), str(bag),
+                               '--wait-for-subscribers', '/points', '--ros-args', '-r',
+                               '/points:=/nobody_listens/points'], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
+    try:
+        time.sleep(4.0)                     # imported, its node up, waiting
+        assert player.poll() is None
+        player.send_signal(signal.SIGINT)
+        out, err = player.communicate(timeout=20)
+    finally:
+        if player.poll() is None:
+            player.kill()
+    assert player.returncode in (0, 130), err
+    assert 'Traceback' not in err
+    assert 'played 0 messages' in out or player.returncode == 130
+
+
+def test_replay_refuses_to_wait_for_a_topic_it_does_not_play():
+    bag = BAGS / 'sheet_10x10_lowpass_0_14'
+    done = subprocess.run([console_script('modal_spring_replay'), str(bag),
+                           '--wait-for-subscribers', '/elsewhere'], capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 2
+    assert 'names /elsewhere, which is not played' in done.stderr
 
 
 def _importing_numpy(pid: int) -> bool:
@@ -93,8 +144,7 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
         assert wait_for(lambda: len(points) > 3, 30)
         recorder = subprocess.Popen(
             [console_script('modal_spring_record'), '--output', str(out), '--node',
-             '/rec/modal_spring', '--topics', 'points', 'sim_time', '/diagnostics',
-             '/parameter_events',
+             '/rec/modal_spring',                   # the default topics, TF's included
              '--ros-args', '-r', '__ns:=/rec'],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         log: list[str] = []
@@ -124,7 +174,9 @@ def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):
             recorder.kill()
     bag = BagReader(out)
     assert bag.finalised and (out / 'metadata.yaml').exists()
-    assert {'/rec/points', '/diagnostics', '/parameter_events'} <= set(bag.topics)
+    assert {'/rec/points', '/diagnostics', '/parameter_events', '/tf'} <= set(bag.topics)
+    assert bag.topics['/tf'].count > 0
+    assert bag.topics['/tf'].type_name == 'tf2_msgs/msg/TFMessage'
     assert bag.topics['/rec/points'].count > 30          # over a second of frames
     assert 'reliability: reliable' in bag.topics['/rec/points'].offered_qos_profiles
     record = bag.run_record()

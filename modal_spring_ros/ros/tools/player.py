@@ -11,7 +11,7 @@ import time
 
 from modal_spring_ros.bags.message_types import message_class, TypeRefused
 from modal_spring_ros.bags.qos import playback_profile, profiles_from_yaml
-from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.bags.reader import BagReader, POINTCLOUD2
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.ros.process.shared_memory import cloud_transport, prefer_large_shared_memory
 from modal_spring_ros.ros.stream.publication_mode import prefer_asynchronous_publication
@@ -21,17 +21,27 @@ from rclpy import get_rmw_implementation_identifier
 from rclpy.executors import ExternalShutdownException
 
 
+#: Longest wait for subscribers before playing anyway, s.
+WAIT_S = 30.0
+
+
 def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool = False,
-         wait_for_subscribers: bool = False, ros_args: list[str] | None = None) -> int:
+         wait_for_subscribers: str | None = None, ros_args: list[str] | None = None) -> int:
     """
     Publish the bag's messages (``topics``, or all) with their recorded timing and QoS.
 
     The timing is scaled by ``rate``, the QoS is what their publishers offered; returns how many
-    were published. Stops on SIGINT or SIGTERM.
+    were published. ``wait_for_subscribers``: hold the start until that topic (the bag's name
+    for it) has a subscriber; '' for the bag's clouds (every PointCloud2 topic: what
+    a viewer watches), or every topic where it has none; None: start at once. Stops at any
+    moment on SIGINT or SIGTERM, the wait included.
 
     :raises BagError: a topic is not in the bag, or no message could be played.
     """
     topics = topics or sorted(bag.topics)
+    if wait_for_subscribers and wait_for_subscribers not in topics:
+        raise BagError(f'{bag.path}: --wait-for-subscribers names {wait_for_subscribers}, which '
+                       f"is not played (topics: {', '.join(topics)})")
     missing = [t for t in topics if t not in bag.topics]
     if missing:
         raise BagError(f"{bag.path}: no topic {', '.join(missing)} "
@@ -69,12 +79,15 @@ def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool
                 continue
             qos = playback_profile(profiles_from_yaml(info.offered_qos_profiles))
             publishers[t] = node.create_publisher(cls, t, qos)
-        if wait_for_subscribers:
-            end = time.monotonic() + 30.0
-            while (time.monotonic() < end and
-                   any(p.get_subscription_count() == 0 for p in publishers.values())):
+        if wait_for_subscribers is not None:
+            awaited = _awaited(bag, publishers, wait_for_subscribers)
+            end = time.monotonic() + WAIT_S
+            while (rclpy.ok() and time.monotonic() < end and
+                   any(p.get_subscription_count() == 0 for p in awaited)):
                 time.sleep(0.05)
             time.sleep(0.5)  # the subscribers' side of discovery completes too
+            if not rclpy.ok():
+                return count                        # stopped while it waited
         while True:
             start_wall = time.monotonic()
             first = None
@@ -100,6 +113,14 @@ def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+def _awaited(bag: BagReader, publishers: dict, topic: str) -> list:
+    """Return the publishers whose subscribers the start waits for (see :func:`play`)."""
+    if topic:
+        return [publishers[topic]] if topic in publishers else []
+    clouds = [p for t, p in publishers.items() if bag.topics[t].type_name == POINTCLOUD2]
+    return clouds or list(publishers.values())
 
 
 def _installed(type_name: str) -> bool:

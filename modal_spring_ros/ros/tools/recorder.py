@@ -29,7 +29,7 @@ from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 DEFAULT_TOPICS = [POINTS_TOPIC, SIM_TIME_TOPIC, MESH_TOPIC, DIAGNOSTICS_TOPIC,
-                  '/parameter_events']
+                  '/parameter_events', '/tf', '/tf_static']
 #: a parameter query unanswered this long is sent again, s
 ASK_AGAIN_S = 3.0
 #: first field types whose stamp is the message's publish time
