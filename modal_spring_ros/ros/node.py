@@ -183,6 +183,10 @@ class ModalSpringNode(Node):
         path = values['record.bag']
         if not path:
             return None
+        # a managed node configured again (after cleanup) keeps its first capture: the next
+        # ones go beside it, numbered as rosbag2 numbers a bag's files
+        self._captures = getattr(self, '_captures', 0) + 1
+        path = path if self._captures == 1 else f'{path}_{self._captures}'
         bag = RunBagWriter(path, sim.model.scene, None, dt=sim.dt, frame_every=0, duration=0.0,
                            frame_id=values['frame_id'], source='modal_spring_node',
                            parameters=applied, node=self.get_fully_qualified_name())

@@ -3,8 +3,8 @@
 
 configure (the scene loaded, the modes computed), activate (frames), deactivate (no frames, the
 run's time held), activate again (from the same time), cleanup (the node's topics and services
-gone), configure again; a refused transition and a configure that fails say so and change
-nothing.
+gone), configure again (its capture beside the first); a refused transition and a configure
+that fails say so and change nothing.
 """
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import time
 
 from lifecycle_msgs.msg import State, Transition
 from lifecycle_msgs.srv import ChangeState, GetState
+from modal_spring_ros.bags.reader import BagReader
 import pytest
 from ros_harness import (Client, console_script, NodeProcess, SimTimes, stderr_excerpt,
                          wait_for)
@@ -57,8 +58,9 @@ def change(client: Client, transition: int) -> bool:
         return state(client) == GOALS[transition]
 
 
-def test_the_managed_node_streams_only_while_active_and_cleans_up():
-    node = managed('publish_rate_hz:=30.0')
+def test_the_managed_node_streams_only_while_active_and_cleans_up(tmp_path):
+    capture = tmp_path / 'capture'
+    node = managed('publish_rate_hz:=30.0', f'record.bag:={capture}')
     client = Client('managed_client')
     sim_time = SimTimes().subscribe(client, '/managed/sim_time')
     points = client.collect(PointCloud2, '/managed/points')
@@ -99,6 +101,10 @@ def test_the_managed_node_streams_only_while_active_and_cleans_up():
         client.close()
         code, _, err = node.interrupt()
     assert code == 0 and 'Traceback' not in err, stderr_excerpt(err)
+    # each configuration's capture, whole: the first kept, the second beside it
+    first, second = BagReader(capture), BagReader(tmp_path / 'capture_2')
+    assert first.finalised and second.finalised
+    assert first.topics['/points'].count >= 20 and second.topics['/points'].count >= 10
 
 
 def test_a_configure_that_fails_says_why_and_stays_unconfigured():
