@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from modal_spring_ros.core.auto.budget import PlanningBudget, unplanned_full
+from modal_spring_ros.core.auto.budget import PlanningBudget, setup_work, unplanned_full
 from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.pilot import Pilot, PILOT_MARGIN, SAMPLES as PILOT_SAMPLES
 from modal_spring_ros.core.auto.pilot_window import pilot_window
@@ -151,19 +151,19 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     budget = (PlanningBudget.for_run(longest, config.horizon_s, config.planning_share)
               if everything else PlanningBudget())
     limit = min(config.max_modes or DEFAULT_MAX_MODES, basis.n_dof)
+    sampled = model.scene.n_springs >= SAMPLE_MIN_SPRINGS
+    why = _not_worth_planning(model, budget, basis.dense, sampled)
     # modes a small scene has anyway (dense): the step its response's period error allows the
     # full run, a prediction of whether the default step meets the tolerance
     choice = (choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
-              if basis.dense or not budget.small else None)
+              if basis.dense or not why else None)
     predicted = (choose_step(choice, 'explicit', config.tolerance, model.scene.damping)
                  if basis.dense else math.inf)
-    if measured and budget.small:
-        # less than a plan's set-up could save: the full run, before any plan is made
+    if measured and why:
+        # a plan's set-up would cost more than it could save: the full run, before any plan
         window = min(pilot_window(model, basis.frequencies_hz[:1]), horizon_s)
-        sim, report = unplanned_full(
-            full, budget, full_dt, window, horizon_s, config.tolerance, PILOT_MARGIN,
-            PILOT_SAMPLES, f'the whole full run costs {budget.full_us / 1e6:.3g} s of CPU '
-            '(modelled): less than choosing and building a plan', predicted)
+        sim, report = unplanned_full(full, budget, full_dt, window, horizon_s, config.tolerance,
+                                     PILOT_MARGIN, PILOT_SAMPLES, why, predicted)
         sim.pilot = dataclasses.replace(report, planning=budget.describe())
         return sim
     if choice is None:
@@ -174,8 +174,7 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     choice = dataclasses.replace(choice, basis=chosen)
     dt = config.dt or choose_step(choice, config.integrator, config.tolerance,
                                   model.scene.damping)
-    forces = ('sampled' if model.scene.n_springs >= SAMPLE_MIN_SPRINGS else
-              'refreshed' if chosen.small else 'exact')
+    forces = 'sampled' if sampled else 'refreshed' if chosen.small else 'exact'
     refresh = config.force_refresh or (
         choose_refresh(choice.highest_hz, dt) if forces == 'refreshed' else 1)
     plan = PlanSettings(choice.highest_hz, chosen.kind, config.derivative_directions, forces,
@@ -198,6 +197,30 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     if report.method == 'modal':
         sim.watch_reference = pilot.watch_reference(sim)
     return sim
+
+
+def _not_worth_planning(model: MassSpringModel, budget: PlanningBudget, dense: bool,
+                        sampled: bool) -> str:
+    """
+    Return why a plan is not worth making for a run of ``budget``'s length ('' where it is).
+
+    The whole full run costs less than making a plan (``SMALL_RUN_US``), or a scene beyond the
+    dense limit would spend more than the budget on its plan's set-up (its modes, their
+    derivatives, a spring sample: :func:`~modal_spring_ros.core.auto.budget.setup_work`), which
+    is otherwise counted against the budget.
+    """
+    if budget.small:
+        return (f'the whole full run costs {budget.full_us / 1e6:.3g} s of CPU (modelled): '
+                'less than choosing and building a plan')
+    if dense or not budget.bounded:
+        return ''
+    setup = setup_work(model, sampled)
+    if not budget.affords(setup):
+        parts = 'its modes, their derivatives' + (', a spring sample' if sampled else '')
+        return (f'making a plan ({parts}: about {setup / 1e6:.3g} s of CPU, modelled) would '
+                f'cost more than the planning budget of {budget.limit_us / 1e6:.3g} s')
+    budget.spent_us += setup
+    return ''
 
 
 def _more_modes(basis: ModalBasis, band: FilterBand, hz: float, limit: int) -> float | None:

@@ -109,7 +109,7 @@ def test_auto_option_reports_its_choice(capsys):
     out = capsys.readouterr().out
     assert 'method     full physical (180 DOF)' in out
     assert 'measured   full run chosen (the whole full run costs' in out
-    assert 'less than choosing and building a plan' in out and "20% of the full run's" in out
+    assert 'less than choosing and building a plan' in out and "10% of the full run's" in out
     # not budgeted, the plan is chosen and measured
     assert main(['--auto', '--tolerance', '0.05', '--duration', '0.05', '--quiet',
                  '--planning-share', 'none']) == 0

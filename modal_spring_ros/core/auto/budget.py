@@ -30,11 +30,15 @@ from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.simulations import Simulation
 
 #: Share of the full run's projected work (over the run's length) that planning may spend.
-PLANNING_SHARE = 0.2
+PLANNING_SHARE = 0.1
 #: A run whose full run costs less than this (modelled us) is run as the full run without
 #: planning: choosing modes and building a plan's coordinates take tens to hundreds of
 #: milliseconds that the work model does not count, as much as such a run could save.
 SMALL_RUN_US = 1e6
+#: What making a plan costs on a scene too large for every mode (modelled us), fitted to the
+#: 10,000-particle sheet's set-up (5.2 s): its modes, per free DOF; their derivatives, per free
+#: DOF; training a spring sample, per spring (each plan of other coordinates trains its own).
+SETUP_US = {'modes': 50.0, 'derivatives': 120.0, 'training': 50.0}
 #: A step-doubling check of the full run covers at least this many samples.
 MIN_CHECK_SAMPLES = 2
 #: The full reference over a window costs its run at a step and at half of it: three runs' worth.
@@ -80,6 +84,10 @@ class PlanningBudget:
         """Tell whether ``work_us`` more stays within the limit."""
         return self.spent_us + work_us <= self.limit_us
 
+    def training(self, model) -> float:
+        """Return what training a spring sample for new coordinates costs, us (modelled)."""
+        return SETUP_US['training'] * model.scene.n_springs
+
     def charge(self, sim: Simulation, seconds: float) -> None:
         """Count ``sim`` stepped over ``seconds`` of simulated time."""
         self.spent_us += work_per_second(sim) * seconds
@@ -91,6 +99,19 @@ class PlanningBudget:
         return (f'planning {self.spent_us / 1e6:.3g} s of CPU (modelled) of its budget '
                 f'{self.limit_us / 1e6:.3g} s, {self.limit_us / self.full_us:.0%} of the full '
                 f"run's {self.full_us / 1e6:.3g} s")
+
+
+def setup_work(model, sampled: bool) -> float:
+    """
+    Return what making a plan costs before it is measured, us (modelled).
+
+    Its modes, their derivatives and, with ``sampled`` springs, training a sample. Counted
+    against the budget like the pilot's runs, for scenes beyond the dense limit (a small
+    scene's modes are one dense eigensolve, and it trains no sample).
+    """
+    dof = model.n_free_dof
+    return (dof * (SETUP_US['modes'] + SETUP_US['derivatives'])
+            + (SETUP_US['training'] * model.scene.n_springs if sampled else 0.0))
 
 
 def measuring_floor(full: Simulation, plan: Simulation, sibling_us: float,

@@ -149,6 +149,12 @@ class Pilot:
                 break
             options = []
             for name, candidate in self._refinements(plan):
+                # a sampled plan of other coordinates trains its own sample when it is built
+                trains = candidate.forces == 'sampled' and name not in ('half the step',)
+                if trains and self.budget.bounded:
+                    if not self.budget.affords(self.budget.training(self.model)):
+                        continue
+                    self.budget.spent_us += self.budget.training(self.model)
                 trial = self._build(candidate)
                 if not self._affords(trial):
                     continue                         # beyond what the budget has left
