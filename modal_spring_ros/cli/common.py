@@ -12,7 +12,6 @@ import sys
 from typing import Callable, Iterator, NoReturn
 
 from modal_spring_ros.core.auto.budget import PLANNING_SHARE
-from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.config import DEFAULT_WATCH_S, SimulationConfig
 from modal_spring_ros.core.filter_band import BandError, FILTER_TYPES, FilterBand
 from modal_spring_ros.core.filter_response import ACTS_ON
@@ -27,6 +26,9 @@ from modal_spring_ros.scenes.resources import DEFAULT_SCENE
 EXIT_USAGE = 2
 #: Bytes written (and taken back) to check that an output file has room.
 PROBE_BYTES = 4096
+
+#: the core's defaults, which the options take (one place for each)
+DEFAULTS = SimulationConfig()
 
 
 def script_parser(prog: str, doc: str) -> argparse.ArgumentParser:
@@ -147,7 +149,7 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group('simulation')
     g.add_argument('--scene', default=DEFAULT_SCENE,
                    help=f'built-in scene name or YAML path (default {DEFAULT_SCENE})')
-    g.add_argument('--method', choices=METHODS, default='modal')
+    g.add_argument('--method', choices=METHODS, default=DEFAULTS.method)
     g.add_argument('--filter', dest='filter_type', choices=FILTER_TYPES, default=None,
                    help='filter band type (default allpass)')
     g.add_argument('--low-hz', type=float, default=None, help='lower band edge, Hz')
@@ -167,19 +169,21 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument('--damping-ratio', action='append', default=[], metavar='LOW:HIGH:RATIO',
                    help='modes within LOW..HIGH Hz damped with modal ratio RATIO instead of '
                         "the scene's (repeatable)")
-    g.add_argument('--integrator', choices=INTEGRATORS, default='explicit')
+    g.add_argument('--integrator', choices=INTEGRATORS, default=DEFAULTS.integrator)
     g.add_argument('--dt', type=float, default=None,
                    help="time step, s (default: the scene's, else half the stability limit)")
-    g.add_argument('--transition-s', type=float, default=0.5,
-                   help='fade time of modes leaving the band, s')
+    g.add_argument('--transition-s', type=float, default=DEFAULTS.transition_s,
+                   help=f'fade time of modes leaving the band, s (default '
+                        f'{DEFAULTS.transition_s:g})')
     g.add_argument('--max-modes', type=int, default=None,
                    help=f'most modes computed on large scenes (default {DEFAULT_MAX_MODES})')
     g.add_argument('--auto', action='store_true',
                    help='keep the fewest modes (within the band) that meet --tolerance for the '
                         "scene's loads, the step they allow (unless --dt), and the basis "
                         '(in place of --basis)')
-    g.add_argument('--tolerance', type=float, default=0.01,
-                   help='predicted relative error for --auto (default 0.01)')
+    g.add_argument('--tolerance', type=float, default=DEFAULTS.tolerance,
+                   help='relative error --auto holds over --duration, measured (default '
+                        f'{DEFAULTS.tolerance:g})')
     g.add_argument('--planning-share', type=share_or_none, default=PLANNING_SHARE,
                    metavar='SHARE',
                    help='with --auto: the most its planning may spend, as a share of the full '
@@ -192,19 +196,19 @@ def add_simulation_options(parser: argparse.ArgumentParser) -> None:
                         'plan) where it is beyond --tolerance; 0: not watched (default: every '
                         f'{DEFAULT_WATCH_S:g} s, or less often where watching would cost more '
                         'than a quarter of the run)')
-    g.add_argument('--basis', choices=BASES, default='derivatives',
+    g.add_argument('--basis', choices=BASES, default=DEFAULTS.basis,
                    help="modal coordinates: the band's rest modes (the paper's method), or "
                         'those plus their modal derivatives and static load vectors (right '
                         'beyond small deformation; default)')
-    g.add_argument('--derivative-directions', type=int, default=DEFAULT_DIRECTIONS,
+    g.add_argument('--derivative-directions', type=int, default=DEFAULTS.derivative_directions,
                    metavar='N', help='modal-derivative directions a band adds '
-                                     f'(default {DEFAULT_DIRECTIONS})')
-    g.add_argument('--forces', choices=tuple(FORCES), default='exact',
+                                     f'(default {DEFAULTS.derivative_directions})')
+    g.add_argument('--forces', choices=tuple(FORCES), default=DEFAULTS.forces,
                    help='spring forces: exact (every spring, every step: the paper), '
                         'refreshed (every --force-refresh steps, a tangent between) or '
                         'sampled (a weighted sample of the springs within --tolerance, '
                         'trained once and cached); --auto chooses in its place')
-    g.add_argument('--force-refresh', type=int, default=0, metavar='N',
+    g.add_argument('--force-refresh', type=int, default=DEFAULTS.force_refresh, metavar='N',
                    help='evaluate the nonlinear spring forces every N steps and continue '
                         'them along the static tangent in between (default: every step, '
                         'or what --auto chooses)')

@@ -70,3 +70,19 @@ def test_the_venv_without_ros_has_none_and_its_simulator_runs_a_mesh_scene(tmp_p
     assert re.fullmatch(r'modal_spring_node: needs \S+, which is not installed: pip install '
                         r"'\.\[ros\]' \(ROS 2 Jazzy from PyPI wheels\), or source a ROS 2 "
                         r'install', done.stderr.strip()), done.stderr
+
+
+def test_the_package_is_the_python_apis_facade_and_loads_nothing_until_used():
+    """Each name is its module's own object; ``import modal_spring_ros`` loads no numpy."""
+    import importlib
+    import modal_spring_ros
+    for name, module in modal_spring_ros.API.items():
+        assert getattr(modal_spring_ros, name) is getattr(importlib.import_module(module), name)
+    assert set(modal_spring_ros.API) <= set(dir(modal_spring_ros))
+    with pytest.raises(AttributeError, match='no attribute'):
+        modal_spring_ros.not_a_name  # noqa: B018
+    code = ('import sys, modal_spring_ros\n'
+            "print(sorted(m for m in ('numpy', 'scipy', 'rclpy') if m in sys.modules))")
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=60, check=True).stdout
+    assert out.strip() == '[]'

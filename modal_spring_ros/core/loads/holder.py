@@ -31,12 +31,12 @@ class LoadHolder:
 
     @property
     def pull(self) -> Pull | None:
-        """The particle being pulled toward a point (:mod:`~modal_spring_ros.core.loads.pull`)."""
+        """Return the pull on a particle (:mod:`~modal_spring_ros.core.loads.pull`), or None."""
         return self.loads.get(Pull.name)
 
     @property
     def wrench(self) -> AppliedWrench | None:
-        """The wrench pushing a region (:mod:`~modal_spring_ros.core.loads.wrench`)."""
+        """Return the wrench on a region (:mod:`~modal_spring_ros.core.loads.wrench`), or None."""
         return self.loads.get(AppliedWrench.name)
 
     def start_pull(self, pull: Pull | None) -> None:
