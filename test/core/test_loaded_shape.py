@@ -116,8 +116,13 @@ def test_the_derivative_of_the_tangent_about_the_loaded_shape():
 def test_no_loaded_shape_without_gravity_and_a_slack_scene_at_rest_is_a_mechanism():
     with pytest.raises(SceneError, match='reference: .*needs gravity'):
         hanging_cloth(reference='loaded', gravity=[0.0, 0.0, 0.0])
-    with pytest.raises(SceneError, match='zero-stiffness mode'):
+    with pytest.raises(SceneError, match='zero-stiffness mode') as held:
         ModalBasis(MassSpringModel(hanging_cloth(reference='rest'))).ensure_count(4)
+    assert 'no gravity' not in str(held.value)       # it has gravity: taken at rest, asked
+    # a flat cloth with no gravity at all: the error names the fix
+    with pytest.raises(SceneError, match=r'no gravity: a cloth .* give it gravity \(e\.g\. '
+                                         r'gravity: \[0, 0, -9\.81\]\)'):
+        ModalBasis(MassSpringModel(hanging_cloth(reference='rest', gravity=[0.0, 0.0, 0.0])))
 
 
 def test_the_built_in_cloth_oscillates_at_its_loaded_shape_frequencies():

@@ -209,10 +209,18 @@ class ModalBasis:
         zero = int(np.sum(lam <= ZERO_MODE_RTOL * lam_scale))
         if zero:
             more = 'at least ' if (not self.dense and zero == lam.size) else ''
+            scene = self.model.scene
+            # a cloth or a cable is slack at rest: gravity gives it tension (its loaded shape)
+            slack = ('' if np.any(scene.gravity) else
+                     ' This scene has no gravity: a cloth or a cable (flat or straight at rest, '
+                     'nothing resists moving out of its plane or line) is stiff only once it '
+                     'hangs; give it gravity (e.g. gravity: [0, 0, -9.81]) and it is taken about '
+                     'the shape it hangs in, or give a cloth material.bending.')
             raise SceneError(
-                f"scene '{self.model.scene.name}': the stiffness is singular on the free DOF: "
+                f"scene '{scene.name}': the stiffness is singular on the free DOF: "
                 f'{more}{zero} zero-stiffness mode(s) (a mechanism). Add shear (diagonal) '
-                f'springs, bending springs for out-of-plane motion, or fix more particles.')
+                f'springs, bending springs for out-of-plane motion, or fix more '
+                f'particles.{slack}')
 
     def _store(self, lam: np.ndarray, phi: np.ndarray) -> None:
         phi = _deterministic_signs(phi, self.model.mass_dof)
