@@ -13,8 +13,10 @@ Every problem is a :class:`~modal_spring_ros.core.model.scene.SceneError` naming
 from __future__ import annotations
 
 import dataclasses
+import io
 import os
 from pathlib import Path
+import stat
 
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.ament_index import package_share
@@ -96,10 +98,53 @@ def read_mesh(path: Path) -> MeshData:
     return _merged(vertices, triangles, tetrahedra)
 
 
+def checked_side_file(folder: Path, name: str, budget: list[int]) -> bytes:
+    """
+    Return the bytes of a file a mesh refers to (an OBJ's materials, a glTF's buffers).
+
+    Checked as the mesh itself is: a regular file (never a FIFO or a device, which would hang
+    the reader), inside the mesh's folder, within what is left of ``budget`` ([bytes], the
+    mesh's and its side files' together, taken from as they are read).
+
+    :raises SceneError: any of these.
+    """
+    root = folder.resolve()
+    target = (root / name).resolve()
+    if not target.is_relative_to(root):
+        raise SceneError(f'{folder / name}: a file the mesh refers to is outside its folder')
+    try:
+        info = os.stat(target)
+    except OSError as exc:
+        raise SceneError(f'{folder / name}: cannot read a file the mesh refers to: '
+                         f'{exc.strerror or exc}') from None
+    if not stat.S_ISREG(info.st_mode):
+        raise SceneError(f'{folder / name}: a file the mesh refers to is not a regular file')
+    if info.st_size > budget[0]:
+        raise SceneError(f'{folder / name}: the mesh and the files it refers to are larger '
+                         f'than the {MAX_BYTES / 2**20:.0f} MiB read')
+    budget[0] -= info.st_size
+    return target.read_bytes()
+
+
 def _read_surface(path: Path) -> tuple[np.ndarray, np.ndarray]:
     # trimesh takes 0.6 s to import: paid by scenes that read a surface, not by every start
     import trimesh  # noqa: I100
-    loaded = trimesh.load(str(path), force='mesh', process=False)
+    from trimesh.resolvers import FilePathResolver
+
+    data = path.read_bytes()
+    budget = [MAX_BYTES - len(data)]
+
+    class CheckedResolver(FilePathResolver):
+        """The files the mesh refers to, each checked before it is read."""
+
+        def get(self, name: str) -> bytes:
+            return checked_side_file(path.parent, name, budget)
+
+        def namespaced(self, namespace: str) -> 'CheckedResolver':
+            return self
+
+    loaded = trimesh.load(file_obj=io.BytesIO(data), file_type=path.suffix.lower()[1:],
+                          resolver=CheckedResolver(str(path)), force='mesh', process=False)
     faces = np.asarray(getattr(loaded, 'faces', np.empty((0, 3))), dtype=np.int64)
     vertices = np.asarray(getattr(loaded, 'vertices', np.empty((0, 3))), dtype=float)
     return vertices.reshape(-1, 3), faces.reshape(-1, 3)
