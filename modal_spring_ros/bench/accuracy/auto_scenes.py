@@ -42,7 +42,9 @@ def measure(name: str, tolerance: float) -> dict:
     """Check ``name``'s predicted and measured automatic plans at ``tolerance``."""
     scene = load_scene(name)
     duration = min(scene.default_duration, MAX_DURATION_S)
-    config = SimulationConfig(auto=True, tolerance=tolerance, horizon_s=duration)
+    # the plan per simulated second, against the predicted one: planned unbudgeted
+    config = SimulationConfig(auto=True, tolerance=tolerance, horizon_s=duration,
+                              planning_share=None)
     row = {'scene': name, 'tolerance': tolerance, 'duration_s': duration}
     start = time.process_time()
     auto = build_simulation(scene, config)

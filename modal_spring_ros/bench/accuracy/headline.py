@@ -83,7 +83,9 @@ def measure(scene_name: str, durations: tuple[float, ...], progress: Callable[[s
         add('full', full, full_run, duration, full_cpu)
     for duration in durations:
         progress(f'{scene_name}: auto planned for {duration:g} s')
-        config = SimulationConfig(auto=True, tolerance=TOLERANCE, horizon_s=duration)
+        # per simulated second: planned unbudgeted (its planning is not what is compared)
+        config = SimulationConfig(auto=True, tolerance=TOLERANCE, horizon_s=duration,
+                                  planning_share=None)
         sim = on_samples(build_simulation(scene, config, samples=sample_cache()), SAMPLE_S)
         add('auto', sim, trajectory(sim, SAMPLE_S, int(round(duration / SAMPLE_S))), duration,
             cpu_per_second(sim, longest))
