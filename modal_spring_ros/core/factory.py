@@ -144,9 +144,10 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
 
     horizon_s = config.horizon_s or model.scene.default_duration
     longest = full(math.inf, horizon_s)
-    # the step ``method full`` takes (the scene's, or half the stability limit), within stability
-    full_dt = min(model.scene.default_dt or AUTO_DT_SAFETY * longest.stability_limit(),
-                  longest.dt)
+    # the step ``method full`` takes (the given one, the scene's, or half the stability limit),
+    # within stability
+    full_dt = min(config.dt or model.scene.default_dt
+                  or AUTO_DT_SAFETY * longest.stability_limit(), longest.dt)
     # a run of known length: what planning may spend is a share of its full run
     budget = (PlanningBudget.for_run(longest, config.horizon_s, config.planning_share)
               if everything else PlanningBudget())
