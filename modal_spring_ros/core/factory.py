@@ -220,7 +220,7 @@ def _not_worth_planning(model: MassSpringModel, budget: PlanningBudget, dense: b
         parts = 'its modes, their derivatives' + (', a spring sample' if sampled else '')
         return (f'making a plan ({parts}: about {setup / 1e6:.3g} s of CPU, modelled) would '
                 f'cost more than the planning budget of {budget.limit_us / 1e6:.3g} s')
-    budget.spent_us += setup
+    budget.spend(setup)
     return ''
 
 

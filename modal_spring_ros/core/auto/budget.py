@@ -84,13 +84,13 @@ class PlanningBudget:
         """Tell whether ``work_us`` more stays within the limit."""
         return self.spent_us + work_us <= self.limit_us
 
-    def training(self, model) -> float:
-        """Return what training a spring sample for new coordinates costs, us (modelled)."""
-        return SETUP_US['training'] * model.scene.n_springs
+    def spend(self, work_us: float) -> None:
+        """Count ``work_us`` of planning (modelled us) as spent."""
+        self.spent_us += work_us
 
     def charge(self, sim: Simulation, seconds: float) -> None:
         """Count ``sim`` stepped over ``seconds`` of simulated time."""
-        self.spent_us += work_per_second(sim) * seconds
+        self.spend(work_per_second(sim) * seconds)
 
     def describe(self) -> str:
         """Say what planning spent of what budget ('' where it has none)."""
@@ -109,9 +109,13 @@ def setup_work(model, sampled: bool) -> float:
     against the budget like the pilot's runs, for scenes beyond the dense limit (a small
     scene's modes are one dense eigensolve, and it trains no sample).
     """
-    dof = model.n_free_dof
-    return (dof * (SETUP_US['modes'] + SETUP_US['derivatives'])
-            + (SETUP_US['training'] * model.scene.n_springs if sampled else 0.0))
+    return (model.n_free_dof * (SETUP_US['modes'] + SETUP_US['derivatives'])
+            + (training_work(model) if sampled else 0.0))
+
+
+def training_work(model) -> float:
+    """Return what training a spring sample for a set of coordinates costs, us (modelled)."""
+    return SETUP_US['training'] * model.scene.n_springs
 
 
 def measuring_floor(full: Simulation, plan: Simulation, sibling_us: float,
@@ -178,7 +182,7 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
                    'whole window, beyond the budget')
         sim, error = by_step_doubling(full, sample_s, samples, horizon_s, margin * tolerance,
                                       math.inf, first_dt=min(default_dt, 2.0 * predicted_dt))
-        budget.spent_us += REFERENCE_RUNS * work_per_second(sim) * window_s
+        budget.charge(sim, REFERENCE_RUNS * window_s)
         report = PilotReport(error, math.nan, window_s, BY_ITSELF, (), 'full', 1.0,
                              reason=reason, horizon_s=horizon_s, window_error=error,
                              tolerance=tolerance)
@@ -190,14 +194,14 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     over_s = horizon_s if count == samples else checked_s
     sim, error = by_step_doubling(full, sample_s, count, over_s, margin * tolerance, math.inf,
                                   first_dt=default_dt)
-    budget.spent_us += REFERENCE_RUNS * work_per_second(sim) * checked_s
+    budget.charge(sim, REFERENCE_RUNS * checked_s)
     if sim.dt < full(default_dt, sample_s).dt * (1.0 - 1e-9) and count < samples:
         reason += ('; the default step missed the tolerance over the first '
                    f'{checked_s:.2g} s: the step needed was found over the whole window, '
                    'beyond the budget')
         sim, error = by_step_doubling(full, sample_s, samples, horizon_s, margin * tolerance,
                                       math.inf, first_dt=sim.dt)
-        budget.spent_us += REFERENCE_RUNS * work_per_second(sim) * window_s
+        budget.charge(sim, REFERENCE_RUNS * window_s)
         checked_s, over_s = window_s, horizon_s
     report = PilotReport(error, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0, reason=reason,
                          horizon_s=over_s, window_error=error, tolerance=tolerance)

@@ -36,7 +36,7 @@ import dataclasses
 import math
 from typing import Callable
 
-from modal_spring_ros.core.auto.budget import (PlanningBudget, REFERENCE_RUNS,
+from modal_spring_ros.core.auto.budget import (PlanningBudget, REFERENCE_RUNS, training_work,
                                                unplanned_full, worth_measuring)
 from modal_spring_ros.core.auto.full_candidate import (against_reference, BY_ITSELF,
                                                        by_step_doubling)
@@ -150,11 +150,11 @@ class Pilot:
             options = []
             for name, candidate in self._refinements(plan):
                 # a sampled plan of other coordinates trains its own sample when it is built
-                trains = candidate.forces == 'sampled' and name not in ('half the step',)
-                if trains and self.budget.bounded:
-                    if not self.budget.affords(self.budget.training(self.model)):
+                if candidate.forces == 'sampled' and name != 'half the step':
+                    training = training_work(self.model)
+                    if not self.budget.affords(training):
                         continue
-                    self.budget.spent_us += self.budget.training(self.model)
+                    self.budget.spend(training)
                 trial = self._build(candidate)
                 if not self._affords(trial):
                     continue                         # beyond what the budget has left
