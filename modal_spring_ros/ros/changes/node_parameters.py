@@ -165,6 +165,7 @@ class NodeParameters:
         self._publish_frequencies()
         if request is not None:
             self._submit(request)
+            self._node.get_logger().info(f'the run takes {describe(incoming)}')
 
     def _revert(self, incoming: dict, reason: str) -> None:
         """Set back what a change answered as accepted set, unless something newer has."""
