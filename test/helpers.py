@@ -5,6 +5,7 @@ import builtins
 import copy
 import errno
 import io
+import math
 import os
 from pathlib import Path
 
@@ -141,3 +142,37 @@ def fill_disk_after(monkeypatch, budget: int) -> None:
             return FullAfter(fh, budget)
         return fh
     monkeypatch.setattr(builtins, 'open', full_open)
+
+
+def random_band(rng: np.random.Generator, top_hz: float) -> dict:
+    """
+    Return the fields of a random equaliser band over 0..``top_hz`` (``FilterBand(**fields)``).
+
+    Any kind, edge order 0-8, up to two gain terms of -12..+18 dB (ranges, peaks, shelves), a
+    damping range now and then, acting on the output or on the loads: what a user turning the
+    knobs sends. Not every band is valid (a band may keep no mode): the caller sees it refused.
+    """
+    kind = str(rng.choice(['allpass', 'lowpass', 'highpass', 'bandpass', 'bandstop']))
+    a, b = sorted(rng.uniform(0.0, top_hz, 2))
+    gains = []
+    for _ in range(int(rng.integers(0, 3))):
+        db = float(rng.choice([-12.0, -6.0, 6.0, 12.0, 18.0]))
+        shape = int(rng.integers(0, 3))
+        if shape == 0:
+            lo, hi = sorted(rng.uniform(0.0, top_hz, 2))
+            gains.append(f'{lo:.2f}:{hi + 0.1:.2f}:{db:g}')
+        elif shape == 1:
+            center, width = rng.uniform(1.0, top_hz), rng.uniform(0.5, 10.0)
+            gains.append(f'peak:{center:.2f}:{width:.2f}:{db:g}')
+        else:
+            side = rng.choice(['low_shelf', 'high_shelf'])
+            gains.append(f'{side}:{rng.uniform(1.0, top_hz):.2f}:{db:g}')
+    damping = []
+    if rng.random() < 0.4:
+        lo, hi = sorted(rng.uniform(0.0, top_hz, 2))
+        damping.append(f'{lo:.2f}:{hi:.2f}:{rng.uniform(0.0, 1.0):.2f}')
+    return {'kind': kind,
+            'low': 0.0 if kind in ('allpass', 'lowpass') else round(float(a), 2),
+            'high': math.inf if kind in ('allpass', 'highpass') else round(float(b) + 0.5, 2),
+            'order': int(rng.integers(0, 9)), 'gains': tuple(gains),
+            'acts_on': str(rng.choice(['output', 'load'])), 'damping': tuple(damping)}

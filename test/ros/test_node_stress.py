@@ -10,6 +10,7 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from helpers import random_band
 import numpy as np
 import pytest
 from ros_harness import node_of, node_with_client, wait_for
@@ -204,3 +205,41 @@ def test_a_band_whose_modes_prove_unstable_after_its_answer_is_reverted_and_repo
         assert wait_for(lambda: (v := _values(diagnostics, '/revert/', settled)) and
                         v['band'] == 'lowpass <= 5 Hz', 10)
         assert node.proc.poll() is None
+
+
+def test_a_random_sequence_of_equaliser_changes_keeps_the_stream_finite_and_undiverged():
+    """
+    Twenty random bands, one every quarter second, as a user turning the knobs sends them.
+
+    Kinds, orders, gains on the output and on the loads, damping ranges.
+
+    Refused ones change nothing; the accepted ones must never diverge the run: no ERROR on
+    /diagnostics, every frame finite, the stream on after the last.
+    """
+    rng = np.random.default_rng(4)    # diverged at its 13th change when gains scaled springs
+    with node_with_client(namespace='knobs') as (node, client):
+        node_name = 'knobs/modal_spring'
+        points = client.collect(PointCloud2, '/knobs/points', qos=1000)
+        diagnostics = client.collect(DiagnosticArray, '/diagnostics')
+        assert wait_for(lambda: len(points) > 3, 60)
+        start = time.monotonic()
+        accepted = 0
+        for _ in range(20):
+            band = random_band(rng, top_hz=50.0)
+            (r,) = client.set_parameters(
+                node_name, atomically=True, filter__type=band['kind'],
+                filter__low_hz=band['low'], filter__high_hz=min(band['high'], 1000.0),
+                filter__order=band['order'], filter__gains=' '.join(band['gains']),
+                filter__gains_act_on=band['acts_on'], filter__damping=' '.join(band['damping']))
+            accepted += r.successful
+            time.sleep(0.25)
+        after = time.monotonic()
+        assert accepted >= 10
+        assert wait_for(lambda: len([t for t, _ in points if t > after]) > 30, 20)
+        assert node.proc.poll() is None
+        for t, m in points:
+            assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
+        statuses = [d.status[0] for t, d in diagnostics
+                    if t >= start and node_of(d.status[0]).startswith('/knobs/')]
+        assert statuses and all(s.level != DiagnosticStatus.ERROR for s in statuses), [
+            s.message for s in statuses if s.level == DiagnosticStatus.ERROR][:3]

@@ -335,10 +335,7 @@ class ModalSimulation(Simulation):
         self._forces.restart()
         self._q = self._phi.T @ (m * displacement)
         self._v = self._phi.T @ (m * velocity)
-        self._a = self._load_gained(self._forces(self._q, self.time), self._q) \
-            - self._damp * self._v
-        if self._frame is not None:
-            self._a += self._frame.coupling(self._q, self._v, self.time)
+        self._a = self._driven_force(self._q, self._v, self.time) - self._damp * self._v
 
     @property
     def modal_coordinates(self) -> np.ndarray:
@@ -364,30 +361,42 @@ class ModalSimulation(Simulation):
         return self._forces.last_max_strain
 
     def _force(self, q: np.ndarray) -> np.ndarray:
-        force = self._forces(q, self.time + self.dt)
-        if self.loads:
-            loaded = self._applied(lambda dofs: self._phi[dofs] @ q, self.time + self.dt)
-            if loaded is not None:
-                force += loaded[1] @ self._phi[loaded[0]]
-        if self._frame is not None:
-            # The Coriolis load depends on the velocity: like damping in the explicit step, it
-            # is taken at the predicted velocity v + dt/2 a.
-            force += self._frame.coupling(q, self._v + (0.5 * self.dt) * self._a,
-                                          self.time + self.dt)
+        # The Coriolis load depends on the velocity: like damping in the explicit step, it is
+        # taken at the predicted velocity v + dt/2 a.
+        v = self._v + (0.5 * self.dt) * self._a if self._frame is not None else self._v
+        force = self._driven_force(q, v, self.time + self.dt)
         if self._is_fading:
             # An entering mode takes on its load (all but its own linear restoring force)
             # along its envelope, so it eases into place instead of dropping from rest.
             restoring = -self._omega2 * q
             w = self._envelope
             force = np.where(self._fading_in, restoring + w * (force - restoring), force)
-        return self._load_gained(force, q)
+        return force
 
-    def _load_gained(self, force: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """Return ``force`` with each coordinate's load (all but its restoring force) gained."""
-        if self._gains.unit_load:
-            return force
-        restoring = -self._omega2 * q
-        return restoring + self._gains.now[1] * (force - restoring)
+    def _driven_force(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """
+        Return the generalised force at ``q``, ``v``, ``t``, each coordinate's loads gained.
+
+        The loads are what drives the object from outside (gravity, the clamp's inertial loads,
+        the applied loads); the springs' own force, nonlinear part included, is the material's
+        answer and is never gained: a gain on it would change the stiffness about a deformed
+        shape (above 1, a stiffness that turns negative and grows without bound).
+        """
+        force = self._forces(q, t)
+        driven = None
+        if self.loads:
+            loaded = self._applied(lambda dofs: self._phi[dofs] @ q, t)
+            if loaded is not None:
+                driven = loaded[1] @ self._phi[loaded[0]]
+        if self._frame is not None:
+            coupling = self._frame.coupling(q, v, t)
+            driven = coupling if driven is None else driven + coupling
+        if driven is not None:
+            force += driven
+        if not self._gains.unit_load:
+            loads = self._forces.loads(t)
+            force += (self._gains.now[1] - 1.0) * (loads if driven is None else loads + driven)
+        return force
 
     def _step_once(self) -> None:
         q1, v1, a1 = self._advance(self._q, self._v, self._a, self._force, self._ops)

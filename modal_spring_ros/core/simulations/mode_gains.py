@@ -3,8 +3,9 @@ Each stepped coordinate's gain (:mod:`~modal_spring_ros.core.filter_response`), 
 
 A modal run's coordinates take part with two gains each: the *output* gain scales what the
 coordinate adds to the streamed positions (the motion underneath stays as simulated, as an
-equaliser colours a recording), the *load* gain scales the loads that drive it (everything but
-its own linear restoring force, so its frequency stays; the motion itself changes). A band's
+equaliser colours a recording), the *load* gain scales the loads that drive it from outside
+(gravity, inertial and applied loads; never the springs' own force, so its frequency stays;
+the motion itself changes). A band's
 ``acts_on`` says which of the two its gains are; the other stays 1.
 
 Rest modes take the band's gain at their frequency. Added coordinates (the ``derivatives``
