@@ -57,6 +57,7 @@ setup(
             'modal_spring_gripper = modal_spring_ros.cli.launcher:modal_spring_gripper',
             'modal_spring_render = modal_spring_ros.cli.launcher:modal_spring_render',
             'modal_spring_view = modal_spring_ros.cli.launcher:modal_spring_view',
+            'modal_spring_reindex = modal_spring_ros.cli.launcher:modal_spring_reindex',
         ],
     },
 )

@@ -19,6 +19,7 @@ killed loses at most about the last second.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import json
 import math
@@ -99,6 +100,63 @@ def _too_long(d: Path) -> str:
     if len(os.fsencode(os.path.abspath(d))) + len(d.name) + 8 > path_max:
         return f'the path is too long for the file system (at most {path_max} bytes)'
     return ''
+
+
+@dataclasses.dataclass(frozen=True)
+class TopicCount:
+    """A topic of a bag and how many messages it holds (``metadata.yaml``'s topic entry)."""
+
+    name: str
+    type_name: str
+    offered_qos_profiles: str
+    type_hash: str
+    count: int
+
+
+def bag_information(file_names: list[str], topics: list[TopicCount], start: int | None,
+                    end: int | None) -> dict[str, Any]:
+    """
+    Return a bag's ``rosbag2_bagfile_information`` (version 9), as rosbag2 writes it.
+
+    ``start`` and ``end``: the first and last log times, ns (None: no message). With several
+    files every message count and time span is the bag's (each file's entry alike).
+    """
+    begin = start if start is not None else 0
+    duration = (end - begin) if end is not None else 0
+    count = sum(t.count for t in topics)
+    return {
+        'version': METADATA_VERSION,
+        'storage_identifier': 'mcap',
+        'duration': {'nanoseconds': int(duration)},
+        'starting_time': {'nanoseconds_since_epoch': int(begin)},
+        'message_count': count,
+        'topics_with_message_count': [
+            {'topic_metadata': {'name': t.name, 'type': t.type_name,
+                                'serialization_format': 'cdr',
+                                'offered_qos_profiles': t.offered_qos_profiles,
+                                'type_description_hash': t.type_hash},
+             'message_count': t.count}
+            for t in topics],
+        'compression_format': '',
+        'compression_mode': '',
+        'relative_file_paths': list(file_names),
+        'files': [{'path': name,
+                   'starting_time': {'nanoseconds_since_epoch': int(begin)},
+                   'duration': {'nanoseconds': int(duration)},
+                   'message_count': count} for name in file_names],
+        'custom_data': {},
+        'ros_distro': ROS_DISTRO,
+    }
+
+
+def write_bag_information(directory: Path, info: dict[str, Any]) -> None:
+    """Write ``metadata.yaml`` into a bag's folder; raises BagError."""
+    try:
+        (directory / 'metadata.yaml').write_text(
+            yaml.safe_dump({'rosbag2_bagfile_information': info}, sort_keys=False))
+    except OSError as exc:
+        raise BagError(f'{directory}: cannot write metadata.yaml: '
+                       f'{exc.strerror or exc}') from None
 
 
 class BagWriter:
@@ -253,32 +311,10 @@ class BagWriter:
 
     # -- closing -------------------------------------------------------------------------------
     def _info(self) -> dict[str, Any]:
-        start = self._start if self._start is not None else 0
-        duration = (self._end - start) if self._end is not None else 0
-        count = self.message_count
-        return {
-            'version': METADATA_VERSION,
-            'storage_identifier': 'mcap',
-            'duration': {'nanoseconds': int(duration)},
-            'starting_time': {'nanoseconds_since_epoch': int(start)},
-            'message_count': count,
-            'topics_with_message_count': [
-                {'topic_metadata': {'name': name, 'type': t['type'],
-                                    'serialization_format': 'cdr',
-                                    'offered_qos_profiles': t['qos'],
-                                    'type_description_hash': type_hash(t['type'])},
-                 'message_count': t['count']}
-                for name, t in sorted(self._topics.items())],
-            'compression_format': '',
-            'compression_mode': '',
-            'relative_file_paths': [self.file_name],
-            'files': [{'path': self.file_name,
-                       'starting_time': {'nanoseconds_since_epoch': int(start)},
-                       'duration': {'nanoseconds': int(duration)},
-                       'message_count': count}],
-            'custom_data': {},
-            'ros_distro': ROS_DISTRO,
-        }
+        return bag_information(
+            [self.file_name],
+            [TopicCount(name, t['type'], t['qos'], type_hash(t['type']), t['count'])
+             for name, t in sorted(self._topics.items())], self._start, self._end)
 
     def _info_yaml(self) -> str:
         return yaml.safe_dump(self._info(), sort_keys=False)
@@ -307,13 +343,7 @@ class BagWriter:
                 self._fh.close()
         if self.failed:
             raise BagError(f'{self.directory}: {self.failed}')
-        try:
-            (self.directory / 'metadata.yaml').write_text(
-                yaml.safe_dump({'rosbag2_bagfile_information': self._info()},
-                               sort_keys=False))
-        except OSError as exc:
-            raise BagError(f'{self.directory}: cannot write metadata.yaml: '
-                           f'{exc.strerror or exc}') from None
+        write_bag_information(self.directory, self._info())
 
     def discard(self) -> None:
         """Close the file as it is and remove the bag's folder (a run that did not finish)."""

@@ -41,7 +41,7 @@ EXTRA_OF = {'foxglove': 'view'}
 #: The console scripts, each a module of this package named after it.
 SCRIPTS = ('modal_spring_sim', 'modal_spring_node', 'modal_spring_bench', 'modal_spring_replay',
            'modal_spring_compare', 'modal_spring_record', 'modal_spring_gripper',
-           'modal_spring_render', 'modal_spring_view')
+           'modal_spring_render', 'modal_spring_view', 'modal_spring_reindex')
 
 
 def run(script: str) -> int:
@@ -139,3 +139,4 @@ modal_spring_record = functools.partial(run, 'modal_spring_record')
 modal_spring_gripper = functools.partial(run, 'modal_spring_gripper')
 modal_spring_render = functools.partial(run, 'modal_spring_render')
 modal_spring_view = functools.partial(run, 'modal_spring_view')
+modal_spring_reindex = functools.partial(run, 'modal_spring_reindex')

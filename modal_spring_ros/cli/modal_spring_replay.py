@@ -48,8 +48,13 @@ def main(argv: list[str] | None = None) -> int:
             count = resimulate(args.bag, args.resimulate)
             print(f're-simulated {count} frames into {args.resimulate}')
             return 0
-        played = play(BagReader(args.bag), args.topics, args.rate, args.loop,
-                      args.wait_for_subscribers, [PROG] + args.ros_args)
+        bag = BagReader(args.bag)
+        if not bag.finalised:
+            print(f'{PROG}: note: {args.bag} was not closed by its writer (killed?): it is read '
+                  f'to its last complete chunk; modal_spring_reindex {args.bag} makes it whole '
+                  'for every reader', file=sys.stderr)
+        played = play(bag, args.topics, args.rate, args.loop, args.wait_for_subscribers,
+                      [PROG] + args.ros_args)
         print(f'played {played} messages')
         return 0
 

@@ -22,6 +22,7 @@ import sys
 
 from catkin_pkg.package import parse_package
 from helpers import REPO
+from modal_spring_ros.cli.launcher import SCRIPTS
 import numpy as np
 import pytest
 from ros_harness import console_script, node_of, node_with_client, wait_for
@@ -220,7 +221,7 @@ def _console_scripts() -> list[str]:
 def test_colcon_build_installs_the_ament_layout(colcon_install):
     prefix = colcon_install / PACKAGE
     scripts = _console_scripts()
-    assert 'modal_spring_node' in scripts and len(scripts) == 9
+    assert 'modal_spring_node' in scripts and len(scripts) == len(SCRIPTS)
     for name in scripts:  # where `ros2 run modal_spring_ros NAME` looks
         exe = prefix / 'lib' / PACKAGE / name
         assert exe.is_file() and os.access(exe, os.X_OK), exe

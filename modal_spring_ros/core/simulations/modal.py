@@ -37,7 +37,7 @@ from modal_spring_ros.core.forces import force_model
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations.base import check_step, Simulation, stable_step_limit
 from modal_spring_ros.core.simulations.coordinates import (ActiveSet, ADDED_ID,
-                                                           AddedCoordinateBank, BASES, EMPTY_SET)
+                                                           AddedCoordinateBank, EMPTY_SET)
 from modal_spring_ros.core.simulations.early_step_check import check_step_before_modes, mode_cap
 from modal_spring_ros.core.simulations.modal_settings import ModalSettings
 from modal_spring_ros.core.simulations.mode_gains import (coordinate_damping, coordinate_gains,
@@ -69,17 +69,10 @@ class ModalSimulation(Simulation):
         super().__init__(model, basis, dt=settings.dt, integrator=settings.integrator,
                          damping=settings.damping, strain_limit=settings.strain_limit)
         #: what the run was built with
-        self.settings = settings
-        basis_kind, derivative_directions = settings.basis_kind, settings.derivative_directions
-        if basis_kind not in BASES:
-            raise ValueError(f"basis '{basis_kind}' must be one of {', '.join(BASES)}")
-        if not (isinstance(derivative_directions, (int, np.integer))
-                and derivative_directions >= 1):
-            raise ValueError(f'derivative directions ({derivative_directions}) must be a whole '
-                             'number, at least 1')
-        self.basis_kind = basis_kind
+        self.settings = settings.validate()
+        self.basis_kind = settings.basis_kind
         self._bank = bank if bank is not None else AddedCoordinateBank(
-            basis, derivative_directions, progress)
+            basis, settings.derivative_directions, progress)
         force_model(settings.forces)  # a known model, options in range
         #: how the spring forces are evaluated
         self.forces = settings.forces
@@ -377,10 +370,9 @@ class ModalSimulation(Simulation):
         """
         Return the generalised force at ``q``, ``v``, ``t``, each coordinate's loads gained.
 
-        The loads are what drives the object from outside (gravity, the clamp's inertial loads,
-        the applied loads); the springs' own force, nonlinear part included, is the material's
-        answer and is never gained: a gain on it would change the stiffness about a deformed
-        shape (above 1, a stiffness that turns negative and grows without bound).
+        The loads drive the object from outside (gravity, the clamp's inertial loads, applied
+        loads); the springs' force, nonlinear part included, is never gained: that would change
+        the stiffness about a deformed shape (above 1, turn it negative: a run that diverges).
         """
         force = self._forces(q, t)
         driven = None

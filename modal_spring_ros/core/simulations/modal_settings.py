@@ -15,6 +15,8 @@ from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.forces import ForceOptions
 from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.simulations.base import DEFAULT_STRAIN_LIMIT
+from modal_spring_ros.core.simulations.coordinates import BASES
+import numpy as np
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,3 +48,13 @@ class ModalSettings:
     basis_kind: str = 'rest'
     derivative_directions: int = DEFAULT_DIRECTIONS
     step_share: float | None = None
+
+    def validate(self) -> 'ModalSettings':
+        """Check the basis settings (the rest is checked by what uses it); returns self."""
+        if self.basis_kind not in BASES:
+            raise ValueError(f"basis '{self.basis_kind}' must be one of {', '.join(BASES)}")
+        directions = self.derivative_directions
+        if not (isinstance(directions, (int, np.integer)) and directions >= 1):
+            raise ValueError(f'derivative directions ({directions}) must be a whole number, '
+                             'at least 1')
+        return self
