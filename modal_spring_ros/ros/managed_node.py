@@ -22,8 +22,11 @@ from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError
 from modal_spring_ros.ros.node import ModalSpringNode, STOP_ORDER
 from modal_spring_ros.ros.process.stop_signals import StopSignals
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.lifecycle import (LifecycleNode, LifecycleNodeMixin, LifecycleState,
+                             TransitionCallbackReturn)
+from rclpy.node import Node
 
 #: what configure may fail with: the reason is logged and the node stays unconfigured
 CONFIGURE_ERRORS = (SceneError, ValueError, WorkerError, BagError)
@@ -41,7 +44,24 @@ ENTITIES = (('publishers', 'destroy_publisher'), ('services', 'destroy_service')
             ('subscriptions', 'destroy_subscription'))
 
 
-class ManagedModalSpringNode(ModalSpringNode, LifecycleNode):
+class AnsweringLifecycleNode(LifecycleNode):
+    """
+    rclpy's lifecycle node with its lifecycle services in a reentrant callback group.
+
+    ``LifecycleNode`` puts them in the node's default (mutually exclusive) group, so while a
+    transition runs (a configure that computes modes for a minute) ``get_state`` and the other
+    queries wait behind it. Here they are answered on the executor's other thread meanwhile
+    (the state is then ``configuring``, as rclcpp's nodes answer), and a second transition asked
+    during one is refused by the state machine.
+    """
+
+    def __init__(self, node_name: str, **kwargs):
+        Node.__init__(self, node_name, **kwargs)
+        LifecycleNodeMixin.__init__(self, enable_communication_interface=True,
+                                    callback_group=ReentrantCallbackGroup())
+
+
+class ManagedModalSpringNode(ModalSpringNode, AnsweringLifecycleNode):
     """The streaming node, configured, activated and cleaned up through its lifecycle."""
 
     def __init__(self, stop: StopSignals | None = None, **kwargs):

@@ -8,6 +8,7 @@ that fails say so and change nothing.
 """
 from __future__ import annotations
 
+import threading
 import time
 
 from lifecycle_msgs.msg import State, Transition
@@ -119,3 +120,82 @@ def test_a_configure_that_fails_says_why_and_stays_unconfigured():
         code, _, err = node.interrupt()
     assert code == 0 and 'Traceback' not in err, stderr_excerpt(err)
     assert 'configure failed' in err and 'nonexistent' in err, stderr_excerpt(err)
+
+
+def test_state_queries_are_answered_while_a_long_configure_runs():
+    """
+    A configure that computes 80 modes of a 10,000-particle sheet (seconds).
+
+    Meanwhile ``get_state`` answers at once, ``configuring``, as rclcpp's nodes answer, and a
+    second transition asked during it is refused by the state machine; the configure ends as
+    it would have.
+    """
+    node = managed('scene:=sheet_100x100', 'filter.type:=lowpass', 'filter.by:=index',
+                   'filter.high_mode:=80')
+    client = Client('managed_slow_client')
+    try:
+        assert state(client) == State.PRIMARY_STATE_UNCONFIGURED
+        configured = {}
+        worker = threading.Thread(target=lambda: configured.setdefault(
+            'success', change(client, Transition.TRANSITION_CONFIGURE)))
+        worker.start()
+        answers = []
+        while worker.is_alive() and len(answers) < 5:
+            asked = time.monotonic()
+            current = client.call(GetState, f'{NODE}/get_state', GetState.Request(),
+                                  timeout=60.0).current_state.id
+            answers.append((current, time.monotonic() - asked))
+            time.sleep(0.1)
+        configuring = [waited for current, waited in answers
+                       if current == State.TRANSITION_STATE_CONFIGURING]
+        assert len(configuring) >= 3 and max(configuring) < 2.0, answers
+        refused = ChangeState.Request(transition=Transition(id=Transition.TRANSITION_ACTIVATE))
+        if worker.is_alive():
+            assert not client.call(ChangeState, f'{NODE}/change_state', refused,
+                                   timeout=30.0).success
+        worker.join(120)
+        assert configured == {'success': True}
+        assert state(client) == State.PRIMARY_STATE_INACTIVE
+    finally:
+        client.close()
+        code, _, err = node.interrupt()
+    assert code == 0 and 'Traceback' not in err, stderr_excerpt(err)
+
+
+SHUTDOWN_FROM = {
+    State.PRIMARY_STATE_UNCONFIGURED: ([], Transition.TRANSITION_UNCONFIGURED_SHUTDOWN),
+    State.PRIMARY_STATE_INACTIVE: ([Transition.TRANSITION_CONFIGURE],
+                                   Transition.TRANSITION_INACTIVE_SHUTDOWN),
+    State.PRIMARY_STATE_ACTIVE: ([Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE],
+                                 Transition.TRANSITION_ACTIVE_SHUTDOWN),
+}
+
+
+@pytest.mark.parametrize('start', sorted(SHUTDOWN_FROM))
+def test_shutdown_from_every_primary_state_finalises_and_releases_the_capture(tmp_path, start):
+    capture = tmp_path / 'capture'
+    node = managed('publish_rate_hz:=30.0', f'record.bag:={capture}')
+    client = Client('managed_shutdown_client')
+    points = client.collect(PointCloud2, '/managed/points')
+    before, shutdown = SHUTDOWN_FROM[start]
+    try:
+        for transition in before:
+            assert change(client, transition)
+        assert state(client) == start
+        if start == State.PRIMARY_STATE_ACTIVE:
+            assert wait_for(lambda: len(points) >= 5, 30)
+        assert change(client, shutdown)
+        assert state(client) == State.PRIMARY_STATE_FINALIZED
+        time.sleep(0.3)
+        sent = len(points)
+        time.sleep(1.0)
+        assert len(points) == sent                             # finalized: no frames
+        assert not change(client, Transition.TRANSITION_CONFIGURE)   # nothing after it
+    finally:
+        client.close()
+        code, _, err = node.interrupt()
+    assert code == 0 and 'Traceback' not in err, stderr_excerpt(err)
+    if start == State.PRIMARY_STATE_UNCONFIGURED:
+        assert not capture.exists()                             # never configured: no bag
+    else:
+        assert BagReader(capture).finalised                     # closed by the shutdown
