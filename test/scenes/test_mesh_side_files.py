@@ -16,6 +16,8 @@ import sys
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.meshes import mesh_files
 from modal_spring_ros.scenes.meshes.mesh_files import read_mesh
+from modal_spring_ros.scenes.resources import executable
+import numpy as np
 import pytest
 import trimesh
 
@@ -78,3 +80,45 @@ def test_a_fifo_named_by_a_mesh_hangs_nothing(tmp_path):
     done = _read_in_a_process(_gltf(tmp_path, 'fifo.bin'))
     assert done.stdout.startswith('refused:') and 'not a regular file' in done.stdout, (
         done.stdout + done.stderr)
+
+
+def _volume_files(folder: Path) -> dict[str, Path]:
+    """Write damaged volume meshes: truncated VTK and VTU, an entity-laden VTU, a bad Gmsh."""
+    meshio = pytest.importorskip('meshio')
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    mesh = meshio.Mesh(points, [('tetra', np.array([[0, 1, 2, 3]]))])
+    mesh.write(folder / 'whole.vtk', binary=True)
+    mesh.write(folder / 'whole.vtu', compression='zlib')
+    files = {}
+    for name in ('whole.vtk', 'whole.vtu'):
+        data = (folder / name).read_bytes()
+        files[f'truncated {name[-3:]}'] = folder / f'truncated{name[5:]}'
+        files[f'truncated {name[-3:]}'].write_bytes(data[:len(data) // 2])
+    laughs = ''.join(f'<!ENTITY l{k} "{"&l%d;" % (k - 1) * 10 if k else "ha"}">'
+                     for k in range(10))
+    files['entity-laden vtu'] = folder / 'laughs.vtu'
+    files['entity-laden vtu'].write_text(
+        f'<?xml version="1.0"?><!DOCTYPE VTKFile [{laughs}]>'
+        '<VTKFile type="UnstructuredGrid"><UnstructuredGrid><Piece NumberOfPoints="1" '
+        'NumberOfCells="0"><Points><DataArray>&l9;</DataArray></Points></Piece>'
+        '</UnstructuredGrid></VTKFile>')
+    files['bad gmsh'] = folder / 'bad.msh'
+    files['bad gmsh'].write_text('$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2 3\n')
+    return files
+
+
+@pytest.mark.parametrize('kind', ['truncated vtk', 'truncated vtu', 'entity-laden vtu',
+                                  'bad gmsh'])
+def test_a_damaged_volume_mesh_is_one_line_and_exit_2(tmp_path, kind):
+    """Read with each format's reader: meshio's ``read`` prints and ends the process itself."""
+    path = _volume_files(tmp_path)[kind]
+    scene = tmp_path / 'scene.yaml'
+    scene.write_text(f'dimension: 3\nmesh: {{file: {path.name}, kind: volume}}\n'
+                     'material: {density: 1000.0, stiffness: 100000.0}\n'
+                     'fixed: {indices: [0]}\n')
+    done = subprocess.run([str(executable('modal_spring_sim')), '--scene', str(scene),
+                           '--duration', '0.01', '--quiet'], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert done.stderr.count('\n') == 1 and path.name in done.stderr, done.stderr
+    assert 'Traceback' not in done.stderr and done.stdout == ''

@@ -153,7 +153,13 @@ def _read_surface(path: Path) -> tuple[np.ndarray, np.ndarray]:
 def _read_volume(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     # as trimesh: meshio (and the rich it brings) is loaded by the scenes that read a volume
     import meshio  # noqa: I100
-    mesh = meshio.read(str(path))
+    # the format's own reader: meshio.read prints a reader's error and ends the process itself
+    readers = {'.msh': meshio.gmsh.read, '.vtk': meshio.vtk.read, '.vtu': meshio.vtu.read}
+    try:
+        mesh = readers[path.suffix.lower()](str(path))
+    except SystemExit as exc:      # a reader that still exits: the file's error, not the end
+        raise SceneError(f'{path}: cannot read mesh file (its reader gave up: exit '
+                         f'{exc.code})') from None
     vertices = np.asarray(mesh.points, dtype=float)
     if vertices.ndim != 2 or vertices.shape[1] not in (2, 3):
         raise SceneError(f'{path}: mesh points must have 3 coordinates')
