@@ -17,6 +17,7 @@ from modal_spring_ros.core.model.scene import Damping, Scene, SceneError
 from modal_spring_ros.core.motion.anchor_motion import (AnchorMotion, RotationComponent,
                                                         SineComponent)
 from modal_spring_ros.scenes.fields.bending_fields import listed_bending
+from modal_spring_ros.scenes.fields.contact_fields import contact_field
 from modal_spring_ros.scenes.fields.fixed_regions import fixed_particles
 from modal_spring_ros.scenes.fields.limits import (available_memory, BYTES_PER_PARTICLE, LIMITS,
                                                    MAX_STEPS)
@@ -57,7 +58,7 @@ class _SceneParser(FieldReader):
         data = self.mapping(data, 'scene')
         known = {'name', 'description', 'dimension', 'axis', 'plane', 'particles', 'springs',
                  'fixed', 'gravity', 'damping', 'anchor_motion', 'simulation', 'reference',
-                 'mesh', 'material', 'triangles', 'bending'}
+                 'mesh', 'material', 'triangles', 'bending', 'contact'}
         unknown = sorted(set(data) - known, key=str)
         if unknown:
             raise self.fail(unknown[0], f"unknown key (known keys: {', '.join(sorted(known))})")
@@ -139,6 +140,7 @@ class _SceneParser(FieldReader):
             description=str(data.get('description', '')),
             triangles=None if triangles is None else frozen(triangles),
             bending=bending,
+            contact=contact_field(self, data.get('contact'), positions),
         )
         if reference == 'loaded' or (reference == 'auto' and needs_loaded_shape(scene)):
             try:

@@ -27,15 +27,8 @@ def applied_loads(model, loads: Mapping[str, Load],
     active = [load for load in loads.values() if load.active(t)]
     if not active:
         return None
-    frame = None if in_world or model.scene.anchor_motion.is_static else model.frame(t)
+    world_positions, frame = _world_positions(model, displacement, t, in_world)
     d = model.dimension
-    free = model.free_particles
-
-    def world_positions(slots: np.ndarray) -> np.ndarray:
-        dofs = (slots[:, None] * d + np.arange(d)).ravel()
-        x = model.rest[free[slots]] + displacement(dofs).reshape(-1, d)
-        return x if frame is None else frame.carry(x)
-
     dofs, forces = [], []
     for load in active:
         found = load.world_forces(model, world_positions, t)
@@ -46,3 +39,26 @@ def applied_loads(model, loads: Mapping[str, Load],
     if not dofs:
         return None
     return np.concatenate(dofs), np.concatenate(forces)
+
+
+def stepped_loads(model, loads: Mapping[str, Load],
+                  displacement: Callable[[np.ndarray], np.ndarray], t: float,
+                  in_world: bool = False) -> dict[str, Load]:
+    """Return ``loads`` after a step that ended at ``t`` (those that keep a state stepped)."""
+    world_positions, _ = _world_positions(model, displacement, t, in_world)
+    return {name: load.stepped(model, world_positions, t) if load.keeps_state else load
+            for name, load in loads.items()}
+
+
+def _world_positions(model, displacement: Callable[[np.ndarray], np.ndarray], t: float,
+                     in_world: bool):
+    """Return ``world_positions(slots)`` of the free particles at ``t``, and the clamp's frame."""
+    frame = None if in_world or model.scene.anchor_motion.is_static else model.frame(t)
+    d = model.dimension
+    free = model.free_particles
+
+    def world_positions(slots: np.ndarray) -> np.ndarray:
+        dofs = (slots[:, None] * d + np.arange(d)).ravel()
+        x = model.rest[free[slots]] + displacement(dofs).reshape(-1, d)
+        return x if frame is None else frame.carry(x)
+    return world_positions, frame

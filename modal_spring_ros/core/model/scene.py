@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 
 from modal_spring_ros.core.model.bending import Bending
+from modal_spring_ros.core.model.colliders import Contact
 from modal_spring_ros.core.motion.anchor_motion import AnchorMotion
 import numpy as np
 
@@ -70,6 +71,8 @@ class Scene:
         clamp, :mod:`~modal_spring_ros.core.model.loaded_shape`); None when they are the same.
     :ivar triangles: (T, 3) particle triangles of the object's surface (a mesh's own), or None
         (a lattice sheet's are found from its springs, :meth:`surface_triangles`).
+    :ivar contact: the colliders the object touches and the friction
+        (:mod:`~modal_spring_ros.core.model.colliders`), or None.
     :ivar bending: the quadratic bending of a surface flat as built
         (:mod:`~modal_spring_ros.core.model.bending`), or None.
     """
@@ -92,6 +95,7 @@ class Scene:
     unloaded_positions: np.ndarray | None = None
     triangles: np.ndarray | None = None
     bending: Bending | None = None
+    contact: Contact | None = None
 
     @property
     def n_particles(self) -> int:

@@ -24,7 +24,8 @@ from modal_spring_ros.core.forces.exact import EXACT_REPORT
 from modal_spring_ros.core.integrators import conditionally_stable, Integrator
 from modal_spring_ros.core.integrators import integrator as make_integrator
 from modal_spring_ros.core.integrators import NonConvergence, Operators
-from modal_spring_ros.core.loads.applied import applied_loads
+from modal_spring_ros.core.loads.applied import applied_loads, stepped_loads
+from modal_spring_ros.core.loads.contact import contact_load, ContactLoad
 from modal_spring_ros.core.loads.holder import LoadHolder
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
@@ -90,6 +91,7 @@ class SimulationStatus:
     fading: bool               # a band change is still fading modes in or out
     forces: ForceReport = EXACT_REPORT  # how the spring forces were evaluated
     measured: str = 'off'              # what the automatic choice's pilot measured, and how
+    contacts: str = 'no colliders'     # particles touching the scene's colliders, deepest
 
 
 class Simulation(LoadHolder, abc.ABC):
@@ -236,7 +238,9 @@ class Simulation(LoadHolder, abc.ABC):
             stability_limit=self.stability_limit(),
             time=self.time, steps=self.steps, max_strain=self.max_strain(),
             fading=self.fading, forces=self.force_report(),
-            measured=self.pilot.describe() if self.pilot is not None else 'off')
+            measured=self.pilot.describe() if self.pilot is not None else 'off',
+            contacts=self.loads[ContactLoad.name].describe() if ContactLoad.name in self.loads
+            else 'no colliders')
 
     # -- state in physical terms ---------------------------------------------------------------
     @abc.abstractmethod
@@ -280,7 +284,7 @@ class Simulation(LoadHolder, abc.ABC):
         self.time = self._t0 = 0.0
         self.steps = 0
         self.diverged = None
-        self.loads = {}
+        self.loads = self._scene_loads()
         n = self.model.n_free_dof
         self.set_state(np.zeros(n), np.zeros(n))
 
@@ -320,8 +324,15 @@ class Simulation(LoadHolder, abc.ABC):
     def take_over(self, other: 'Simulation') -> None:
         """Continue from another simulation's physical state and time (a settings change)."""
         self._t0, self.steps, self.time = other.time, 0, other.time
-        self.loads = dict(other.loads)
+        self.loads = {**other.loads, **self._scene_loads(other.loads.get(ContactLoad.name))}
         self.set_state(other.displacement(), other.velocity())
+
+    def _scene_loads(self, contact: ContactLoad | None = None) -> dict:
+        """Return the loads the scene itself brings (its contact, tuned to this run's step)."""
+        if self.model.scene.contact is None:
+            return {}
+        return {ContactLoad.name: contact_load(self.model, self.model.scene.contact, self.dt,
+                                               self.stability_limit(), contact)}
 
     def _applied(self, displacement: Callable[[np.ndarray], np.ndarray], t: float,
                  in_world: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
@@ -381,3 +392,6 @@ class Simulation(LoadHolder, abc.ABC):
         self.steps += 1
         self.time = self._t0 + self.steps * self.dt
         self.diverged = None
+        if any(load.keeps_state for load in self.loads.values()):
+            u = self.displacement()
+            self.loads = stepped_loads(self.model, self.loads, lambda dofs: u[dofs], self.time)

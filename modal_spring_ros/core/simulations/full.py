@@ -220,7 +220,7 @@ class FullSimulation(Simulation):
             f = self._world.force(u, self.time) - self._world.damp(v)
         else:
             f = self._forces(u, self.time) - self._ops.damp(v)
-        self._u, self._v, self._a = u, v, f / self.model.mass_dof
+        self._u, self._v, self._a = u, v, self._loaded(f, u, self.time) / self.model.mass_dof
 
     def displacement(self) -> np.ndarray:
         if self._world is not None:
@@ -239,6 +239,10 @@ class FullSimulation(Simulation):
     def _force(self, u: np.ndarray) -> np.ndarray:
         t = self.time + self.dt
         force = (self._world.force(u, t) if self._world is not None else self._forces(u, t))
+        return self._loaded(force, u, t)
+
+    def _loaded(self, force: np.ndarray, u: np.ndarray, t: float) -> np.ndarray:
+        """Add the loads' forces at ``u``, ``t`` to ``force`` (in place; returned)."""
         if self.loads:
             # world coordinates (a turning clamp stepped in the world): the loads' own forces
             loaded = self._applied(lambda dofs: u[dofs], t, in_world=self._world is not None)

@@ -145,6 +145,7 @@ def status_values(status: SimulationStatus, stream: StreamReport) -> dict[str, s
         'simulation time (s)': f'{status.time:.3f}',
         'frames published': str(stream.frames),
         'largest spring strain': f'{status.max_strain:.5f}',
+        'contacts': status.contacts,
         'divergence': stream.last_divergence or 'none',
         'divergences': str(stream.divergences),
         'paused': str(stream.paused).lower(),

@@ -73,6 +73,7 @@ def scene_header(scene: Scene) -> dict[str, Any]:
         },
         'anchor_motion': scene.anchor_motion.to_list(),
         'simulation': {'dt': scene.default_dt, 'duration': scene.default_duration},
+        **({'contact': scene.contact.to_dict()} if scene.contact is not None else {}),
     }
 
 

@@ -1,0 +1,173 @@
+"""
+Contact with the scene's colliders: a penalty normal force and Coulomb friction, per particle.
+
+A free particle inside a collider (:mod:`~modal_spring_ros.core.model.colliders`) by a depth
+``delta`` is pushed out along the collider's normal by ``k delta + c (delta - delta_last) / dt``
+(never pulling). Friction holds it where it first touched: a tangential spring of the same
+``k`` and damping to a stick point, up to ``static_friction`` times the normal force; beyond,
+the particle slides with ``sliding_friction`` times the normal force against its slip, and the
+stick point follows it. Every particle is its own contact point, every collider on its own (a
+particle in two colliders is pushed by both).
+
+The contact's stiffness is the run's: each particle's ``k = m (c / dt)^2``, with ``c`` what the
+explicit step leaves beside the fastest coordinate the run steps (``sqrt(1.2^2 - (omega dt)^2)``,
+at most 1 and at least 0.2): stiff at the run's step without making it unstable. A particle
+pressed with a force ``F`` sinks ``F / k = F dt^2 / (m c^2)``: with ``c = 1`` and gravity alone,
+``g dt^2`` (2.5 micrometres at 0.5 ms), the stated bound. The damping is half of critical, on
+the depth's change since the last step (no velocity needed; a run in any coordinates can step it).
+
+What a step changes (the stick points, the depths) the load keeps: after each step the run
+replaces it by :meth:`ContactLoad.stepped`, as the contract allows
+(:attr:`~modal_spring_ros.core.loads.base.Load.keeps_state`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import ClassVar
+
+from modal_spring_ros.core.loads.base import Load, WorldPositions
+from modal_spring_ros.core.model.colliders import Contact
+import numpy as np
+
+#: what the explicit step may take in all (``omega dt`` of the fastest coordinate and contact)
+STEP_SHARE = 1.2
+#: the contact's own ``omega dt``: at most, and at least
+CONTACT_RATE = (0.2, 1.0)
+#: the normal damping, a share of critical
+DAMPING_RATIO = 0.5
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ContactLoad(Load):
+    """A scene's contact on the free particles: forces from their world positions."""
+
+    name: ClassVar[str] = 'contact'
+    keeps_state: ClassVar[bool] = True
+    contact: Contact
+    stiffness: np.ndarray        # (free,) N/m
+    damping: np.ndarray          # (free,) N s/m
+    dt: float
+    anchors: np.ndarray          # (colliders, free, 3) stick points, NaN where not touching
+    depths: np.ndarray           # (colliders, free) depth at the last step (0: outside)
+    slips: np.ndarray            # (colliders, free, 3) tangential offset from the stick point
+    until: float = math.inf
+
+    # -- what the contract asks ----------------------------------------------------------------
+    def world_forces(self, model, world_positions: WorldPositions, t: float):
+        points, slots = self._points(model, world_positions)
+        forces = np.zeros_like(points)
+        touching = np.zeros(len(points), dtype=bool)
+        for c, collider in enumerate(self.contact.colliders):
+            distance, normal = collider.distance(points)
+            inside = np.flatnonzero(distance < 0.0)
+            if not inside.size:
+                continue
+            f, _, _ = self._at(c, inside, points[inside], -distance[inside], normal[inside])
+            forces[inside] += f
+            touching[inside] = True
+        if not touching.any():
+            return None
+        which = np.flatnonzero(touching)
+        d = model.dimension
+        dofs = (slots[which, None] * d + np.arange(d)).ravel()
+        return dofs, forces[which][:, list(model.axes)].ravel()
+
+    def stepped(self, model, world_positions: WorldPositions, t: float) -> 'ContactLoad':
+        """Return the load after a step: new stick points (slid ones moved) and depths."""
+        points, _ = self._points(model, world_positions)
+        anchors = np.full_like(self.anchors, np.nan)
+        depths = np.zeros_like(self.depths)
+        slips = np.zeros_like(self.slips)
+        for c, collider in enumerate(self.contact.colliders):
+            distance, normal = collider.distance(points)
+            inside = np.flatnonzero(distance < 0.0)
+            if not inside.size:
+                continue
+            _, anchors[c, inside], slips[c, inside] = self._at(
+                c, inside, points[inside], -distance[inside], normal[inside])
+            depths[c, inside] = -distance[inside]
+        return dataclasses.replace(self, anchors=anchors, depths=depths, slips=slips)
+
+    # -- the arithmetic ------------------------------------------------------------------------
+    def _points(self, model, world_positions: WorldPositions) -> tuple[np.ndarray, np.ndarray]:
+        """Return every free particle's world position in 3D, and their slots."""
+        slots = np.arange(model.free_particles.size)
+        points = model.scene.rest_positions[model.free_particles].astype(float)
+        points[:, list(model.axes)] = world_positions(slots)
+        return points, slots
+
+    def _at(self, c: int, idx: np.ndarray, x: np.ndarray, depth: np.ndarray,
+            normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """
+        Return forces on particles ``idx`` inside collider ``c``, stick points, offsets.
+
+        The offsets: each particle's tangential offset from its stick point. Normal and held
+        tangential motion are damped alike, on their change since the last step.
+        """
+        k, damp = self.stiffness[idx], self.damping[idx]
+        pressed = k * depth + damp * (depth - self.depths[c, idx]) / self.dt
+        pressed = np.maximum(pressed, 0.0)
+        anchor = self.anchors[c, idx]
+        new = np.isnan(anchor[:, 0])
+        anchor = np.where(new[:, None], x, anchor)       # first touch: held where it touched
+        slip = x - anchor
+        slip -= np.sum(slip * normal, axis=1, keepdims=True) * normal
+        length = np.linalg.norm(slip, axis=1)
+        rate = (slip - np.where(new[:, None], slip, self.slips[c, idx])) / self.dt
+        held = k * length <= self.contact.static_friction * pressed   # stick spring within
+        trial = -k[:, None] * slip - damp[:, None] * rate                # static friction
+        sliding = self.contact.sliding_friction * pressed
+        unit = np.divide(slip, length[:, None], out=np.zeros_like(slip),
+                         where=length[:, None] > 0.0)
+        friction = np.where(held[:, None], trial, -sliding[:, None] * unit)
+        # a sliding particle's stick point follows it, as far behind as sliding friction pulls
+        behind = np.divide(sliding, k)[:, None] * unit
+        anchor = np.where(held[:, None], anchor, x - behind)
+        slip = np.where(held[:, None], slip, behind)
+        return pressed[:, None] * normal + friction, anchor, slip
+
+    # -- what a run reports ----------------------------------------------------------------------
+    @property
+    def touching(self) -> int:
+        """Return how many particles touched a collider at the last step."""
+        return int(np.count_nonzero((self.depths > 0.0).any(axis=0)))
+
+    @property
+    def deepest(self) -> float:
+        """Return the deepest penetration at the last step, m."""
+        return float(self.depths.max(initial=0.0))
+
+    def describe(self) -> str:
+        """Return what touches, as text (``3 particles touching, deepest 2.5e-06 m``)."""
+        return f'{self.touching} particles touching, deepest {self.deepest:.3g} m'
+
+
+def contact_load(model, contact: Contact, dt: float, stability_limit: float,
+                 state: ContactLoad | None = None) -> ContactLoad:
+    """
+    Return the contact of ``model`` for a run stepping at ``dt``.
+
+    ``stability_limit``: the explicit step's limit of what the run steps (``2 / omega``; inf
+    when nothing limits it). ``state``: a contact whose stick points and depths go on (a run
+    that takes over from another).
+    """
+    omega_dt = 2.0 * dt / stability_limit if math.isfinite(stability_limit) else 0.0
+    low, high = CONTACT_RATE
+    rate = min(high, max(low, math.sqrt(max(STEP_SHARE ** 2 - omega_dt ** 2, 0.0))))
+    d = model.dimension
+    mass = model.mass_dof.reshape(-1, d)[:, 0]
+    stiffness = mass * (rate / dt) ** 2
+    damping = 2.0 * DAMPING_RATIO * np.sqrt(stiffness * mass)
+    shape = (len(contact.colliders), mass.size)
+    if state is not None and state.depths.shape == shape:
+        anchors, depths, slips = state.anchors, state.depths, state.slips
+    else:       # at rest: what rests on a collider is held where it rests, and as deep
+        anchors, depths = np.full(shape + (3,), np.nan), np.zeros(shape)
+        slips = np.zeros(shape + (3,))
+        rest = model.scene.rest_positions[model.free_particles]
+        for c, collider in enumerate(contact.colliders):
+            distance = collider.distance(rest)[0]
+            inside = distance < 0.0
+            anchors[c, inside], depths[c, inside] = rest[inside], -distance[inside]
+    return ContactLoad(contact, stiffness, damping, float(dt), anchors, depths, slips)

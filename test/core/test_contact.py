@@ -1,0 +1,214 @@
+"""
+Contact with the scene's colliders: analytic answers, every shape's geometry, every run.
+
+A particle resting on a plane sinks by its weight over the contact stiffness (``g dt^2``) and
+stays there; on an incline it sticks below the friction angle and slides above it with
+``g (sin a - mu cos a)``; static friction holds what sliding friction would let go; a fast
+particle never ends on the far side of a thin box; a sheet pressed onto a table steps the same
+in the full run and in a modal run of every mode.
+"""
+from __future__ import annotations
+
+import math
+
+from helpers import variant
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.loads.contact import ContactLoad
+from modal_spring_ros.core.model.colliders import Box, Capsule, Cylinder, Plane, Sphere
+from modal_spring_ros.core.model.scene import SceneError
+from modal_spring_ros.scenes.files.writing import scene_to_dict
+from modal_spring_ros.scenes.schema import scene_from_dict
+import numpy as np
+import pytest
+
+G = 9.81
+DT = 1e-3
+
+
+def particle(contact: dict, start=(0.0, 0.0, 0.0)) -> dict:
+    """Return a 1 kg particle on two springs too soft to matter (1e-3 N/m), in the x-z plane."""
+    return {'name': 'particle', 'dimension': 2, 'plane': 'xz',
+            'particles': {'positions': [[-10.0, 0.0, 10.0], [10.0, 0.0, 10.0], list(start)],
+                          'mass': 1.0},
+            'springs': {'pairs': [[0, 2], [1, 2]], 'stiffness': 1e-3},
+            'fixed': {'indices': [0, 1]}, 'gravity': [0.0, 0.0, -G],
+            'contact': contact, 'simulation': {'dt': DT}}
+
+
+def incline(degrees: float, friction) -> dict:
+    a = math.radians(degrees)
+    return {'friction': friction, 'colliders': [
+        {'shape': 'plane', 'point': [0, 0, 0], 'normal': [-math.sin(a), 0.0, math.cos(a)]}]}
+
+
+def full_run(scene: dict):
+    return build_simulation(scene_from_dict(scene), SimulationConfig(method='full'))
+
+
+def test_a_particle_rests_on_a_plane_sunk_by_its_weight_over_the_contact_stiffness():
+    sim = full_run(particle(incline(0.0, 0.5)))
+    sim.step(500)
+    z = sim.positions()[2, 2]
+    assert -z == pytest.approx(G * DT ** 2, rel=1e-6)          # the stated bound, c = 1
+    sim.step(2000)
+    assert abs(sim.positions()[2, 2] - z) < 1e-12              # no drift
+    assert sim.loads[ContactLoad.name].touching == 1
+
+
+@pytest.mark.parametrize('degrees', [15.0, 25.0])
+def test_below_the_friction_angle_a_particle_sticks(degrees):
+    assert math.tan(math.radians(degrees)) < 0.5
+    sim = full_run(particle(incline(degrees, 0.5)))
+    sim.step(200)
+    held = sim.positions()[2].copy()
+    sim.step(2000)
+    assert np.abs(sim.positions()[2] - held).max() < 1e-9
+
+
+@pytest.mark.parametrize('degrees', [30.0, 45.0])
+def test_above_the_friction_angle_it_slides_with_g_sin_minus_mu_cos(degrees):
+    sim = full_run(particle(incline(degrees, 0.5)))
+    sim.step(200)                                   # on its way: the touch-down is behind
+    start, speed, t0 = sim.positions()[2].copy(), np.linalg.norm(sim.velocity()), sim.time
+    sim.step(800)
+    a = math.radians(degrees)
+    accel, t = G * (math.sin(a) - 0.5 * math.cos(a)), sim.time - t0
+    expected = speed * t + 0.5 * accel * t ** 2
+    assert np.linalg.norm(sim.positions()[2] - start) == pytest.approx(expected, rel=0.002)
+
+
+def resting(degrees: float) -> list[float]:
+    """Return where a particle rests on the incline: sunk by its weight's normal share."""
+    a = math.radians(degrees)
+    depth = G * math.cos(a) * DT ** 2
+    return [depth * math.sin(a), 0.0, -depth * math.cos(a)]
+
+
+def test_static_friction_holds_what_sliding_friction_would_not():
+    """
+    Hold at 35 degrees (tan 0.70) with static friction 1.0, not with 0.5 (sliding: 0.4).
+
+    Placed resting (a particle landing with speed along the slope slips before penalty contact
+    has built its normal force, and on a slope steeper than sliding friction allows goes on).
+    """
+    held = full_run(particle(incline(35.0, {'static': 1.0, 'sliding': 0.4}), resting(35.0)))
+    held.step(200)
+    at = held.positions()[2].copy()
+    held.step(1000)
+    assert np.abs(held.positions()[2] - at).max() < 1e-9
+    slides = full_run(particle(incline(35.0, 0.5), resting(35.0)))
+    slides.step(1000)
+    assert np.linalg.norm(slides.positions()[2]) > 0.5
+
+
+def test_a_fast_particle_never_ends_beyond_a_thin_box():
+    """5 m/s at 1 ms is 5 mm a step; the box is 20 mm thick: it bounces back, never through."""
+    box = {'shape': 'box', 'center': [0.1, 0.0, 0.0], 'half_extents': [0.01, 1.0, 1.0]}
+    scene = particle({'friction': 0.0, 'colliders': [box]})
+    scene['gravity'] = [0.0, 0.0, 0.0]
+    sim = full_run(scene)
+    n = sim.model.n_free_dof
+    v = np.zeros(n)
+    v[0] = 5.0                                     # toward the box along x
+    sim.set_state(np.zeros(n), v)
+    xs = []
+    for _ in range(100):
+        sim.step(1)
+        xs.append(sim.positions()[2, 0])
+    assert max(xs) < 0.1 and xs[-1] < 0.09         # never past the box's middle; back out
+    assert sim.velocity()[0] < 0.0
+
+
+def test_every_shape_gives_its_signed_distance_and_outward_normal():
+    p = np.array([[0.0, 0.0, 2.0], [0.0, 0.0, 0.5], [3.0, 0.0, 0.0]])
+    d, n = Sphere(np.zeros(3), 1.0).distance(p)
+    np.testing.assert_allclose(d, [1.0, -0.5, 2.0])
+    np.testing.assert_allclose(n, [[0, 0, 1], [0, 0, 1], [1, 0, 0]])
+    d, n = Plane(np.zeros(3), np.array([0.0, 0.0, 2.0])).distance(p)
+    np.testing.assert_allclose(d, [2.0, 0.5, 0.0])
+    d, n = Box(np.zeros(3), np.array([1.0, 1.0, 1.0])).distance(
+        np.array([[0.0, 0.0, 0.8], [2.0, 2.0, 0.0], [0.0, 0.0, 3.0]]))
+    np.testing.assert_allclose(d, [-0.2, math.sqrt(2.0), 2.0])
+    np.testing.assert_allclose(n, [[0, 0, 1], [0.5 ** 0.5, 0.5 ** 0.5, 0], [0, 0, 1]])
+    d, n = Capsule(np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, 1.0]), 0.5).distance(
+        np.array([[2.0, 0.0, 0.0], [0.0, 0.0, 3.0], [0.25, 0.0, 0.5]]))
+    np.testing.assert_allclose(d, [1.5, 1.5, -0.25])
+    np.testing.assert_allclose(n, [[1, 0, 0], [0, 0, 1], [1, 0, 0]])
+    d, n = Cylinder(np.zeros(3), np.array([0.0, 0.0, 1.0]), 1.0, 2.0).distance(
+        np.array([[0.0, 0.0, 1.9], [0.5, 0.0, 0.0], [4.0, 0.0, 6.0]]))
+    np.testing.assert_allclose(d, [-0.1, -0.5, 5.0])
+    np.testing.assert_allclose(n, [[0, 0, 1], [1, 0, 0], [0.6, 0, 0.8]])
+
+
+def table_sheet(method_config: SimulationConfig):
+    """sheet_10x10 lowered onto a table 1.5 cm under its bottom row, pressed on by its clamp."""
+    sheet = variant('sheet_10x10', anchor_motion=[
+        {'axis': 'z', 'amplitude': 0.025, 'frequency_hz': 1.0, 'ramp_s': 0.2}], contact={
+            'friction': 0.3,
+            'colliders': [{'shape': 'plane', 'point': [0, 0, -0.915], 'normal': [0, 0, 1]}]})
+    return build_simulation(sheet, method_config)
+
+
+def test_a_sheet_pressed_onto_a_table_is_the_same_in_the_full_and_an_all_mode_modal_run():
+    full = table_sheet(SimulationConfig(method='full'))
+    modal = table_sheet(SimulationConfig())
+    assert modal.kept_modes.size == modal.basis.count
+    touched = 0
+    for _ in range(16):                                   # the table touched from 0.6 s
+        full.step(100)
+        modal.step(100)
+        contact = full.loads[ContactLoad.name]
+        touched = max(touched, contact.touching)
+        size = np.abs(full.positions() - full.model.scene.rest_positions).max()
+        assert np.abs(full.positions() - modal.positions()).max() < 1e-6 * size
+    assert touched >= 5                                   # the bottom row on the table
+    weight = G * full.model.scene.mass.sum()              # the deepest cannot sink beyond
+    assert full.loads[ContactLoad.name].deepest < weight * full.dt ** 2 / 0.01
+
+
+def test_contact_outlives_a_reset_and_a_change_of_step():
+    sim = table_sheet(SimulationConfig(method='full'))
+    sim.step(1300)
+    assert sim.loads[ContactLoad.name].touching > 0
+    again = sim.with_dt(sim.dt / 2)
+    again.take_over(sim)
+    contact = again.loads[ContactLoad.name]
+    assert contact.dt == sim.dt / 2 and contact.touching > 0      # tuned, its state kept
+    assert contact.stiffness[0] == pytest.approx(4 * sim.loads[ContactLoad.name].stiffness[0])
+    sim.reset()
+    assert ContactLoad.name in sim.loads and sim.loads[ContactLoad.name].touching == 0
+    sim.step(1300)
+    assert sim.loads[ContactLoad.name].touching > 0
+
+
+def test_the_contact_field_is_written_and_read_back_the_same():
+    scene = scene_from_dict(particle({'friction': {'static': 0.6, 'sliding': 0.4}, 'colliders': [
+        {'shape': 'cylinder', 'center': [0, 0, -1], 'axis': [0, 0, 1], 'radius': 0.2,
+         'half_length': 0.5},
+        {'shape': 'capsule', 'a': [2, -1, 0], 'b': [2, 1, 0], 'radius': 0.1}]}))
+    again = scene_from_dict(scene_to_dict(scene))
+    assert again.contact.to_dict() == scene.contact.to_dict()
+    assert again.contact.static_friction == 0.6 and again.contact.sliding_friction == 0.4
+
+
+@pytest.mark.parametrize('contact, problem', [
+    ({'colliders': [{'shape': 'torus'}]}, r'colliders\[0\]\.shape: must be one of plane'),
+    ({'colliders': [{'shape': 'plane', 'point': [0, 0, -1], 'normal': [0, 0, 0]}]},
+     r'colliders\[0\]\.normal: must not be zero'),
+    ({'colliders': [{'shape': 'sphere', 'center': [0, 0, -1], 'radius': -1}]},
+     r'colliders\[0\]\.radius: must be positive'),
+    ({'friction': {'static': 0.2, 'sliding': 0.5}, 'colliders': []},
+     r'friction\.sliding: \(0\.5\) must not be above the static friction'),
+    ({'colliders': [{'shape': 'sphere', 'center': [0, 0, 0], 'radius': 0.1,
+                     'frame': 'tool0'}]}, r'frame: colliders attached to a TF frame'),
+    ({'colliders': [{'shape': 'sphere', 'center': [0, 0, 0.05], 'radius': 0.1}]},
+     r'colliders\[0\]: 1 particles \(particle 2 first\) are inside this sphere'),
+    ({'colliders': [{'shape': 'plane', 'point': [0, 0, 0.01], 'normal': [0, 0, 1]}]},
+     r'deeper than 1 mm'),
+    ({'colliders': [{'shape': 'box', 'center': [0, 0, -1], 'half_extents': [1, 1],
+                     'extra': 1}]}, r'colliders\[0\]\.extra: unknown key'),
+])
+def test_a_bad_contact_field_is_refused_by_its_name(contact, problem):
+    with pytest.raises(SceneError, match=problem):
+        scene_from_dict(particle(contact))
