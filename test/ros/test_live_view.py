@@ -101,3 +101,22 @@ def test_the_view_serves_the_stream_to_a_foxglove_client():
 def test_bad_view_options_are_refused_by_name(argv, message, capsys):
     assert main(argv) == 2
     assert message in capsys.readouterr().err
+
+
+def test_a_client_flooding_the_view_with_unknown_channels_costs_a_few_log_lines():
+    port = free_port()
+    view = NodeProcess(argv=[console_script('modal_spring_view'), '--start-node', '--port',
+                             str(port)])
+    try:
+        ws = connect(port)
+        advertised(ws, {'/points'})
+        for k in range(3000):
+            ws.send(json.dumps({'op': 'subscribe',
+                                'subscriptions': [{'id': 5000 + k, 'channelId': 900000 + k}]}))
+        time.sleep(2.0)
+        ws.close()
+    finally:
+        code, _, err = view.interrupt(timeout=30.0)
+    assert code == 0, stderr_excerpt(err)
+    refused = [line for line in err.splitlines() if 'unknown channel' in line]
+    assert len(refused) == 5 and 'counted, not shown' in refused[-1], refused

@@ -10,15 +10,21 @@ bag. The points are handed on at most ``max_rate_hz`` a second (a 100k-particle 
 would be 100 MB/s over a WebSocket); the server drops what a slow client cannot take.
 
 The view subscribes best effort (a slow view never holds the node back) except ``/tf_static``,
-which is latched (transient local).
+which is latched (transient local). The SDK's own log (a client's request refused, a client
+gone) goes to stderr through Python's logging, a flood of one message folded
+(:mod:`~modal_spring_ros.ros.process.log_limit`): a client asking for 100,000 unknown channels
+costs a few lines, not 100,000.
 """
 from __future__ import annotations
 
 import dataclasses
+import logging
+import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from modal_spring_ros.bags.message_definitions import full_definition
+from modal_spring_ros.ros.process.log_limit import RepeatLimit
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2
@@ -68,6 +74,21 @@ def ros_type_name(msg_type: type) -> str:
     return f'{package}/msg/{msg_type.__name__}'
 
 
+def route_sdk_log() -> None:
+    """Send the SDK's log to stderr through Python's logging, floods folded (once a process)."""
+    sdk = logging.getLogger('foxglove')
+    if sdk.handlers:
+        return
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter('[%(levelname)s] [%(created).9f] [%(name)s]: '
+                                           '%(message)s'))
+    handler.addFilter(RepeatLimit())
+    sdk.addHandler(handler)
+    sdk.setLevel(logging.INFO)
+    sdk.propagate = False
+    foxglove.set_log_level('INFO')
+
+
 class LiveView:
     """
     Hands ``node``'s subscriptions on to a Foxglove WebSocket server on ``host:port``.
@@ -79,6 +100,7 @@ class LiveView:
                  max_rate_hz: float = DEFAULT_MAX_RATE_HZ):
         if foxglove is None:
             raise RuntimeError(SDK_MISSING)
+        route_sdk_log()
         self._context = foxglove.Context()      # this view's channels, to this server only
         self._server = foxglove.start_server(name=node.get_fully_qualified_name(), host=host,
                                              port=port, context=self._context)
