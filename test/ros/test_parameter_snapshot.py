@@ -16,6 +16,7 @@ import pytest
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, ListParameters
 import rclpy
+from rclpy.signals import SignalHandlerOptions
 from ros_harness import Client, DOMAIN_ID
 
 pytestmark = pytest.mark.ros
@@ -55,7 +56,9 @@ def asked(name: str, late: int, delay_s: float):
     """
     server = Client(f'{name}_server')
     slow = SlowParameters(server, name, late=late, delay_s=delay_s)
-    rclpy.init(domain_id=DOMAIN_ID)
+    # rclpy's own Ctrl-C handling is the suite's to keep: with it, Ctrl-C would shut the
+    # default context down instead of interrupting pytest
+    rclpy.init(domain_id=DOMAIN_ID, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(f'{name}_asker')
     try:
         yield slow, node
