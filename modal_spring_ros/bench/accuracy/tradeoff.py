@@ -30,6 +30,7 @@ from modal_spring_ros.core.config import DEFAULT_REFRESH
 from modal_spring_ros.core.factory import force_options
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces import ForceOptions
+from modal_spring_ros.core.integrators import stable_step
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import (DivergenceError, FullSimulation, ModalSettings,
                                                ModalSimulation, Simulation)
@@ -145,7 +146,7 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
     basis = ModalBasis(model, initial_modes=min(top, model.n_free_dof - 2),
                        samples=sample_cache())
     omega_max = basis.omega_max_estimate()
-    limit = 2.0 / omega_max
+    limit = stable_step('explicit', omega_max)
 
     def full(dt, integrator='explicit'):
         return FullSimulation(model, dt=dt, integrator=integrator, basis=basis)
@@ -192,7 +193,7 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
         if count > basis.count and not basis.complete:
             basis.ensure_count(count)
         count = min(count, basis.count)
-        n = _divisor(0.95 * 2.0 / basis.omega[count - 1])
+        n = _divisor(0.95 * stable_step('explicit', basis.omega[count - 1]))
         for k in (n, 2 * n, 4 * n):
             add('modal explicit', modal(count, SAMPLE_S / k), count)
             every = refresh(count, SAMPLE_S / k)
@@ -230,7 +231,7 @@ def run_case(case: Case, progress: Callable[[str], None]) -> dict:
                       lambda dt: full(dt), 0.5 * limit, 2.0 * limit, u0)}]
     for count in case.stability_counts:
         count = min(count, basis.count)
-        theory = 2.0 / basis.omega[count - 1]
+        theory = stable_step('explicit', basis.omega[count - 1])
         stability.append({'method': 'modal explicit', 'modes': count, 'theory': theory,
                           'largest_stable': largest_stable_step(
                               lambda dt, c=count: modal(c, dt), 0.5 * theory, 2.0 * theory,

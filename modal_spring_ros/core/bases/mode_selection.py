@@ -40,7 +40,7 @@ import math
 from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, ModalBasis
 from modal_spring_ros.core.bases.basis_choice import BasisChoice
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.integrators import conditionally_stable
+from modal_spring_ros.core.integrators import stable_step
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.motion.frame_loads import frame_load_patterns
 import numpy as np
@@ -187,8 +187,7 @@ def choose_step(choice: ModeChoice, integrator: str, tolerance: float = DEFAULT_
     dt = math.sqrt(48.0 * budget / (w ** 3 * tau))
     if choice.excitation_hz > 0:
         dt = min(dt, math.sqrt(12.0 * budget) / (2 * math.pi * choice.excitation_hz))
-    if conditionally_stable(integrator):
-        dt = min(dt, STABILITY_SAFETY * 2.0 / choice.omega_max)
+    dt = min(dt, STABILITY_SAFETY * stable_step(integrator, choice.omega_max))
     return dt
 
 

@@ -20,7 +20,7 @@ from typing import Callable, Mapping
 from modal_spring_ros.core.forces.base import SampleStore
 from modal_spring_ros.core.forces.exact import ExactForces
 from modal_spring_ros.core.forces.sampling import relative_error, SpringSample, train
-from modal_spring_ros.core.integrators import DiagonalOperators, integrator
+from modal_spring_ros.core.integrators import DiagonalOperators, integrator, stable_step
 from modal_spring_ros.core.worker import WorkerProcess
 import numpy as np
 
@@ -62,7 +62,7 @@ def training_snapshots(exact: ExactForces, omega2: np.ndarray, damping: np.ndarr
     dt = max(dt, min(2.0 * math.pi / fastest / TRAINING_STEPS_PER_PERIOD,
                      TRAINING_RUN_S / RUN_SNAPSHOTS))
     ops = DiagonalOperators(1.0, damping, omega2, dt)
-    stepper = integrator('explicit' if dt < 2.0 / fastest else 'average')
+    stepper = integrator('explicit' if dt < stable_step('explicit', fastest) else 'average')
     steps = max(min(int(round(TRAINING_RUN_S / dt)), TRAINING_STEPS), RUN_SNAPSHOTS)
     every = max(steps // RUN_SNAPSHOTS, 1)
     tenth = max(steps // 10, 1)

@@ -8,6 +8,8 @@ A contract, a name-to-class registry, one integrator a module.
 """
 from __future__ import annotations
 
+import math
+
 from modal_spring_ros.core.integrators.average import AverageAcceleration
 from modal_spring_ros.core.integrators.base import (Integrator, NonConvergence, Operators,
                                                     StepResult)
@@ -27,11 +29,16 @@ def integrator(name: str) -> Integrator:
         raise ValueError(f"integrator '{name}' must be one of {', '.join(INTEGRATORS)}") from None
 
 
+def stable_step(name: str, omega_max: float) -> float:
+    """Return integrator ``name``'s largest stable step up to ``omega_max`` rad/s (inf: any)."""
+    return INTEGRATORS[name].stable_step(omega_max)
+
+
 def conditionally_stable(name: str) -> bool:
     """Tell whether the integrator ``name`` is stable only below a step limit."""
-    return INTEGRATORS[name].conditionally_stable
+    return math.isfinite(stable_step(name, 1.0))
 
 
 __all__ = ['INTEGRATORS', 'AverageAcceleration', 'DiagonalOperators', 'ExplicitNewmark',
            'Integrator', 'NonConvergence', 'Operators', 'StepResult', 'conditionally_stable',
-           'integrator']
+           'integrator', 'stable_step']

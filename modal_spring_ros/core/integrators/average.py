@@ -13,6 +13,8 @@ accepted.
 """
 from __future__ import annotations
 
+import math
+
 from modal_spring_ros.core.integrators.base import (Force, Integrator, NonConvergence, Operators,
                                                     StepResult)
 import numpy as np
@@ -25,7 +27,11 @@ MAX_ITERATIONS = 25
 
 class AverageAcceleration(Integrator):
     name = 'average'
-    conditionally_stable = False
+
+    @classmethod
+    def stable_step(cls, omega_max: float) -> float:
+        """Return inf: unconditionally stable for the linear part."""
+        return math.inf
 
     def __init__(self, rtol: float = RTOL, max_iterations: int = MAX_ITERATIONS):
         self.rtol = rtol

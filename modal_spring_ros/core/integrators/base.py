@@ -51,12 +51,20 @@ class StepResult(NamedTuple):
 
 
 class Integrator(abc.ABC):
-    """One member of the Newmark family (gamma = 1/2). Stateless: one instance serves all."""
+    """
+    One member of the Newmark family (gamma = 1/2). Stateless: one instance serves all.
+
+    It owns its stability: :meth:`stable_step` is the only place its limit is written, and
+    every check, step choice and report asks it.
+    """
 
     #: registry name
     name: ClassVar[str]
-    #: stable only below ``2 / omega_max`` of the coordinates stepped
-    conditionally_stable: ClassVar[bool]
+
+    @classmethod
+    @abc.abstractmethod
+    def stable_step(cls, omega_max: float) -> float:
+        """Return the largest stable step for coordinates up to ``omega_max`` rad/s (inf: any)."""
 
     @abc.abstractmethod
     def step(self, u: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float, force: Force,

@@ -5,13 +5,19 @@ Stable for ``dt < 2 / omega_max`` of the coordinates stepped; one force evaluati
 """
 from __future__ import annotations
 
+import math
+
 from modal_spring_ros.core.integrators.base import Force, Integrator, Operators, StepResult
 import numpy as np
 
 
 class ExplicitNewmark(Integrator):
     name = 'explicit'
-    conditionally_stable = True
+
+    @classmethod
+    def stable_step(cls, omega_max: float) -> float:
+        """Return ``2 / omega_max`` (an undamped coordinate's limit)."""
+        return math.inf if omega_max <= 0.0 else 2.0 / omega_max
 
     def step(self, u: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float, force: Force,
              ops: Operators) -> StepResult:

@@ -21,7 +21,7 @@ from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces import ForceModel, ForceOptions, ForceReport
 from modal_spring_ros.core.forces.exact import EXACT_REPORT
-from modal_spring_ros.core.integrators import conditionally_stable, Integrator
+from modal_spring_ros.core.integrators import Integrator, stable_step
 from modal_spring_ros.core.integrators import integrator as make_integrator
 from modal_spring_ros.core.integrators import NonConvergence, Operators
 from modal_spring_ros.core.loads.applied import applied_loads, stepped_loads
@@ -53,20 +53,21 @@ class UnstableStepError(ValueError):
     """The explicit integrator would be unstable for the modes stepped at this ``dt``."""
 
 
-def check_step(integrator: str, dt: float, limit: float, method: str, dt_name: str = 'dt'
+def check_step(integrator: str, dt: float, omega_max: float, method: str, dt_name: str = 'dt'
                ) -> None:
-    """Refuse a conditionally stable integrator's step at or above ``limit`` (s)."""
-    if conditionally_stable(integrator) and dt >= limit:
+    """Refuse a step at or above ``integrator``'s stability limit up to ``omega_max`` rad/s."""
+    limit = stable_step(integrator, omega_max)
+    if dt >= limit:
         raise UnstableStepError(
-            f'{dt_name} ({dt:g} s) is at or above the explicit stability limit '
-            f"2/omega_max = {limit:.4g} s of the {method} run's highest mode "
-            f'({1.0 / (math.pi * limit):.4g} Hz): lower {dt_name}, keep fewer high modes '
+            f'{dt_name} ({dt:g} s) is at or above the {integrator} stability limit '
+            f"{limit:.4g} s of the {method} run's highest mode "
+            f'({omega_max / (2.0 * math.pi):.4g} Hz): lower {dt_name}, keep fewer high modes '
             f"(a lower upper band edge), or use the 'average' integrator")
 
 
 def stable_step_limit(omega_max: float) -> float:
-    """Largest stable explicit Newmark step for an undamped mode: ``2 / omega_max``."""
-    return math.inf if omega_max <= 0.0 else 2.0 / omega_max
+    """Return the explicit step's limit up to ``omega_max`` (what a run's stability limit is)."""
+    return stable_step('explicit', omega_max)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -221,7 +222,7 @@ class Simulation(LoadHolder, abc.ABC):
 
     def check_stable(self, dt_name: str = 'dt') -> None:
         """Refuse explicit stepping at or above ``2 / omega_max`` of the coordinates stepped."""
-        check_step(self.integrator, self.dt, self.stability_limit(), self.method, dt_name)
+        check_step(self.integrator, self.dt, self.omega_max(), self.method, dt_name)
 
     @abc.abstractmethod
     def with_dt(self, dt: float) -> 'Simulation':
@@ -245,12 +246,7 @@ class Simulation(LoadHolder, abc.ABC):
     # -- state in physical terms ---------------------------------------------------------------
     @abc.abstractmethod
     def displacement(self) -> np.ndarray:
-        """
-        Free-DOF displacement ``u`` from rest in the clamp's frame.
-
-        Free-DOF displacement ``u`` from rest in the clamp's frame (relative to the moving base;
-        flat).
-        """
+        """Return the free-DOF displacement ``u`` from rest in the clamp's frame (flat)."""
 
     def shown_displacement(self) -> np.ndarray:
         """Return the displacement streamed: :meth:`displacement` with the output gains."""
@@ -261,8 +257,12 @@ class Simulation(LoadHolder, abc.ABC):
         """Free-DOF velocity in the clamp's frame (flat)."""
 
     @abc.abstractmethod
+    def omega_max(self) -> float:
+        """Return the highest angular frequency among the coordinates this run steps, rad/s."""
+
     def stability_limit(self) -> float:
-        """``2 / omega_max`` over the coordinates this run steps (explicit integrator), s."""
+        """Return the explicit step's limit for the coordinates this run steps, s."""
+        return stable_step_limit(self.omega_max())
 
     @abc.abstractmethod
     def reset(self) -> None:
@@ -331,8 +331,9 @@ class Simulation(LoadHolder, abc.ABC):
         """Return the loads the scene itself brings (its contact, tuned to this run's step)."""
         if self.model.scene.contact is None:
             return {}
+        limit = self.stability_limit() if self.basis is not None else math.inf
         return {ContactLoad.name: contact_load(self.model, self.model.scene.contact, self.dt,
-                                               self.stability_limit(), contact)}
+                                               limit, contact)}
 
     def _applied(self, displacement: Callable[[np.ndarray], np.ndarray], t: float,
                  in_world: bool = False) -> tuple[np.ndarray, np.ndarray] | None:

@@ -13,8 +13,8 @@ import math
 
 from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.core.integrators import conditionally_stable
-from modal_spring_ros.core.simulations.base import check_step, stable_step_limit
+from modal_spring_ros.core.integrators import conditionally_stable, stable_step
+from modal_spring_ros.core.simulations.base import check_step
 
 
 def mode_cap(basis: ModalBasis, max_modes: int | None) -> int:
@@ -34,7 +34,8 @@ def check_step_before_modes(basis: ModalBasis, band: FilterBand, *, dt: float, i
 
     :raises UnstableStepError: the band keeps a mode at or above the limit.
     """
-    limit_hz = 1.0 / (math.pi * dt)
+    # the frequency whose limit is dt (the integrator's limit goes as 1 / omega)
+    limit_hz = stable_step(integrator, 1.0) / dt / (2.0 * math.pi)
     top = min(band.top if band.by == 'hz' and band.bounded_above else math.inf,
               math.inf if highest_hz is None else highest_hz)
     if not conditionally_stable(integrator) or top < limit_hz:
@@ -45,5 +46,5 @@ def check_step_before_modes(basis: ModalBasis, band: FilterBand, *, dt: float, i
     over = band.keeps(f) & (f >= limit_hz) & (f <= top * (1.0 + 1e-12))
     over[max_modes:] = False
     if over.any():
-        check_step(integrator, dt, stable_step_limit(2 * math.pi * f[over].max()), method,
+        check_step(integrator, dt, 2 * math.pi * f[over].max(), method,
                    dt_name)

@@ -13,8 +13,7 @@ from modal_spring_ros.core.integrators.base import ROUNDOFF_SHARE
 from modal_spring_ros.core.model.definite_factor import factor_definite
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
-from modal_spring_ros.core.simulations.base import (DEFAULT_STRAIN_LIMIT, Simulation,
-                                                    stable_step_limit)
+from modal_spring_ros.core.simulations.base import DEFAULT_STRAIN_LIMIT, Simulation
 from modal_spring_ros.core.simulations.modal import ModalSimulation
 from modal_spring_ros.core.simulations.modal_settings import ModalSettings
 from modal_spring_ros.core.simulations.world_frame import WorldFrameRun
@@ -204,10 +203,10 @@ class FullSimulation(Simulation):
                               integrator=self.integrator, damping=self.damping,
                               strain_limit=self.strain_limit)
 
-    def stability_limit(self) -> float:
+    def omega_max(self) -> float:
         if self.basis is None:
             raise ValueError('stability limit needs the modal basis')
-        return stable_step_limit(self.basis.omega_max_estimate())
+        return self.basis.omega_max_estimate()
 
     def reset(self) -> None:
         self._at_rest()

@@ -158,8 +158,8 @@ class ModalSimulation(Simulation):
         return ModalSimulation(self.model, self.basis, self._band, settings,
                                mode_choice=self._mode_choice, bank=self._bank)
 
-    def stability_limit(self) -> float:
-        return stable_step_limit(float(self._bank.omega(self._set.modes).max()))
+    def omega_max(self) -> float:
+        return float(self._bank.omega(self._set.modes).max())
 
     def coordinates_for(self, keep: np.ndarray) -> np.ndarray:
         """Return the coordinates stepped for rest modes ``keep`` (no state of the run changes)."""
@@ -233,7 +233,7 @@ class ModalSimulation(Simulation):
                                 method=self.method, dt_name=dt_name)
         coordinates = self.coordinates_for(self.select_modes(band))
         omega = self._bank.omega(coordinates)
-        check_step(self.integrator, self.dt, stable_step_limit(float(omega.max())),
+        check_step(self.integrator, self.dt, float(omega.max()),
                    self.method, dt_name)
         return coordinates
 
