@@ -389,9 +389,10 @@ def test_the_launch_file_starts_the_node_with_its_arguments(colcon_install, tmp_
         diagnostics = client.collect(DiagnosticArray, '/diagnostics')
         clouds = client.collect(PointCloud2, '/' + POINTS_TOPIC)
 
-        def ours():
+        def ours():              # once it streams (before, it says what it prepares)
             return [d.status[0] for _, d in list(diagnostics)
-                    if node_of(d.status[0]) == f'/{NODE_NAME}']
+                    if node_of(d.status[0]) == f'/{NODE_NAME}'
+                    and not d.status[0].message.startswith('starting: ')]
         assert wait_for(lambda: ours() and clouds, 60)
         status = ours()[-1]
         values = {kv.key: kv.value for kv in status.values}
