@@ -50,7 +50,7 @@ class DivergenceError(RuntimeError):
 
 
 class UnstableStepError(ValueError):
-    """The explicit integrator would be unstable for the modes stepped at this ``dt``."""
+    """The run's integrator would be unstable for the coordinates stepped at this ``dt``."""
 
 
 def check_step(integrator: str, dt: float, omega_max: float, method: str, dt_name: str = 'dt'
@@ -221,7 +221,7 @@ class Simulation(LoadHolder, abc.ABC):
         """
 
     def check_stable(self, dt_name: str = 'dt') -> None:
-        """Refuse explicit stepping at or above ``2 / omega_max`` of the coordinates stepped."""
+        """Refuse a step at or above the integrator's limit for the coordinates stepped."""
         check_step(self.integrator, self.dt, self.omega_max(), self.method, dt_name)
 
     @abc.abstractmethod
