@@ -10,8 +10,10 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+import signal
 import subprocess
 import sys
+import time
 
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.meshes import mesh_files
@@ -122,3 +124,65 @@ def test_a_damaged_volume_mesh_is_one_line_and_exit_2(tmp_path, kind):
     assert done.returncode == 2, done.stdout + done.stderr
     assert done.stderr.count('\n') == 1 and path.name in done.stderr, done.stderr
     assert 'Traceback' not in done.stderr and done.stdout == ''
+
+
+def test_a_decompression_bomb_is_refused_within_the_parse_s_memory(tmp_path, monkeypatch):
+    """A 2 MB ``.vtu`` of zlib blocks that expand to hundreds of MB: one line, nothing taken."""
+    meshio = pytest.importorskip('meshio')
+    count = 4_000_000
+    meshio.Mesh(np.zeros((count, 3)), [('tetra', np.zeros((count // 4, 4), dtype=np.int64))]
+                ).write(tmp_path / 'bomb.vtu', compression='zlib')
+    assert (tmp_path / 'bomb.vtu').stat().st_size < 4 * 2**20
+    monkeypatch.setattr(mesh_files, 'MIN_PARSE_BYTES', 256 * 2**20)
+    with pytest.raises(SceneError, match=r'bomb\.vtu: reading the mesh needs more than the 256 '
+                                         r'MiB it may take'):
+        read_mesh(tmp_path / 'bomb.vtu')
+
+
+def test_ctrl_c_while_a_large_mesh_is_parsed_ends_the_run_and_its_parser(tmp_path):
+    """A 600,000-vertex OBJ takes seconds to parse; Ctrl-C to the group ends both at once."""
+    side = 775
+    u, v = np.meshgrid(np.linspace(0, 1, side), np.linspace(0, 1, side))
+    vertices = np.column_stack([u.ravel(), np.zeros(u.size), -v.ravel()])
+    k = np.arange(side * side).reshape(side, side)[:-1, :-1].ravel()
+    faces = np.concatenate([np.column_stack([k, k + 1, k + side]),
+                            np.column_stack([k + 1, k + side + 1, k + side])])
+    obj = tmp_path / 'big.obj'
+    with open(obj, 'w') as fh:
+        np.savetxt(fh, vertices, fmt='v %.6f %.6f %.6f')
+        np.savetxt(fh, faces + 1, fmt='f %d %d %d')
+    scene = tmp_path / 'scene.yaml'
+    scene.write_text('dimension: 3\nmesh: {file: big.obj}\n'
+                     'material: {density: 0.2, stiffness: 400.0}\nfixed: {indices: [0]}\n')
+    run = subprocess.Popen([str(executable('modal_spring_sim')), '--scene', str(scene),
+                            '--duration', '0.01', '--quiet'], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        parser = []
+        end = time.monotonic() + 120
+        while not parser and time.monotonic() < end and run.poll() is None:
+            time.sleep(0.2)
+            parser = _parsers(obj)
+        assert parser, 'the mesh was never parsed in its own process'
+        os.killpg(run.pid, signal.SIGINT)            # as a terminal's Ctrl-C
+        _, err = run.communicate(timeout=30)
+    finally:
+        if run.poll() is None:
+            os.killpg(run.pid, signal.SIGKILL)
+            run.wait()
+    assert run.returncode in (2, 130) and 'Traceback' not in err, err[-2000:]
+    time.sleep(0.5)
+    assert _parsers(obj) == []
+
+
+def _parsers(path: Path) -> list[int]:
+    """Return the pids of processes parsing ``path``."""
+    found = []
+    for entry in Path('/proc').iterdir():
+        try:
+            command = (entry / 'cmdline').read_bytes().split(b'\0')
+        except OSError:
+            continue
+        if mesh_files.PARSER.encode() in command and str(path).encode() in command:
+            found.append(int(entry.name))
+    return found

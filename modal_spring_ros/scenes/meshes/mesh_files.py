@@ -8,7 +8,11 @@ volume mesh from Gmsh or TetGen is ``.msh`` or ``.vtk``). Vertices that touch th
 merged (an STL lists each triangle's corners on their own), and vertices no cell uses are left
 out. ``package://pkg/path`` is resolved through the ament index, as URDF meshes are.
 
-Every problem is a :class:`~modal_spring_ros.core.model.scene.SceneError` naming the file.
+Every problem is a :class:`~modal_spring_ros.core.model.scene.SceneError` naming the file. The
+parsers run in an interpreter of their own (:mod:`.mesh_parsing`) under an address-space limit
+(at least 1 GiB, or 16 times the file's size, within the memory available): a decompression
+bomb or a file that claims huge sizes fails there in one line instead of taking the machine,
+and Ctrl-C ends it at any point of the read.
 """
 from __future__ import annotations
 
@@ -16,10 +20,14 @@ import dataclasses
 import io
 import os
 from pathlib import Path
+import signal
 import stat
+import subprocess
+import sys
 
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.ament_index import package_share
+from modal_spring_ros.scenes.fields.limits import available_memory
 import numpy as np
 
 #: formats read as surfaces (trimesh), and as volume meshes (meshio)
@@ -29,6 +37,13 @@ VOLUME_SUFFIXES = ('.msh', '.vtk', '.vtu')
 MAX_BYTES = 256 * 1024 * 1024
 #: vertices closer than this share of the mesh's size are one vertex
 MERGE_RTOL = 1e-9
+#: the memory parsing a mesh may take (beyond what its interpreter maps before it starts): at
+#: least this, or this many times the file's size, within what the machine has available
+MIN_PARSE_BYTES = 1 << 30
+PARSE_BYTES_PER_FILE_BYTE = 16
+#: the module a mesh is parsed in (its own interpreter), and its exit status for a refusal
+PARSER = 'modal_spring_ros.scenes.meshes.mesh_parsing'
+PARSE_REFUSED = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,20 +97,58 @@ def read_mesh(path: Path) -> MeshData:
     if size > MAX_BYTES:
         raise SceneError(f'{path}: mesh file of {size / 2**20:.0f} MiB is larger than the '
                          f'{MAX_BYTES / 2**20:.0f} MiB read')
+    budget = min(max(MIN_PARSE_BYTES, PARSE_BYTES_PER_FILE_BYTE * size), available_memory())
+    vertices, triangles, tetrahedra = _parse_in_child(path, budget)
+    return _merged(vertices, triangles, tetrahedra)
+
+
+def _parse_in_child(path: Path, budget: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Run :func:`parse_mesh` in its own interpreter (:mod:`.mesh_parsing`); its arrays."""
+    env = dict(os.environ, OPENBLAS_NUM_THREADS='1', OMP_NUM_THREADS='1')
+    child = subprocess.Popen([sys.executable, '-m', PARSER, str(path), str(MAX_BYTES),
+                              str(budget)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             env=env)
     try:
-        if suffix in VOLUME_SUFFIXES:
+        out, err = child.communicate()
+    finally:                          # Ctrl-C (or any error) here: the child goes too
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    said = err.decode(errors='replace').strip().splitlines()
+    if child.returncode == PARSE_REFUSED and said:
+        raise SceneError(said[-1])
+    if child.returncode != 0:
+        why = (f'killed by {signal.Signals(-child.returncode).name}' if child.returncode < 0
+               else f'exit {child.returncode}: {said[-1] if said else "no message"}')
+        raise SceneError(f'{path}: cannot read mesh file: its reader ended ({why})')
+    try:
+        with np.load(io.BytesIO(out), allow_pickle=False) as arrays:
+            return arrays['vertices'], arrays['triangles'], arrays['tetrahedra']
+    except (OSError, ValueError, KeyError) as exc:
+        raise SceneError(f'{path}: cannot read mesh file: its reader answered nothing '
+                         f'readable ({exc})') from None
+
+
+def parse_mesh(path: Path, max_bytes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Parse a mesh file into vertices, triangles and tetrahedra (in :mod:`.mesh_parsing`).
+
+    :raises SceneError: the parser's any failure, naming the file.
+    """
+    try:
+        if path.suffix.lower() in VOLUME_SUFFIXES:
             vertices, triangles, tetrahedra = _read_volume(path)
         else:
-            vertices, triangles = _read_surface(path)
+            vertices, triangles = _read_surface(path, max_bytes)
             tetrahedra = np.empty((0, 4), dtype=np.int64)
-    except SceneError:
+    except (SceneError, MemoryError):
         raise
     except Exception as exc:  # noqa: B902 - a parser's any failure is the file's
         raise SceneError(f'{path}: cannot read mesh file: {type(exc).__name__}: '
                          f'{str(exc).splitlines()[0] if str(exc) else "unreadable"}') from None
     if not np.all(np.isfinite(vertices)):
         raise SceneError(f'{path}: mesh has vertices that are not finite numbers')
-    return _merged(vertices, triangles, tetrahedra)
+    return vertices, triangles, tetrahedra
 
 
 def checked_side_file(folder: Path, name: str, budget: list[int]) -> bytes:
@@ -126,13 +179,13 @@ def checked_side_file(folder: Path, name: str, budget: list[int]) -> bytes:
     return target.read_bytes()
 
 
-def _read_surface(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def _read_surface(path: Path, max_bytes: int) -> tuple[np.ndarray, np.ndarray]:
     # trimesh takes 0.6 s to import: paid by scenes that read a surface, not by every start
     import trimesh  # noqa: I100
     from trimesh.resolvers import FilePathResolver
 
     data = path.read_bytes()
-    budget = [MAX_BYTES - len(data)]
+    budget = [max_bytes - len(data)]
 
     class CheckedResolver(FilePathResolver):
         """The files the mesh refers to, each checked before it is read."""
