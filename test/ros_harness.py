@@ -252,6 +252,12 @@ class Client:
         if self.error is not None:
             raise RuntimeError(f"the client's executor failed: {self.error!r}")
 
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
 
 class SimTimes:
     """The simulation time of each frame, as the node publishes it beside them on sim_time."""
@@ -305,24 +311,33 @@ def frames_since(received: list, start: float, count: int, timeout: float = 20.0
 
 
 @contextlib.contextmanager
-def node_with_client(*params: str, namespace: str, argv: list[str] | None = None):
+def running_node(*params: str, namespace: str, argv: list[str] | None = None):
     """
-    Return a node in ``namespace`` (or started by the command line ``argv``) and a client.
+    Return a node in ``namespace`` (or started by the command line ``argv``).
 
-    The node must end cleanly on SIGINT afterwards. Whatever fails, neither outlives the test.
+    The node must end cleanly on SIGINT afterwards. Whatever fails, it does not outlive the test.
+    A client made before it sees its first messages (a volatile topic's early ones are lost to
+    a subscriber that matches later).
     """
     node = NodeProcess(*params, namespace=namespace, argv=argv)
     try:
-        client = Client(f'{namespace}_client')
-        try:
-            yield node, client
-        finally:
-            client.close()
+        yield node
     except BaseException:
         node.kill()
         raise
     code, _, err = node.interrupt()
     assert code == 0 and 'Traceback' not in err, stderr_excerpt(err)
+
+
+@contextlib.contextmanager
+def node_with_client(*params: str, namespace: str, argv: list[str] | None = None):
+    """Return a node (as :func:`running_node`) and a client; neither outlives the test."""
+    with running_node(*params, namespace=namespace, argv=argv) as node:
+        client = Client(f'{namespace}_client')
+        try:
+            yield node, client
+        finally:
+            client.close()
 
 
 @contextlib.contextmanager

@@ -392,9 +392,13 @@ def test_two_nodes_of_one_name_on_one_domain_are_both_warned():
         settled = time.monotonic()
         # the one left says it is alone again once the graph forgets the other (at the latest
         # when the other's DDS lease ends, should its goodbye be lost on a busy machine)
-        assert wait_for(lambda: any(
-            t > settled and {kv.key: kv.value for kv in s.values}['nodes with this name'] == '1'
-            and 'other node' not in s.message for t, s in _status(diags, '/twin/')), 120)
+
+        def alone():
+            return [(t - settled, s.message, {kv.key: kv.value for kv in s.values}.get(
+                'nodes with this name')) for t, s in _status(diags, '/twin/') if t > settled]
+        assert wait_for(lambda: any(named == '1' and 'other node' not in message
+                                    for _, message, named in alone()), 180), \
+            (alone()[-5:], stderr_excerpt(first.stderr()))
     finally:
         client.close()
         first.kill()

@@ -16,6 +16,7 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.ros.changes.requests import (ChangeBand, Pause, ReplaceSimulation, Reset,
                                                    TakeInput)
 from modal_spring_ros.ros.inputs.input_kinds import CLICKED_POINT
+from modal_spring_ros.ros.stream import simulation_thread
 from modal_spring_ros.ros.stream.simulation_thread import SimulationThread
 from modal_spring_ros.ros.stream.stream_settings import StreamSettings
 from modal_spring_ros.scenes.resources import load_scene
@@ -352,3 +353,28 @@ def test_a_run_that_cannot_step_in_real_time_keeps_its_frame_rate(running, monke
     assert np.median(gaps) < 1.3 / 30.0, np.median(gaps)   # not a frame every other period
     reported = [r.achieved_rtf for _, r in out.reports if r.window_valid]
     assert reported and reported[-1] < 0.6, reported
+
+
+def test_modes_begun_or_ready_are_reported_at_once_not_a_period_later(monkeypatch):
+    """A change that starts or stops computing modes goes out on /diagnostics at once."""
+    monkeypatch.setattr(simulation_thread, 'DIAGNOSTICS_PERIOD_S', 1e6)   # no periodic report
+    computing = threading.Event()
+    sim = build_simulation(load_scene('sheet_10x10'), SimulationConfig())
+    out = Recorder()
+    thread = SimulationThread(sim, out, StreamSettings, rebuild=lambda: sim,
+                              computing_modes=computing.is_set)
+    thread.start()
+    try:
+        assert wait_for(lambda: len(out.frames) > 3, 5.0)
+        assert out.reports == []
+        computing.set()
+        assert wait_for(lambda: len(out.reports) == 1, 10.0)
+        assert out.reports[0][1].computing_modes
+        time.sleep(0.2)                     # nothing changed since: no second report
+        assert len(out.reports) == 1
+        computing.clear()
+        assert wait_for(lambda: len(out.reports) == 2, 10.0)   # (its window had them computed)
+        time.sleep(0.2)
+        assert len(out.reports) == 2 and out.errors() == []
+    finally:
+        thread.stop()

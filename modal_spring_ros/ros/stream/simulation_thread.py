@@ -16,17 +16,18 @@ import time
 from typing import Callable
 
 from modal_spring_ros.bags.pointcloud import CloudBuffer
-from modal_spring_ros.core.simulations import DivergenceError, Simulation, SimulationStatus
+from modal_spring_ros.core.simulations import DivergenceError, Simulation
 from modal_spring_ros.core.threads import stepping_threads
 from modal_spring_ros.ros.changes.requests import (ChangeBand, drained, Pause, ReplaceSimulation,
                                                    Request, Reset, Step, StepRefused, TakeInput,
                                                    without_superseded)
 from modal_spring_ros.ros.inputs.input_kinds import recorded_messages
-from modal_spring_ros.ros.stream.diagnostics import StreamReport, StreamWindow
+from modal_spring_ros.ros.stream.diagnostics import StreamReport
 from modal_spring_ros.ros.stream.divergence_streak import DivergenceStreak, HeldError
 from modal_spring_ros.ros.stream.outputs import Outputs
 from modal_spring_ros.ros.stream.plan_watch import FallBack, PlanWatch
 from modal_spring_ros.ros.stream.run_pace import Reading, RunPace, wall_pace
+from modal_spring_ros.ros.stream.stream_book import StreamBook
 from modal_spring_ros.ros.stream.stream_settings import StreamSettings
 
 #: wall time between two diagnostics messages, s
@@ -68,20 +69,13 @@ class SimulationThread:
         self._outputs = outputs
         self._settings = settings
         self._rebuild = rebuild
-        self._computing_modes = computing_modes
         self._requests: queue.Queue[Request] = queue.Queue()
         self._stop = threading.Event()
         self._wake = threading.Event()  # the settings changed: stop waiting out the old period
-        self._window = StreamWindow()
-        self._frames = 0
-        self._last_frame = 0.0
+        self._book = StreamBook(sim.status(), computing_modes)
         self._cloud: CloudBuffer | None = None  # the frames' bytes, reused (see _publish_frame)
         self._cloud_scene = None
-        self._divergences = 0
         self._streak = DivergenceStreak()
-        self._last_divergence = ''
-        self._diverged_recently = False
-        self._last_status = sim.status()
         self._pace = RunPace(pace, sim.time)
         self._plan_watch = PlanWatch(on_watch_beyond)
         self._thread = threading.Thread(target=self._run, name='modal_spring_sim', daemon=True)
@@ -178,7 +172,7 @@ class SimulationThread:
                 published_time = self.sim.time
                 if mesh:
                     next_mesh = now + 1.0 / settings.mesh_rate_hz
-            if now >= next_diagnostics:
+            if now >= next_diagnostics or self._book.report_due():   # modes begun or ready
                 self._publish_diagnostics(settings, error=self.held)
                 next_diagnostics = now + DIAGNOSTICS_PERIOD_S
             if due:
@@ -198,7 +192,6 @@ class SimulationThread:
 
         The target is reached to half a step; at least one step is taken when the target is ahead.
         """
-        w = self._window
         sim = self.sim
         while sim.time + 0.5 * sim.dt < target:
             start = time.perf_counter()
@@ -207,8 +200,7 @@ class SimulationThread:
             except DivergenceError as exc:
                 self._on_divergence(exc)
                 return
-            w.step_seconds += time.perf_counter() - start
-            w.steps += 1
+            self._book.stepped(time.perf_counter() - start)
             if time.monotonic() > deadline:
                 return
 
@@ -280,14 +272,15 @@ class SimulationThread:
         if not self.paused:
             raise StepRefused('stepping is for a paused run: call ~/pause with true first')
         self._streak.refuse_while_held()
-        settings, steps, divergences = self._settings(), self._window.steps, self._divergences
+        settings, steps, divergences = (self._settings(), self._book.window.steps,
+                                        self._book.divergences)
         self._step_until(self.sim.time + (settings.realtime_factor or 1.0)
                          / settings.publish_rate_hz, float('inf'))
-        if self._divergences != divergences:
-            raise StepRefused(f'{self._last_divergence} (reported on /diagnostics)')
-        self._last_frame = 0.0      # a stepped frame after a pause: no gap in the stream
+        if self._book.divergences != divergences:
+            raise StepRefused(f'{self._book.last_divergence} (reported on /diagnostics)')
+        self._book.frame_after_pause()
         self._publish_frame(settings.mesh_rate_hz > 0)
-        return f'stepped {self._window.steps - steps} steps to t = {self.sim.time:.6g} s'
+        return f'stepped {self._book.window.steps - steps} steps to t = {self.sim.time:.6g} s'
 
     def _fail_pending(self, why: str) -> None:
         for request in drained(self._requests):
@@ -304,61 +297,33 @@ class SimulationThread:
                                                 self.sim.steps))
             return
         self._outputs.frame(self.sim, self._cloud, mesh)
-        now = time.monotonic()
-        w = self._window
-        if self._last_frame:
-            w.longest_gap = max(w.longest_gap, now - self._last_frame)
-        self._last_frame = now
-        self._frames += 1
-        w.frames += 1
-        w.computing_modes |= self._computing_modes()
+        self._book.framed()
 
     def _report(self, settings: StreamSettings, error: str = '') -> StreamReport:
-        w = self._window
-        clock_span, clock_stopped = self._pace.since(w.pace)   # the clock the run follows
-        achieved = (self.sim.time - w.sim_time) / clock_span if clock_span > 0 else 0.0
-        return StreamReport(
-            window_s=time.monotonic() - w.wall, window_valid=w.valid, clock_stopped=clock_stopped,
-            achieved_rtf=achieved if w.valid else 0.0, requested_rtf=settings.realtime_factor,
+        return self._book.report(
+            self.sim.time, self._pace.since(self._book.window.pace),  # the clock the run follows
+            requested_rtf=settings.realtime_factor,
             publish_period_s=1.0 / settings.publish_rate_hz,
-            step_us=1e6 * w.step_seconds / max(w.steps, 1), frames=self._frames,
-            frames_in_window=w.frames, longest_gap_s=w.longest_gap,
-            computing_modes=w.computing_modes or self._computing_modes(), paused=self.paused,
-            strain_warning=settings.strain_warning, divergences=self._divergences,
-            last_divergence=self._last_divergence,
-            diverged_recently=self._diverged_recently, error=error, **self._plan_watch.report(),
-            **self._node_report())
-
-    def _status(self) -> SimulationStatus:
-        """Return the simulation's status, or the last one read when it cannot give one."""
-        try:
-            self._last_status = self.sim.status()
-        except Exception:  # reported by whoever called; the last good status stands in
-            pass
-        return self._last_status
+            paused=self.paused, strain_warning=settings.strain_warning, error=error,
+            **self._plan_watch.report(), **self._node_report())
 
     def _publish_diagnostics(self, settings: StreamSettings, error: str = '') -> None:
-        self._outputs.diagnostics(self._status(), self._report(settings, error))
+        self._outputs.diagnostics(self._book.status(self.sim), self._report(settings, error))
         self._start_window(valid=True)
         if not error:
-            self._diverged_recently = False
+            self._book.diverged_recently = False
 
     def _start_window(self, valid: bool) -> None:
-        self._window = StreamWindow(time.monotonic(), self.sim.time, valid, pace=self._pace.read(),
-                                    computing_modes=self._computing_modes())
-        self._last_frame = 0.0
+        self._book.open_window(self.sim.time, valid, self._pace.read())
 
     def _reanchor(self, window_valid: bool) -> None:
         self._pace.anchor(self.sim.time)
         if not window_valid:
-            self._window.valid = False
-            self._last_frame = 0.0
+            self._book.invalidate()
 
     # -- failures ------------------------------------------------------------------------------
     def _on_divergence(self, exc: DivergenceError) -> None:
-        self._divergences += 1
-        self._last_divergence = str(exc)
-        self._diverged_recently = True
+        self._book.diverged(str(exc))
         if self._streak.diverged(exc):
             self._outputs.log('error', self.held)
             self._publish_diagnostics(self._settings(), error=self.held)
@@ -372,7 +337,8 @@ class SimulationThread:
         """Log and publish ERROR; never raises (it is what failures end in)."""
         try:
             self._outputs.log('error', message)
-            self._outputs.diagnostics(self._last_status, self._report(self._settings(), message))
+            self._outputs.diagnostics(self._book.last_status,
+                                      self._report(self._settings(), message))
         except Exception as exc:  # publishing itself failed (shutting down): log only
             try:
                 self._outputs.log('error', f'{message} (not reported: {exc!r})')
