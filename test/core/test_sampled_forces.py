@@ -16,6 +16,7 @@ from helpers import variant
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces import ForceOptions
+from modal_spring_ros.core.forces import samples as stored_samples
 from modal_spring_ros.core.forces.exact import ExactForces
 from modal_spring_ros.core.forces.sampled import check_spacing, SampledForces
 from modal_spring_ros.core.forces.sampling import (_correlation, _per_spring_forces,
@@ -215,6 +216,38 @@ def test_a_tampered_cache_entry_is_refused_removed_and_trained_again(sheet_10x10
     # the entry was replaced by a good one: loaded, not trained, next time
     third = ModalSimulation(model, basis, band, ModalSettings(dt=5e-4, forces=SAMPLED_2))
     assert third._forces.sample.seconds == 0.0
+
+
+def test_an_entry_valid_for_its_key_serves_the_next_process_however_far_its_checks_are(
+        sheet_10x10, samples, monkeypatch):
+    """
+    A stored sample is checked against what it gave when stored, not against the tolerance.
+
+    Its check states are not the states it was trained on: a sample valid for its key may be
+    further off on them than the tolerance allows (0.04-0.19 on the 10k and 100k sheets), and
+    it was then refused and trained again by every process.
+    """
+    model, basis = sheet_10x10
+    band = FilterBand('lowpass', 0, 14, 'index')
+    settings = ModalSettings(dt=5e-4, forces=SAMPLED_2)
+    first = ModalSimulation(model, basis, band, settings)
+    entry = max(samples.folder.glob('*.npz'), key=lambda p: p.stat().st_mtime)
+    with np.load(entry) as data:
+        recorded = float(data['check_error'])
+    assert recorded > 0.0
+    # a rule on the tolerance alone would now refuse it: the entry serves all the same
+    monkeypatch.setattr(stored_samples, 'CHECK_FACTOR', 0.5 * recorded / SAMPLED_2.tolerance)
+    store = SampleCache(samples.folder)                 # the next process's store
+    second = ModalSimulation(model, ModalBasis(model, samples=store), band, settings)
+    assert second._forces.sample.seconds == 0.0          # loaded, not trained
+    np.testing.assert_array_equal(second._forces.sample.springs, first._forces.sample.springs)
+    # its weights changed by a part in a thousand, with the error it recorded: refused
+    _tampered(entry, weights=first._forces.sample.weights * 1.001)
+    said: list[str] = []
+    third = ModalSimulation(model, ModalBasis(model, samples=store), band, settings,
+                            progress=said.append)
+    assert third._forces.sample.seconds > 0.0            # trained again
+    assert any('was recorded with it' in line and 'refused' in line for line in said), said
 
 
 def test_nan_in_a_sample_makes_it_fall_back_at_the_first_check(sheet_10x10):

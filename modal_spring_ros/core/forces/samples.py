@@ -40,8 +40,10 @@ RUN_SNAPSHOTS = 80
 RANDOM_SHARE = 0.5
 RANDOM_SPREAD = 1.5
 #: an entry's force error is recomputed on this many states when it is loaded, and must be
-#: within this many times the tolerance (the states are not its held-out ones)
-CHECK_STATES, CHECK_FACTOR = 4, 3.0
+#: what it was when the sample was stored (to this relative round-off), or within
+#: CHECK_FACTOR times the tolerance (an entry stored without it; the states are not the ones
+#: it was trained on, so a valid sample may be further off on them)
+CHECK_STATES, CHECK_FACTOR, CHECK_ROUND_OFF = 4, 3.0, 1e-6
 
 
 class CacheEntryError(ValueError):
@@ -95,12 +97,16 @@ def sample_key(exact: ExactForces, phi: np.ndarray, tolerance: float) -> str:
     return h.hexdigest()[:32]
 
 
-def sample_arrays(sample: SpringSample) -> dict[str, np.ndarray]:
-    """Return what a store keeps of ``sample`` (read back by :func:`validated_sample`)."""
+def sample_arrays(sample: SpringSample, check_error: float) -> dict[str, np.ndarray]:
+    """
+    Return what a store keeps of ``sample`` (read back by :func:`validated_sample`).
+
+    ``check_error``: its force error on :func:`check_states` as it is stored.
+    """
     return {'springs': sample.springs, 'weights': sample.weights,
             'training_error': np.float64(sample.training_error),
             'held_out_error': np.float64(sample.held_out_error),
-            'gave_up': np.str_(sample.gave_up)}
+            'check_error': np.float64(check_error), 'gave_up': np.str_(sample.gave_up)}
 
 
 def cached_sample(exact: ExactForces, phi: np.ndarray, omega2: np.ndarray,
@@ -132,7 +138,9 @@ def cached_sample(exact: ExactForces, phi: np.ndarray, omega2: np.ndarray,
     else:
         sample = trained_sample(exact, omega2, damping, dt, tolerance, progress)
     if store is not None:
-        store.save(key, sample_arrays(sample))
+        check = 0.0 if sample.gave_up else relative_error(exact, sample,
+                                                          check_states(exact, omega2))
+        store.save(key, sample_arrays(sample, check))
     return sample
 
 
@@ -143,8 +151,10 @@ def validated_sample(entry: Mapping[str, np.ndarray], exact: ExactForces, omega2
 
     Its arrays (present, shapes, types, indices in range and distinct, weights finite and not
     negative, errors finite), then its force error recomputed on a few states of the scene (its
-    static sag under gravity, scaled, and seeded random states of that size): an entry that was
-    truncated, flipped or written by hand cannot reach the stream.
+    static sag under gravity, scaled, and seeded random states of that size), which must be the
+    one recorded when it was stored: an entry that was truncated, flipped or written by hand
+    cannot reach the stream, and one valid for its key is used by every later process (the
+    run's own checks watch it as they watch a sample just trained).
 
     :raises CacheEntryError: what is wrong with it.
     """
@@ -153,6 +163,7 @@ def validated_sample(entry: Mapping[str, np.ndarray], exact: ExactForces, omega2
         training = float(entry['training_error'])
         held_out = float(entry['held_out_error'])
         gave_up = str(entry['gave_up']) if 'gave_up' in entry else ''
+        recorded = float(entry['check_error']) if 'check_error' in entry else math.nan
     except (KeyError, ValueError, TypeError) as exc:
         raise CacheEntryError(f'unreadable ({type(exc).__name__}: {exc})') from None
     if springs.ndim != 1 or springs.size == 0 or not np.issubdtype(springs.dtype, np.integer):
@@ -174,7 +185,11 @@ def validated_sample(entry: Mapping[str, np.ndarray], exact: ExactForces, omega2
     if gave_up:  # used for nothing but the report: the forces are exact
         return sample
     error = relative_error(exact, sample, check_states(exact, omega2))
-    if not error <= CHECK_FACTOR * tolerance:
+    if math.isfinite(recorded):
+        if not math.isclose(error, recorded, rel_tol=CHECK_ROUND_OFF, abs_tol=1e-12):
+            raise CacheEntryError(f'its force error on check states is {error:.6g}, where '
+                                  f'{recorded:.6g} was recorded with it')
+    elif not error <= CHECK_FACTOR * tolerance:
         raise CacheEntryError(f'its force error on check states is {error:.3g}, beyond '
                               f'{CHECK_FACTOR:g} x the tolerance {tolerance:g}')
     return sample
