@@ -72,7 +72,11 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig,
         return _modal(model, basis, config, bank, None, plan, keep_dt=config.dt is not None)
     sim = FullSimulation(model, basis, config.band, dt=dt or 1e-3,
                          integrator=config.integrator, strain_limit=config.strain_limit)
-    return sim if dt else _within_stability(sim)
+    # the scene's step is a modal run's: beyond the full run's stability it gives way, as a
+    # plan's suggested step does (a step given is kept, and checked by the caller)
+    beyond = bool(dt) and config.dt is None and conditionally_stable(config.integrator) and (
+        dt >= STABILITY_SAFETY * sim.stability_limit())
+    return sim if dt and not beyond else _within_stability(sim)
 
 
 def _within_stability(sim: Simulation) -> Simulation:
@@ -187,13 +191,21 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     if not measured:
         return make(plan)
 
+    planning = True
+
+    def made(settings: PlanSettings) -> Simulation:   # each plan the pilot measures, said
+        if planning:                                   # (not the watch's runs after it)
+            basis.progress(f'planning: measuring {settings.describe()}')
+        return make(settings)
+
     def more_modes(hz: float) -> float | None:
         return _more_modes(basis, config.band, hz, limit)
 
-    pilot = Pilot(model, config.tolerance, make, full if everything else None, more_modes,
+    pilot = Pilot(model, config.tolerance, made, full if everything else None, more_modes,
                   basis.frequencies_hz[choice.modes], can_halve_step=not keep_dt,
                   horizon_s=horizon_s, budget=budget, full_dt=(full_dt, predicted))
     sim, report = pilot.run(plan)
+    planning = False
     sim.pilot = report
     if report.method == 'modal':
         sim.watch_reference = pilot.watch_reference(sim)

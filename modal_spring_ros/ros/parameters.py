@@ -209,8 +209,10 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         'Most modes computed on scenes too large for a dense eigensolver', _I, read_only=True,
         int_range=(1, 100_000))),
     'stream_early': (True, _descriptor(
-        'On large scenes, stream on the lowest modes and refreshed springs while the rest of '
-        'the band and the spring sample are prepared; false: the first frame waits for them',
+        'Stream before the slow part is ready: on large scenes the lowest modes and refreshed '
+        'springs while the rest of the band and the spring sample are prepared; with '
+        'modal.auto the full run (or the band on its rest modes) while the plan is measured; '
+        'false: the first frame waits for them',
         _B, read_only=True)),
 }
 

@@ -8,12 +8,15 @@ from __future__ import annotations
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
-from ros_harness import frames_since, node_of, node_with_client, streaming_statuses, wait_for
+from ros_harness import (assert_resimulates_exactly, Client, frames_since, node_of,
+                         node_with_client, running_node, SimTimes, stderr_excerpt,
+                         streaming_statuses, wait_for)
 from sensor_msgs.msg import PointCloud2
 
 pytestmark = pytest.mark.ros
@@ -41,13 +44,16 @@ def test_the_node_flags_the_large_deformation_and_keeps_streaming():
             assert np.isfinite(np.frombuffer(bytes(m.data), dtype='<f4')).all()
 
 
-def test_node_automatic_mode_choice_is_reported():
+def test_node_automatic_mode_choice_is_reported_as_the_simulator_chooses_it():
     with node_with_client('modal.auto:=true', 'modal.tolerance:=0.05',
                           namespace='auto') as (node, client):
         diags = client.collect(DiagnosticArray, '/diagnostics')
-        assert wait_for(lambda: streaming_statuses(diags, '/auto/'), 30)
-        status = streaming_statuses(diags, '/auto/')[0]
-        values = {kv.key: kv.value for kv in status.values}
+
+        def planned():
+            return [values for values in map(_values_of, streaming_statuses(diags, '/auto/'))
+                    if values.get('automatic mode choice', 'off') != 'off']
+        assert wait_for(planned, 60), stderr_excerpt(node.stderr())
+        values = planned()[-1]
         assert values['automatic mode choice'].startswith('5 modes up to 20.44 Hz')
         assert values['modes stepped'] == '5'
         # the spring-force refresh follows the choice: what the engine chooses headless
@@ -62,9 +68,54 @@ def test_node_automatic_mode_choice_is_reported():
         assert float(_values(diags, '/auto/')['measured force error']) < 0.01
 
 
-def _values(diags, prefix):
-    status = streaming_statuses(diags, prefix)[-1]
+def test_an_automatic_plan_streams_the_full_run_until_it_is_measured(tmp_path):
+    """sheet_32x32 at 1 %: seconds of planning, streamed by the full run meanwhile."""
+    capture = tmp_path / 'capture'
+    client = Client('planned_client')       # subscribed before the node: its first reports
+    points = client.collect(PointCloud2, '/planned/points', qos=1000)
+    sim_time = SimTimes().subscribe(client, '/planned/sim_time')
+    diags = client.collect(DiagnosticArray, '/diagnostics')
+    with client, running_node('scene:=sheet_32x32', 'modal.auto:=true', 'modal.tolerance:=0.01',
+                              f'record.bag:={capture}', namespace='planned') as node:
+        def planned():
+            return [values for values in map(_values_of, streaming_statuses(diags, '/planned/'))
+                    if values.get('automatic mode choice', 'off') != 'off']
+        assert wait_for(planned, 120), stderr_excerpt(node.stderr())
+        # the first frames came from the full run while the plan was measured, and said so
+        first = _values_of(streaming_statuses(diags, '/planned/')[0])
+        assert first['method'] == 'full', first
+        assert first['parameter changes pending'] == "method='modal', modal.auto=True"
+        log = node.stderr()
+        assert "streaming while method='modal', modal.auto=True is prepared" in log
+        assert 'planning: measuring modes up to' in log          # the pilot's progress
+        assert "the run takes method='modal', modal.auto=True" in log
+        # then the plan, as modal_spring_sim chooses it headless
+        values = planned()[-1]
+        assert values['method'] == 'modal' and values['parameter changes pending'] == 'none'
+        expected = build_simulation(load_scene('sheet_32x32'),
+                                    SimulationConfig(auto=True, tolerance=0.01))
+        assert values['automatic choice measured'] == expected.pilot.describe()
+        # the parameters read what was asked throughout
+        assert client.get_parameters('planned/modal_spring', 'method', 'modal.auto') == [
+            'modal', True]
+        # the plan took the full run's state: no frame jumps (the sheet, released from rest,
+        # swings below 0.25 m/s; a state lost at the switch moves it by its sag, centimetres,
+        # in one frame: over 0.6 m/s at 60 Hz), judged per simulated second
+        timed = [(t, xyz(m)) for _, m in list(points) if (t := sim_time.known(m)) is not None]
+        assert len(timed) > 30 and all(np.isfinite(c).all() for _, c in timed)
+        speeds = [np.abs(b - a).max() / (tb - ta)
+                  for (ta, a), (tb, b) in zip(timed, timed[1:]) if tb > ta]
+        assert max(speeds) < 0.4, max(speeds)
+    # the capture holds the full run, then the change to the plan: it re-simulates exactly
+    assert assert_resimulates_exactly(capture, tmp_path / 'again', changes=1) > 30
+
+
+def _values_of(status) -> dict[str, str]:
     return {kv.key: kv.value for kv in status.values}
+
+
+def _values(diags, prefix):
+    return _values_of(streaming_statuses(diags, prefix)[-1])
 
 
 def test_the_node_streams_with_sampled_springs():

@@ -77,6 +77,7 @@ def test_a_pull_beyond_the_automatic_plan_is_caught_and_the_node_falls_back(tmp_
         # the stream goes on, finite, pulled by the full run
         for m in frames_since(points, points[-1][0], 20):
             assert np.isfinite(xyz(m)).all()
-    # the capture holds the fallback as the parameter change it was: re-simulated frame for
-    # frame through it (the click, the fallback's rebuild at its step)
-    assert assert_resimulates_exactly(bag, tmp_path / 'again', changes=1) > 100
+    # the capture holds the plan taken over from the full run the node streamed first, and the
+    # fallback, as the parameter changes they were: re-simulated frame for frame through both
+    # (the plan's pilot, the click, the fallback's rebuild at its step)
+    assert assert_resimulates_exactly(bag, tmp_path / 'again', changes=2) > 100

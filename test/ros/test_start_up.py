@@ -1,4 +1,4 @@
-"""Which runs start streaming before their spring sample or their modes are ready (start_up)."""
+"""Which runs start streaming before their spring sample, modes or plan are ready (start_up)."""
 from __future__ import annotations
 
 import dataclasses
@@ -37,7 +37,6 @@ def test_a_large_scene_asked_for_sampled_springs_starts_with_refreshed_ones(larg
 
 @pytest.mark.parametrize('config', [
     SimulationConfig(forces='exact'), SimulationConfig(forces='refreshed'),
-    dataclasses.replace(SAMPLED, auto=True),          # the plan measures its own forces
     dataclasses.replace(SAMPLED, method='full')])
 def test_other_runs_start_as_asked(large, config):
     assert first_values(config, large) == {}
@@ -76,5 +75,23 @@ def test_a_huge_scene_starts_as_asked_where_its_first_modes_may_not_serve(huge, 
 def test_a_huge_scene_starts_as_asked_when_it_may_compute_no_more_modes(huge):
     config = SimulationConfig(band=LOWEST_32, max_modes=FIRST_MODES)
     assert first_values(config, huge) == {}
-    config = SimulationConfig(band=LOWEST_32, auto=True)
-    assert first_values(config, huge) == {}
+
+
+@pytest.mark.parametrize('scene', ['sheet_10x10', 'sheet_100x100'])
+def test_an_automatic_plan_of_every_mode_streams_the_full_run_first(scene):
+    for config in (SimulationConfig(auto=True), dataclasses.replace(SAMPLED, auto=True)):
+        assert first_values(config, load_scene(scene)) == {'method': 'full', 'modal.auto': False}
+
+
+def test_an_automatic_plan_of_a_band_streams_the_band_on_its_rest_modes_first(large, huge):
+    band = FilterBand('lowpass', high=20.0)
+    assert first_values(SimulationConfig(band=band, auto=True), load_scene('sheet_10x10')) == {
+        'modal.auto': False, 'modal.basis': 'rest'}
+    # staged as the band itself is on large scenes: sampled springs asked, refreshed first
+    assert first_values(SimulationConfig(band=band, auto=True, forces='sampled'), large) == {
+        'modal.auto': False, 'modal.basis': 'rest', 'modal.forces': 'refreshed'}
+    assert first_values(SimulationConfig(band=LOWEST_32, auto=True), huge) == {
+        'modal.auto': False, 'modal.basis': 'rest', 'modal.max_modes': FIRST_MODES}
+    # a huge scene's full run would take the core its plan needs: its lowest modes stream
+    assert first_values(SimulationConfig(auto=True), huge) == {
+        'modal.auto': False, 'modal.basis': 'rest', 'modal.max_modes': FIRST_MODES}

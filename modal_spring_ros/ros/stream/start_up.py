@@ -23,11 +23,20 @@ the lowest :data:`FIRST_MODES` modes starts on those (``modal.max_modes`` at
 the first change: computed in the worker, whose factor of the stiffness is kept for it, and
 taken by the run with its state carried over, as a band that needs more modes is.
 ``/diagnostics`` says ``parameter changes pending: modal.max_modes=256`` meanwhile, with the
-worker's ``progress``; the parameter reads what was asked for throughout. ``stream_early``
-false waits for all of it instead.
+worker's ``progress``; the parameter reads what was asked for throughout.
+
+An automatic plan (``modal.auto``) is measured before it is trusted: a pilot run, seconds on a
+small scene and minutes on a large one. Its first frames come from a run that needs no plan:
+the full run (an all-pass band: what the plan approximates, and what it falls back to) at its
+default step, or the band's own rest modes as asked (a band that filters, or any band of a
+scene of :data:`STAGED_DOF` free coordinates and more), staged as above on large scenes. The
+plan is the first change, taken over with the state carried over once it is measured
+(``method``, ``modal.auto`` and what else differed read what was asked throughout).
+``stream_early`` false waits for all of it instead.
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from modal_spring_ros.core.config import SAMPLE_MIN_SPRINGS, SimulationConfig
@@ -51,13 +60,16 @@ def first_values(config: SimulationConfig, scene: Scene) -> dict[str, Any]:
     """
     Return the parameters the first run takes in place of the values asked for (or none).
 
-    A modal run (not the automatic plan, which measures what it chooses) starts with refreshed
-    springs where it asked for sampled ones on a scene of :data:`STAGED_SPRINGS` springs or more,
-    and on its lowest :data:`FIRST_MODES` modes where its band needs more of a scene of
-    :data:`STAGED_DOF` free coordinates or more.
+    A modal run starts with refreshed springs where it asked for sampled ones on a scene of
+    :data:`STAGED_SPRINGS` springs or more, and on its lowest :data:`FIRST_MODES` modes where
+    its band needs more of a scene of :data:`STAGED_DOF` free coordinates or more. An automatic
+    plan starts with the full run (an all-pass band) or the band's rest modes, as asked
+    otherwise (:func:`before_the_plan`).
     """
-    if config.method != 'modal' or config.auto:
+    if config.method != 'modal':
         return {}
+    if config.auto:
+        return before_the_plan(config, scene)
     first: dict[str, Any] = {}
     if config.forces == 'sampled' and scene.n_springs >= STAGED_SPRINGS:
         first['modal.forces'] = FIRST_FORCES
@@ -65,6 +77,21 @@ def first_values(config: SimulationConfig, scene: Scene) -> dict[str, Any]:
             and _starts_low(config.band)):
         first['modal.max_modes'] = FIRST_MODES
     return first
+
+
+def before_the_plan(config: SimulationConfig, scene: Scene) -> dict[str, Any]:
+    """
+    Return what the first run of an automatic plan takes while the plan is measured.
+
+    The full run where the band keeps every mode (what the plan approximates) on a scene below
+    :data:`STAGED_DOF` free coordinates; else the band as asked on its rest modes, with the
+    first values of such a run (:func:`first_values`: on a huge scene its lowest modes, whose
+    stepping leaves the planning the core the full run's would take).
+    """
+    if config.band.kind == 'allpass' and scene.n_free_dof < STAGED_DOF:
+        return {'method': 'full', 'modal.auto': False}
+    unplanned = dataclasses.replace(config, auto=False, basis='rest')
+    return {'modal.auto': False, 'modal.basis': 'rest', **first_values(unplanned, scene)}
 
 
 def _starts_low(band: FilterBand) -> bool:
