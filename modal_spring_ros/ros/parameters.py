@@ -38,6 +38,8 @@ CLOCK_OFFSET = 'clock.offset_s'
 STAMPS = ('auto', 'sim', 'wall')
 #: smallest non-zero real-time factor: below it the stream would stand still
 MIN_REALTIME_FACTOR = 1e-3
+#: the object's and the clamp's TF frames (under the node's namespace unless named)
+OBJECT_FRAME, CLAMP_FRAME = 'modal_spring_object', 'modal_spring_clamp'
 
 
 def _descriptor(description: str, type_: int, *, read_only: bool = False,
@@ -137,12 +139,14 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     'tf.publish': (True, _descriptor(
         "Broadcast the object's and the clamp's frames on /tf, under frame_id, with every "
         'frame of the stream', _B, read_only=True)),
-    'tf.object_frame': ('modal_spring_object', _descriptor(
-        'TF frame the object rides (its rest shape moved as the clamp moves it)', _S,
-        read_only=True)),
-    'tf.clamp_frame': ('modal_spring_clamp', _descriptor(
+    'tf.object_frame': ('', _descriptor(
+        'TF frame the object rides (its rest shape moved as the clamp moves it); empty: '
+        f"{OBJECT_FRAME} under the node's namespace (left/{OBJECT_FRAME} for a node in "
+        '/left)', _S, read_only=True)),
+    'tf.clamp_frame': ('', _descriptor(
         'TF frame at the clamp (the centre of the fixed particles, turned with the clamp); '
-        'not broadcast for a scene without fixed particles', _S, read_only=True)),
+        f'not broadcast for a scene without fixed particles; empty: {CLAMP_FRAME} under the '
+        "node's namespace", _S, read_only=True)),
     'anchor.follow_hz': (DEFAULT_FOLLOW_HZ, _descriptor(
         'Bandwidth of the critically damped filter the clamp follows poses through, Hz', _D,
         read_only=True, float_range=(0.1, MAX_FOLLOW_HZ))),
@@ -298,7 +302,24 @@ def config_from_parameters(values: dict[str, Any]) -> SimulationConfig:
     ).validate(CONFIG_NAMES)
 
 
-def check_frames(values: dict[str, Any]) -> None:
+def broadcast_frames(values: dict[str, Any], namespace: str = '/') -> tuple[str, str]:
+    """
+    Return the object's and the clamp's TF frame names a node in ``namespace`` broadcasts.
+
+    An empty name is the default one under the namespace (``left/modal_spring_object`` in
+    ``/left``, ``modal_spring_object`` in ``/``): two namespaced nodes of one graph broadcast
+    frames of their own. A name given is used as given (without a leading slash, as tf2 has it).
+    """
+    prefix = namespace.strip('/')
+
+    def name(given: str, default: str) -> str:
+        given = given.lstrip('/')
+        return given or (f'{prefix}/{default}' if prefix else default)
+    return (name(values.get('tf.object_frame', ''), OBJECT_FRAME),
+            name(values.get('tf.clamp_frame', ''), CLAMP_FRAME))
+
+
+def check_frames(values: dict[str, Any], namespace: str = '/') -> None:
     """Check the TF frame names (anchor.frame with anchor.source tf, the broadcast frames)."""
     frame_id = values['frame_id'].lstrip('/')
     if values.get('anchor.source') == 'tf':
@@ -310,10 +331,8 @@ def check_frames(values: dict[str, Any]) -> None:
             raise ValueError(f"anchor.frame '{followed}' is frame_id: the clamp would follow "
                              'the frame it is placed in')
     if values.get('tf.publish', False):
-        names = [values.get(n, '').lstrip('/') for n in ('tf.object_frame', 'tf.clamp_frame')]
+        names = broadcast_frames(values, namespace)
         for name, frame in zip(('tf.object_frame', 'tf.clamp_frame'), names):
-            if not frame:
-                raise ValueError(f'{name} must not be empty (or set tf.publish false)')
             if frame == frame_id:
                 raise ValueError(f"{name} '{frame}' is frame_id: a frame cannot be its own "
                                  'parent')

@@ -101,8 +101,9 @@ def test_the_node_broadcasts_the_object_and_clamp_frames_with_each_frame():
         matched, spread = 0, []
         for _, message in list(frames):
             by_child = {t.child_frame_id: t for t in message.transforms}
-            assert set(by_child) == {'modal_spring_object', 'modal_spring_clamp'}
-            clamp = by_child['modal_spring_clamp']
+            # the node's own frames, under its namespace
+            assert set(by_child) == {'tfcast/modal_spring_object', 'tfcast/modal_spring_clamp'}
+            clamp = by_child['tfcast/modal_spring_clamp']
             assert clamp.header.frame_id == 'world'
             stamp = (clamp.header.stamp.sec, clamp.header.stamp.nanosec)
             if stamp not in clouds:

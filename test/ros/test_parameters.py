@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from modal_spring_ros.core.config import ConfigError
-from modal_spring_ros.ros.parameters import config_from_parameters, PARAMETERS
+from modal_spring_ros.ros.parameters import broadcast_frames, config_from_parameters, PARAMETERS
 import pytest
 
 DEFAULTS = {name: default for name, (default, _) in PARAMETERS.items()}
@@ -22,13 +22,24 @@ def test_a_horizon_beyond_a_day_is_refused_by_its_name():
 @pytest.mark.parametrize('values,reason', [
     ({'anchor.source': 'tf'}, 'needs anchor.frame'),
     ({'anchor.source': 'tf', 'anchor.frame': '/world'}, 'is frame_id'),
-    ({'tf.object_frame': ''}, 'tf.object_frame must not be empty'),
+    ({'tf.object_frame': '/world'}, 'a frame cannot be its own parent'),
     ({'tf.clamp_frame': 'world'}, 'a frame cannot be its own parent'),
     ({'tf.clamp_frame': 'modal_spring_object'}, 'are both'),
 ])
 def test_bad_tf_frames_are_refused_by_name(values, reason):
     with pytest.raises(ValueError, match=reason):
         config_from_parameters({**DEFAULTS, **values})
+
+
+@pytest.mark.parametrize('namespace, frames', [
+    ('/', ('modal_spring_object', 'modal_spring_clamp')),
+    ('/left', ('left/modal_spring_object', 'left/modal_spring_clamp')),
+    ('/cell_2/right/', ('cell_2/right/modal_spring_object', 'cell_2/right/modal_spring_clamp'))])
+def test_the_broadcast_frames_are_the_node_s_own_under_its_namespace(namespace, frames):
+    assert broadcast_frames(DEFAULTS, namespace) == frames
+    # a name given is used as given, in any namespace (without tf2's unwanted leading slash)
+    given = {**DEFAULTS, 'tf.object_frame': '/sheet', 'tf.clamp_frame': 'tool0_grip'}
+    assert broadcast_frames(given, namespace) == ('sheet', 'tool0_grip')
 
 
 def test_tf_frames_pass_when_following_a_frame_or_not_broadcasting():

@@ -23,6 +23,7 @@ from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import Simulation, SimulationStatus
 from modal_spring_ros.ros.frames.tf import FrameBroadcaster, tf_available
+from modal_spring_ros.ros.parameters import broadcast_frames
 from modal_spring_ros.ros.process.shared_memory import cloud_transport
 from modal_spring_ros.ros.stream.diagnostics import diagnostic_array, StreamReport
 from modal_spring_ros.ros.stream.stream_time import stamps_in_simulation_time, StreamTime
@@ -134,8 +135,8 @@ class NodeOutputs:
         fixed = np.asarray(scene.fixed, dtype=bool)
         centre = (np.asarray(scene.rest_positions, dtype=float)[fixed].mean(axis=0)
                   if fixed.any() else None)
-        return FrameBroadcaster(node, values['frame_id'], values['tf.object_frame'],
-                                values['tf.clamp_frame'], centre)
+        return FrameBroadcaster(node, values['frame_id'],
+                                *broadcast_frames(values, node.get_namespace()), centre)
 
     def enable_clock(self) -> None:
         """Create the /clock publisher (once; from the executor's thread)."""
