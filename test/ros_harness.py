@@ -8,6 +8,7 @@ import subprocess
 import threading
 import time
 
+from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.sim_time import SOURCE
 from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
@@ -284,6 +285,20 @@ class SimTimes:
         key = to_nanoseconds(frame.header.stamp)
         assert wait_for(lambda: key in self._times, 2.0), 'no sim_time for the frame'
         return self._times[key]
+
+    def fastest(self, points: list) -> float:
+        """
+        Return the fastest any particle moved between two frames, m per simulated second.
+
+        ``points``: (receipt time, PointCloud2) as :meth:`Client.collect` keeps them; frames whose
+        sim_time has not come are left out. Judged per simulated second, a frame lost on a busy
+        machine doubles a step, not a speed; a state lost in a switch moves the object by its
+        displacement in one frame. At least 30 frames, every one finite.
+        """
+        timed = [(t, xyz(m)) for _, m in list(points) if (t := self.known(m)) is not None]
+        assert len(timed) > 30 and all(np.isfinite(c).all() for _, c in timed), len(timed)
+        return max(np.abs(b - a).max() / (tb - ta)
+                   for (ta, a), (tb, b) in zip(timed, timed[1:]) if tb > ta)
 
 
 def wait_for(predicate, timeout: float, interval: float = 0.02) -> bool:
