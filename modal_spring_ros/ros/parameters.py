@@ -319,7 +319,7 @@ def broadcast_frames(values: dict[str, Any], namespace: str = '/') -> tuple[str,
             name(values.get('tf.clamp_frame', ''), CLAMP_FRAME))
 
 
-def check_frames(values: dict[str, Any], namespace: str = '/') -> None:
+def check_frames(values: dict[str, Any]) -> None:
     """Check the TF frame names (anchor.frame with anchor.source tf, the broadcast frames)."""
     frame_id = values['frame_id'].lstrip('/')
     if values.get('anchor.source') == 'tf':
@@ -331,7 +331,7 @@ def check_frames(values: dict[str, Any], namespace: str = '/') -> None:
             raise ValueError(f"anchor.frame '{followed}' is frame_id: the clamp would follow "
                              'the frame it is placed in')
     if values.get('tf.publish', False):
-        names = broadcast_frames(values, namespace)
+        names = broadcast_frames(values)
         for name, frame in zip(('tf.object_frame', 'tf.clamp_frame'), names):
             if frame == frame_id:
                 raise ValueError(f"{name} '{frame}' is frame_id: a frame cannot be its own "
