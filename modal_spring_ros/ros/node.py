@@ -32,7 +32,8 @@ from modal_spring_ros.core.worker import WorkerProcess
 from modal_spring_ros.ros.changes.node_parameters import NodeParameters
 from modal_spring_ros.ros.changes.parameter_changes import ChangePlanner
 from modal_spring_ros.ros.changes.requests import applied_within, Pause, Request, Reset, Step
-from modal_spring_ros.ros.inputs.input_node import InputNode
+from modal_spring_ros.ros.frames.tf import tf_available
+from modal_spring_ros.ros.inputs.input_node import InputNode, TF_CPU_SHARE, TF_MAX_RATE_HZ
 from modal_spring_ros.ros.inputs.subscriptions import NodeInputs
 from modal_spring_ros.ros.parameters import (CLOCK_OFFSET, CLOCK_OFFSET_DESCRIPTOR,
                                              config_from_parameters, FREQUENCIES,
@@ -64,7 +65,8 @@ SERVICE_TIMEOUT_S = 5.0
 SERVICE_WAKE_S, NAMESAKE_CHECK_S = 0.25, 2.0
 #: the node's parts, stopped in this order (inputs first, the capture last), as attribute and
 #: method names: a node stopped while it starts stops the parts it has
-STOP_ORDER = (('_input_node', 'close'), ('_preparer', 'stopping'), ('_worker', 'close'),
+STOP_ORDER = (('_input_node', 'close'), ('_tf_node', 'close'), ('_preparer', 'stopping'),
+              ('_worker', 'close'),
               ('_preparer', 'stop'), ('_thread', 'stop'), ('_outputs', 'close'))
 
 
@@ -135,8 +137,11 @@ class ModalSpringNode(Node):
         self._params.listen()
         follower = scene.anchor_motion if values['anchor.source'] in POSE_SOURCES else None
         self._input_node = InputNode(self)      # its own thread: a flood never starves the run
+        self._tf_node = (InputNode(self, TF_MAX_RATE_HZ, TF_CPU_SHARE, suffix='tf')
+                         if tf_available() else None)   # TF on its own: it keeps up
         self._inputs = NodeInputs(self._input_node.node, follower, lambda: self._params.values,
-                                  self._thread.submit)
+                                  self._thread.submit,
+                                  tf_node=self._tf_node.node if self._tf_node else None)
         services = ReentrantCallbackGroup()     # awaiting coroutines: no thread held
         self._answered = self.create_guard_condition(lambda: None, callback_group=services)
         # wall-time chores on the steady clock: under use_sim_time a timer on the ROS clock
@@ -165,8 +170,9 @@ class ModalSpringNode(Node):
 
     def _begin(self) -> None:
         """Start streaming (the simulation and inputs' threads); then prepare what waited."""
-        for part in (self._thread, self._input_node):
-            part.start()
+        for part in (self._thread, self._input_node, self._tf_node):
+            if part is not None:
+                part.start()
         self._params.prepare_asked()
 
     def _running(self) -> bool:

@@ -11,7 +11,7 @@ import math
 import threading
 import time
 
-from geometry_msgs.msg import PointStamped, TransformStamped, WrenchStamped
+from geometry_msgs.msg import PointStamped, PoseStamped, TransformStamped, WrenchStamped
 from helpers import variant
 from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.reader import BagReader
@@ -21,9 +21,9 @@ from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from ros_harness import frames_since, node_with_client, wait_for
+from ros_harness import Client, frames_since, node_with_client, running_node, wait_for
 from sensor_msgs.msg import PointCloud2
-from test_node_inputs import (click_beside_the_corner, latest, PIVOT, settles_turned,
+from test_node_inputs import (click_beside_the_corner, latest, PIVOT, pose, settles_turned,
                               top_row)
 import yaml
 
@@ -182,3 +182,61 @@ def test_a_wrench_in_a_robot_frame_pushes_the_particles_at_its_origin_and_is_res
     t_new, x_new = BagReader(again).points()
     assert n == len(t_rec) and np.array_equal(t_new, t_rec)
     np.testing.assert_allclose(x_new, x_rec, rtol=0, atol=2e-6)   # every frame
+
+
+def _clamp_x(frames: list, child: str) -> list[tuple[float, float]]:
+    """Return (receipt time, x) of every broadcast of frame ``child``."""
+    return [(t, item.transform.translation.x) for t, message in list(frames)
+            for item in message.transforms if item.child_frame_id == child]
+
+
+def test_a_clamp_following_tf_keeps_up_with_one_following_the_pose_topic(tmp_path):
+    """
+    A gripper steps 5 cm along x: sent on /tf to one node and as anchor_pose to another.
+
+    Each node hears both nodes' own broadcasts on /tf too (60 Hz each) besides the gripper's
+    (50 Hz). TF was paced as a flood of clicks is: its queue stayed full, and the clamp that
+    followed the frame trailed the one that followed the topic by about a second. Heard on its
+    own thread it trails by no more than a few frames (judged on a busy machine).
+    """
+    scene_file = tmp_path / 'still_sheet.yaml'
+    scene_file.write_text(yaml.safe_dump(scene_to_dict(variant('sheet_10x10', anchor_motion=[]))))
+    step = 0.05
+    with Client('lag_client') as client, \
+            running_node(f'scene:={scene_file}', 'anchor.source:=tf', 'anchor.frame:=gripper',
+                         namespace='lagtf'), \
+            running_node(f'scene:={scene_file}', 'anchor.source:=topic', namespace='lagpose'):
+        frames = client.collect(tf2_msgs.TFMessage, '/tf', qos=500)
+        keep = static_links(client, link('world', 'robot', PIVOT))
+        tf = client.node.create_publisher(tf2_msgs.TFMessage, '/tf', 100)
+        poses = client.node.create_publisher(PoseStamped, '/lagpose/anchor_pose', 10)
+        stop, stepped = threading.Event(), []
+
+        def gripper():
+            start = time.monotonic()
+            while not stop.wait(0.02):
+                dx = step if time.monotonic() - start > 4.0 else 0.0
+                if dx and not stepped:
+                    stepped.append(time.monotonic())
+                tf.publish(tf2_msgs.TFMessage(transforms=[link('robot', 'gripper', (dx, 0, 0))]))
+                poses.publish(pose(0.0, (PIVOT[0] + dx, PIVOT[1], PIVOT[2])))
+        thread = threading.Thread(target=gripper, daemon=True)
+        thread.start()
+        try:
+            def moved(child):
+                if not stepped:
+                    return None
+                x = _clamp_x(frames, child)
+                before = [v for t, v in x if t < stepped[0]]
+                after = [t for t, v in x if t >= stepped[0] and before
+                         and v - before[-1] > 0.5 * step]
+                return after[0] - stepped[0] if after else None
+            assert wait_for(lambda: moved('lagtf/modal_spring_clamp') is not None
+                            and moved('lagpose/modal_spring_clamp') is not None, 30), \
+                (moved('lagtf/modal_spring_clamp'), moved('lagpose/modal_spring_clamp'))
+            by_tf, by_pose = moved('lagtf/modal_spring_clamp'), moved('lagpose/modal_spring_clamp')
+            assert by_tf < by_pose + 0.25, (by_tf, by_pose)
+        finally:
+            stop.set()
+            thread.join(2.0)
+        del keep

@@ -22,7 +22,7 @@ from rclpy.context import Context
 from ros_harness import DOMAIN_ID, wait_for
 
 #: the threads a streaming node runs beside its executor
-NODE_THREADS = ('modal_spring_sim', 'modal_spring_inputs', 'parameter_changes')
+NODE_THREADS = ('modal_spring_sim', 'modal_spring_inputs', 'modal_spring_tf', 'parameter_changes')
 
 
 @pytest.fixture

@@ -15,6 +15,13 @@ faster sender waits in its DDS queue (keep-last: the newest are kept) and costs 
 nothing more (the inputs keep only their newest message waiting, so what is taken is never late).
 Every input stays what it was (topics, remapping), and a person's clicks or a robot's poses at tens
 of hertz are taken as they come.
+
+TF is heard on a companion of its own, ``<name>_tf``, paced far more loosely (``TF_CPU_SHARE``):
+``/tf`` carries every frame of a robot at its rate and this node's own broadcasts with every
+frame of the stream, and each message must be taken (the newest of each link is the tree), so a
+pace meant for a flood of clicks held its queue full and the clamp that follows a frame trailed
+it by a second. Unpaced it keeps up, as tf2_ros's own listener thread does; the share still
+bounds what a flood of ``/tf`` may take from the stream.
 """
 from __future__ import annotations
 
@@ -31,14 +38,21 @@ MAX_INPUT_RATE_HZ = 500.0
 MAX_INPUT_CPU_SHARE = 0.05
 #: longest the input thread waits for a message before it checks that it should go on, s
 WAIT_SLICE_S = 0.1
+#: the TF companion: most messages a second, and largest share of a core
+TF_MAX_RATE_HZ, TF_CPU_SHARE = 5000.0, 0.5
 
 
 class InputNode:
     """A companion of ``node`` for its subscriptions, spun in its own thread once started."""
 
     def __init__(self, node: Node, max_rate_hz: float = MAX_INPUT_RATE_HZ,
-                 max_cpu_share: float = MAX_INPUT_CPU_SHARE):
-        name = f'{node.get_name()}_inputs'
+                 max_cpu_share: float = MAX_INPUT_CPU_SHARE, suffix: str = 'inputs'):
+        """
+        Make ``<node>_<suffix>`` in ``node``'s namespace, spun by ``modal_spring_<suffix>``.
+
+        ``max_rate_hz`` and ``max_cpu_share`` pace the thread's callbacks.
+        """
+        name = f'{node.get_name()}_{suffix}'
         # the executor before the node that others can see (a Ctrl-C inside an executor's
         # constructor leaves a half-built one whose finaliser prints a traceback)
         self._executor = SingleThreadedExecutor(context=node.context)
@@ -51,7 +65,7 @@ class InputNode:
         self._cpu_share = float(max_cpu_share)
         self._executor.add_node(self.node)
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name='modal_spring_inputs',
+        self._thread = threading.Thread(target=self._run, name=f'modal_spring_{suffix}',
                                         daemon=True)
 
     def start(self) -> None:

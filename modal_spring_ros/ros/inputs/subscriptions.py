@@ -39,8 +39,13 @@ class NodeInputs:
     """The node's subscriptions; accepted messages go to ``submit`` as requests."""
 
     def __init__(self, node, clamp, values: Callable[[], dict[str, Any]],
-                 submit: Callable[[Request], Request], kinds: tuple[InputKind, ...] = INPUTS):
-        """``clamp``: the scene's clamp follower when ``anchor.source`` is topic, else None."""
+                 submit: Callable[[Request], Request], kinds: tuple[InputKind, ...] = INPUTS,
+                 tf_node=None):
+        """
+        Subscribe on ``node``; TF on ``tf_node`` (a node spun on its own; None: ``node``).
+
+        ``clamp``: the scene's clamp follower when ``anchor.source`` is topic, else None.
+        """
         self._node = node
         self._clamp = clamp
         self._values = values
@@ -53,7 +58,7 @@ class NodeInputs:
         self._follows_tf = wanted.get('anchor.source') == 'tf'
         self._followed: Transform | None = None     # the last pose of anchor.frame taken
         self._tf_problem = ''                       # why anchor.frame cannot be looked up
-        self.tf = (TfListener(node, self._follow_tf if self._follows_tf else None)
+        self.tf = (TfListener(tf_node or node, self._follow_tf if self._follows_tf else None)
                    if tf_available() else None)
         if self.tf is None:
             node.get_logger().warning(TF_MISSING)
