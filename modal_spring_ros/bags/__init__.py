@@ -4,5 +4,6 @@ rosbag2 bags in MCAP storage.
 Message definitions, QoS, writer, reader, the lossless capture of a run, and the reference bags.
 Also the messages they hold (point clouds, stamps).
 
-Imports from ``core``, ``scenes`` and ``runs``; uses rclpy only to (de)serialise messages.
+Imports from ``core``, ``scenes`` and ``runs``. Reading needs no ROS (messages are decoded from
+the bags' own definitions); writing uses the ROS message classes and rclpy's QoS.
 """

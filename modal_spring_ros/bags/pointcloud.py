@@ -11,14 +11,17 @@ import array
 import math
 
 import numpy as np
-from sensor_msgs.msg import PointCloud2, PointField
-from std_msgs.msg import Header
+try:     # making clouds needs ROS's message classes; reading them (xyz) does not
+    from sensor_msgs.msg import PointCloud2, PointField
+    from std_msgs.msg import Header
+except ImportError:
+    PointCloud2 = PointField = Header = None
 
 FIELD_NAMES = ('x', 'y', 'z', 'displacement')
 POINT_DTYPE = np.dtype({'names': list(FIELD_NAMES), 'formats': ['<f4'] * 4,
                         'offsets': [0, 4, 8, 12], 'itemsize': 16})
 _FIELDS = [PointField(name=name, offset=4 * k, datatype=PointField.FLOAT32, count=1)
-           for k, name in enumerate(FIELD_NAMES)]
+           for k, name in enumerate(FIELD_NAMES)] if PointField is not None else []
 
 
 def distance_from_rest(positions: np.ndarray, rest_positions: np.ndarray) -> np.ndarray:

@@ -11,20 +11,19 @@ import dataclasses
 import json
 from pathlib import Path
 import struct
-from typing import Iterator
+from typing import Any, Callable, Iterator
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
-from modal_spring_ros.bags.message_types import message_class, TypeRefused
+from mcap_ros2.decoder import DecoderFactory
 from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.bags.writer import BagError, RUN_RECORD
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.scenes.files.scene_archive import recorded_scene
 import numpy as np
-from rclpy.serialization import deserialize_message
 import yaml
 
 #: the type of the clouds (checked for non-finite values)
@@ -47,6 +46,7 @@ class BagMessage:
     log_time_ns: int
     publish_time_ns: int
     data: bytes
+    schema: Schema | None = None     # the bag's own definition of its type
 
 
 def _bag_information(meta: Path) -> dict:
@@ -82,6 +82,7 @@ class BagReader:
         if not self.path.exists():
             raise BagError(f'{self.path}: no such bag (folder or .mcap file)')
         self.metadata = None
+        self._decoders: dict[tuple[str, bytes], Callable[[bytes], Any]] = {}
         if self.path.is_dir():
             meta = self.path / 'metadata.yaml'
             if meta.exists():
@@ -185,7 +186,7 @@ class BagReader:
                         topics=list(wanted) if wanted else None)
                     for schema, channel, msg in it:
                         yield BagMessage(channel.topic, schema.name if schema else '',
-                                         msg.log_time, msg.publish_time, msg.data)
+                                         msg.log_time, msg.publish_time, msg.data, schema)
                 except CRCValidationError as exc:
                     raise BagError(f"{f}: damaged: a chunk's checksum does not match its "
                                    f'bytes ({exc})') from None
@@ -226,7 +227,7 @@ class BagReader:
                         continue
                     schema = schemas.get(ch.schema_id)
                     yield BagMessage(ch.topic, schema.name if schema else '', rec.log_time,
-                                     rec.publish_time, rec.data)
+                                     rec.publish_time, rec.data, schema)
         except CRCValidationError as exc:
             raise BagError(f"{self.path}: damaged: a chunk's checksum does not match its bytes "
                            f'({exc})') from None
@@ -235,23 +236,35 @@ class BagReader:
 
     def decode(self, message: BagMessage):
         """
-        Return the message as an rclpy object (rclpy's own CDR deserializer).
+        Return the message decoded from the bag's own schema of its type (no ROS needed).
 
-        Its type name is the bag's: it resolves only to an installed interface
-        (:mod:`~modal_spring_ros.bags.message_types`), and never chooses what is imported.
+        mcap-ros2-support's CDR decoder reads the ``ros2msg`` definition the bag carries: a
+        plain object with the message's fields (``msg.header.stamp.sec``, ``msg.data`` as
+        bytes), whatever is installed; nothing a bag says is imported. The ROS tools that
+        need rclpy's own classes decode through
+        :func:`~modal_spring_ros.ros.tools.installed_messages.installed_message`.
 
-        :raises BagError: its type is not installed, or its bytes are not a valid message.
+        :raises BagError: the bag has no usable definition of its type, or its bytes are not
+            a valid message of it.
         """
+        schema = message.schema
+        if schema is None or schema.encoding != 'ros2msg':
+            raise BagError(f'{self.path}: message on {message.topic}: its type '
+                           f'{message.type_name!r} has no ros2msg definition in the bag')
+        key = (schema.name, bytes(schema.data))     # schema ids are per file
         try:
-            cls = message_class(message.type_name)
-        except TypeRefused as exc:
-            raise BagError(f'{self.path}: message on {message.topic}: {exc}') from None
-        try:
-            return deserialize_message(message.data, cls)
-        except Exception as exc:  # rclpy raises several kinds for damaged CDR
+            decoder = self._decoders.get(key)
+            if decoder is None:
+                # a factory per definition: the factory keeps its decoders by schema id
+                decoder = DecoderFactory().decoder_for('cdr', schema)
+                if decoder is None:
+                    raise ValueError('no CDR decoder for it')
+                self._decoders[key] = decoder
+            return decoder(message.data)
+        except Exception as exc:  # mcap_ros2 raises several kinds for damaged definitions or CDR
             raise BagError(f'{self.path}: message on {message.topic} at log time '
                            f'{message.log_time_ns} ns is damaged: cannot decode it as '
-                           f'{message.type_name} ({type(exc).__name__})') from None
+                           f'{message.type_name} ({type(exc).__name__}: {exc})') from None
 
     # -- the run's own description -------------------------------------------------------------
     def run_record(self) -> dict:
@@ -295,6 +308,10 @@ class BagReader:
         if topic not in self.topics:
             raise BagError(f'{self.path}: no topic {topic} (topics: '
                            f"{', '.join(sorted(self.topics)) or 'none'})")
+        if self.topics[topic].type_name != POINTCLOUD2:
+            raise BagError(f'{self.path}: topic {topic} holds '
+                           f'{self.topics[topic].type_name or "an unnamed type"}, not '
+                           f'{POINTCLOUD2}')
         stamps, frames = [], []
         for m in self.messages([topic]):
             msg = self.decode(m)

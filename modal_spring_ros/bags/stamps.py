@@ -3,7 +3,10 @@ from __future__ import annotations
 
 import math
 
-from builtin_interfaces.msg import Time
+try:     # making a stamp needs ROS's message class; reading one does not
+    from builtin_interfaces.msg import Time
+except ImportError:
+    Time = None
 
 
 def to_time_msg(seconds: float) -> Time:

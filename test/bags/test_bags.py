@@ -18,11 +18,13 @@ import time
 
 from helpers import BAGS, REAL_BAGS
 from modal_spring_ros.bags.message_definitions import DELIMITER, full_definition, share_directory
+from modal_spring_ros.bags.pointcloud import xyz
 from modal_spring_ros.bags.qos import profiles_from_yaml
 from modal_spring_ros.bags.reader import BagReader
 from modal_spring_ros.bags.reference_bags import RUNS
 from modal_spring_ros.bags.writer import BagError, BagWriter
 from modal_spring_ros.cli.modal_spring_sim import main as sim_main
+from modal_spring_ros.ros.tools.installed_messages import installed_message
 from modal_spring_ros.ros.tools.resimulate import resimulate
 from modal_spring_ros.scenes.files.writing import scene_to_dict
 from modal_spring_ros.scenes.resources import load_scene
@@ -165,8 +167,11 @@ def test_independent_readers_decode_what_was_published(tmp_path):
     record(sim, 0.5, frame_every=40, on_frame=frame)
     bag.close()
     reader = BagReader(tmp_path / 'bag')
-    decoded = [reader.decode(m) for m in reader.messages()]
+    decoded = [installed_message(reader, m) for m in reader.messages()]
     assert decoded == published                                   # rclpy: equal messages
+    # and from the bag's own definition, without ROS: the same clouds
+    for m, message in zip(reader.messages(), published):
+        np.testing.assert_array_equal(xyz(reader.decode(m)), xyz(message))
 
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import get_typestore, Stores
@@ -232,8 +237,12 @@ def test_real_rosbag2_bags_are_read():
     assert services.topics['/test_service1/_service_event'].type_name == \
         'test_msgs/srv/BasicTypes_Event'
     assert len(list(services.messages())) == 10
+    # a type installed nowhere here decodes from the bag's own definition (no ROS needed)
+    strings = services.decode(next(services.messages(['/test_topic1'])))
+    assert isinstance(strings.string_value, str) and isinstance(strings.bounded_string_value, str)
+    # and is refused, by name, where ROS code would be handed its installed class
     with pytest.raises(BagError, match='test_msgs/msg/Strings is not installed'):
-        services.decode(next(services.messages(['/test_topic1'])))
+        installed_message(services, next(services.messages(['/test_topic1'])))
     qos = profiles_from_yaml(only.topics['/parameter_events'].offered_qos_profiles)
     assert len(qos) == 2                                         # version 8: integers
 

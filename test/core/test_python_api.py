@@ -7,13 +7,14 @@ has it (``MODAL_SPRING_NOROS_PYTHON`` names another; skipped where there is none
 """
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 import re
 import subprocess
 import sys
 
-from helpers import HIDE_ROS, REPO
+from helpers import BAGS, HIDE_ROS, REPO
 import numpy as np
 import pytest
 
@@ -70,6 +71,31 @@ def test_the_venv_without_ros_has_none_and_its_simulator_runs_a_mesh_scene(tmp_p
     assert re.fullmatch(r'modal_spring_node: needs \S+, which is not installed: pip install '
                         r"'\.\[ros\]' \(ROS 2 Jazzy from PyPI wheels\), or source a ROS 2 "
                         r'install', done.stderr.strip()), done.stderr
+
+
+@needs_noros
+def test_without_ros_a_bag_is_read_compared_and_drawn_from_its_own_schemas(tmp_path):
+    """The bags carry their message definitions: looking at a run needs no ROS install."""
+    bin_dir = NOROS_PYTHON.parent
+    full, lowpass = BAGS / 'sheet_10x10_full', BAGS / 'sheet_10x10_lowpass_0_14'
+    report = tmp_path / 'compare.json'
+    done = subprocess.run([str(bin_dir / 'modal_spring_compare'), str(full), str(lowpass),
+                           '--json', str(report), '--plot', str(tmp_path / 'compare.png')],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    # the same figures as the ROS venv reads from the same bags
+    compare = Path(sys.executable).parent / 'modal_spring_compare'
+    with_ros = subprocess.run([str(compare), str(full), str(lowpass),
+                               '--json', str(tmp_path / 'ros.json')],
+                              capture_output=True, text=True, timeout=300)
+    assert with_ros.returncode == 0, with_ros.stderr[-2000:]
+    assert json.loads(report.read_text()) == json.loads((tmp_path / 'ros.json').read_text())
+    assert (tmp_path / 'compare.png').stat().st_size > 10_000
+    done = subprocess.run([str(bin_dir / 'modal_spring_render'), str(full), '--output',
+                           str(tmp_path / 'sheet.png'), '--snapshots', '3'],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert (tmp_path / 'sheet.png').stat().st_size > 10_000
 
 
 def test_the_package_is_the_python_apis_facade_and_loads_nothing_until_used():

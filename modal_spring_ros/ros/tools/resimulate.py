@@ -33,6 +33,7 @@ from modal_spring_ros.ros.inputs.input_kinds import InputKind, INPUTS, WrenchAt
 from modal_spring_ros.ros.parameters import (CLOCK_OFFSET, config_from_parameters, PARAMETERS,
                                              REBUILD_PARAMETERS)
 from modal_spring_ros.ros.stream.stream_time import stamps_in_simulation_time
+from modal_spring_ros.ros.tools.installed_messages import installed_message
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.fields.limits import available_memory
 from rclpy.parameter import parameter_value_to_python
@@ -50,7 +51,7 @@ def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, int, dict]]:
         return []
     out = []
     for m in bag.messages(['/parameter_events']):
-        event = bag.decode(m)
+        event = installed_message(bag, m)
         if event.node != node:
             continue
         values = {p.name: parameter_value_to_python(p.value)
@@ -77,7 +78,7 @@ def recorded_inputs(bag: BagReader, kinds: tuple[InputKind, ...] = INPUTS
         return []
     out, point = [], None
     for m in bag.messages(list(by_topic) + sorted(points)):
-        message = bag.decode(m)
+        message = installed_message(bag, m)
         if m.topic in points:
             point = message
             continue
