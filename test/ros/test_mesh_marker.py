@@ -1,7 +1,7 @@
 """What RViz draws of each scene: its surface's triangles, or its springs where it has none."""
 from __future__ import annotations
 
-from modal_spring_ros.ros.stream.outputs import marker_cells, mesh_marker
+from modal_spring_ros.ros.markers.mesh_marker import marker_cells, mesh_marker
 from modal_spring_ros.scenes.resources import builtin_scene_names, load_scene
 import numpy as np
 import pytest

@@ -389,15 +389,23 @@ def test_two_nodes_of_one_name_on_one_domain_are_both_warned():
         assert {kv.key: kv.value for kv in warned()[0].values}['nodes with this name'] == '2'
         code, _, err = second.interrupt()
         assert code == 0 and err.count(warning) == 1                  # once
-        settled = time.monotonic()
-        # the one left says it is alone again once the graph forgets the other (at the latest
-        # when the other's DDS lease ends, should its goodbye be lost on a busy machine)
+        # the one left says it is alone again once the graph forgets the other: the graph is
+        # the middleware's (the other's goodbye, or at the latest the end of its DDS lease), so
+        # the node is judged from when the test's own view of the graph forgot it
+
+        def namesakes_seen():
+            return client.node.get_node_names_and_namespaces().count(('modal_spring', '/twin'))
+        if not wait_for(lambda: namesakes_seen() == 1, 180):
+            pytest.xfail('the middleware kept the departed node on the graph for 180 s '
+                         '(its goodbye and lease both missed on this machine)')
+        forgotten = time.monotonic()
 
         def alone():
-            return [(t - settled, s.message, {kv.key: kv.value for kv in s.values}.get(
-                'nodes with this name')) for t, s in _status(diags, '/twin/') if t > settled]
+            return [(t - forgotten, s.message, {kv.key: kv.value for kv in s.values}.get(
+                'nodes with this name')) for t, s in _status(diags, '/twin/') if t > forgotten]
+        # the node looks every NAMESAKE_CHECK_S (2 s) and reports every second
         assert wait_for(lambda: any(named == '1' and 'other node' not in message
-                                    for _, message, named in alone()), 180), \
+                                    for _, message, named in alone()), 30), \
             (alone()[-5:], stderr_excerpt(first.stderr()))
     finally:
         client.close()

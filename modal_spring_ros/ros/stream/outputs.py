@@ -14,15 +14,16 @@ import dataclasses
 from typing import Any, Callable, Protocol
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Point
 from modal_spring_ros.bags.capture import RunBagWriter
-from modal_spring_ros.bags.pointcloud import CloudBuffer, distance_from_rest
+from modal_spring_ros.bags.pointcloud import CloudBuffer
 from modal_spring_ros.bags.sim_time import SIM_TIME_TOPIC, SOURCE
 from modal_spring_ros.bags.stamps import to_time_msg
 from modal_spring_ros.bags.writer import BagError
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import Simulation, SimulationStatus
 from modal_spring_ros.ros.frames.tf import FrameBroadcaster, tf_available
+from modal_spring_ros.ros.markers.collider_markers import collider_markers
+from modal_spring_ros.ros.markers.mesh_marker import marker_cells, mesh_marker
 from modal_spring_ros.ros.parameters import broadcast_frames
 from modal_spring_ros.ros.process.shared_memory import cloud_transport
 from modal_spring_ros.ros.stream.diagnostics import diagnostic_array, StreamReport
@@ -31,16 +32,17 @@ from modal_spring_ros.scenes.resources import share_directory
 import numpy as np
 from rclpy import get_rmw_implementation_identifier
 from rclpy.node import Node
-from rclpy.qos import QoSPolicyKind
+from rclpy.qos import DurabilityPolicy, QoSPolicyKind, QoSProfile
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2, TimeReference
-from std_msgs.msg import ColorRGBA, Header
-from visualization_msgs.msg import Marker
+from std_msgs.msg import Header
+from visualization_msgs.msg import Marker, MarkerArray
 
 #: Topics (relative, so that namespaces and remapping apply); diagnostics and clock are global.
 POINTS_TOPIC = 'points'
 MESH_TOPIC = 'mesh'
+COLLIDERS_TOPIC = 'colliders'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 CLOCK_TOPIC = '/clock'
 #: what a user may override in the stream's QoS at start (rclpy's default set leaves durability
@@ -49,37 +51,6 @@ OVERRIDABLE_POLICIES = (QoSPolicyKind.HISTORY, QoSPolicyKind.DEPTH, QoSPolicyKin
                         QoSPolicyKind.DURABILITY)
 #: depth of the publishers' history (keep last)
 QUEUE_DEPTH = 10
-
-
-def mesh_marker(positions: np.ndarray, rest: np.ndarray, cells: np.ndarray, header: Header,
-                width: float = 0.0) -> Marker:
-    """
-    Return the object as RViz draws it, coloured blue (at rest) to red (most displaced).
-
-    ``cells`` (T, 3): a TRIANGLE_LIST of its surface; (E, 2): a LINE_LIST of its springs,
-    ``width`` m wide (an object with no surface, such as a chain).
-    """
-    corners = positions[cells.ravel()]
-    disp = distance_from_rest(corners, rest[cells.ravel()])
-    level = np.clip(disp / max(float(disp.max()), 1e-12), 0.0, 1.0)
-    lines = cells.shape[1] == 2
-    m = Marker(header=header, ns='modal_spring', id=0,
-               type=Marker.LINE_LIST if lines else Marker.TRIANGLE_LIST, action=Marker.ADD)
-    m.pose.orientation.w = 1.0
-    m.scale.x = m.scale.y = m.scale.z = 1.0
-    if lines:
-        m.scale.x = width
-    m.points = [Point(x=x, y=y, z=z) for x, y, z in corners.tolist()]
-    m.colors = [ColorRGBA(r=c, g=0.2, b=1.0 - c, a=1.0) for c in level.tolist()]
-    return m
-
-
-def marker_cells(scene: Scene) -> tuple[np.ndarray, float]:
-    """Return what the mesh marker draws: the surface's triangles, else the springs and a width."""
-    triangles = scene.surface_triangles()
-    if triangles.size:
-        return triangles, 0.0
-    return scene.springs, 0.1 * float(np.median(scene.rest_length))
 
 
 class Outputs(Protocol):
@@ -123,6 +94,14 @@ class NodeOutputs:
                                                   QUEUE_DEPTH)
         self._clock = None  # /clock only when publish_clock asks for it
         self._tf = self._frame_broadcaster(node, scene, values())
+        # what the object touches, once and latched (a viewer that comes later has it)
+        self._colliders = None
+        if scene.contact is not None:
+            self._colliders = node.create_publisher(MarkerArray, COLLIDERS_TOPIC, QoSProfile(
+                depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+            size = 2.0 * float(np.ptp(np.asarray(scene.rest_positions), axis=0).max())
+            self._colliders.publish(collider_markers(
+                scene.contact, Header(frame_id=values()['frame_id']), plane_size=size))
         self._announced = False
         if values()['publish_clock']:
             self.enable_clock()
