@@ -94,7 +94,8 @@ class NodeOutputs:
                                                   QUEUE_DEPTH)
         self._clock = None  # /clock only when publish_clock asks for it
         self._tf = self._frame_broadcaster(node, scene, values())
-        # what the object touches, once and latched (a viewer that comes later has it)
+        # what the object touches, once and latched (a viewer that comes later has it from the
+        # publisher, which is kept for that)
         self._colliders = None
         if scene.contact is not None:
             self._colliders = node.create_publisher(MarkerArray, COLLIDERS_TOPIC, QoSProfile(
