@@ -20,8 +20,8 @@ TF is heard on a companion of its own, ``<name>_tf``, paced far more loosely (``
 ``/tf`` carries every frame of a robot at its rate and this node's own broadcasts with every
 frame of the stream, and each message must be taken (the newest of each link is the tree), so a
 pace meant for a flood of clicks held its queue full and the clamp that follows a frame trailed
-it by a second. Unpaced it keeps up, as tf2_ros's own listener thread does; the share still
-bounds what a flood of ``/tf`` may take from the stream.
+it by most of a second. Paced this loosely it keeps up, as tf2_ros's own listener thread does;
+the share still bounds what a flood of ``/tf`` may take from the stream.
 """
 from __future__ import annotations
 
