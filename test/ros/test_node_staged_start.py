@@ -60,14 +60,18 @@ def test_a_huge_scene_streams_its_lowest_modes_first_then_its_whole_band(tmp_pat
         stepped = reported(diagnostics, 'modes stepped')
         assert stepped[-1] == str(MODES) and set(stepped) <= {str(FIRST_MODES), str(MODES)}
         assert reported(diagnostics, 'parameter changes pending')[-1] == 'none'
-        # while the band's other modes were computed, /diagnostics said so (at once when the
-        # stream began, however soon they came), with the worker's progress once it had a line
-        pending = [values for values in statuses(diagnostics)
-                   if 'modal.max_modes=256' in values.get('parameter changes pending', '')]
-        progress = [values['progress'] for values in pending if 'progress' in values]
-        assert pending and all(line.startswith(f'computing the {MODES} lowest')
-                               or line.startswith(f'{MODES} modes ready')
-                               for line in progress), pending
+        # while the band's other modes were computed, every status said so, with the worker's
+        # progress once it had a line. (A volatile topic's first messages reach only readers
+        # matched by then: where discovery ends after the band is ready, as on a fast machine,
+        # no status of the first modes arrives, and the report made at once is checked without
+        # DDS in test_simulation_thread.)
+        first = [values for values in statuses(diagnostics)
+                 if values.get('modes stepped') == str(FIRST_MODES)]
+        assert all('modal.max_modes=256' in values.get('parameter changes pending', '')
+                   for values in first), first
+        progress = [values['progress'] for values in first if 'progress' in values]
+        assert all(line.startswith(f'computing the {MODES} lowest')
+                   or line.startswith(f'{MODES} modes ready') for line in progress), first
         (freqs, cap) = client.get_parameters('staged/modal_spring', 'modal.frequencies_hz',
                                              'modal.max_modes')
         assert len(freqs) == MODES and np.all(np.diff(freqs) >= 0) and cap == 256
