@@ -308,5 +308,7 @@ def run_main(prog: str, body: Callable[[], int]) -> int:
         return body()
     except (SceneError, BandError, ValueError) as exc:
         fail(prog, str(exc))
+    except MemoryError as exc:   # numpy names the array it could not allocate
+        fail(prog, f'not enough memory: {exc or "an allocation failed"}')
     except KeyboardInterrupt:
         return 130

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import sys
 
-from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.bags.files.writer import BagError
 from modal_spring_ros.cli.common import EXIT_USAGE, split_ros_args
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError
@@ -91,6 +91,10 @@ def main(args: list[str] | None = None) -> int:
         pass
     except (SceneError, ValueError, ParameterException, BagError) as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
+        return EXIT_USAGE
+    except MemoryError as exc:   # numpy names the array it could not allocate
+        print(f'{PROG}: error: not enough memory: {exc or "an allocation failed"}',
+              file=sys.stderr)
         return EXIT_USAGE
     except WorkerError as exc:
         if stop.requested.is_set() or not rclpy.ok():

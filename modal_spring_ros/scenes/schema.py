@@ -80,7 +80,8 @@ class _SceneParser(FieldReader):
             axes = (0, 1, 2)
 
         if 'mesh' in data:
-            positions, mass, pairs, stiffness, triangles, bending = self.mesh(data, dimension)
+            (positions, mass, pairs, stiffness, triangles,
+             bending) = self.mesh(data, dimension, progress)
         else:
             positions, mass, pairs, stiffness = self.listed(data, axes)
             triangles = self.triangles(data.get('triangles'), positions.shape[0])
@@ -166,7 +167,8 @@ class _SceneParser(FieldReader):
                                   LIMITS['stiffness'])
         return positions, mass, pairs, stiffness
 
-    def mesh(self, data: Mapping[str, Any], dimension: int):
+    def mesh(self, data: Mapping[str, Any], dimension: int,
+             progress: Callable[[str], None] | None = None):
         """Return what :meth:`listed` does, and the skin's triangles, built from a mesh."""
         if dimension != 3:
             raise self.fail('mesh', 'a mesh scene is 3D: give dimension: 3')
@@ -174,7 +176,8 @@ class _SceneParser(FieldReader):
             if key in data:
                 raise self.fail(key, 'a mesh scene takes its particles, springs and '
                                 f'triangles from its mesh: leave {key} out')
-        network = mesh_network(self, data['mesh'], data.get('material'), self.check_size)
+        network = mesh_network(self, data['mesh'], data.get('material'), self.check_size,
+                               progress)
         bad = np.flatnonzero(~(network.mass > 0.0))
         if bad.size:
             raise self.fail('mesh', f'vertex {int(bad[0])} has no mass (on no cell)')

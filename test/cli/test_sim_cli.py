@@ -5,7 +5,7 @@ import subprocess
 import sys
 
 from helpers import HIDE_ROS, variant
-from modal_spring_ros.cli.common import parse_mode_range
+from modal_spring_ros.cli.common import parse_mode_range, run_main
 from modal_spring_ros.cli.modal_spring_sim import main
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import BandError, FilterBand
@@ -218,7 +218,7 @@ def test_a_plan_the_run_outgrows_is_caught_by_its_watch_and_falls_back(tmp_path,
     Watched every 3 s, the plan measures 0.25 % from 3 s and is beyond 1 % from 6 s on: the run
     goes on as the full run from there, and a bag of it re-simulates through the fallback.
     """
-    from modal_spring_ros.bags.reader import BagReader
+    from modal_spring_ros.bags.files.reader import BagReader
     from modal_spring_ros.ros.tools.resimulate import resimulate
     bag = tmp_path / 'ramped'
     assert main(['--scene', str(ramped_shake(tmp_path)), '--auto', '--duration', '9',
@@ -260,3 +260,15 @@ def test_a_run_longer_than_its_pilot_window_is_watched_at_least_once(capsys):
     assert start > 1.0 and start + window == pytest.approx(5.0, abs=0.05)
     error = float(watched[0].split('last ')[1].split('%')[0]) / 100
     assert 0.0 < error <= 0.01
+
+
+def test_running_out_of_memory_is_one_line_and_exit_2(capsys):
+    """An allocation too large for the machine ends the command as any refusal does."""
+    def body() -> int:
+        raise MemoryError('Unable to allocate 22.4 GiB for an array with shape (3000000, 1000)')
+    with pytest.raises(SystemExit) as ended:
+        run_main('modal_spring_sim', body)
+    assert ended.value.code == 2
+    assert capsys.readouterr().err == ('modal_spring_sim: error: not enough memory: Unable to '
+                                       'allocate 22.4 GiB for an array with shape '
+                                       '(3000000, 1000)\n')

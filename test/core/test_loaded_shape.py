@@ -202,3 +202,32 @@ def test_a_search_at_the_round_off_of_its_forces_ends_there(tmp_path, monkeypatc
     model = MassSpringModel(scene)
     left = np.max(np.abs(model.free_force(np.zeros(model.n_free_dof), 0.0)))
     assert 0.0 < left <= loaded_shape.STALLED_RTOL * np.max(np.abs(model.gravity_force))
+
+
+def test_a_tangent_too_large_to_factor_is_one_clear_refusal_and_slow_steps_are_announced(
+        monkeypatch):
+    """Out of memory in the factor (a million-vertex mesh): the scene is refused in one line."""
+    def no_memory(*args, **kwargs):
+        raise MemoryError('Not enough memory to perform factorization.')
+    monkeypatch.setattr(loaded_shape, 'factor_definite', no_memory)
+    with pytest.raises(SceneError, match=r"reference: scene '.*': finding the shape it hangs in "
+                                         r'\(a sparse factor of 102 coordinates\) needs more '
+                                         r"memory .* 'reference: rest'"):
+        hanging_cloth()                    # 36 particles, 2 held: 34 free, 3 coordinates each
+    monkeypatch.undo()
+
+
+def test_a_mesh_scene_says_what_it_reads_builds_and_how_long_a_step_of_its_search_takes(
+        tmp_path, monkeypatch):
+    monkeypatch.setattr(loaded_shape, 'SLOW_STEP_S', 0.0)   # every first step is slow here
+    heard = []
+    scene = scene_from_dict(corner_cloth(tmp_path), progress=heard.append)
+    free = 3 * (scene.n_particles - 2)
+    assert heard[2] == f'loaded shape: searching ({free:,} free coordinates)'
+    assert heard[0] == f"mesh {tmp_path / 'c.obj'}: reading"
+    assert heard[1] == (f"mesh {tmp_path / 'c.obj'}: 64 vertices, 98 triangles, 0 tetrahedra: "
+                        'building its surface')
+    assert heard[3].startswith(f'loaded shape: a step of {free:,} coordinates takes ')
+    assert heard[3].endswith(f'most shapes are found in 10-30 steps (at most '
+                             f'{loaded_shape.MAX_ITERATIONS})')
+    assert heard[-1].startswith('loaded shape found in ')

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from modal_spring_ros.core.model.integer_rows import unique_rows
 import numpy as np
 import scipy.sparse as sp
 
@@ -93,7 +94,7 @@ def hinge_quads(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ends = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
     opposite = np.concatenate([tri[:, 2], tri[:, 0], tri[:, 1]])
     owner = np.tile(np.arange(tri.shape[0]), 3)
-    edges, index, counts = np.unique(ends, axis=0, return_inverse=True, return_counts=True)
+    edges, index, counts = unique_rows(ends, return_inverse=True, return_counts=True)
     order = np.argsort(index.ravel(), kind='stable')
     starts = np.cumsum(counts) - counts
     two = np.flatnonzero(counts == 2)
@@ -117,10 +118,12 @@ def flat_surface_bending(positions: np.ndarray, triangles: np.ndarray,
     flat = centred @ plane.T                                         # (n, 2)
     quads, _ = hinge_quads(triangles)
     corner = flat[quads]                                             # (H, 4, 2)
-    # the weights span the null space of [1; X^T]: three conditions on four numbers
-    conditions = np.concatenate([np.ones((quads.shape[0], 1, 4)),
-                                 np.transpose(corner, (0, 2, 1))], axis=1)   # (H, 3, 4)
-    weights = np.linalg.svd(conditions)[2][:, -1, :]                 # (H, 4)
+    # the weights span the null space of [1; X^T] (three conditions on four numbers): its
+    # cofactors, each the signed area of the triangle of the other three corners
+    weights = np.stack([(-1) ** j * _cross2(corner[:, b] - corner[:, a],
+                                            corner[:, c] - corner[:, a])
+                        for j, (a, b, c) in enumerate(((1, 2, 3), (0, 2, 3), (0, 1, 3),
+                                                       (0, 1, 2)))], axis=1)   # (H, 4)
     edge = corner[:, 1] - corner[:, 0]
     length = np.linalg.norm(edge, axis=1)
     area = 0.5 * np.abs(np.stack([_cross2(edge, corner[:, 2] - corner[:, 0]),

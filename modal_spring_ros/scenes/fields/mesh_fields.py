@@ -31,8 +31,13 @@ KINDS = {'surface': surface_network, 'volume': volume_network}
 
 
 def mesh_network(reader: FieldReader, spec: Any, material: Any,
-                 check_size: Callable[[int, str], None]) -> Network:
-    """Read ``mesh`` and ``material`` and build the network; ``check_size`` refuses a large one."""
+                 check_size: Callable[[int, str], None],
+                 progress: Callable[[str], None] | None = None) -> Network:
+    """
+    Read ``mesh`` and ``material`` and build the network; ``check_size`` refuses a large one.
+
+    ``progress`` hears of the stages (reading the file, building the springs).
+    """
     spec = reader.mapping(spec, 'mesh')
     reader.known_keys(spec, 'mesh', MESH_KEYS)
     name = reader.required(spec, 'file', 'mesh')
@@ -44,13 +49,18 @@ def mesh_network(reader: FieldReader, spec: Any, material: Any,
     if material is None:
         raise reader.fail('material', 'missing: a mesh scene needs density and stiffness')
     properties = _material(reader, material)
+    say = progress or (lambda line: None)
     try:
-        mesh = read_mesh(resolve_mesh_path(name, reader.source))
+        path = resolve_mesh_path(name, reader.source)
+        say(f'mesh {name}: reading')
+        mesh = read_mesh(path)
     except SceneError as exc:
         raise reader.fail('mesh.file', str(exc)) from None
     if not (mesh.triangles.size or mesh.tetrahedra.size):
         raise reader.fail('mesh', f'mesh {name}: has no triangles (nor tetrahedra)')
     check_size(mesh.vertices.shape[0] * (2 if kind == 'volume' else 1), 'mesh.file')
+    say(f'mesh {name}: {mesh.vertices.shape[0]:,} vertices, {mesh.triangles.shape[0]:,} '
+        f'triangles, {mesh.tetrahedra.shape[0]:,} tetrahedra: building its {kind}')
     mesh = _placed(reader, spec, mesh)
     try:
         return KINDS[kind](mesh, properties, name)

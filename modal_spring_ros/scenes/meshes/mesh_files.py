@@ -25,6 +25,7 @@ import stat
 import subprocess
 import sys
 
+from modal_spring_ros.core.model.integer_rows import unique_rows
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.ament_index import package_share
 from modal_spring_ros.scenes.fields.limits import available_memory
@@ -236,7 +237,7 @@ def _merged(vertices: np.ndarray, triangles: np.ndarray, tetrahedra: np.ndarray)
     size = float(np.max(np.ptp(vertices, axis=0))) if n else 0.0
     key = np.round(vertices / max(size * MERGE_RTOL, 1e-300)).astype(np.int64) if n else \
         np.empty((0, 3), dtype=np.int64)
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    _, first, inverse = unique_rows(key, return_index=True, return_inverse=True)
     # numbered in the file's order (fixed indices name the file's vertices)
     rank = np.empty(first.size, dtype=np.int64)
     rank[np.argsort(first, kind='stable')] = np.arange(first.size)

@@ -35,6 +35,7 @@ import dataclasses
 
 from modal_spring_ros.core.model.bending import (Bending, flat_surface_bending, flattened,
                                                  hinge_quads, is_flat)
+from modal_spring_ros.core.model.integer_rows import unique_rows
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.meshes.inside import inside_closed_surface
 from modal_spring_ros.scenes.meshes.mesh_files import MeshData
@@ -131,8 +132,8 @@ def _checked_triangles(mesh: MeshData, name: str) -> np.ndarray:
     if bad.size:
         raise SceneError(f'mesh {name}: triangle {int(bad[0])} is degenerate (no area)'
                          + (f' and {bad.size - 1} more' if bad.size > 1 else ''))
-    _, first, counts = np.unique(np.sort(tri, axis=1), axis=0, return_index=True,
-                                 return_counts=True)
+    _, first, counts = unique_rows(np.sort(tri, axis=1), return_index=True,
+                                   return_counts=True)
     if np.any(counts > 1):
         twice = int(np.sort(first[counts > 1])[0])
         raise SceneError(f'mesh {name}: triangle {twice} is listed more than once '
@@ -175,8 +176,8 @@ def _filled(vertices: np.ndarray, skin: np.ndarray) -> tuple[np.ndarray, np.ndar
 def _boundary_faces(tet: np.ndarray) -> np.ndarray:
     """Triangles that belong to one tetrahedron only: the solid's skin."""
     faces = tet[:, [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]].reshape(-1, 3)
-    _, first, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True,
-                                 return_counts=True)
+    _, first, counts = unique_rows(np.sort(faces, axis=1), return_index=True,
+                                   return_counts=True)
     return faces[np.sort(first[counts == 1])]
 
 
@@ -197,12 +198,12 @@ def _cell_edges(cells: np.ndarray, local: tuple[tuple[int, int], ...]
     The owners: (2, C * len(local)) cell index and edge index of every cell's every edge.
     """
     ends = np.stack([np.sort(cells[:, list(pair)], axis=1) for pair in local], axis=1)
-    edges, index = np.unique(ends.reshape(-1, 2), axis=0, return_inverse=True)
+    edges, index = unique_rows(ends.reshape(-1, 2), return_inverse=True)
     cell = np.repeat(np.arange(cells.shape[0]), len(local))
     return edges.astype(np.int64), np.stack([cell, index.ravel()])
 
 
 def _merged_pairs(pairs: np.ndarray, stiffness: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One spring per particle pair: springs listed twice act as one, their stiffness summed."""
-    unique, index = np.unique(pairs, axis=0, return_inverse=True)
+    unique, index = unique_rows(pairs, return_inverse=True)
     return unique.astype(np.int64), np.bincount(index.ravel(), weights=stiffness)
