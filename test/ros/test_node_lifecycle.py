@@ -29,6 +29,25 @@ RATE = 60.0
 STEADY_BEFORE_S = 5.0
 
 
+def process_group(pgid: int, wait_s: float = 0.5) -> list[str]:
+    """Return the processes still in group ``pgid`` after up to ``wait_s`` (pid and name)."""
+    end = time.monotonic() + wait_s
+    while True:
+        left = []
+        for entry in os.listdir('/proc'):
+            try:
+                with open(f'/proc/{entry}/stat') as stat:
+                    fields = stat.read().rsplit(')', 1)[1].split()
+                    name = open(f'/proc/{entry}/comm').read().strip()
+            except (OSError, IndexError, ValueError):
+                continue
+            if fields[2] == str(pgid) and fields[0] != 'Z':
+                left.append(f'{entry} {name}')
+        if not left or time.monotonic() > end:
+            return left
+        time.sleep(0.05)
+
+
 def stamp_s(msg) -> float:
     """Return a message's header stamp in seconds."""
     return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
@@ -306,27 +325,34 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
             worst, steady, [d.status[0].message for t, d in diags if start < t <= done])
 
 
+@pytest.mark.parametrize('scene, stage, never', [
+    ('sheet_100x100', 'computing the 256 lowest modes', '256 modes ready'),
+    ('sheet_316x316', 'modal derivatives: ', 'streaming sheet_316x316')])
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
-def test_a_signal_during_a_long_mode_computation_at_startup_cancels_it(sig):
+def test_a_signal_during_a_long_computation_at_startup_cancels_it(sig, scene, stage, never):
     """
-    sheet_100x100 with every band starts by computing 256 modes (seconds) in the worker process.
+    A large start-up computes in the worker process for seconds (modes; then derivatives).
 
     Ctrl-C (SIGINT to the whole process group, as a terminal sends it) or SIGTERM (as a process
-    manager sends it) must end the node cleanly without waiting for that computation.
+    manager sends it) must end the node cleanly without waiting for that computation, and
+    leave nothing running behind it.
     """
-    node = NodeProcess('scene:=sheet_100x100', namespace='startint')
+    node = NodeProcess(f'scene:={scene}', namespace='startint')
     try:
-        assert wait_for(lambda: 'computing the 256 lowest modes' in node.stderr(), 60)
+        assert wait_for(lambda: stage in node.stderr(), 120)
         if sig == signal.SIGINT:
             os.killpg(node.proc.pid, sig)
         else:
             node.proc.send_signal(sig)
         code, _, err = node.wait(15)
+        # nothing the node started outlives it (its worker, multiprocessing's resource tracker)
+        left = process_group(node.proc.pid)
     finally:
         node.kill()
     assert code == 0, stderr_excerpt(err, 3000)
     assert 'Traceback' not in err
-    assert '256 modes ready' not in err                   # cancelled, not waited for
+    assert never not in err                               # cancelled, not waited for
+    assert left == [], left
 
 
 def test_no_clock_unless_asked_and_one_line_once_streaming():
