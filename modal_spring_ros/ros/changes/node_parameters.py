@@ -120,10 +120,14 @@ class NodeParameters:
         with self._lock:
             requested = dict(self._values, **incoming)
         try:
-            config_from_parameters(requested)       # values, ranges, the band's edges
+            config = config_from_parameters(requested)   # values, ranges, the band's edges
         except ValueError as exc:
             return self._refused(str(exc))
         slow = {k: v for k, v in incoming.items() if k in SLOW_PARAMETERS}
+        empty = (self._planner.keeps_no_mode(config.band)
+                 if slow and config.method == 'modal' and not config.auto else '')
+        if empty:                                    # decided by the modes computed already
+            return self._refused(empty)
         reason = ''
         if slow:
             accepted, reason = self.preparer.request(slow)

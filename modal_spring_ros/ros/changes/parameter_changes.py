@@ -15,6 +15,7 @@ from typing import Any
 
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.factory import rebuild
+from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.changes.requests import ChangeBand, ReplaceSimulation, Request
@@ -28,6 +29,25 @@ class ChangePlanner:
     def __init__(self, model: MassSpringModel, basis: ModalBasis):
         self.model = model
         self.basis = basis
+
+    def keeps_no_mode(self, band: FilterBand) -> str:
+        """
+        Say why ``band`` keeps no mode, where the modes computed already decide it ('' if not).
+
+        They decide when the band keeps none of them and none beyond could join it (all modes
+        are computed, or the band ends below the highest one computed): refused at once, not
+        after the change was accepted and queued behind others.
+        """
+        f = self.basis.frequencies_hz
+        if band.by != 'hz' or not f.size or band.keeps(f).any():
+            return ''
+        if not (self.basis.complete or (band.bounded_above and band.top < f[-1])):
+            return ''
+        return (f'filter band {band.describe()} keeps no mode (the modes up to '
+                f'{f[-1]:.4g} Hz lie at {f[0]:.4g} Hz and above, none in the band)'
+                if band.top < f[0] else
+                f'filter band {band.describe()} keeps no mode (none of the modes from '
+                f'{f[0]:.4g} to {f[-1]:.4g} Hz is in it)')
 
     def plan(self, values: dict[str, Any], incoming: dict[str, Any],
              running: Simulation) -> Request | None:
