@@ -2,7 +2,7 @@
 Python without ROS: the Python API page's example, the simulator and the scripts that need ROS.
 
 Twice: in this interpreter with every ROS package hidden, and in ``.venv-noros``, the venv
-``.ci/bootstrap`` makes with ``pip install -e .`` alone (no ROS wheels), as a user without ROS
+``.ci/bootstrap test`` makes with ``pip install -e .`` alone (no ROS wheels), as a user without ROS
 has it (``MODAL_SPRING_NOROS_PYTHON`` names another; skipped where there is none).
 """
 from __future__ import annotations
@@ -23,7 +23,7 @@ NOROS_PYTHON = Path(os.environ.get('MODAL_SPRING_NOROS_PYTHON',
                                    REPO / '.venv-noros' / 'bin' / 'python'))
 needs_noros = pytest.mark.skipif(not NOROS_PYTHON.exists(),
                                  reason=f'no venv without ROS at {NOROS_PYTHON}: run '
-                                        '.ci/bootstrap')
+                                        '.ci/bootstrap test')
 WAYS = [pytest.param((sys.executable, HIDE_ROS), id='ros-hidden'),
         pytest.param((str(NOROS_PYTHON), ''), id='venv-without-ros', marks=needs_noros)]
 

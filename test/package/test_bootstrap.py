@@ -1,0 +1,42 @@
+"""
+The README's two commands: what each bootstraps, and that CI runs the second one exactly.
+
+The node's command builds only what the node needs (``.ci/bootstrap``); the tests' command adds
+the test tools and the venv without ROS (``.ci/bootstrap test``). Once built, either is a no-op.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+import re
+import subprocess
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+BOOTSTRAP = REPO / '.ci' / 'bootstrap'
+
+pytestmark = pytest.mark.skipif(not BOOTSTRAP.exists(),
+                                reason='not in the source tree (a colcon workspace copy)')
+
+
+def readme_commands() -> list[str]:
+    first_block = re.search(r'```bash\n(.*?)```', (REPO / 'README.md').read_text(), re.S)
+    return first_block.group(1).strip().splitlines()
+
+
+def test_the_readme_starts_with_two_commands_and_ci_runs_the_second():
+    node, tests = readme_commands()
+    assert node == '.ci/bootstrap && .venv/bin/modal_spring_node'
+    assert tests == '.ci/bootstrap test && .venv/bin/python -m pytest -q'
+    run = (REPO / '.ci' / 'run').read_text().splitlines()
+    assert tests in run
+
+
+def test_both_bootstraps_are_no_ops_once_built_and_a_wrong_target_is_refused():
+    for args in ([], ['test']):       # built by the command that runs these tests: nothing to do
+        done = subprocess.run([str(BOOTSTRAP), *args], capture_output=True, text=True,
+                              timeout=60)
+        assert (done.returncode, done.stderr) == (0, ''), done.stderr
+    wrong = subprocess.run([str(BOOTSTRAP), 'everything'], capture_output=True, text=True,
+                           timeout=60)
+    assert wrong.returncode == 2 and 'usage: .ci/bootstrap [node|test]' in wrong.stderr
