@@ -8,10 +8,10 @@ import subprocess
 import threading
 import time
 
-from modal_spring_ros.bags.pointcloud import xyz
-from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.bags.sim_time import SOURCE
-from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.files.sim_time import SOURCE
+from modal_spring_ros.bags.messages.pointcloud import xyz
+from modal_spring_ros.bags.messages.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.process.pooled_executor import PooledExecutor
 from modal_spring_ros.ros.process.stop_signals import spin_until_stopped, StopSignals

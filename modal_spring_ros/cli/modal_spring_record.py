@@ -13,8 +13,8 @@ import signal
 import sys
 import time
 
-from modal_spring_ros.bags.writer import (BagError, BagWriter, check_new_bag_path,
-                                          DEFAULT_CHUNK_SECONDS, DEFAULT_CHUNK_SIZE)
+from modal_spring_ros.bags.files.writer import (BagError, BagWriter, check_new_bag_path,
+                                                DEFAULT_CHUNK_SECONDS, DEFAULT_CHUNK_SIZE)
 from modal_spring_ros.cli.common import fail, script_parser, split_ros_args
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.ros.tools.recorder import DEFAULT_TOPICS, Recorder, snapshot_parameters

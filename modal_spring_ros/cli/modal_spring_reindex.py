@@ -7,13 +7,13 @@ A recorder or node killed before it closed its bag (SIGKILL, a power cut) leaves
 without its summary and a folder without ``metadata.yaml``: the project's tools read it, mcap's
 and rosbags' readers do not. This writes each file again, finalised, from its complete records
 (nothing decoded, nothing imported), and the folder's ``metadata.yaml``; a finalised file is
-left as it is. See :mod:`modal_spring_ros.bags.reindex`.
+left as it is. See :mod:`modal_spring_ros.bags.files.reindex`.
 """
 from __future__ import annotations
 
 import sys
 
-from modal_spring_ros.bags.reindex import reindex
+from modal_spring_ros.bags.files.reindex import reindex
 from modal_spring_ros.cli.common import run_main, script_parser
 
 PROG = 'modal_spring_reindex'

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import sys
 
-from modal_spring_ros.bags.run_loading import load_run
+from modal_spring_ros.bags.files.run_loading import load_run
 from modal_spring_ros.cli.common import claimed_outputs, run_main, script_parser, write_output
 from modal_spring_ros.runs.rendering import render
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.files.writer import BagError
 from modal_spring_ros.cli.common import fail, run_main, script_parser, split_ros_args
 from modal_spring_ros.ros.tools.player import play
 from modal_spring_ros.ros.tools.resimulate import resimulate

@@ -19,7 +19,7 @@ from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs
                                          run_main, script_parser, write_output)
 from modal_spring_ros.cli.launcher import install_hint
 try:
-    from modal_spring_ros.bags.capture import RunBagWriter
+    from modal_spring_ros.bags.files.capture import RunBagWriter
 except ImportError as missing:    # pip install without the ros extra: runs, but no bags
     RunBagWriter = None
     BAGS_MISSING = (f'--bag needs the ROS message packages ({missing.name} is not installed): '

@@ -17,7 +17,7 @@ from __future__ import annotations
 from typing import Callable
 
 from lifecycle_msgs.msg import Transition
-from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.bags.files.writer import BagError
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerError
 from modal_spring_ros.ros.node import ModalSpringNode, STOP_ORDER

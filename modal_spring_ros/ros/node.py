@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import contextlib
 
-from modal_spring_ros.bags.capture import RunBagWriter
+from modal_spring_ros.bags.files.capture import RunBagWriter
 from modal_spring_ros.core.config import POSE_SOURCES
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.memory_estimate import check_run_memory

@@ -2,7 +2,7 @@
 Compare two runs of the same scene frame by frame (``.npz`` runs or bags, in any mix).
 
 Frames are aligned by their time (simulation time: a bag's recorded ``sim_time`` where the
-node stamped with its clock, else the stamps; ``bags/run_loading.py``). Per frame: RMS and
+node stamped with its clock, else the stamps; ``bags/files/run_loading.py``). Per frame: RMS and
 largest position difference, relative L2 error of A against B's displacement, and, where the
 scene is known, each run's mechanical energy (springs, gravity, and kinetic from finite
 differences of positions). Per run: the displacement spectrum and, when the run says which

@@ -4,9 +4,9 @@ from __future__ import annotations
 from mcap.reader import make_reader
 from mcap.records import SummaryOffset
 from mcap.stream_reader import StreamReader
-from modal_spring_ros.bags.capture import RunBagWriter
-from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.bags.writer import BagError, BagWriter, SCENE_ATTACHMENT
+from modal_spring_ros.bags.files.capture import RunBagWriter
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.files.writer import BagError, BagWriter, SCENE_ATTACHMENT
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.files.scene_archive import MEDIA_TYPE
 from modal_spring_ros.scenes.files.writing import scene_to_yaml

@@ -17,12 +17,13 @@ import textwrap
 import time
 
 from helpers import BAGS, REAL_BAGS
-from modal_spring_ros.bags.message_definitions import DELIMITER, full_definition, share_directory
-from modal_spring_ros.bags.pointcloud import xyz
-from modal_spring_ros.bags.qos import profiles_from_yaml
-from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.bags.reference_bags import RUNS
-from modal_spring_ros.bags.writer import BagError, BagWriter
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.files.reference_bags import RUNS
+from modal_spring_ros.bags.files.writer import BagError, BagWriter
+from modal_spring_ros.bags.messages.message_definitions import (DELIMITER, full_definition,
+                                                                share_directory)
+from modal_spring_ros.bags.messages.pointcloud import xyz
+from modal_spring_ros.bags.messages.qos import profiles_from_yaml
 from modal_spring_ros.cli.modal_spring_sim import main as sim_main
 from modal_spring_ros.ros.tools.installed_messages import installed_message
 from modal_spring_ros.ros.tools.resimulate import resimulate
@@ -146,7 +147,7 @@ def test_independent_readers_decode_what_was_published(tmp_path):
 
     Rclpy decodes each payload to exactly the message that was written.
     """
-    from modal_spring_ros.bags.capture import RunBagWriter
+    from modal_spring_ros.bags.files.capture import RunBagWriter
     from modal_spring_ros.core.config import SimulationConfig
     from modal_spring_ros.core.factory import build_simulation
     from modal_spring_ros.core.filter_band import FilterBand
@@ -159,8 +160,8 @@ def test_independent_readers_decode_what_was_published(tmp_path):
 
     def frame(t, positions):
         bag.frame(t, positions)
-        from modal_spring_ros.bags.pointcloud import to_pointcloud2
-        from modal_spring_ros.bags.stamps import to_time_msg
+        from modal_spring_ros.bags.messages.pointcloud import to_pointcloud2
+        from modal_spring_ros.bags.messages.stamps import to_time_msg
         from std_msgs.msg import Header
         published.append(to_pointcloud2(positions, sim.model.scene.rest_positions,
                                         Header(stamp=to_time_msg(t), frame_id='world')))
@@ -200,7 +201,7 @@ def test_a_killed_writer_leaves_every_complete_chunk_readable(tmp_path):
     """SIGKILL mid-run: every message before the last (unfinished) chunk is read back."""
     script = textwrap.dedent(f"""
         import sys
-        from modal_spring_ros.bags.writer import BagWriter
+        from modal_spring_ros.bags.files.writer import BagWriter
         w = BagWriter({str(tmp_path / 'killed')!r}, chunk_size=4096)
         w.add_topic('/data', 'std_msgs/msg/String', '')
         from std_msgs.msg import String
@@ -248,7 +249,7 @@ def test_real_rosbag2_bags_are_read():
 
 
 def test_qos_round_trips_through_the_v9_text():
-    from modal_spring_ros.bags.qos import profiles_to_yaml
+    from modal_spring_ros.bags.messages.qos import profiles_to_yaml
     from rclpy.qos import QoSPresetProfiles
     for preset in (QoSPresetProfiles.SENSOR_DATA.value, QoSPresetProfiles.PARAMETER_EVENTS.value):
         (back,) = profiles_from_yaml(profiles_to_yaml([preset]))
@@ -379,7 +380,7 @@ def test_a_damaged_cloud_is_named_and_never_compared_or_played(tmp_path):
 
 
 def test_a_cloud_with_non_finite_values_is_named(tmp_path):
-    from modal_spring_ros.bags.pointcloud import to_pointcloud2
+    from modal_spring_ros.bags.messages.pointcloud import to_pointcloud2
     from std_msgs.msg import Header
     rest = load_scene('sheet_10x10').rest_positions
     writer = BagWriter(tmp_path / 'nan')
@@ -435,7 +436,7 @@ def test_the_summary_has_no_empty_index_group(tmp_path):
 _CAPTURE = textwrap.dedent("""
     import sys
     from geometry_msgs.msg import PointStamped, PoseStamped
-    from modal_spring_ros.bags.capture import RunBagWriter
+    from modal_spring_ros.bags.files.capture import RunBagWriter
     from modal_spring_ros.core.config import SimulationConfig
     from modal_spring_ros.core.factory import build_simulation
     from modal_spring_ros.scenes.resources import load_scene

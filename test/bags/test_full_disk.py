@@ -7,8 +7,8 @@ tmpfs does), for the writer, ``modal_spring_sim --bag/--output`` and the node's 
 from __future__ import annotations
 
 from helpers import fill_disk_after
-from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.bags.writer import BagError, BagWriter
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.files.writer import BagError, BagWriter
 from modal_spring_ros.cli.modal_spring_sim import main as sim_main
 import pytest
 from std_msgs.msg import String

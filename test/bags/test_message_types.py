@@ -13,10 +13,10 @@ import subprocess
 import sys
 
 from mcap.writer import Writer
-from modal_spring_ros.bags.message_types import (message_class, split_type_name,
-                                                 TypeRefused)
-from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.files.writer import BagError
+from modal_spring_ros.bags.messages.message_types import (message_class, split_type_name,
+                                                          TypeRefused)
 from modal_spring_ros.ros.tools.installed_messages import installed_message
 import pytest
 from sensor_msgs.msg import PointCloud2
@@ -73,7 +73,7 @@ def test_installed_interfaces_resolve_to_their_rclpy_classes():
 def test_hostile_type_names_import_nothing():
     # in a fresh interpreter: none of the modules they name is imported, nothing is printed
     code = ('import sys\n'
-            'from modal_spring_ros.bags.message_types import message_class, TypeRefused\n'
+            'from modal_spring_ros.bags.messages.message_types import message_class, TypeRefused\n'
             f'for name in {HOSTILE!r}:\n'
             '    try:\n'
             '        message_class(name)\n'
@@ -94,7 +94,7 @@ def test_a_planted_module_shadowing_an_installed_interface_is_not_imported(tmp_p
     mark = tmp_path / 'MARK'
     (tmp_path / 'stereo_msgs.py').write_text(PLANTED.format(mark=str(mark)))
     code = ('import sys; sys.path.insert(0, "")\n'
-            'from modal_spring_ros.bags.message_types import message_class, TypeRefused\n'
+            'from modal_spring_ros.bags.messages.message_types import message_class, TypeRefused\n'
             'try:\n'
             '    message_class("stereo_msgs/msg/DisparityImage")\n'
             'except TypeRefused as exc:\n'

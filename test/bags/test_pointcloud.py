@@ -1,8 +1,8 @@
 """The published cloud's layout and values, and the particle positions it is built from."""
 from __future__ import annotations
 
-from modal_spring_ros.bags.pointcloud import (CloudBuffer, distance_from_rest, from_pointcloud2,
-                                              to_pointcloud2, xyz)
+from modal_spring_ros.bags.messages.pointcloud import (CloudBuffer, distance_from_rest,
+                                                       from_pointcloud2, to_pointcloud2, xyz)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand

@@ -17,10 +17,10 @@ import time
 
 from helpers import REAL_BAGS
 from mcap.reader import make_reader, NonSeekingReader
-from modal_spring_ros.bags.qos import profiles_to_yaml
-from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.bags.reindex import reindex
-from modal_spring_ros.bags.writer import BagError, BagWriter
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.files.reindex import reindex
+from modal_spring_ros.bags.files.writer import BagError, BagWriter
+from modal_spring_ros.bags.messages.qos import profiles_to_yaml
 import pytest
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from ros_harness import Client, console_script, NodeProcess, wait_for

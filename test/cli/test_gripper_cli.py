@@ -5,7 +5,7 @@ import os
 import signal
 import subprocess
 
-from modal_spring_ros.bags.pointcloud import xyz
+from modal_spring_ros.bags.messages.pointcloud import xyz
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest

@@ -7,7 +7,7 @@ line, and leaves no file behind.
 from __future__ import annotations
 
 from helpers import BAGS
-from modal_spring_ros.bags.run_loading import load_run
+from modal_spring_ros.bags.files.run_loading import load_run
 from modal_spring_ros.cli import modal_spring_render
 from modal_spring_ros.runs.rendering import frame_indices, view_axes
 import numpy as np

@@ -420,7 +420,7 @@ def test_rviz_starts_only_when_asked_with_the_installed_view(colcon_install):
 
 
 def test_the_rviz_view_shows_what_the_node_publishes():
-    from modal_spring_ros.bags.pointcloud import FIELD_NAMES
+    from modal_spring_ros.bags.messages.pointcloud import FIELD_NAMES
     from modal_spring_ros.ros.node import NODE_NAME
     from modal_spring_ros.ros.stream.outputs import MESH_TOPIC, POINTS_TOPIC
     from modal_spring_ros.ros.parameters import PARAMETERS

@@ -6,9 +6,9 @@ The node's outputs with a real rclpy node (no other process), the disk filling a
 from __future__ import annotations
 
 from helpers import fill_disk_after
-from modal_spring_ros.bags.capture import RunBagWriter
-from modal_spring_ros.bags.pointcloud import CloudBuffer
-from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.bags.files.capture import RunBagWriter
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.messages.pointcloud import CloudBuffer
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.ros.parameters import PARAMETERS

@@ -13,7 +13,7 @@ import time
 
 from lifecycle_msgs.msg import State, Transition
 from lifecycle_msgs.srv import ChangeState, GetState
-from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.bags.files.reader import BagReader
 import pytest
 from ros_harness import (Client, console_script, NodeProcess, SimTimes, stderr_excerpt,
                          wait_for)

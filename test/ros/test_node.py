@@ -5,7 +5,7 @@ import math
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from modal_spring_ros.bags.pointcloud import xyz
+from modal_spring_ros.bags.messages.pointcloud import xyz
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand

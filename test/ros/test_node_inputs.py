@@ -15,8 +15,8 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PointStamped, PoseStamped
 from helpers import variant
-from modal_spring_ros.bags.pointcloud import xyz
-from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.messages.pointcloud import xyz
 from modal_spring_ros.ros.inputs.input_node import InputNode
 from modal_spring_ros.ros.tools.resimulate import resimulate
 from modal_spring_ros.scenes.files.writing import scene_to_dict
@@ -446,7 +446,7 @@ def test_a_new_input_is_one_entry_of_the_table_subscribed_applied_recorded_and_r
     The node's subscriptions take it, the simulation thread applies it and hands it to the
     capture on its topic, and re-simulation finds it there and applies it the same way.
     """
-    from modal_spring_ros.bags.capture import RunBagWriter
+    from modal_spring_ros.bags.files.capture import RunBagWriter
     from modal_spring_ros.core.config import SimulationConfig
     from modal_spring_ros.core.factory import build_simulation
     from modal_spring_ros.ros.inputs.input_kinds import INPUTS, InputKind

@@ -13,8 +13,8 @@ import time
 
 from geometry_msgs.msg import PointStamped, PoseStamped, TransformStamped, WrenchStamped
 from helpers import variant
-from modal_spring_ros.bags.pointcloud import xyz
-from modal_spring_ros.bags.reader import BagReader
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.messages.pointcloud import xyz
 from modal_spring_ros.ros.tools.resimulate import resimulate
 from modal_spring_ros.scenes.files.writing import scene_to_dict
 from modal_spring_ros.scenes.resources import load_scene

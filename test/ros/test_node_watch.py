@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PointStamped
-from modal_spring_ros.bags.pointcloud import xyz
+from modal_spring_ros.bags.messages.pointcloud import xyz
 import numpy as np
 import pytest
 from ros_harness import (assert_resimulates_exactly, frames_since, node_of, node_with_client,

@@ -8,10 +8,10 @@ import threading
 import time
 
 from helpers import BAGS
-from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.bags.run_loading import load_run
-from modal_spring_ros.bags.sim_time import simulation_times
-from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.files.run_loading import load_run
+from modal_spring_ros.bags.files.sim_time import simulation_times
+from modal_spring_ros.bags.files.writer import BagError
 from modal_spring_ros.ros.parameters import CLOCK_OFFSET
 from modal_spring_ros.ros.tools import player as player_module
 from modal_spring_ros.ros.tools.installed_messages import installed_message
@@ -28,7 +28,7 @@ pytestmark = pytest.mark.ros
 
 def _with_another_topic(tmp_path) -> Path:
     """Return the low-pass reference bag with a second topic no one here subscribes to."""
-    from modal_spring_ros.bags.writer import BagWriter
+    from modal_spring_ros.bags.files.writer import BagWriter
     from std_msgs.msg import String
     source = BagReader(BAGS / 'sheet_10x10_lowpass_0_14')
     out = tmp_path / 'two_topics'

@@ -14,7 +14,7 @@ import subprocess
 import time
 
 from helpers import hanging_sheet
-from modal_spring_ros.bags.capture import RunBagWriter
+from modal_spring_ros.bags.files.capture import RunBagWriter
 from modal_spring_ros.ros.process.shared_memory import (cloud_transport, POINT_BYTES,
                                                         prefer_large_shared_memory, PROFILE,
                                                         PROFILES_VARIABLE, scene_argument,

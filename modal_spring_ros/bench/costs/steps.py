@@ -18,7 +18,7 @@ import statistics
 import time
 from typing import Callable
 
-from modal_spring_ros.bags.pointcloud import CloudBuffer, to_pointcloud2
+from modal_spring_ros.bags.messages.pointcloud import CloudBuffer, to_pointcloud2
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.factory import force_options
 from modal_spring_ros.core.filter_band import FilterBand

@@ -298,9 +298,9 @@ class Simulation(LoadHolder, abc.ABC):
         Write each particle's movement from its rest position in the world into ``out``.
 
         ``out``: (3, n) float32, C-contiguous, one row per world axis (a cloud's
-        :attr:`~modal_spring_ros.bags.pointcloud.CloudBuffer.movement`). A run that keeps its
-        shapes for frames (:meth:`_frame_coordinates`) and whose clamp only translates writes it
-        with one product in float32, with no array per frame.
+        :attr:`~modal_spring_ros.bags.messages.pointcloud.CloudBuffer.movement`). A run that
+        keeps its shapes for frames (:meth:`_frame_coordinates`) and whose clamp only translates
+        writes it with one product in float32, with no array per frame.
         """
         frame = None if self.model.rotates else self._frame_coordinates()
         if frame is None:

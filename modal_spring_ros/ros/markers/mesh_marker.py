@@ -7,7 +7,7 @@ to it (:mod:`~modal_spring_ros.ros.stream.outputs`).
 from __future__ import annotations
 
 from geometry_msgs.msg import Point
-from modal_spring_ros.bags.pointcloud import distance_from_rest
+from modal_spring_ros.bags.messages.pointcloud import distance_from_rest
 from modal_spring_ros.core.model.scene import Scene
 import numpy as np
 from std_msgs.msg import ColorRGBA, Header

@@ -14,11 +14,11 @@ import dataclasses
 from typing import Any, Callable, Protocol
 
 from diagnostic_msgs.msg import DiagnosticArray
-from modal_spring_ros.bags.capture import RunBagWriter
-from modal_spring_ros.bags.pointcloud import CloudBuffer
-from modal_spring_ros.bags.sim_time import SIM_TIME_TOPIC, SOURCE
-from modal_spring_ros.bags.stamps import to_time_msg
-from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.bags.files.capture import RunBagWriter
+from modal_spring_ros.bags.files.sim_time import SIM_TIME_TOPIC, SOURCE
+from modal_spring_ros.bags.files.writer import BagError
+from modal_spring_ros.bags.messages.pointcloud import CloudBuffer
+from modal_spring_ros.bags.messages.stamps import to_time_msg
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import Simulation, SimulationStatus
 from modal_spring_ros.ros.frames.tf import FrameBroadcaster, tf_available
@@ -88,7 +88,7 @@ class NodeOutputs:
                                              qos_overriding_options=overrides)
         self._mesh = node.create_publisher(Marker, MESH_TOPIC, QUEUE_DEPTH,
                                            qos_overriding_options=overrides)
-        # each frame's simulation time, whichever clock stamps it (bags/sim_time.py)
+        # each frame's simulation time, whichever clock stamps it (bags/files/sim_time.py)
         self._sim_time = node.create_publisher(TimeReference, SIM_TIME_TOPIC, QUEUE_DEPTH)
         self._diagnostics = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC,
                                                   QUEUE_DEPTH)

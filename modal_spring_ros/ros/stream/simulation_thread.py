@@ -15,7 +15,7 @@ import threading
 import time
 from typing import Callable
 
-from modal_spring_ros.bags.pointcloud import CloudBuffer
+from modal_spring_ros.bags.messages.pointcloud import CloudBuffer
 from modal_spring_ros.core.simulations import DivergenceError, Simulation
 from modal_spring_ros.core.threads import stepping_threads
 from modal_spring_ros.ros.changes.requests import (ChangeBand, drained, Pause, ReplaceSimulation,

@@ -1,20 +1,20 @@
 """
 A bag's messages as objects of their installed ROS classes, for what hands them on to ROS.
 
-:meth:`~modal_spring_ros.bags.reader.BagReader.decode` reads any message from the bag's own
+:meth:`~modal_spring_ros.bags.files.reader.BagReader.decode` reads any message from the bag's own
 definition of its type, with no ROS at all. What passes a recorded message on to ROS code (the
 re-simulation of a capture's inputs and parameter events, which the node's own input kinds and
 rclpy's ``Parameter`` take) needs the installed class: the type name resolves only to an
-installed interface (:mod:`~modal_spring_ros.bags.message_types`), and nothing a bag says
+installed interface (:mod:`~modal_spring_ros.bags.messages.message_types`), and nothing a bag says
 chooses what is imported.
 """
 from __future__ import annotations
 
 from typing import Any
 
-from modal_spring_ros.bags.message_types import message_class, TypeRefused
-from modal_spring_ros.bags.reader import BagMessage, BagReader
-from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.bags.files.reader import BagMessage, BagReader
+from modal_spring_ros.bags.files.writer import BagError
+from modal_spring_ros.bags.messages.message_types import message_class, TypeRefused
 from rclpy.serialization import deserialize_message
 
 

@@ -23,7 +23,7 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from modal_spring_ros.bags.message_definitions import full_definition
+from modal_spring_ros.bags.messages.message_definitions import full_definition
 from modal_spring_ros.ros.process.log_limit import RepeatLimit
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy

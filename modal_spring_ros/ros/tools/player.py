@@ -9,10 +9,10 @@ import contextlib
 import signal
 import time
 
-from modal_spring_ros.bags.message_types import message_class, TypeRefused
-from modal_spring_ros.bags.qos import playback_profile, profiles_from_yaml
-from modal_spring_ros.bags.reader import BagReader, POINTCLOUD2
-from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.bags.files.reader import BagReader, POINTCLOUD2
+from modal_spring_ros.bags.files.writer import BagError
+from modal_spring_ros.bags.messages.message_types import message_class, TypeRefused
+from modal_spring_ros.bags.messages.qos import playback_profile, profiles_from_yaml
 from modal_spring_ros.ros.process.shared_memory import cloud_transport, prefer_large_shared_memory
 from modal_spring_ros.ros.stream.publication_mode import prefer_asynchronous_publication
 from modal_spring_ros.scenes.resources import share_directory

@@ -17,11 +17,11 @@ from __future__ import annotations
 import struct
 import time
 
-from modal_spring_ros.bags.message_definitions import msg_text
-from modal_spring_ros.bags.message_types import message_class, TypeRefused
-from modal_spring_ros.bags.qos import profiles_to_yaml
-from modal_spring_ros.bags.sim_time import SIM_TIME_TOPIC
-from modal_spring_ros.bags.writer import BagWriter
+from modal_spring_ros.bags.files.sim_time import SIM_TIME_TOPIC
+from modal_spring_ros.bags.files.writer import BagWriter
+from modal_spring_ros.bags.messages.message_definitions import msg_text
+from modal_spring_ros.bags.messages.message_types import message_class, TypeRefused
+from modal_spring_ros.bags.messages.qos import profiles_to_yaml
 from modal_spring_ros.ros.stream.outputs import DIAGNOSTICS_TOPIC, MESH_TOPIC, POINTS_TOPIC
 from rcl_interfaces.srv import GetParameters, ListParameters
 import rclpy

@@ -11,7 +11,7 @@ before the first frame received after them, so the re-run follows the recording 
 its stamps allow. Each frame's time is the node's published simulation time, which never goes
 back: simulation time plus ``clock.offset_s``, whose changes (a reset, or a divergence sent
 back to rest) are on ``/parameter_events`` too; each sends the re-run back to rest. It is the
-recorded ``sim_time`` of the frame's stamp (``bags/sim_time.py``), or, in a recording without
+recorded ``sim_time`` of the frame's stamp (``bags/files/sim_time.py``), or, in a recording without
 it, the stamp itself where the node stamped with simulation time. The re-run's frames are
 stamped with simulation time.
 """
@@ -19,11 +19,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from modal_spring_ros.bags.capture import POINTS_TOPIC, RunBagWriter
-from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.bags.sim_time import sim_time_topic, simulation_times
-from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
-from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.bags.files.capture import POINTS_TOPIC, RunBagWriter
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.files.sim_time import sim_time_topic, simulation_times
+from modal_spring_ros.bags.files.writer import BagError
+from modal_spring_ros.bags.messages.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.core.auto.run_watch import watch_of
 from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.config import SimulationConfig

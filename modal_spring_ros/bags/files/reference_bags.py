@@ -1,7 +1,7 @@
 """
 The reference runs of ``sheet_10x10`` in ``bags/``: remade by one command.
 
-    python -m modal_spring_ros.bags.reference_bags [FOLDER]      (default: bags)
+    python -m modal_spring_ros.bags.files.reference_bags [FOLDER]      (default: bags)
 
 Five runs of 3 s, a frame every 33 steps (about 60 Hz), written losslessly as rosbag2 MCAP
 bags: the full physical run, the modal run with every mode, the paper's fig. 10b low-pass
@@ -14,7 +14,7 @@ from pathlib import Path
 import shutil
 import sys
 
-from modal_spring_ros.bags.capture import RunBagWriter
+from modal_spring_ros.bags.files.capture import RunBagWriter
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand

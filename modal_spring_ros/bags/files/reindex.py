@@ -27,8 +27,8 @@ from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
 from mcap.writer import CompressionType, IndexType, Writer
-from modal_spring_ros.bags.writer import (bag_information, BagError, TopicCount,
-                                          write_bag_information)
+from modal_spring_ros.bags.files.writer import (bag_information, BagError, TopicCount,
+                                                write_bag_information)
 import yaml
 
 #: the metadata record rosbag2 writes at open and at close (the bag's information as YAML)

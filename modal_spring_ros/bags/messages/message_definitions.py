@@ -15,7 +15,7 @@ from pathlib import Path
 import re
 import sys
 
-from modal_spring_ros.bags.message_types import split_type_name, TypeRefused
+from modal_spring_ros.bags.messages.message_types import split_type_name, TypeRefused
 from modal_spring_ros.scenes.ament_index import package_share
 
 DELIMITER = '=' * 80 + '\n'

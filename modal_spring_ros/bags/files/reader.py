@@ -2,8 +2,8 @@
 Read rosbag2 MCAP bags (folders or single ``.mcap`` files) as raw messages or numpy arrays.
 
 Reads what rosbag2 writes (metadata versions up to 9, with or without ``metadata.yaml``) and
-what :mod:`modal_spring_ros.bags.writer` writes, including a file whose writer was killed before
-it was finalised (every complete chunk is read back).
+what :mod:`modal_spring_ros.bags.files.writer` writes, including a file whose writer was
+killed before it was finalised (every complete chunk is read back).
 """
 from __future__ import annotations
 
@@ -18,9 +18,9 @@ from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
 from mcap_ros2.decoder import DecoderFactory
-from modal_spring_ros.bags.pointcloud import xyz
-from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
-from modal_spring_ros.bags.writer import BagError, RUN_RECORD
+from modal_spring_ros.bags.files.writer import BagError, RUN_RECORD
+from modal_spring_ros.bags.messages.pointcloud import xyz
+from modal_spring_ros.bags.messages.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.scenes.files.scene_archive import recorded_scene
 import numpy as np
@@ -282,7 +282,7 @@ class BagReader:
         """
         Return the scene the run record holds, or None (a bag not written by this project).
 
-        Its archive (:data:`~modal_spring_ros.bags.writer.SCENE_ATTACHMENT`), or the YAML
+        Its archive (:data:`~modal_spring_ros.bags.files.writer.SCENE_ATTACHMENT`), or the YAML
         text of bags written before scenes were archived.
 
         :raises SceneError: a scene the scene checks refuse; BagError: an archive named and
@@ -302,7 +302,7 @@ class BagReader:
         """
         Return (F,) header stamps in seconds and (F, n, 3) float64 positions of a cloud topic.
 
-        With ``times`` ({stamp ns: time s}, ``bags/sim_time.py``) each frame's stamp is
+        With ``times`` ({stamp ns: time s}, ``bags/files/sim_time.py``) each frame's stamp is
         replaced by its time there, and frames it lacks are left out.
         """
         if topic not in self.topics:

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.bags.sim_time import simulation_times
-from modal_spring_ros.bags.writer import BagError
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.files.sim_time import simulation_times
+from modal_spring_ros.bags.files.writer import BagError
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.comparison import load_npz_run, RunData

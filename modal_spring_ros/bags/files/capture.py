@@ -19,10 +19,10 @@ from __future__ import annotations
 import copy
 import time
 
-from modal_spring_ros.bags.pointcloud import CloudBuffer
-from modal_spring_ros.bags.qos import profiles_to_yaml
-from modal_spring_ros.bags.stamps import to_nanoseconds, to_time_msg
-from modal_spring_ros.bags.writer import BagWriter
+from modal_spring_ros.bags.files.writer import BagWriter
+from modal_spring_ros.bags.messages.pointcloud import CloudBuffer
+from modal_spring_ros.bags.messages.qos import profiles_to_yaml
+from modal_spring_ros.bags.messages.stamps import to_nanoseconds, to_time_msg
 from modal_spring_ros.core.config import SimulationConfig
 import numpy as np
 from rcl_interfaces.msg import ParameterEvent

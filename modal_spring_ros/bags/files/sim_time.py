@@ -10,8 +10,8 @@ never back), its ``source`` :data:`SOURCE`. Frames stamped with the node's clock
 """
 from __future__ import annotations
 
-from modal_spring_ros.bags.reader import BagReader
-from modal_spring_ros.bags.stamps import to_nanoseconds, to_seconds
+from modal_spring_ros.bags.files.reader import BagReader
+from modal_spring_ros.bags.messages.stamps import to_nanoseconds, to_seconds
 
 #: the topic's name relative to the node (a sibling of ``points``)
 SIM_TIME_TOPIC = 'sim_time'

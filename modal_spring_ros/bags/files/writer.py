@@ -9,12 +9,12 @@ message encoding ``cdr`` and metadata ``offered_qos_profiles`` and ``topic_type_
 information; chunks with message indexes, and a summary with statistics.
 
 Messages are written as serialized CDR. A message the program builds itself (a node's capture,
-a re-simulation) is serialized from its schema by mcap-ros2-support's encoder: exactly as long
-as its fields need (rclpy's ``serialize_message`` leaves up to 24 trailing bytes, which rosbags
-refuses) and with zeroed padding (rclpy's holds whatever the buffer held), so the same message
-gives the same bytes in every process. A chunk is closed when it is full or a second old
-(``chunk_seconds``), and the file is flushed whenever a chunk is closed, so a writer that is
-killed loses at most about the last second.
+a re-simulation) is encoded from its schema (:mod:`~modal_spring_ros.bags.messages.cdr_encoder`):
+exactly as long as its fields need (rclpy's ``serialize_message`` leaves up to 24 trailing
+bytes, which rosbags refuses) and with zeroed padding (rclpy's holds whatever the buffer held),
+so the same message gives the same bytes in every process. A chunk is closed when it is full or
+a second old (``chunk_seconds``), and the file is flushed whenever a chunk is closed, so a
+writer that is killed loses at most about the last second.
 """
 from __future__ import annotations
 
@@ -30,10 +30,9 @@ import time
 from typing import Any
 
 from mcap.writer import CompressionType, IndexType, Writer
-# the encoder mcap_ros2.writer.Writer itself uses: one CDR writer per type from its schema text
-from mcap_ros2._dynamic import serialize_dynamic
 from modal_spring_ros import __version__
-from modal_spring_ros.bags.message_definitions import full_definition, type_hash
+from modal_spring_ros.bags.messages.cdr_encoder import message_encoder
+from modal_spring_ros.bags.messages.message_definitions import full_definition, type_hash
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.scenes.files.scene_archive import MEDIA_TYPE, scene_to_archive
 import yaml
@@ -52,7 +51,7 @@ RUN_RECORD = 'modal_spring_ros'
 
 @functools.lru_cache(maxsize=None)
 def _encoder(type_name: str):
-    return serialize_dynamic(type_name, full_definition(type_name))[type_name]
+    return message_encoder(type_name, full_definition(type_name))
 
 
 def canonical_cdr(type_name: str, msg) -> bytes:
@@ -61,7 +60,7 @@ def canonical_cdr(type_name: str, msg) -> bytes:
 
     Deterministic: the same message gives the same bytes in every process.
     """
-    return bytes(_encoder(type_name)(msg))
+    return _encoder(type_name)(msg)
 
 
 class BagError(ValueError):
