@@ -2,7 +2,7 @@
 ``modal_spring_bench``: the project's benchmarks, as suites, with their results on disk.
 
     modal_spring_bench [--suite steps,stream,tradeoff,promise,auto,response,scale,headline,peer,
-                                meshes]
+                                meshes,storm]
                        [--quick]
                        [--case TEXT]
                        [--out DIR]
@@ -22,7 +22,8 @@ run's, with CSV), ``peer`` (the resonance scenes at 1 % against Newton's semi-im
 optional peer: error and CPU per simulated second of each, with CSV and a PNG chart), ``meshes``
 (a 10,000-vertex cloth and a 10,000-particle solid brought as mesh files: load and precompute
 time with progress, the modal step and frame against the full run's, cost per simulated
-second). Results
+second), ``storm`` (four clients sending parameter requests without pause for 10 minutes:
+answer times, requests unanswered, the node's memory over the storm, with a PNG chart). Results
 are printed as tables and written to ``DIR/<suite>.json``. Progress goes to stderr.
 """
 from __future__ import annotations
@@ -39,6 +40,7 @@ from modal_spring_ros.bench.accuracy import tradeoff
 from modal_spring_ros.bench.costs import memory
 from modal_spring_ros.bench.costs import meshes
 from modal_spring_ros.bench.costs import steps
+from modal_spring_ros.bench.costs import storm
 from modal_spring_ros.bench.costs import stream
 from modal_spring_ros.bench.peers import peer
 from modal_spring_ros.cli.common import fail, script_parser
@@ -47,7 +49,7 @@ PROG = 'modal_spring_bench'
 #: suite name -> module with run(quick, progress), table(results), write_outputs(...)
 SUITES = {'steps': steps, 'stream': stream, 'tradeoff': tradeoff, 'promise': promise,
           'auto': auto_scenes, 'response': response, 'scale': memory,
-          'headline': headline, 'peer': peer, 'meshes': meshes}
+          'headline': headline, 'peer': peer, 'meshes': meshes, 'storm': storm}
 
 
 def main(argv: list[str] | None = None) -> int:
