@@ -14,7 +14,7 @@ import math
 from helpers import variant
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.loads.contact import ContactLoad
+from modal_spring_ros.core.loads.contact import ContactLoad, IMPLICIT_RATE
 from modal_spring_ros.core.model.colliders import Box, Capsule, Cylinder, Plane, Sphere
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.files.writing import scene_to_dict
@@ -42,33 +42,44 @@ def incline(degrees: float, friction) -> dict:
         {'shape': 'plane', 'point': [0, 0, 0], 'normal': [-math.sin(a), 0.0, math.cos(a)]}]}
 
 
-def full_run(scene: dict):
-    return build_simulation(scene_from_dict(scene), SimulationConfig(method='full'))
+def full_run(scene: dict, integrator: str = 'explicit'):
+    return build_simulation(scene_from_dict(scene), SimulationConfig(method='full',
+                                                                     integrator=integrator))
 
 
-def test_a_particle_rests_on_a_plane_sunk_by_its_weight_over_the_contact_stiffness():
-    sim = full_run(particle(incline(0.0, 0.5)))
+#: the contact's omega dt under each integrator: what the explicit step leaves (here all of
+#: it: c = 1), and what an implicit step's fixed-tangent iteration converges with
+RATES = {'explicit': 1.0, 'average': IMPLICIT_RATE}
+INTEGRATORS = pytest.mark.parametrize('integrator', list(RATES))
+
+
+@INTEGRATORS
+def test_a_particle_rests_on_a_plane_sunk_by_its_weight_over_the_contact_stiffness(integrator):
+    sim = full_run(particle(incline(0.0, 0.5)), integrator)
     sim.step(500)
     z = sim.positions()[2, 2]
-    assert -z == pytest.approx(G * DT ** 2, rel=1e-6)          # the stated bound, c = 1
+    # the stated bound: g dt^2 / c^2
+    assert -z == pytest.approx(G * DT ** 2 / RATES[integrator] ** 2, rel=1e-6)
     sim.step(2000)
     assert abs(sim.positions()[2, 2] - z) < 1e-12              # no drift
     assert sim.loads[ContactLoad.name].touching == 1
 
 
+@INTEGRATORS
 @pytest.mark.parametrize('degrees', [15.0, 25.0])
-def test_below_the_friction_angle_a_particle_sticks(degrees):
+def test_below_the_friction_angle_a_particle_sticks(degrees, integrator):
     assert math.tan(math.radians(degrees)) < 0.5
-    sim = full_run(particle(incline(degrees, 0.5)))
+    sim = full_run(particle(incline(degrees, 0.5)), integrator)
     sim.step(200)
     held = sim.positions()[2].copy()
     sim.step(2000)
     assert np.abs(sim.positions()[2] - held).max() < 1e-9
 
 
+@INTEGRATORS
 @pytest.mark.parametrize('degrees', [30.0, 45.0])
-def test_above_the_friction_angle_it_slides_with_g_sin_minus_mu_cos(degrees):
-    sim = full_run(particle(incline(degrees, 0.5)))
+def test_above_the_friction_angle_it_slides_with_g_sin_minus_mu_cos(degrees, integrator):
+    sim = full_run(particle(incline(degrees, 0.5)), integrator)
     sim.step(200)                                   # on its way: the touch-down is behind
     start, speed, t0 = sim.positions()[2].copy(), np.linalg.norm(sim.velocity()), sim.time
     sim.step(800)

@@ -11,7 +11,8 @@ particle in two colliders is pushed by both).
 
 The contact's stiffness is the run's: each particle's ``k = m (c / dt)^2``, with ``c`` what the
 explicit step leaves beside the fastest coordinate the run steps (``sqrt(1.2^2 - (omega dt)^2)``,
-at most 1 and at least 0.2): stiff at the run's step without making it unstable. A particle
+at most 1 and at least 0.2): stiff at the run's step without making it unstable; under an
+implicit step, :data:`IMPLICIT_RATE` (its iteration's fixed tangent leaves contact out). A particle
 pressed with a force ``F`` sinks ``F / k = F dt^2 / (m c^2)``: with ``c = 1`` and gravity alone,
 ``g dt^2`` (2.5 micrometres at 0.5 ms), the stated bound. The damping is half of critical, on
 the depth's change since the last step (no velocity needed; a run in any coordinates can step it).
@@ -34,6 +35,9 @@ import numpy as np
 STEP_SHARE = 1.2
 #: the contact's own ``omega dt``: at most, and at least
 CONTACT_RATE = (0.2, 1.0)
+#: the contact's ``omega dt`` under an implicit step (whose fixed tangent leaves contact out):
+#: each iteration then shrinks a contact force's change to about ``(rate^2 + rate) / 4`` of it
+IMPLICIT_RATE = 0.4
 #: the normal damping, a share of critical
 DAMPING_RATIO = 0.5
 
@@ -152,9 +156,12 @@ def contact_load(model, contact: Contact, dt: float, stability_limit: float,
     when nothing limits it). ``state``: a contact whose stick points and depths go on (a run
     that takes over from another).
     """
-    omega_dt = 2.0 * dt / stability_limit if math.isfinite(stability_limit) else 0.0
     low, high = CONTACT_RATE
-    rate = min(high, max(low, math.sqrt(max(STEP_SHARE ** 2 - omega_dt ** 2, 0.0))))
+    if math.isfinite(stability_limit):
+        omega_dt = 2.0 * dt / stability_limit
+        rate = min(high, max(low, math.sqrt(max(STEP_SHARE ** 2 - omega_dt ** 2, 0.0))))
+    else:       # an implicit step: what its fixed-tangent iteration converges with
+        rate = IMPLICIT_RATE
     d = model.dimension
     mass = model.mass_dof.reshape(-1, d)[:, 0]
     stiffness = mass * (rate / dt) ** 2

@@ -331,7 +331,9 @@ class Simulation(LoadHolder, abc.ABC):
         """Return the loads the scene itself brings (its contact, tuned to this run's step)."""
         if self.model.scene.contact is None:
             return {}
-        limit = self.stability_limit() if self.basis is not None else math.inf
+        # the run's own integrator's limit: inf for an implicit one
+        limit = (stable_step(self.integrator, self.omega_max()) if self.basis is not None
+                 else math.inf)
         return {ContactLoad.name: contact_load(self.model, self.model.scene.contact, self.dt,
                                                limit, contact)}
 
