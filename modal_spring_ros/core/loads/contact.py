@@ -56,18 +56,18 @@ class ContactLoad(Load):
     depths: np.ndarray           # (colliders, free) depth at the last step (0: outside)
     slips: np.ndarray            # (colliders, free, 3) tangential offset from the stick point
     until: float = math.inf
+    #: the last evaluation, (points, each touched collider's (index, inside, depth, forces,
+    #: stick points, offsets)): the step's forces and its end are taken at the same points,
+    #: so each collider's distances are found once a step
+    _last: tuple = dataclasses.field(init=False, default=(None, ()), compare=False,
+                                     repr=False)
 
     # -- what the contract asks ----------------------------------------------------------------
     def world_forces(self, model, world_positions: WorldPositions, t: float):
         points, slots = self._points(model, world_positions)
         forces = np.zeros_like(points)
         touching = np.zeros(len(points), dtype=bool)
-        for c, collider in enumerate(self.contact.colliders):
-            distance, normal = collider.distance(points)
-            inside = np.flatnonzero(distance < 0.0)
-            if not inside.size:
-                continue
-            f, _, _ = self._at(c, inside, points[inside], -distance[inside], normal[inside])
+        for _, inside, _, f, _, _ in self._touches(points):
             forces[inside] += f
             touching[inside] = True
         if not touching.any():
@@ -83,15 +83,26 @@ class ContactLoad(Load):
         anchors = np.full_like(self.anchors, np.nan)
         depths = np.zeros_like(self.depths)
         slips = np.zeros_like(self.slips)
+        for c, inside, depth, _, anchor, slip in self._touches(points):
+            anchors[c, inside], slips[c, inside], depths[c, inside] = anchor, slip, depth
+        return dataclasses.replace(self, anchors=anchors, depths=depths, slips=slips)
+
+    def _touches(self, points: np.ndarray) -> tuple:
+        """Return what touches at ``points``: the last evaluation's if at the same points."""
+        last_points, touches = self._last          # one read: another run may replace it
+        if last_points is not None and np.array_equal(last_points, points):
+            return touches
+        touches = []
         for c, collider in enumerate(self.contact.colliders):
             distance, normal = collider.distance(points)
             inside = np.flatnonzero(distance < 0.0)
-            if not inside.size:
-                continue
-            _, anchors[c, inside], slips[c, inside] = self._at(
-                c, inside, points[inside], -distance[inside], normal[inside])
-            depths[c, inside] = -distance[inside]
-        return dataclasses.replace(self, anchors=anchors, depths=depths, slips=slips)
+            if inside.size:
+                depth = -distance[inside]
+                touches.append((c, inside, depth,
+                                *self._at(c, inside, points[inside], depth, normal[inside])))
+        touches = tuple(touches)
+        object.__setattr__(self, '_last', (points, touches))
+        return touches
 
     # -- the arithmetic ------------------------------------------------------------------------
     def _points(self, model, world_positions: WorldPositions) -> tuple[np.ndarray, np.ndarray]:
