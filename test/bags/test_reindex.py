@@ -141,6 +141,7 @@ def test_what_is_not_a_recording_is_refused_by_name(tmp_path):
         reindex(tmp_path / 'missing')
 
 
+@pytest.mark.slow
 def test_a_headless_run_killed_while_it_writes_reindexes_with_the_console_script(tmp_path):
     bag = tmp_path / 'run'
     proc = subprocess.Popen([console_script('modal_spring_sim'), '--duration', '60',

@@ -13,12 +13,14 @@ CONFIG = {'band': FilterBand('lowpass', 0, 14, 'index')}
 @pytest.mark.timeout(400)
 @pytest.mark.parametrize('kind, side', [('sheet', 60), ('sheet', 100), ('sheet', 140),
                                         ('block', 11)])
+@pytest.mark.slow
 def test_the_estimate_bounds_the_measured_peak_within_one_and_a_half(kind, side):
     result = measure_in_child(kind, side, CONFIG)
     assert result['peak_mb'] > 20.0  # a real run was measured
     assert 1.0 <= result['estimate_over_peak'] <= 1.5, result
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(400)
 def test_the_estimate_bounds_a_run_with_every_mode_up_to_the_cap_and_sampled_springs():
     wide = measure_in_child('sheet', 50, {})   # allpass: 256 modes and their derivatives

@@ -7,6 +7,7 @@ from modal_spring_ros.bench.costs import meshes
 from modal_spring_ros.core.model.bending import is_flat
 from modal_spring_ros.scenes.schema import scene_from_yaml
 import numpy as np
+import pytest
 
 
 def test_the_solid_is_a_closed_outward_surface_of_its_vertex_count():
@@ -34,6 +35,7 @@ def test_the_cloth_is_flat_irregular_and_hangs_from_its_top_edge(tmp_path):
     assert scene.fixed.sum() == 12                   # the top edge
 
 
+@pytest.mark.slow
 def test_a_small_run_measures_load_precompute_steps_and_frames(monkeypatch):
     monkeypatch.setattr(meshes, 'QUICK_CASES', [('cloth', 'cloth', 8), ('solid', 'solid', 120)])
     heard = []

@@ -16,6 +16,7 @@ def results():
     return response.run(quick=True, progress=lambda msg: None)
 
 
+@pytest.mark.slow
 def test_each_mode_s_measured_gain_and_damping_is_the_requested(results):
     summary = {s['case']: s for s in results['summary']}
     assert summary['output']['modes'] == 180

@@ -154,6 +154,7 @@ def test_finding_the_shape_a_cloth_hangs_in_shows_progress(tmp_path, capsys):
     assert err.index('loaded shape found in') < err.index('modes')   # before the modes
 
 
+@pytest.mark.slow
 def test_without_ros_it_runs_and_says_what_a_bag_would_need(tmp_path):
     """Without the ros extra: runs and ``.npz`` output work, and ``--bag`` says why it cannot."""
     def sim(*args):
@@ -211,6 +212,7 @@ def ramped_shake(tmp_path):
     return path
 
 
+@pytest.mark.slow
 def test_a_plan_the_run_outgrows_is_caught_by_its_watch_and_falls_back(tmp_path, capsys):
     """
     The pilot's window sees a gentle shake; the shake grows into large deformation later.

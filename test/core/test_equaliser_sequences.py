@@ -23,6 +23,7 @@ import pytest
 CHANGES = 30
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('scene', ['sheet_10x10', 'sheet_10x10_swing'])
 @pytest.mark.parametrize('seed', [0, 1, 2])
 def test_a_random_sequence_of_accepted_changes_never_diverges(scene, seed):

@@ -125,6 +125,7 @@ def test_no_loaded_shape_without_gravity_and_a_slack_scene_at_rest_is_a_mechanis
         ModalBasis(MassSpringModel(hanging_cloth(reference='rest', gravity=[0.0, 0.0, 0.0])))
 
 
+@pytest.mark.slow
 def test_the_built_in_cloth_oscillates_at_its_loaded_shape_frequencies():
     """
     The lowest five frequencies about ``cloth_3d``'s loaded shape are its full run's (2 %).

@@ -50,6 +50,7 @@ def test_hiding_ros_really_hides_it():
     assert done.returncode != 0 and 'hidden' in done.stderr
 
 
+@pytest.mark.slow
 @needs_noros
 def test_the_venv_without_ros_has_none_and_its_simulator_runs_a_mesh_scene(tmp_path):
     for module in ('rclpy', 'sensor_msgs', 'ament_index_python'):
@@ -73,6 +74,7 @@ def test_the_venv_without_ros_has_none_and_its_simulator_runs_a_mesh_scene(tmp_p
                         r'install', done.stderr.strip()), done.stderr
 
 
+@pytest.mark.slow
 @needs_noros
 def test_without_ros_a_bag_is_read_compared_and_drawn_from_its_own_schemas(tmp_path):
     """The bags carry their message definitions: looking at a run needs no ROS install."""

@@ -46,6 +46,7 @@ def test_the_lowest_modes_get_the_ratio_and_the_rest_the_matched_mass_term():
     assert np.abs(off).max() <= 1e-8 * np.abs(np.diag(damped)).max()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('integrator', ['explicit', 'average'])
 def test_on_a_scene_small_enough_it_follows_the_exact_modal_damping(integrator):
     """sheet_10x10 at a 2 % ratio over 3 s: within 0.01 % of the exact modal damping."""

@@ -38,6 +38,7 @@ def built() -> bool:
                           timeout=60).returncode == 0
 
 
+@pytest.mark.slow
 def test_both_bootstraps_are_no_ops_once_built_and_a_wrong_target_is_refused():
     if not built():
         pytest.skip('the venvs were not built by .ci/bootstrap test from these scripts')

@@ -11,6 +11,7 @@ import subprocess
 import sys
 
 from helpers import REPO
+import pytest
 
 
 def _collected(*args: str) -> set[str]:
@@ -28,6 +29,7 @@ def _collected(*args: str) -> set[str]:
     return {line for line in proc.stdout.splitlines() if '::' in line}
 
 
+@pytest.mark.slow
 def test_a_marker_expression_without_slow_leaves_the_slow_tests_out():
     everything = _collected()
     fast = _collected('-m', 'not ros')

@@ -126,6 +126,7 @@ def _new_segments(before: set[str]) -> dict[str, int]:
     return {name: size for name, size in _segments().items() if name not in before}
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not SHM_PATH.is_dir(), reason='no /dev/shm on this system')
 @pytest.mark.parametrize('transports', ['', 'DEFAULT'])
 def test_the_node_of_a_large_scene_has_the_large_segment(monkeypatch, transports):
@@ -148,6 +149,7 @@ def test_the_node_of_a_large_scene_has_the_large_segment(monkeypatch, transports
     assert code == 0, err[-2000:]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not SHM_PATH.is_dir(), reason='no /dev/shm on this system')
 def test_a_replay_of_large_clouds_has_the_large_segment(tmp_path, monkeypatch):
     """A bag of 0.6 MB clouds is played back as the node sent them: over the large segment."""

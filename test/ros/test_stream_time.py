@@ -111,6 +111,7 @@ def test_under_another_clock_the_default_stamps_are_that_clock_s_time():
         assert np.all(np.diff(times) >= 0) and times[0] < times[-1] < 100.0, times
 
 
+@pytest.mark.slow
 def test_under_another_clock_the_run_keeps_pace_with_it_and_waits_when_it_stops():
     """
     ``use_sim_time:=true``: the run follows /clock (here at half the wall's rate), not the wall.

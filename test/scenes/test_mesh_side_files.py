@@ -139,6 +139,7 @@ def test_a_decompression_bomb_is_refused_within_the_parse_s_memory(tmp_path, mon
         read_mesh(tmp_path / 'bomb.vtu')
 
 
+@pytest.mark.slow
 def test_ctrl_c_while_a_large_mesh_is_parsed_ends_the_run_and_its_parser(tmp_path):
     """A 600,000-vertex OBJ takes seconds to parse; Ctrl-C to the group ends both at once."""
     side = 775
