@@ -210,12 +210,12 @@ def test_a_clamp_following_tf_keeps_up_with_one_following_the_pose_topic(tmp_pat
         keep = static_links(client, link('world', 'robot', PIVOT))
         tf = client.node.create_publisher(tf2_msgs.TFMessage, '/tf', 100)
         poses = client.node.create_publisher(PoseStamped, '/lagpose/anchor_pose', 10)
-        stop, stepped = threading.Event(), []
+        stop, stepped, ready = threading.Event(), [], []
 
         def gripper():
-            start = time.monotonic()
             while not stop.wait(0.02):
-                dx = step if time.monotonic() - start > 4.0 else 0.0
+                # the step 2 s after both clamps are seen (a busy machine starts nodes late)
+                dx = step if ready and time.monotonic() - ready[0] > 2.0 else 0.0
                 if dx and not stepped:
                     stepped.append(time.monotonic())
                 tf.publish(tf2_msgs.TFMessage(transforms=[link('robot', 'gripper', (dx, 0, 0))]))
@@ -223,6 +223,10 @@ def test_a_clamp_following_tf_keeps_up_with_one_following_the_pose_topic(tmp_pat
         thread = threading.Thread(target=gripper, daemon=True)
         thread.start()
         try:
+            assert wait_for(lambda: _clamp_x(frames, 'lagtf/modal_spring_clamp')
+                            and _clamp_x(frames, 'lagpose/modal_spring_clamp'), 60)
+            ready.append(time.monotonic())
+
             def moved(child):
                 if not stepped:
                     return None
