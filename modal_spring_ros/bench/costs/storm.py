@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import os
 import random
-import signal
 import subprocess
 import tempfile
 import threading
@@ -23,7 +22,7 @@ import time
 from typing import Callable
 
 from modal_spring_ros.bench.charts import subplots
-from modal_spring_ros.bench.costs.stream import domain_id
+from modal_spring_ros.bench.costs.stream import domain_id, end_node
 from modal_spring_ros.scenes.resources import executable
 import numpy as np
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
@@ -200,12 +199,7 @@ def measure(seconds: float, progress: Callable[[str], None]) -> dict:
         executor.shutdown()
         watcher.destroy_node()
         rclpy.try_shutdown(context=ctx)
-        if node.poll() is None:
-            node.send_signal(signal.SIGINT)
-            try:
-                node.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                os.killpg(node.pid, signal.SIGKILL)
+        end_node(node)
     answers = sorted((sent - start, took, ok) for c in clients for sent, took, ok in c.answers)
     lost = sorted((sent - start, what) for c in clients for sent, what in c.lost)
     log.seek(0)

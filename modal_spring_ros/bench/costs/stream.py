@@ -79,6 +79,16 @@ def domain_id() -> int:
     return random.randint(110, 200)     # apart from other runs on this machine
 
 
+def end_node(node: subprocess.Popen) -> None:
+    """End a node started here as Ctrl-C does; kill its process group if it outlives 20 s."""
+    if node.poll() is None:
+        node.send_signal(signal.SIGINT)
+        try:
+            node.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            os.killpg(node.pid, signal.SIGKILL)
+
+
 def select_cases(case: str | None, quick: bool) -> list[tuple[str, str, list[str]]]:
     """Return the cases to run: those whose label contains ``case``, else all (two quick)."""
     if case is None:
@@ -153,12 +163,7 @@ def _measure(args: list[str], env: dict, domain: int, scene: str, seconds: float
         ex.shutdown()
         sub.destroy_node()
         rclpy.try_shutdown(context=ctx)
-        if node.poll() is None:
-            node.send_signal(signal.SIGINT)
-            try:
-                node.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                os.killpg(node.pid, signal.SIGKILL)
+        end_node(node)
     latencies = [1e3 * (r - s) for r, s, _ in received]
     values = {}
     if diags:
