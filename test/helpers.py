@@ -8,6 +8,7 @@ import io
 import math
 import os
 from pathlib import Path
+import time
 
 from modal_spring_ros.bench.costs import meshes
 from modal_spring_ros.bench.costs.meshes import write_obj  # noqa: F401 (the tests' too)
@@ -176,3 +177,22 @@ def random_band(rng: np.random.Generator, top_hz: float) -> dict:
             'high': math.inf if kind in ('allpass', 'highpass') else round(float(b) + 0.5, 2),
             'order': int(rng.integers(0, 9)), 'gains': tuple(gains),
             'acts_on': str(rng.choice(['output', 'load'])), 'damping': tuple(damping)}
+
+
+def process_group(pgid: int, wait_s: float = 0.5) -> list[str]:
+    """Return the processes still in group ``pgid`` after up to ``wait_s`` (pid and name)."""
+    end = time.monotonic() + wait_s
+    while True:
+        left = []
+        for entry in os.listdir('/proc'):
+            try:
+                with open(f'/proc/{entry}/stat') as stat:
+                    fields = stat.read().rsplit(')', 1)[1].split()
+                    name = open(f'/proc/{entry}/comm').read().strip()
+            except (OSError, IndexError, ValueError):
+                continue
+            if fields[2] == str(pgid) and fields[0] != 'Z':
+                left.append(f'{entry} {name}')
+        if not left or time.monotonic() > end:
+            return left
+        time.sleep(0.05)

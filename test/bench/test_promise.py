@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from modal_spring_ros.bench.accuracy import promise
+from modal_spring_ros.bench.accuracy import promise_demanding
 import numpy as np
 import pytest
 
@@ -38,3 +39,29 @@ def test_one_random_scene_is_planned_checked_and_charted(tmp_path):
     promise.write_outputs(results, tmp_path, lambda msg: None)
     assert (tmp_path / 'promise.png').stat().st_size > 10_000
     assert len((tmp_path / 'promise.csv').read_text().splitlines()) == 4
+
+
+def test_the_worst_window_is_the_error_of_the_window_that_misses_most():
+    """50 samples of 0.02 s: 0.25 s windows of 12 (13 over 0.26 s rounded), one 10 % off."""
+    reference = np.ones((50, 3))
+    run = reference.copy()
+    run[24:36] *= 1.1                         # the third window, exactly
+    assert promise.worst_window(run, reference, 0.02) == pytest.approx(0.1)
+    assert promise.trajectory_error(run, reference) == pytest.approx(0.1 * np.sqrt(12 / 50))
+    assert promise.worst_window(None, reference, 0.02) == np.inf
+
+
+def test_the_demanding_suite_tabulates_every_run_and_its_windows(tmp_path):
+    row = {'seed': 4, 'scene': 'demanding_4', 'kind': 'large sheet', 'particles': 5166,
+           'duration_s': 31.0, 'tolerance': 0.01, 'refused': '', 'method': 'modal',
+           'achieved': 0.004, 'printed': 0.005, 'worst_window': 0.03, 'cost_ratio': 0.2,
+           'whole_vs_default': 0.4, 'whole_vs_at_t': 0.6, 'default_error': 0.002}
+    refused = dict(row, seed=5, refused='the reference did not converge')
+    results = {'rows': [row, refused], 'summary': promise.summary([row, refused])}
+    (s,) = results['summary']
+    assert s['within_t'] == 1.0 and s['windows_within_2t'] == 0.0   # 3 % in one window
+    text = promise_demanding.table(results)
+    assert '   4   large sheet      5166    31  1.0%  modal    0.40%    0.50%        3.00%' in text
+    assert 'refused: the reference did not converge' in text
+    promise_demanding.write_outputs(results, tmp_path, lambda msg: None)
+    assert (tmp_path / 'promise_demanding.png').stat().st_size > 10_000

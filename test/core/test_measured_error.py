@@ -8,10 +8,15 @@ from __future__ import annotations
 
 import math
 
-from modal_spring_ros.core.auto.measured_error import (horizon_error, on_samples, trajectory,
+from modal_spring_ros.core.auto import measured_error
+from modal_spring_ros.core.auto import pilot
+from modal_spring_ros.core.auto.measured_error import (bounded_trajectory, error_at_least,
+                                                       horizon_error, on_samples, trajectory,
                                                        trajectory_error)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.scenes.generator import random_scene
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -59,3 +64,71 @@ def test_runs_are_compared_on_one_grid_of_instants():
     assert landed.dt == pytest.approx(0.0025) and on_samples(landed, 0.01) is landed
     assert on_samples(sim, 0.01, longest_dt=0.004).dt == pytest.approx(0.01 / 3)
     assert trajectory(landed, 0.01, 5).shape == (5, sim.model.n_free_dof)
+
+
+def test_the_error_of_a_run_part_way_bounds_its_error_over_the_window_from_below():
+    """Whatever the rest of a run does, its error over the window is at least the bound."""
+    rng = np.random.default_rng(0)
+    reference = rng.normal(size=(200, 6))
+    growing = np.linspace(0, 3, 200)[:, None]
+    run = reference + rng.normal(scale=0.05, size=reference.shape) * growing
+    whole = trajectory_error(run, reference)
+    bounds = [error_at_least(run[:k], reference) for k in range(1, 201)]
+    assert np.all(np.diff(bounds) >= 0) and bounds[-1] == pytest.approx(whole)
+    assert bounds[99] < 0.5 * whole          # the error grows: the first half says little
+    # the rest of the run exactly on the reference: the bound is what the window measures
+    perfect = np.concatenate([run[:100], reference[100:]])
+    assert trajectory_error(perfect, reference) == pytest.approx(bounds[99])
+
+
+def test_a_run_certain_to_miss_is_abandoned_part_way_and_says_by_how_much_at_least():
+    """
+    sheet_10x10 on its modes below 8 Hz, against the full run: about 37 % off over 2 s.
+
+    With a ceiling of 1 % its run stops after an eighth of the window, the bound it returns
+    beyond 1 % and below the error of the whole window; without one it runs to the end.
+    """
+    scene = load_scene('sheet_10x10')
+    sample_s, samples = 0.01, 200
+    full = build_simulation(scene, SimulationConfig(method='full'))
+    reference = trajectory(on_samples(full, sample_s, 1e-4), sample_s, samples)
+    low_modes = on_samples(build_simulation(scene, SimulationConfig(
+        method='modal', band=FilterBand(kind='lowpass', high=8.0))), sample_s)
+    whole = trajectory_error(trajectory(low_modes, sample_s, samples), reference)
+    assert whole > 0.3
+    run, bound = bounded_trajectory(low_modes, sample_s, reference, ceiling=0.01)
+    assert len(run) == samples // measured_error.GIVE_UP_CHECKS
+    assert 0.01 < bound <= whole
+    np.testing.assert_array_equal(run, trajectory(low_modes, sample_s, samples)[:len(run)])
+    run, bound = bounded_trajectory(low_modes, sample_s, reference, ceiling=2 * whole)
+    assert len(run) == samples and bound is None
+    assert bounded_trajectory(low_modes, sample_s, reference)[1] is None
+
+
+@pytest.mark.slow
+def test_abandoning_trials_part_way_changes_no_plan_and_steps_less():
+    """
+    Random scene 11 at 0.3 %: a refinement trial is abandoned part-way, the plan is the same.
+
+    The same pilot with every run taken to its window's end chooses the same plan, printing
+    the same error, and steps more.
+    """
+    config = SimulationConfig(auto=True, tolerance=0.003, horizon_s=3.0, planning_share=None)
+    whole_runs = bounded_trajectory
+    plans, stepped, abandoned = [], [], []
+    for give_up in (True, False):
+        samples = []
+
+        def measured(sim, sample_s, reference, ceiling=math.inf):
+            run, bound = whole_runs(sim, sample_s, reference, ceiling if give_up else math.inf)
+            samples.append(len(reference) if run is None else len(run))
+            abandoned.extend([len(run) / len(reference)] if bound is not None else [])
+            return run, bound
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(pilot, 'bounded_trajectory', measured)
+            sim = build_simulation(random_scene(11, 80), config)
+        plans.append((sim.method, sim.dt, sim.coordinates, sim.pilot.refined, sim.pilot.error))
+        stepped.append(sum(samples))
+    assert plans[0] == plans[1]
+    assert len(abandoned) >= 1 and max(abandoned) < 1.0
+    assert stepped[0] < stepped[1]

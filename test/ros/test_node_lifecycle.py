@@ -12,7 +12,7 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from helpers import REPO
+from helpers import process_group, REPO
 import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
@@ -27,25 +27,6 @@ NODE = 'modal_spring'
 RATE = 60.0
 #: the steady stream watched before the band-change stress, s
 STEADY_BEFORE_S = 5.0
-
-
-def process_group(pgid: int, wait_s: float = 0.5) -> list[str]:
-    """Return the processes still in group ``pgid`` after up to ``wait_s`` (pid and name)."""
-    end = time.monotonic() + wait_s
-    while True:
-        left = []
-        for entry in os.listdir('/proc'):
-            try:
-                with open(f'/proc/{entry}/stat') as stat:
-                    fields = stat.read().rsplit(')', 1)[1].split()
-                    name = open(f'/proc/{entry}/comm').read().strip()
-            except (OSError, IndexError, ValueError):
-                continue
-            if fields[2] == str(pgid) and fields[0] != 'Z':
-                left.append(f'{entry} {name}')
-        if not left or time.monotonic() > end:
-            return left
-        time.sleep(0.05)
 
 
 def stamp_s(msg) -> float:

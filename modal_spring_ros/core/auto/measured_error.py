@@ -5,7 +5,8 @@ Runs are compared on one grid of sample instants (:func:`on_samples` lands a run
 it), by the relative L2 error of the free-DOF displacement in the clamp's frame
 (:func:`trajectory_error`), against a reference converged in its step
 (:func:`converged_trajectory`). An error measured over a window is extrapolated to a longer
-run by a drift model (:func:`horizon_error`).
+run by a drift model (:func:`horizon_error`); a run already beyond what could be chosen is
+abandoned part-way by an exact lower bound (:func:`error_at_least`).
 """
 from __future__ import annotations
 
@@ -18,6 +19,8 @@ import numpy as np
 
 #: Blocks of the window's second half the drift model is fitted to.
 DRIFT_BLOCKS = 4
+#: How often over its window a run that may be abandoned is checked.
+GIVE_UP_CHECKS = 8
 
 
 def on_samples(sim: Simulation, sample_s: float, longest_dt: float | None = None
@@ -32,23 +35,63 @@ def on_samples(sim: Simulation, sample_s: float, longest_dt: float | None = None
     return sim if abs(dt - sim.dt) <= 1e-9 * dt else sim.with_dt(dt)
 
 
-def trajectory(sim: Simulation, sample_s: float, samples: int) -> np.ndarray | None:
-    """Return the displacement every ``sample_s`` from rest, or None where the run diverges."""
+def trajectory(sim: Simulation, sample_s: float, samples: int,
+               give_up: Callable[[np.ndarray], bool] | None = None) -> np.ndarray | None:
+    """
+    Return the displacement every ``sample_s`` from rest, or None where the run diverges.
+
+    ``give_up(so_far)`` is asked every ``GIVE_UP_CHECKS``-th of the run with the samples so
+    far; where it says yes the run stops there and those samples are returned (fewer than
+    ``samples``: see :func:`error_at_least`).
+    """
     per = max(1, int(round(sample_s / sim.dt)))
     if abs(per * sim.dt - sample_s) > 1e-6 * sample_s:
         raise ValueError(f'samples every {sample_s:.6g} s do not fall on steps of '
                          f'{sim.dt:.6g} s')
     out = np.empty((samples, sim.model.n_free_dof))
+    check = max(1, samples // GIVE_UP_CHECKS)
     sim.reset()
     try:
         for k in range(samples):
             sim.step(per)
             out[k] = sim.displacement()
+            if give_up is not None and (k + 1) % check == 0 and k + 1 < samples:
+                if np.isfinite(out[:k + 1]).all() and give_up(out[:k + 1]):
+                    return out[:k + 1]
     except DivergenceError:
         return None
     finally:
         sim.reset()
     return out if np.isfinite(out).all() else None
+
+
+def bounded_trajectory(sim: Simulation, sample_s: float, reference: np.ndarray,
+                       ceiling: float = math.inf) -> tuple[np.ndarray | None, float | None]:
+    """
+    Return :func:`trajectory` over ``reference``'s samples, and None, or abandoned part-way.
+
+    Abandoned where its error is certain to exceed ``ceiling`` (:func:`error_at_least`): the
+    samples stepped, and that bound.
+    """
+    run = trajectory(sim, sample_s, len(reference),
+                     (lambda start: error_at_least(start, reference) > ceiling)
+                     if math.isfinite(ceiling) else None)
+    if run is not None and len(run) < len(reference):
+        return run, error_at_least(run, reference)
+    return run, None
+
+
+def error_at_least(start: np.ndarray, reference: np.ndarray) -> float:
+    """
+    Return a lower bound of a run's :func:`trajectory_error` from its first samples ``start``.
+
+    The error still to come can only add to the numerator, while the denominator (the
+    reference's whole motion) is known: the bound is exact, so a run it puts beyond what could
+    be chosen is abandoned without stepping the rest of its window. A run's error over a
+    horizon is never below its window's (:func:`horizon_error`), so it bounds that too.
+    """
+    norm = float(np.linalg.norm(reference))
+    return float(np.linalg.norm(start - reference[:len(start)])) / norm if norm > 0 else 0.0
 
 
 def trajectory_error(run: np.ndarray | None, reference: np.ndarray) -> float:

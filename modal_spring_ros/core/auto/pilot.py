@@ -19,8 +19,9 @@ adaptive ODE solvers trust no step until a second estimate says it is good, the 
 3. **The error**: relative L2 of the free-DOF displacement in the clamp's frame over the
    window's samples, extrapolated over the run by a drift model (:func:`horizon_error`).
 4. **Refinement** while it is above ``PILOT_MARGIN`` of the tolerance: each refinement left is
-   tried alone, the lowest (cheapest on a near tie) kept, for at most ``MAX_ROUNDS`` rounds;
-   a plan well within it has its step lengthened.
+   tried alone (abandoned part-way once certain to do worse than the plan), the lowest
+   (cheapest on a near tie) kept, for at most ``MAX_ROUNDS`` rounds; a plan well within it has
+   its step lengthened.
 5. **The full run is a candidate** (:mod:`~modal_spring_ros.core.auto.full_candidate`): the
    cheaper of the two by a work model (no clock) that meets the tolerance is chosen.
 6. **A budget** (:mod:`~modal_spring_ros.core.auto.budget`): every run above is priced before
@@ -40,8 +41,9 @@ from modal_spring_ros.core.auto.budget import (PlanningBudget, REFERENCE_RUNS, t
                                                unplanned_full, worth_measuring)
 from modal_spring_ros.core.auto.full_candidate import (against_reference, BY_ITSELF,
                                                        by_step_doubling)
-from modal_spring_ros.core.auto.measured_error import (converged_trajectory, horizon_error,
-                                                       on_samples, trajectory, trajectory_error)
+from modal_spring_ros.core.auto.measured_error import (bounded_trajectory, converged_trajectory,
+                                                       horizon_error, on_samples, trajectory,
+                                                       trajectory_error)
 from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PilotReport, PlanSettings
 from modal_spring_ros.core.auto.refinement import (lengthened, refinements, richer,
@@ -53,8 +55,7 @@ from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import Simulation
 import numpy as np
 
-#: The measured error must be within this share of the tolerance (a margin for what the pilot
-#: window does not see).
+#: The measured error must be within this share of the tolerance (a margin for the unseen).
 PILOT_MARGIN = 0.8
 #: Most refinement rounds before the plan gives way to the full run.
 MAX_ROUNDS = 5
@@ -66,10 +67,8 @@ REFERENCE_WORK = 5e6
 REFERENCE_ACCURACY = 0.1
 #: A candidate within this factor of another's measured error counts as a tie (cheaper wins).
 TIE = 1.1
-#: The full run replaces a plan within the tolerance where the work model prices the plan above
-#: this many times the full run's work: auto never chooses a candidate it prices above 1.1 times
-#: the cheapest it measured; within that the two are a tie (the model's ratios are good to about
-#: 30 %), and the plan, which measured within the tolerance, is kept.
+#: The full run replaces a plan within the tolerance the work model prices above this many times
+#: the full run's work (within it a tie, the model's ratios good to about 30 %: the plan kept).
 FULL_RUN_TIE = 1.1
 
 
@@ -95,14 +94,10 @@ class Pilot:
                  can_halve_step: bool = True, horizon_s: float | None = None,
                  budget: PlanningBudget | None = None,
                  full_dt: tuple[float, float] = (math.inf, math.inf)):
-        self.model = model
-        self.full_dt = full_dt
+        self.model, self.full_dt, self.tolerance = model, full_dt, float(tolerance)
         self.budget = budget if budget is not None else PlanningBudget()
+        self.make, self.full, self.more_modes = make, full, more_modes
         self.can_halve_step = can_halve_step
-        self.tolerance = float(tolerance)
-        self.make = make
-        self.full = full
-        self.more_modes = more_modes
         window = pilot_window(model, kept_hz)
         self.horizon_s = float(horizon_s) if horizon_s is not None else window
         self.window_s = min(window, self.horizon_s)
@@ -112,8 +107,7 @@ class Pilot:
         self._sample_s = 0.0      # the sampling interval every run lands on (set by run)
         # what the full candidate is measured with: sample_s, samples, reference, against
         self._sampling: tuple[float, int, np.ndarray, str] | None = None
-        # the full run over the window's start, checking a sibling reference (None: no check);
-        # whether it was looked for
+        # the full run over the window's start checking a sibling (None: none); whether sought
         self._start: np.ndarray | None = None
         self._start_sought = False
         self._fallback: Simulation | None = None   # the full candidate, once measured
@@ -158,7 +152,8 @@ class Pilot:
                 trial = self._build(candidate)
                 if not self._affords(trial):
                     continue                         # beyond what the budget has left
-                measured = self._error(trial, reference, sample_s)
+                # a trial certain to be worse than the plan is never chosen: abandoned early
+                measured = self._error(trial, reference, sample_s, ceiling=error)
                 options.append((measured, work_per_second(trial), name, candidate, trial))
             if not options:
                 break
@@ -177,8 +172,8 @@ class Pilot:
                                                          (reference, against, error))
         if error <= budget and self.can_halve_step:
             def measured(trial: Simulation) -> float | None:
-                return (self._error(trial, reference, sample_s) if self._affords(trial)
-                        else None)
+                return (self._error(trial, reference, sample_s, ceiling=budget)
+                        if self._affords(trial) else None)
             plan, sim, error, longer = lengthened(plan, sim, error, budget, self._build,
                                                   measured)
             refined.extend(['a longer step'] if longer else [])
@@ -239,16 +234,22 @@ class Pilot:
         """
         return on_samples(self.make(settings), self._sample_s)
 
-    def _error(self, sim: Simulation, reference: np.ndarray, sample_s: float) -> float:
+    def _error(self, sim: Simulation, reference: np.ndarray, sample_s: float,
+               ceiling: float = math.inf) -> float:
         """
         Return ``sim``'s error over the horizon.
 
         Measured over the window, extrapolated beyond it, and against a sibling corrected for
-        the share of the step error the sibling shares.
+        the share of the step error the sibling shares. A run whose error is certain to exceed
+        ``ceiling`` part-way through its window is abandoned there (its bound returned, what
+        was stepped charged: :func:`~.measured_error.bounded_trajectory`).
         """
-        run = trajectory(sim, sample_s, len(reference))
-        self.budget.charge(sim, len(reference) * sample_s)
         shared = self._shared(sim)
+        run, bound = bounded_trajectory(sim, sample_s, reference, ceiling / shared)
+        self.budget.charge(sim, (len(reference) if run is None else len(run)) * sample_s)
+        if bound is not None:
+            self._measured[id(sim)] = (sim, bound * shared)
+            return bound * shared
         start = 0.0
         if self._sibling is not None and self._start is not None:
             start = trajectory_error(None if run is None else run[:len(self._start)],
