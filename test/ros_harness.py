@@ -48,6 +48,22 @@ def streaming_statuses(diags: list, prefix: str) -> list:
             and not d.status[0].message.startswith('starting: ')]
 
 
+def published_rate(diags: list, prefix: str, start: float, end: float) -> float:
+    """
+    Return the frames a second the node under ``prefix`` says it published between two times.
+
+    From its ``frames published`` on /diagnostics (received between ``start`` and ``end``,
+    monotonic): what the node did, whatever a reader on a busy machine keeps up with.
+    """
+    reports = [(t, int(v['frames published'])) for t, v in
+               ((t, {kv.key: kv.value for kv in d.status[0].values}) for t, d in list(diags))
+               if v.get('node', '').startswith(prefix) and 'frames published' in v
+               and start <= t < end]
+    assert len(reports) >= 2, reports      # the node reports every second
+    (t0, n0), (t1, n1) = reports[0], reports[-1]
+    return (n1 - n0) / (t1 - t0)
+
+
 def assert_resimulates_exactly(capture, again, changes: int) -> int:
     """
     Re-simulate a node's capture (``record.bag``) into ``again``; return its frame count.

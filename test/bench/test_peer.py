@@ -90,3 +90,21 @@ def test_newtons_run_of_a_shaken_damped_sheet_matches_the_projects_full_run():
     coarse, fine = trajectory_error(newton_coarse, truth), trajectory_error(newton_fine, truth)
     assert fine < 0.01
     assert fine < 0.5 * coarse       # a first-order method converging to the same motion
+
+
+@needs_newton
+def test_newton_replayed_from_its_captured_graph_is_the_same_run_as_launched_step_by_step():
+    """
+    As a Newton user steps: two steps captured once, replayed; odd steps and resets included.
+
+    The shaken sheet sampled every 5 steps (an odd step after each pair), past the first 1024
+    steps the clamp's poses were computed for (a new graph): the same float32 run, bit for bit.
+    """
+    scene = variant('sheet_10x10', damping={'rayleigh': {'alpha': 1.5, 'beta': 0.0}})
+    replayed = newton_peer.NewtonRun(scene, 1e-3)
+    launched = newton_peer.NewtonRun(scene, 1e-3, graph=False)
+    assert replayed.graph and not launched.graph
+    first = trajectory(replayed, 0.005, 300)
+    np.testing.assert_array_equal(first, trajectory(launched, 0.005, 300))
+    assert np.abs(first).max() > 1e-3 and replayed.steps == 0           # reset after
+    np.testing.assert_array_equal(trajectory(replayed, 0.005, 300), first)   # from rest again

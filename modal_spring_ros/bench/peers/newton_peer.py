@@ -46,21 +46,31 @@ class PeerRefused(ValueError):
 if AVAILABLE:
     @wp.kernel
     def _before_step(fixed: wp.array(dtype=wp.int32), rest: wp.array(dtype=wp.vec3),
-                     offset: wp.vec3, velocity: wp.vec3, mass_alpha: wp.array(dtype=float),
+                     offsets: wp.array(dtype=wp.vec3), velocities: wp.array(dtype=wp.vec3),
+                     index: wp.array(dtype=wp.int32), mass_alpha: wp.array(dtype=float),
                      q: wp.array(dtype=wp.vec3), qd: wp.array(dtype=wp.vec3),
                      force: wp.array(dtype=wp.vec3)):
         """
         Put clamped particles where the clamp is, moving as it does; start the free ones'.
 
-        forces with ``-alpha m (v - v_clamp)`` (zero without mass damping). One launch a step.
+        forces with ``-alpha m (v - v_clamp)`` (zero without mass damping). The clamp's pose
+        at this step is ``offsets[index[0]]`` (a captured graph replays the same launch at
+        every step). One launch a step.
         """
         tid = wp.tid()
+        k = index[0]
+        velocity = velocities[k]
         if fixed[tid] != 0:
-            q[tid] = rest[tid] + offset
+            q[tid] = rest[tid] + offsets[k]
             qd[tid] = velocity
             force[tid] = wp.vec3(0.0, 0.0, 0.0)
         else:
             force[tid] = -mass_alpha[tid] * (qd[tid] - velocity)
+
+    @wp.kernel
+    def _count_step(index: wp.array(dtype=wp.int32)):
+        """The step's index, one up."""
+        index[0] = index[0] + 1
 
 
 def refusal(scene: Scene) -> str:
@@ -76,11 +86,16 @@ class NewtonRun:
     """
     A scene stepped by Newton's ``SolverSemiImplicit`` at ``dt`` on the CPU.
 
+    As a Newton user steps it: two steps (from one state into the other and back) captured once
+    as a Warp graph and replayed (``graph``, the default: Warp 1.13 and later replay graphs on
+    the CPU); an odd step is launched as it comes. The clamp's pose at every step is computed
+    ahead into arrays the graph reads by a step counter kept in Warp.
+
     :raises PeerRefused: a scene the peer cannot run (:func:`refusal`).
     :raises RuntimeError: Newton is not installed.
     """
 
-    def __init__(self, scene: Scene, dt: float):
+    def __init__(self, scene: Scene, dt: float, graph: bool = True):
         if not AVAILABLE:
             raise RuntimeError(MISSING)
         reason = refusal(scene)
@@ -107,11 +122,20 @@ class NewtonRun:
         self._fixed = wp.array(scene.fixed.astype(np.int32), dtype=wp.int32, device='cpu')
         self._rest = wp.array(scene.rest_positions, dtype=wp.vec3, device='cpu')
         self._free = np.flatnonzero(~scene.fixed)
+        self._index = wp.zeros(1, dtype=wp.int32, device='cpu')
+        self._state, self._next = self._newton.state(), self._newton.state()
+        self._offsets = self._velocities = None
+        self.graph = bool(graph) and hasattr(wp, 'capture_launch')
+        self._graph = None
         self.reset()
 
     def reset(self) -> None:
         """Go back to rest at t = 0."""
-        self._state, self._next = self._newton.state(), self._newton.state()
+        rest = self._newton.state()
+        for name in ('particle_q', 'particle_qd', 'particle_f'):
+            for state in (self._state, self._next):
+                wp.copy(getattr(state, name), getattr(rest, name))
+        self._index.zero_()
         self.steps = 0
 
     @property
@@ -120,17 +144,18 @@ class NewtonRun:
 
     def step(self, n: int = 1) -> None:
         """Advance ``n`` steps: the clamp placed at the step's start, then Newton's step."""
-        motion, count = self.scene.anchor_motion, self.scene.n_particles
-        for _ in range(n):
-            t = self.time
-            wp.launch(_before_step, dim=count, device='cpu',
-                      inputs=[self._fixed, self._rest, wp.vec3(*motion.offset(t)),
-                              wp.vec3(*motion.velocity(t)), self._mass_alpha],
-                      outputs=[self._state.particle_q, self._state.particle_qd,
-                               self._state.particle_f])
-            self._solver.step(self._state, self._next, self._control, None, self.dt)
-            self._state, self._next = self._next, self._state
-            self.steps += 1
+        self._reach(self.steps + n)
+        pairs, odd = divmod(n, 2)
+        for _ in range(pairs):
+            if self._graph is not None:
+                wp.capture_launch(self._graph)
+            else:
+                self._two_steps()
+        if odd:     # into the other state, and back where the graph reads it
+            self._one_step(self._state, self._next)
+            for name in ('particle_q', 'particle_qd'):
+                wp.copy(getattr(self._state, name), getattr(self._next, name))
+        self.steps += n
 
     def displacement(self) -> np.ndarray:
         """Free-DOF displacement from rest in the clamp's frame (the core's order), float64."""
@@ -138,3 +163,35 @@ class NewtonRun:
         offset = self.scene.anchor_motion.offset(self.time)
         u = x - self.scene.rest_positions - offset
         return u[self._free][:, self.model.axes].reshape(-1)
+
+    # -- internals -----------------------------------------------------------------------------
+    def _one_step(self, state, into) -> None:
+        wp.launch(_before_step, dim=self.scene.n_particles, device='cpu',
+                  inputs=[self._fixed, self._rest, self._offsets, self._velocities, self._index,
+                          self._mass_alpha],
+                  outputs=[state.particle_q, state.particle_qd, state.particle_f])
+        self._solver.step(state, into, self._control, None, self.dt)
+        wp.launch(_count_step, dim=1, device='cpu', inputs=[self._index])
+
+    def _two_steps(self) -> None:
+        self._one_step(self._state, self._next)
+        self._one_step(self._next, self._state)
+
+    def _reach(self, steps: int) -> None:
+        """Have the clamp's pose for every step below ``steps`` (and the graph reading it)."""
+        have = 0 if self._offsets is None else self._offsets.shape[0]
+        if steps <= have:
+            return
+        size = max(1024, 2 * have, steps)
+        motion = self.scene.anchor_motion
+        times = self.dt * np.arange(size)
+        self._offsets = wp.array(np.array([motion.offset(t) for t in times]), dtype=wp.vec3,
+                                 device='cpu')
+        self._velocities = wp.array(np.array([motion.velocity(t) for t in times]),
+                                    dtype=wp.vec3, device='cpu')
+        if self.graph:
+            index = self._index.numpy().copy()
+            with wp.ScopedCapture(device='cpu') as capture:
+                self._two_steps()
+            self._graph = capture.graph
+            self._index.assign(index)      # capturing ran nothing (or ran it: set it back)
