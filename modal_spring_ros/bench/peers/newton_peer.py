@@ -69,7 +69,7 @@ if AVAILABLE:
 
     @wp.kernel
     def _count_step(index: wp.array(dtype=wp.int32)):
-        """The step's index, one up."""
+        """Count the step: its index one up."""
         index[0] = index[0] + 1
 
 
