@@ -141,7 +141,8 @@ class ModalSpringNode(Node):
                          if tf_available() else None)   # TF on its own: it keeps up
         self._inputs = NodeInputs(self._input_node.node, follower, lambda: self._params.values,
                                   self._thread.submit,
-                                  tf_node=self._tf_node.node if self._tf_node else None)
+                                  tf_node=self._tf_node.node if self._tf_node else None,
+                                  contact=scene.contact)
         services = ReentrantCallbackGroup()     # awaiting coroutines: no thread held
         self._answered = self.create_guard_condition(lambda: None, callback_group=services)
         # wall-time chores on the steady clock: under use_sim_time a timer on the ROS clock

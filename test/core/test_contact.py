@@ -15,7 +15,7 @@ from helpers import variant
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.loads.contact import ContactLoad, IMPLICIT_RATE
-from modal_spring_ros.core.model.colliders import Box, Capsule, Cylinder, Plane, Sphere
+from modal_spring_ros.core.model.colliders import Box, Capsule, Cylinder, Plane, Pose, Sphere
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.files.writing import scene_to_dict
 from modal_spring_ros.scenes.schema import scene_from_dict
@@ -212,7 +212,7 @@ def test_the_contact_field_is_written_and_read_back_the_same():
     ({'friction': {'static': 0.2, 'sliding': 0.5}, 'colliders': []},
      r'friction\.sliding: \(0\.5\) must not be above the static friction'),
     ({'colliders': [{'shape': 'sphere', 'center': [0, 0, 0], 'radius': 0.1,
-                     'frame': 'tool0'}]}, r'frame: colliders attached to a TF frame'),
+                     'frame': 'tool 0'}]}, r'colliders\[0\]\.frame: must be a TF frame name'),
     ({'colliders': [{'shape': 'sphere', 'center': [0, 0, 0.05], 'radius': 0.1}]},
      r'colliders\[0\]: 1 particles \(particle 2 first\) are inside this sphere'),
     ({'colliders': [{'shape': 'plane', 'point': [0, 0, 0.01], 'normal': [0, 0, 1]}]},
@@ -223,3 +223,55 @@ def test_the_contact_field_is_written_and_read_back_the_same():
 def test_a_bad_contact_field_is_refused_by_its_name(contact, problem):
     with pytest.raises(SceneError, match=problem):
         scene_from_dict(particle(contact))
+
+
+def attached(collider: dict, frame: str = 'tool0', friction=0.5) -> dict:
+    return {'friction': friction, 'colliders': [{**collider, 'frame': frame}]}
+
+
+def test_a_collider_on_a_frame_is_where_its_pose_puts_it_and_absent_before():
+    """A table attached to a frame: no table until its pose comes, then resting on it."""
+    table = attached({'shape': 'plane', 'point': [0, 0, 0], 'normal': [0, 0, 1]}, 'table')
+    sim = full_run(particle(table, start=(0.0, 0.0, 0.5)))
+    sim.step(500)                                   # falls through where the table will be
+    assert sim.positions()[2, 2] < 0.0 and sim.loads[ContactLoad.name].touching == 0
+    sim.reset()
+    # the frame's pose: 0.2 m down, turned 90 degrees about z (a plane's normal z stays z)
+    half = math.sqrt(0.5)
+    assert sim.move_colliders('table', Pose.of([0.0, 0.0, -0.2], [0.0, 0.0, half, half])) == 1
+    assert sim.move_colliders('elsewhere', Pose.of([0, 0, 0], [0, 0, 0, 1])) == 0
+    sim.step(3000)
+    # resting on it: its weight over the contact stiffness below its surface, no drift
+    z = sim.positions()[2, 2]
+    assert z == pytest.approx(-0.2 - G * DT ** 2, rel=1e-6)
+    sim.step(500)
+    assert abs(sim.positions()[2, 2] - z) < 1e-12
+    sim.reset()                                     # the table stays where it was put
+    sim.step(3000)
+    assert sim.positions()[2, 2] == pytest.approx(z, rel=1e-6)
+
+
+def test_a_moving_collider_carries_what_it_holds_by_friction():
+    """
+    A tray (a box on a frame) under a resting particle slides sideways at 0.1 m/s.
+
+    Its friction (0.5 against 0.1 m/s^2 of ramp) holds the particle where it first touched the
+    tray, in the tray's frame: the particle rides along, 0.3 m over 3 s; without friction it
+    stays where it is.
+    """
+    tray = {'shape': 'box', 'center': [0.0, 0.0, -0.05], 'half_extents': [1.0, 1.0, 0.05]}
+    for friction, carried in ((0.5, True), (0.0, False)):
+        sim = full_run(particle(attached(tray, 'tray', friction)))
+        sim.move_colliders('tray', Pose.of([0.0, 0.0, 0.0], [0, 0, 0, 1]))
+        sim.step(500)                               # settled on the tray
+        start = sim.positions()[2].copy()
+        for k in range(1, 3001):                    # 0.1 m/s after a 1 s ramp of 0.1 m/s^2
+            t = k * DT
+            x = 0.05 * t * t if t < 1.0 else 0.05 + 0.1 * (t - 1.0)
+            sim.move_colliders('tray', Pose.of([x, 0.0, 0.0], [0, 0, 0, 1]))
+            sim.step(1)
+        moved = sim.positions()[2] - start
+        if carried:
+            assert moved[0] == pytest.approx(0.25, abs=1e-3) and abs(moved[2]) < 1e-5
+        else:
+            assert abs(moved[0]) < 1e-6

@@ -64,6 +64,16 @@ def test_each_shape_is_drawn_where_and_as_large_as_it_is():
     assert all(0.0 < m.color.a < 1.0 for m in markers)
 
 
+def test_a_collider_on_a_frame_is_drawn_in_that_frame():
+    """A collider's marker is in its frame: RViz places it through TF as the frame moves."""
+    contact = Contact((Sphere(np.array([0.0, 0.0, 0.1]), 0.05),
+                       Plane(np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, 1.0]))),
+                      frames=('tool0', ''))
+    sphere, plane = collider_markers(contact, Header(frame_id='world'), plane_size=2.0).markers
+    assert (sphere.header.frame_id, plane.header.frame_id) == ('tool0', 'world')
+    assert [sphere.pose.position.z, sphere.id, plane.id] == [0.1, 0, 1]
+
+
 def test_the_node_latches_its_scene_s_colliders_for_a_viewer_that_comes_later(tmp_path):
     data = scene_to_dict(variant('sheet_10x10'))
     data['contact'] = {'friction': 0.5, 'colliders': [

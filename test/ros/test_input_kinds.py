@@ -1,12 +1,18 @@
-"""Clicks and wrenches without DDS: where they act, what ends them, what a capture keeps."""
+"""Clicks, wrenches and collider poses without DDS: where they act, what a capture keeps."""
 from __future__ import annotations
 
-from geometry_msgs.msg import PointStamped, WrenchStamped
+import math
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PointStamped, TransformStamped, WrenchStamped
+from helpers import variant
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.loads.pull import nearest_free_particle
 from modal_spring_ros.ros.frames.frame_tree import Transform
-from modal_spring_ros.ros.inputs.input_kinds import (CLICKED_POINT, recorded_messages, WRENCH,
+from modal_spring_ros.ros.frames.tf import transform_message
+from modal_spring_ros.ros.inputs.input_kinds import (CLICKED_POINT, COLLIDER_POSE,
+                                                     recorded_messages, transform_arrays, WRENCH,
                                                      WrenchAt)
 from modal_spring_ros.ros.parameters import PARAMETERS
 from modal_spring_ros.scenes.resources import load_scene
@@ -86,3 +92,47 @@ def test_clicks_pick_and_place(sim):
     sim.start_pull(None)
     said = CLICKED_POINT.apply(sim, click(x[9] + [0.5, 0, 0]), VALUES)   # nothing held, off it
     assert said == 'pulling particle 9'
+
+
+def finger_scene():
+    """``sheet_10x10`` still, with a 5 cm sphere on a ``finger`` frame and a world table."""
+    return variant('sheet_10x10', anchor_motion=[], contact={'colliders': [
+        {'shape': 'sphere', 'center': [0.0, 0.0, 0.0], 'radius': 0.05, 'frame': 'finger'},
+        {'shape': 'plane', 'point': [0.0, 0.0, -2.0], 'normal': [0.0, 0.0, 1.0]}]})
+
+
+def collider_pose(child: str = 'finger', translation=(0.0, 0.0, 0.0),
+                  rotation=(0.0, 0.0, 0.0, 1.0), frame_id: str = 'world') -> TransformStamped:
+    return transform_message(frame_id, child, Transform(np.array(translation, dtype=float),
+                                                        np.array(rotation, dtype=float)), Time())
+
+
+def test_a_collider_pose_puts_the_colliders_of_its_frame_there_and_bad_ones_are_refused():
+    sim = build_simulation(finger_scene(), SimulationConfig(method='full'))
+    edge = sim.positions()[40].copy()                 # the left edge, x = 0, z = -0.5
+    for k in range(40):                               # from outside into the sheet, 1 mm a step
+        message = collider_pose(translation=edge + [-0.07 + 0.001 * k, 0.0, 0.0])
+        assert COLLIDER_POSE.refusal(message, VALUES, None) is None
+        assert COLLIDER_POSE.apply(sim, message, VALUES) == '1 collider on finger moved'
+        sim.step(1)
+    assert sim.loads['contact'].touching >= 1
+    assert sim.positions()[40, 0] > edge[0] + 0.01    # pushed along +x by the sphere
+    assert COLLIDER_POSE.apply(sim, collider_pose('thumb'), VALUES) == (
+        'no collider is attached to thumb')
+    assert recorded_messages(COLLIDER_POSE, message) == [('/collider_pose', message)]
+    for bad, why in ((collider_pose(translation=(math.nan, 0, 0)), 'non-finite'),
+                     (collider_pose(rotation=(0, 0, 0, 2)), 'not a unit quaternion'),
+                     (collider_pose(child=''), 'no child_frame_id')):
+        assert why in COLLIDER_POSE.refusal(bad, VALUES, None)
+
+
+def test_a_collider_pose_in_another_frame_is_carried_into_the_nodes():
+    # the robot's base 1 m up along z, a quarter turn about z: the finger 0.1 m along its x
+    half = math.sqrt(0.5)
+    base = Transform(np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, half, half]))
+    carried = COLLIDER_POSE.to_frame(collider_pose(translation=(0.1, 0.0, 0.0),
+                                                   frame_id='base'), base, 'world')
+    position, quaternion = transform_arrays(carried)
+    assert carried.header.frame_id == 'world' and carried.child_frame_id == 'finger'
+    np.testing.assert_allclose(position, [0.0, 0.1, 1.0], atol=1e-12)
+    np.testing.assert_allclose(quaternion, [0.0, 0.0, half, half], atol=1e-12)

@@ -244,3 +244,47 @@ def test_a_clamp_following_tf_keeps_up_with_one_following_the_pose_topic(tmp_pat
             stop.set()
             thread.join(2.0)
         del keep
+
+
+def test_a_collider_on_a_tf_frame_pushes_the_sheet_as_the_frame_moves_and_replays(tmp_path):
+    """
+    A fist (a 15 cm sphere on the ``fist`` frame) comes in from the sheet's left edge.
+
+    Wider than the sheet's 10 cm spacing: a smaller one slips between its particles.
+    ``world -> fist`` on /tf at 50 Hz, 0.15 m along +x over 1.5 s, level with the edge's
+    middle particle: before TF has the frame there is nothing there; then the edge is pushed
+    along +x past where the sphere's surface is (no particle inside it), and the capture keeps
+    each pose the node took (``/collider_pose``) and re-simulates frame for frame.
+    """
+    scene_file, out = tmp_path / 'finger.yaml', tmp_path / 'pushed'
+    scene = variant('sheet_10x10', anchor_motion=[], contact={'colliders': [
+        {'shape': 'sphere', 'center': [0.0, 0.0, 0.0], 'radius': 0.15, 'frame': 'fist'}]})
+    scene_file.write_text(yaml.safe_dump(scene_to_dict(scene)))
+    with node_with_client(f'scene:={scene_file}', f'record.bag:={out}', 'publish_rate_hz:=30.0',
+                          namespace='tffinger') as (node, client):
+        points = client.collect(PointCloud2, '/tffinger/points', qos=500)
+        assert wait_for(lambda: len(points) > 5, 30)
+        before = latest(points)
+        edge = before[40]                         # x = 0, half way down
+        tf = client.node.create_publisher(tf2_msgs.TFMessage, '/tf', 100)
+        start = time.monotonic()
+        while (elapsed := time.monotonic() - start) < 2.0:
+            x = -0.16 + 0.1 * min(elapsed, 1.5)   # from just outside to 14 cm in
+            tf.publish(tf2_msgs.TFMessage(transforms=[link('world', 'fist',
+                                                           (edge[0] + x, 0.0, edge[2]))]))
+            time.sleep(0.02)
+        frames_since(points, time.monotonic(), 15, timeout=30)
+        pushed = latest(points)
+    # the sphere's surface at x = 0.14 at the edge's height: the edge is pushed past it,
+    # never inside the sphere
+    centre = edge + [-0.01, 0.0, 0.0]
+    assert pushed[40, 0] - edge[0] > 0.12
+    assert np.linalg.norm(pushed - centre, axis=1).min() > 0.15 - 0.005
+    bag = BagReader(out)
+    assert bag.topics['/collider_pose'].count >= 20
+    again = tmp_path / 'again'
+    n = resimulate(out, again)
+    t_rec, x_rec = bag.points()
+    t_new, x_new = BagReader(again).points()
+    assert n == len(t_rec) and np.array_equal(t_new, t_rec)
+    np.testing.assert_allclose(x_new, x_rec, rtol=0, atol=2e-6)   # every frame

@@ -7,7 +7,9 @@ A free particle inside a collider (:mod:`~modal_spring_ros.core.model.colliders`
 ``k`` and damping to a stick point, up to ``static_friction`` times the normal force; beyond,
 the particle slides with ``sliding_friction`` times the normal force against its slip, and the
 stick point follows it. Every particle is its own contact point, every collider on its own (a
-particle in two colliders is pushed by both).
+particle in two colliders is pushed by both). A collider attached to a frame is measured in
+that frame (:meth:`ContactLoad.moved` sets its pose): its stick points ride with it, so a
+moving finger carries what it holds.
 
 The contact's stiffness is the run's: each particle's ``k = m (c / dt)^2``, with ``c`` what the
 explicit step leaves beside the fastest coordinate the run steps (``sqrt(1.2^2 - (omega dt)^2)``,
@@ -28,7 +30,7 @@ import math
 from typing import ClassVar
 
 from modal_spring_ros.core.loads.base import Load, WorldPositions
-from modal_spring_ros.core.model.colliders import Contact
+from modal_spring_ros.core.model.colliders import Contact, Pose
 import numpy as np
 
 #: what the explicit step may take in all (``omega dt`` of the fastest coordinate and contact)
@@ -56,6 +58,9 @@ class ContactLoad(Load):
     depths: np.ndarray           # (colliders, free) depth at the last step (0: outside)
     slips: np.ndarray            # (colliders, free, 3) tangential offset from the stick point
     until: float = math.inf
+    #: where each collider is: None for one fixed in the world, else its frame's pose (None
+    #: while an attached collider's frame is not known yet: it is not there to touch)
+    poses: tuple = ()
     #: the last evaluation, (points, each touched collider's (index, inside, depth, forces,
     #: stick points, offsets)): the step's forces and its end are taken at the same points,
     #: so each collider's distances are found once a step
@@ -87,19 +92,46 @@ class ContactLoad(Load):
             anchors[c, inside], slips[c, inside], depths[c, inside] = anchor, slip, depth
         return dataclasses.replace(self, anchors=anchors, depths=depths, slips=slips)
 
+    def moved(self, frame: str, pose: Pose) -> 'ContactLoad':
+        """Return the load with the colliders attached to ``frame`` where ``pose`` puts them."""
+        poses = list(self._poses())
+        for c in range(len(poses)):
+            if self.contact.frame(c) == frame:
+                poses[c] = pose
+        return dataclasses.replace(self, poses=tuple(poses))
+
+    def placed_as(self, other: 'ContactLoad | None') -> 'ContactLoad':
+        """Return the load with ``other``'s colliders' poses (a reset keeps where they are)."""
+        if other is None or other.contact is not self.contact:
+            return self
+        return dataclasses.replace(self, poses=other.poses)
+
+    def _poses(self) -> tuple:
+        return self.poses or (None,) * len(self.contact.colliders)
+
     def _touches(self, points: np.ndarray) -> tuple:
-        """Return what touches at ``points``: the last evaluation's if at the same points."""
+        """
+        Return what touches at ``points``: the last evaluation's if at the same points.
+
+        Each collider measures in its own frame (the world's, or its pose's): its stick points
+        are kept there, so a moving collider carries what it holds, and its friction and
+        damping act on the motion relative to it; the forces are turned back into the world.
+        """
         last_points, touches = self._last          # one read: another run may replace it
         if last_points is not None and np.array_equal(last_points, points):
             return touches
         touches = []
-        for c, collider in enumerate(self.contact.colliders):
-            distance, normal = collider.distance(points)
+        for c, (collider, pose) in enumerate(zip(self.contact.colliders, self._poses())):
+            if pose is None and self.contact.frame(c):
+                continue                           # attached to a frame not known yet
+            local = points if pose is None else pose.into_frame(points)
+            distance, normal = collider.distance(local)
             inside = np.flatnonzero(distance < 0.0)
             if inside.size:
                 depth = -distance[inside]
+                force, anchor, slip = self._at(c, inside, local[inside], depth, normal[inside])
                 touches.append((c, inside, depth,
-                                *self._at(c, inside, points[inside], depth, normal[inside])))
+                                force if pose is None else pose.to_world(force), anchor, slip))
         touches = tuple(touches)
         object.__setattr__(self, '_last', (points, touches))
         return touches
@@ -178,14 +210,18 @@ def contact_load(model, contact: Contact, dt: float, stability_limit: float,
     stiffness = mass * (rate / dt) ** 2
     damping = 2.0 * DAMPING_RATIO * np.sqrt(stiffness * mass)
     shape = (len(contact.colliders), mass.size)
+    poses = ()
     if state is not None and state.depths.shape == shape:
-        anchors, depths, slips = state.anchors, state.depths, state.slips
+        anchors, depths, slips, poses = state.anchors, state.depths, state.slips, state.poses
     else:       # at rest: what rests on a collider is held where it rests, and as deep
         anchors, depths = np.full(shape + (3,), np.nan), np.zeros(shape)
         slips = np.zeros(shape + (3,))
         rest = model.scene.rest_positions[model.free_particles]
         for c, collider in enumerate(contact.colliders):
+            if contact.frame(c):
+                continue                           # attached: where, TF will say
             distance = collider.distance(rest)[0]
             inside = distance < 0.0
             anchors[c, inside], depths[c, inside] = rest[inside], -distance[inside]
-    return ContactLoad(contact, stiffness, damping, float(dt), anchors, depths, slips)
+    return ContactLoad(contact, stiffness, damping, float(dt), anchors, depths, slips,
+                       poses=poses)

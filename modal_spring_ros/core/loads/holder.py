@@ -9,8 +9,10 @@ from another (a settings change, a watch's shadow runs) takes every one of them.
 from __future__ import annotations
 
 from modal_spring_ros.core.loads.base import Load
+from modal_spring_ros.core.loads.contact import ContactLoad
 from modal_spring_ros.core.loads.pull import Pull
 from modal_spring_ros.core.loads.wrench import AppliedWrench
+from modal_spring_ros.core.model.colliders import Pose
 
 
 class LoadHolder:
@@ -46,3 +48,15 @@ class LoadHolder:
     def start_wrench(self, wrench: AppliedWrench | None) -> None:
         """Push a region with a wrench from now on (None: stop). A reset ends it too."""
         self.set_load(AppliedWrench.name, wrench)
+
+    def move_colliders(self, frame: str, pose: Pose) -> int:
+        """
+        Put the colliders attached to ``frame`` where ``pose`` says; return how many.
+
+        They stay there through a reset (:meth:`~ContactLoad.placed_as`) until moved again.
+        """
+        contact = self.loads.get(ContactLoad.name)
+        if contact is None:
+            return 0
+        self.set_load(ContactLoad.name, contact.moved(frame, pose))
+        return sum(f == frame for f in contact.contact.frames)

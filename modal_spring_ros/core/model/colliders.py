@@ -9,7 +9,10 @@ of the nearest surface point: a point inside is pushed out the nearest way, all 
 the points. The forces that keep the particles out are a load
 (:mod:`~modal_spring_ros.core.loads.contact`); here is the geometry only.
 
-A new shape is one subclass with :meth:`Collider.distance` and one line in :data:`SHAPES`.
+A collider is fixed in the world or attached to a frame (``Contact.frames``): then its shape is
+given in the frame's coordinates and the frame's :class:`Pose` (a robot link's, from TF) says
+where it is. A new shape is one subclass with :meth:`Collider.distance` and one line in
+:data:`SHAPES`.
 """
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ import abc
 import dataclasses
 from typing import ClassVar
 
+from modal_spring_ros.core.motion.clamp_follower import rotation_matrix, rotation_vector
 import numpy as np
 
 #: a point this close to a shape's centre (or axis) takes a fixed outward direction
@@ -177,15 +181,57 @@ class Contact:
     A scene's colliders and the friction between them and the object.
 
     ``static_friction`` holds a particle (Coulomb: the tangential force up to it times the
-    normal force), ``sliding_friction`` acts on a particle that slides.
+    normal force), ``sliding_friction`` acts on a particle that slides. ``frames``: the frame
+    each collider is attached to ('' for the world, the default): an attached collider's shape
+    is given in its frame's coordinates, and it is where that frame's pose puts it
+    (:class:`Pose`), once a pose is known (a robot link, from TF).
     """
 
     colliders: tuple[Collider, ...]
     static_friction: float = 0.0
     sliding_friction: float = 0.0
+    frames: tuple[str, ...] = ()
+
+    def frame(self, c: int) -> str:
+        """Return the frame collider ``c`` is attached to ('': the world)."""
+        return self.frames[c] if c < len(self.frames) else ''
+
+    @property
+    def attached(self) -> tuple[str, ...]:
+        """Return the frames colliders are attached to, each once, in order."""
+        return tuple(dict.fromkeys(f for f in self.frames if f))
 
     def to_dict(self) -> dict:
         """Return the ``contact`` field as the scene file writes it."""
         friction = (self.static_friction if self.static_friction == self.sliding_friction
                     else {'static': self.static_friction, 'sliding': self.sliding_friction})
-        return {'friction': friction, 'colliders': [c.to_dict() for c in self.colliders]}
+        return {'friction': friction, 'colliders': [
+            {**c.to_dict(), **({'frame': self.frame(i)} if self.frame(i) else {})}
+            for i, c in enumerate(self.colliders)]}
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Pose:
+    """
+    Where a frame is in the world: ``x_world = rotation @ x_frame + translation``.
+
+    A collider attached to the frame measures world points in the frame's coordinates and
+    turns its normals back into the world's.
+    """
+
+    rotation: np.ndarray        # (3, 3)
+    translation: np.ndarray     # (3,)
+
+    @classmethod
+    def of(cls, translation, quaternion) -> 'Pose':
+        """Return the pose of a translation and a unit quaternion (x, y, z, w)."""
+        rotation = rotation_matrix(rotation_vector(np.asarray(quaternion, dtype=float)))
+        return cls(rotation, np.asarray(translation, dtype=float))
+
+    def into_frame(self, points: np.ndarray) -> np.ndarray:
+        """Return world ``points`` (k, 3) in the frame's coordinates."""
+        return (points - self.translation) @ self.rotation
+
+    def to_world(self, vectors: np.ndarray) -> np.ndarray:
+        """Return directions (k, 3) given in the frame's coordinates in the world's."""
+        return vectors @ self.rotation.T

@@ -44,9 +44,7 @@ class DivergenceError(RuntimeError):
 
     def __init__(self, reason: str, time: float, step: int):
         super().__init__(f'diverged at t = {time:.6g} s (step {step}): {reason}')
-        self.reason = reason
-        self.time = time
-        self.step = step
+        self.reason, self.time, self.step = reason, time, step
 
 
 class UnstableStepError(ValueError):
@@ -284,7 +282,8 @@ class Simulation(LoadHolder, abc.ABC):
         self.time = self._t0 = 0.0
         self.steps = 0
         self.diverged = None
-        self.loads = self._scene_loads()
+        placed = self.loads.get(ContactLoad.name)     # colliders stay where they were put
+        self.loads = {k: v.placed_as(placed) for k, v in self._scene_loads().items()}
         n = self.model.n_free_dof
         self.set_state(np.zeros(n), np.zeros(n))
 

@@ -27,6 +27,10 @@ input is one entry of :data:`INPUTS`.
   Carried into the node's frame it becomes a :class:`WrenchAt` (the wrench on the node's axes
   and the point it acts at), which a capture keeps as two messages: the point on
   ``/wrench_point``, then the wrench on ``/wrench`` (``recorded_point_topic``).
+- ``collider_pose`` (``geometry_msgs/TransformStamped``, as TF carries a frame; also looked up
+  from TF for every frame a scene's collider is attached to, whenever TF changes it): the
+  colliders attached to ``child_frame_id`` are put where the transform says
+  (:meth:`~modal_spring_ros.core.loads.holder.LoadHolder.move_colliders`).
 """
 from __future__ import annotations
 
@@ -34,12 +38,15 @@ import dataclasses
 import math
 from typing import Any, Callable
 
-from geometry_msgs.msg import (Point, PointStamped, Pose, PoseStamped, Quaternion, Vector3,
-                               Wrench, WrenchStamped)
+from geometry_msgs.msg import (Point, PointStamped, Pose, PoseStamped, Quaternion,
+                               TransformStamped, Vector3, Wrench, WrenchStamped)
 from modal_spring_ros.core.loads.pull import make_pull, nearest_free_particle
 from modal_spring_ros.core.loads.wrench import default_radius, make_wrench
+from modal_spring_ros.core.model.colliders import Pose as ColliderPose
+from modal_spring_ros.core.motion.clamp_follower import QUATERNION_TOLERANCE
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.frames.frame_tree import Transform
+from modal_spring_ros.ros.frames.tf import transform_message
 import numpy as np
 from std_msgs.msg import Header
 
@@ -208,6 +215,41 @@ def _apply_wrench(sim: Simulation, message, values: dict[str, Any]) -> str:
             f' and {np.linalg.norm(wrench.torque):.3g} N m{capped}')
 
 
+def transform_arrays(message: TransformStamped) -> tuple[np.ndarray, np.ndarray]:
+    """Return a transform's translation and quaternion (x, y, z, w)."""
+    t, q = message.transform.translation, message.transform.rotation
+    return np.array([t.x, t.y, t.z]), np.array([q.x, q.y, q.z, q.w])
+
+
+def _collider_refusal(message: TransformStamped, values: dict[str, Any], clamp) -> str | None:
+    position, quaternion = transform_arrays(message)
+    if not (np.isfinite(position).all() and np.isfinite(quaternion).all()):
+        return 'non-finite values'
+    norm = float(np.linalg.norm(quaternion))
+    if abs(norm - 1.0) > QUATERNION_TOLERANCE:
+        return f'the rotation is not a unit quaternion (norm {norm:.4g})'
+    if not message.child_frame_id.strip('/'):
+        return 'no child_frame_id (the frame the colliders are attached to)'
+    return None
+
+
+def _apply_collider(sim: Simulation, message: TransformStamped, values: dict[str, Any]) -> str:
+    position, quaternion = transform_arrays(message)
+    frame = message.child_frame_id.lstrip('/')
+    moved = sim.move_colliders(frame, ColliderPose.of(position, quaternion))
+    return (f'{moved} collider{"s" * (moved != 1)} on {frame} moved' if moved
+            else f'no collider is attached to {frame}')
+
+
+def _transform_to_frame(message: TransformStamped, transform: Transform, frame: str
+                        ) -> TransformStamped:
+    position, quaternion = transform_arrays(message)
+    if not (np.isfinite(position).all() and np.isfinite(quaternion).all()):
+        return message          # refused as it is, with its reason
+    moved = transform.then(Transform(position, quaternion))
+    return transform_message(frame, message.child_frame_id, moved, message.header.stamp)
+
+
 def recorded_messages(kind: InputKind, received) -> list[tuple[str, Any]]:
     """Return the (topic, message) pairs a capture keeps for an input ``kind`` applied."""
     if isinstance(received, WrenchAt):
@@ -224,5 +266,9 @@ CLICKED_POINT = InputKind('clicked_point', '/clicked_point', PointStamped, '/cli
 WRENCH = InputKind('wrench', 'wrench', WrenchStamped, '/wrench', wanted=lambda values: True,
                    refusal=_wrench_refusal, apply=_apply_wrench, to_frame=_wrench_to_frame,
                    recorded_point_topic='/wrench_point')
+COLLIDER_POSE = InputKind('collider_pose', 'collider_pose', TransformStamped,
+                          '/collider_pose', wanted=lambda values: True,
+                          refusal=_collider_refusal, apply=_apply_collider,
+                          to_frame=_transform_to_frame)
 #: the node's inputs
-INPUTS: tuple[InputKind, ...] = (ANCHOR_POSE, CLICKED_POINT, WRENCH)
+INPUTS: tuple[InputKind, ...] = (ANCHOR_POSE, CLICKED_POINT, WRENCH, COLLIDER_POSE)

@@ -6,7 +6,8 @@ A message stamped in another frame than the node's ``frame_id`` is carried into 
 ``/tf_static``); one whose frame TF cannot reach, or one its kind refuses, is refused with a
 throttled warning and changes nothing. With ``anchor.source`` tf the clamp follows the pose of
 ``anchor.frame`` in ``frame_id``, looked up whenever TF changes and taken as an ``anchor_pose``
-(judged, recorded and re-simulated as one). Header stamps are not used for timing: an input takes
+(judged, recorded and re-simulated as one); so is each frame a scene's collider is attached to,
+taken as a ``collider_pose``. Header stamps are not used for timing: an input takes
 effect when it arrives (any stamp, 0 included, is accepted). Accepted inputs reach the simulation
 thread as :class:`~modal_spring_ros.ros.changes.requests.TakeInput` requests, with the parameter
 values they arrived with, applied between two steps at the simulation time they are recorded with
@@ -19,10 +20,14 @@ import threading
 import time
 from typing import Any, Callable
 
+from builtin_interfaces.msg import Time
+from modal_spring_ros.core.model.colliders import Contact
 from modal_spring_ros.ros.changes.requests import Request, TakeInput
 from modal_spring_ros.ros.frames.frame_tree import Transform
-from modal_spring_ros.ros.frames.tf import tf_available, TF_MISSING, TfListener
-from modal_spring_ros.ros.inputs.input_kinds import ANCHOR_POSE, InputKind, INPUTS, pose_message
+from modal_spring_ros.ros.frames.tf import (tf_available, TF_MISSING, TfListener,
+                                            transform_message)
+from modal_spring_ros.ros.inputs.input_kinds import (ANCHOR_POSE, COLLIDER_POSE, InputKind,
+                                                     INPUTS, pose_message)
 import numpy as np
 from std_msgs.msg import Header
 
@@ -40,11 +45,13 @@ class NodeInputs:
 
     def __init__(self, node, clamp, values: Callable[[], dict[str, Any]],
                  submit: Callable[[Request], Request], kinds: tuple[InputKind, ...] = INPUTS,
-                 tf_node=None):
+                 tf_node=None, contact: Contact | None = None):
         """
         Subscribe on ``node``; TF on ``tf_node`` (a node spun on its own; None: ``node``).
 
         ``clamp``: the scene's clamp follower when ``anchor.source`` is topic, else None.
+        ``contact``: the scene's colliders; the frames some are attached to are looked up in
+        TF whenever it changes, each taken as a ``collider_pose``.
         """
         self._node = node
         self._clamp = clamp
@@ -58,8 +65,10 @@ class NodeInputs:
         self._follows_tf = wanted.get('anchor.source') == 'tf'
         self._followed: Transform | None = None     # the last pose of anchor.frame taken
         self._tf_problem = ''                       # why anchor.frame cannot be looked up
-        self.tf = (TfListener(tf_node or node, self._follow_tf if self._follows_tf else None)
-                   if tf_available() else None)
+        self._collider_frames = contact.attached if contact is not None else ()
+        self._placed: dict[str, Transform] = {}     # each collider frame's last pose taken
+        self.tf = (TfListener(tf_node or node, self._tf_changed if (
+            self._follows_tf or self._collider_frames) else None) if tf_available() else None)
         if self.tf is None:
             node.get_logger().warning(TF_MISSING)
         for kind in kinds:
@@ -121,6 +130,17 @@ class NodeInputs:
             self._submit(TakeInput(kind=kind, received=message, values=dict(values)))
         return take
 
+    def _tf_changed(self) -> None:
+        if self._follows_tf:
+            self._follow_tf()
+        frame_id = self._values()['frame_id']
+        for frame in self._collider_frames:
+            found = self.tf.lookup(frame_id, frame)
+            if isinstance(found, str) or _same(found, self._placed.get(frame)):
+                continue        # not known yet, or where it was
+            self._placed[frame] = found
+            self._taker(COLLIDER_POSE)(transform_message(frame_id, frame, found, Time()))
+
     def _follow_tf(self) -> None:
         """Take the pose of ``anchor.frame`` in ``frame_id`` when TF has changed it."""
         values = self._values()
@@ -129,11 +149,15 @@ class NodeInputs:
             self._tf_problem = found
             return
         self._tf_problem = ''
-        followed = self._followed
-        if (followed is not None and np.array_equal(found.translation, followed.translation)
-                and np.array_equal(found.rotation, followed.rotation)):
+        if _same(found, self._followed):
             self._last_taken[ANCHOR_POSE.name] = time.monotonic()   # still there: not stale
             return
         self._followed = found
         header = Header(frame_id=values['frame_id'])
         self._taker(ANCHOR_POSE)(pose_message(found, header))
+
+
+def _same(a: Transform, b: Transform | None) -> bool:
+    """Tell whether two transforms are the same (None: none yet)."""
+    return (b is not None and np.array_equal(a.translation, b.translation)
+            and np.array_equal(a.rotation, b.rotation))

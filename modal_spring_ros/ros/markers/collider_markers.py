@@ -79,8 +79,19 @@ DRAWINGS: dict[type[Collider], Callable[[Collider, float], list[Marker]]] = {
 
 
 def collider_markers(contact: Contact, header: Header, plane_size: float) -> MarkerArray:
-    """Return the markers of ``contact``'s colliders (ids from 0, in ``header``'s frame)."""
-    markers = [m for c in contact.colliders for m in DRAWINGS[type(c)](c, plane_size)]
+    """
+    Return the markers of ``contact``'s colliders (ids from 0, in ``header``'s frame).
+
+    A collider attached to a frame is drawn in that frame (RViz places it through TF, as it
+    moves), the others in ``header``'s.
+    """
+    markers = []
+    for k, collider in enumerate(contact.colliders):
+        frame = contact.frame(k)
+        own = Header(stamp=header.stamp, frame_id=frame) if frame else header
+        for m in DRAWINGS[type(collider)](collider, plane_size):
+            m.header = own
+            markers.append(m)
     for i, m in enumerate(markers):
-        m.header, m.ns, m.id = header, NAMESPACE, i
+        m.ns, m.id = NAMESPACE, i
     return MarkerArray(markers=markers)

@@ -8,15 +8,17 @@ contact:
     - {shape: plane, point: [0, 0, 0], normal: [0, 0, 1]}
     - {shape: sphere, center: [0, 0, 0.3], radius: 0.1}
     - {shape: box, center: [0.3, 0, 0.1], half_extents: [0.1, 0.1, 0.1]}
-    - {shape: capsule, a: [0, -0.2, 0.5], b: [0, 0.2, 0.5], radius: 0.02}
+    - {shape: capsule, a: [0, 0, -0.03], b: [0, 0, 0.03], radius: 0.01, frame: tool0}
     - {shape: cylinder, center: [0, 0, 0.1], axis: [0, 0, 1], radius: 0.05, half_length: 0.1}
 ```
 
-Every collider is fixed in the world (:mod:`~modal_spring_ros.core.model.colliders`); each
-refusal names its field.
+A collider is fixed in the world, or attached to a TF frame (``frame``: its shape given in
+that frame's coordinates, placed where TF says it is once it does;
+:mod:`~modal_spring_ros.core.model.colliders`); each refusal names its field.
 """
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from modal_spring_ros.core.model.colliders import Contact, SHAPES
@@ -31,6 +33,8 @@ SHAPE_FIELDS = {'plane': (('point', 'normal'), ()), 'sphere': (('center',), ('ra
                 'cylinder': (('center', 'axis'), ('radius', 'half_length'))}
 #: most colliders in a scene (each costs a pass over the particles every step)
 MAX_COLLIDERS = 64
+MAX_FRAME_NAME = 256
+FRAME_NAME = re.compile(r'[A-Za-z0-9_][A-Za-z0-9_/.\-]*')
 #: the largest friction coefficient taken
 MAX_FRICTION = 10.0
 #: a particle this far inside a collider as built is taken (resting on it, as contact holds)
@@ -56,14 +60,27 @@ def contact_field(reader: FieldReader, value: Any, positions: np.ndarray) -> Con
                           f'colliders, got {short(items)}')
     colliders = tuple(_collider(reader, item, f'contact.colliders[{i}]')
                       for i, item in enumerate(items))
+    frames = tuple(_frame(reader, item.get('frame', ''), f'contact.colliders[{i}].frame')
+                   for i, item in enumerate(items))
     for i, collider in enumerate(colliders):
+        if frames[i]:
+            continue        # where the frame puts it is known at run time (TF)
         inside = np.flatnonzero(collider.distance(positions)[0] < -RESTING_DEPTH)
         if inside.size:
             raise reader.fail(f'contact.colliders[{i}]', f'{inside.size} particles (particle '
                               f'{int(inside[0])} first) are inside this {collider.shape} as '
                               f'built (deeper than {RESTING_DEPTH * 1e3:g} mm): the object must '
                               'start outside every collider, or resting on it')
-    return Contact(colliders, static, sliding)
+    return Contact(colliders, static, sliding, frames if any(frames) else ())
+
+
+def _frame(reader: FieldReader, value: Any, field: str) -> str:
+    """Return a TF frame name ('' for none): letters, digits, ``_``, ``/``, ``-`` and ``.``."""
+    if not isinstance(value, str) or len(value) > MAX_FRAME_NAME or (
+            value and not FRAME_NAME.fullmatch(value.lstrip('/'))):
+        raise reader.fail(field, f'must be a TF frame name (letters, digits, _ / - .), got '
+                          f'{short(value)}')
+    return value.lstrip('/')
 
 
 def _friction(reader: FieldReader, value: Any) -> tuple[float, float]:
@@ -88,11 +105,8 @@ def _collider(reader: FieldReader, value: Any, field: str):
     if not isinstance(shape, str) or shape not in SHAPES:
         raise reader.fail(f'{field}.shape', f"must be one of {', '.join(SHAPES)}, got "
                           f'{short(shape)}')
-    if 'frame' in item:
-        raise reader.fail(f'{field}.frame', 'colliders attached to a TF frame are not '
-                          'supported yet: every collider is fixed in the world')
     vectors, lengths = SHAPE_FIELDS[shape]
-    reader.known_keys(item, field, ('shape',) + vectors + lengths)
+    reader.known_keys(item, field, ('shape', 'frame') + vectors + lengths)
     values: dict[str, Any] = {}
     for key in vectors:
         values[key] = reader.vector3(reader.required(item, key, field), f'{field}.{key}',
