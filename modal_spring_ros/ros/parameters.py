@@ -170,6 +170,14 @@ PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
         '(the nearest one when none is), and a /clicked_point this close to a particle is on '
         'the object (it grabs), m; 0: one and a half spring lengths (the median rest length)',
         _D, float_range=(0.0, 1000.0))),
+    'grasp.frames': ('', _descriptor(
+        'TF frames of grippers, separated by spaces or commas: each is looked up in TF and '
+        'closes (holds the free particles within grasp.reach of it) or opens on a '
+        'sensor_msgs/JointState on grasp naming it (position 1 closes, 0 opens); empty: no '
+        'grippers', _S, read_only=True)),
+    'grasp.reach': (0.0, _descriptor(
+        'A gripper closing holds the free particles within this distance of its frame, m; 0: '
+        'interaction.radius (or its default)', _D, float_range=(0.0, 1000.0))),
     'modal.auto': (False, _descriptor(
         "Keep the fewest modes (within the band) that meet modal.tolerance for the scene's "
         'loads (gravity, anchor motion), the step they allow unless sim.dt is set, and the '

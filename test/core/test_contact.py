@@ -15,6 +15,7 @@ from helpers import variant
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.loads.contact import ContactLoad, IMPLICIT_RATE
+from modal_spring_ros.core.loads.grasp import GraspError
 from modal_spring_ros.core.model.colliders import Box, Capsule, Cylinder, Plane, Pose, Sphere
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.scenes.files.writing import scene_to_dict
@@ -238,8 +239,8 @@ def test_a_collider_on_a_frame_is_where_its_pose_puts_it_and_absent_before():
     sim.reset()
     # the frame's pose: 0.2 m down, turned 90 degrees about z (a plane's normal z stays z)
     half = math.sqrt(0.5)
-    assert sim.move_colliders('table', Pose.of([0.0, 0.0, -0.2], [0.0, 0.0, half, half])) == 1
-    assert sim.move_colliders('elsewhere', Pose.of([0, 0, 0], [0, 0, 0, 1])) == 0
+    assert sim.move_frame('table', Pose.of([0.0, 0.0, -0.2], [0.0, 0.0, half, half])) == 1
+    assert sim.move_frame('elsewhere', Pose.of([0, 0, 0], [0, 0, 0, 1])) == 0
     sim.step(3000)
     # resting on it: its weight over the contact stiffness below its surface, no drift
     z = sim.positions()[2, 2]
@@ -262,16 +263,41 @@ def test_a_moving_collider_carries_what_it_holds_by_friction():
     tray = {'shape': 'box', 'center': [0.0, 0.0, -0.05], 'half_extents': [1.0, 1.0, 0.05]}
     for friction, carried in ((0.5, True), (0.0, False)):
         sim = full_run(particle(attached(tray, 'tray', friction)))
-        sim.move_colliders('tray', Pose.of([0.0, 0.0, 0.0], [0, 0, 0, 1]))
+        sim.move_frame('tray', Pose.of([0.0, 0.0, 0.0], [0, 0, 0, 1]))
         sim.step(500)                               # settled on the tray
         start = sim.positions()[2].copy()
         for k in range(1, 3001):                    # 0.1 m/s after a 1 s ramp of 0.1 m/s^2
             t = k * DT
             x = 0.05 * t * t if t < 1.0 else 0.05 + 0.1 * (t - 1.0)
-            sim.move_colliders('tray', Pose.of([x, 0.0, 0.0], [0, 0, 0, 1]))
+            sim.move_frame('tray', Pose.of([x, 0.0, 0.0], [0, 0, 0, 1]))
             sim.step(1)
         moved = sim.positions()[2] - start
         if carried:
             assert moved[0] == pytest.approx(0.25, abs=1e-3) and abs(moved[2]) < 1e-5
         else:
             assert abs(moved[0]) < 1e-6
+
+
+def test_a_gripper_holds_a_particle_within_the_contact_bound_and_a_reset_opens_it():
+    """
+    A gripper closed on the resting particle lifts it 5 cm.
+
+    The particle hangs below its held point by its weight over the hold's stiffness,
+    ``g dt^2`` (the contact's bound); a reset opens the gripper and keeps the frame's pose.
+    """
+    sim = full_run(particle({'colliders': [
+        {'shape': 'plane', 'point': [0, 0, -1.0], 'normal': [0, 0, 1]}]}))
+    with pytest.raises(GraspError, match='no pose yet'):
+        sim.close_gripper('hand', 0.01)
+    sim.move_frame('hand', Pose.of([0.0, 0.0, 0.0], [0, 0, 0, 1]))
+    assert sim.close_gripper('hand', 0.01) == 1
+    for k in range(1, 1001):
+        sim.move_frame('hand', Pose.of([0.0, 0.0, 0.05 * min(k / 500, 1.0)], [0, 0, 0, 1]))
+        sim.step(1)
+    assert sim.positions()[2, 2] == pytest.approx(0.05 - G * DT ** 2, rel=1e-4)
+    sim.reset()                                     # opens: the particle falls to the table
+    assert sim.loads.get('grasp') is None and 'hand' in sim.frame_poses
+    sim.step(1000)
+    assert sim.positions()[2, 2] < -0.9
+    with pytest.raises(GraspError, match='nothing within reach'):
+        sim.close_gripper('hand', 0.01)

@@ -11,13 +11,14 @@ from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.loads.pull import nearest_free_particle
 from modal_spring_ros.ros.frames.frame_tree import Transform
 from modal_spring_ros.ros.frames.tf import transform_message
-from modal_spring_ros.ros.inputs.input_kinds import (CLICKED_POINT, COLLIDER_POSE,
+from modal_spring_ros.ros.inputs.input_kinds import (CLICKED_POINT, FRAME_POSE, GRASP,
                                                      recorded_messages, transform_arrays, WRENCH,
                                                      WrenchAt)
 from modal_spring_ros.ros.parameters import PARAMETERS
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
+from sensor_msgs.msg import JointState
 
 VALUES = {name: default for name, (default, _) in PARAMETERS.items()}
 
@@ -101,38 +102,79 @@ def finger_scene():
         {'shape': 'plane', 'point': [0.0, 0.0, -2.0], 'normal': [0.0, 0.0, 1.0]}]})
 
 
-def collider_pose(child: str = 'finger', translation=(0.0, 0.0, 0.0),
-                  rotation=(0.0, 0.0, 0.0, 1.0), frame_id: str = 'world') -> TransformStamped:
+def frame_pose(child: str = 'finger', translation=(0.0, 0.0, 0.0),
+               rotation=(0.0, 0.0, 0.0, 1.0), frame_id: str = 'world') -> TransformStamped:
     return transform_message(frame_id, child, Transform(np.array(translation, dtype=float),
                                                         np.array(rotation, dtype=float)), Time())
 
 
-def test_a_collider_pose_puts_the_colliders_of_its_frame_there_and_bad_ones_are_refused():
+def test_a_frame_pose_puts_the_colliders_of_its_frame_there_and_bad_ones_are_refused():
     sim = build_simulation(finger_scene(), SimulationConfig(method='full'))
     edge = sim.positions()[40].copy()                 # the left edge, x = 0, z = -0.5
     for k in range(40):                               # from outside into the sheet, 1 mm a step
-        message = collider_pose(translation=edge + [-0.07 + 0.001 * k, 0.0, 0.0])
-        assert COLLIDER_POSE.refusal(message, VALUES, None) is None
-        assert COLLIDER_POSE.apply(sim, message, VALUES) == '1 collider on finger moved'
+        message = frame_pose(translation=edge + [-0.07 + 0.001 * k, 0.0, 0.0])
+        assert FRAME_POSE.refusal(message, VALUES, None) is None
+        assert FRAME_POSE.apply(sim, message, VALUES) == (
+            'finger moved: 1 collider or gripper on it')
         sim.step(1)
     assert sim.loads['contact'].touching >= 1
     assert sim.positions()[40, 0] > edge[0] + 0.01    # pushed along +x by the sphere
-    assert COLLIDER_POSE.apply(sim, collider_pose('thumb'), VALUES) == (
-        'no collider is attached to thumb')
-    assert recorded_messages(COLLIDER_POSE, message) == [('/collider_pose', message)]
-    for bad, why in ((collider_pose(translation=(math.nan, 0, 0)), 'non-finite'),
-                     (collider_pose(rotation=(0, 0, 0, 2)), 'not a unit quaternion'),
-                     (collider_pose(child=''), 'no child_frame_id')):
-        assert why in COLLIDER_POSE.refusal(bad, VALUES, None)
+    assert FRAME_POSE.apply(sim, frame_pose('thumb'), VALUES) == (
+        'thumb moved: no collider or closed gripper is on it')
+    assert recorded_messages(FRAME_POSE, message) == [('/frame_pose', message)]
+    for bad, why in ((frame_pose(translation=(math.nan, 0, 0)), 'non-finite'),
+                     (frame_pose(rotation=(0, 0, 0, 2)), 'not a unit quaternion'),
+                     (frame_pose(child=''), 'no child_frame_id')):
+        assert why in FRAME_POSE.refusal(bad, VALUES, None)
 
 
-def test_a_collider_pose_in_another_frame_is_carried_into_the_nodes():
+def test_a_frame_pose_in_another_frame_is_carried_into_the_nodes():
     # the robot's base 1 m up along z, a quarter turn about z: the finger 0.1 m along its x
     half = math.sqrt(0.5)
     base = Transform(np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, half, half]))
-    carried = COLLIDER_POSE.to_frame(collider_pose(translation=(0.1, 0.0, 0.0),
-                                                   frame_id='base'), base, 'world')
+    carried = FRAME_POSE.to_frame(frame_pose(translation=(0.1, 0.0, 0.0), frame_id='base'),
+                                  base, 'world')
     position, quaternion = transform_arrays(carried)
     assert carried.header.frame_id == 'world' and carried.child_frame_id == 'finger'
     np.testing.assert_allclose(position, [0.0, 0.1, 1.0], atol=1e-12)
     np.testing.assert_allclose(quaternion, [0.0, 0.0, half, half], atol=1e-12)
+
+
+def grasp(**grippers: float) -> JointState:
+    return JointState(name=list(grippers), position=[float(p) for p in grippers.values()])
+
+
+def test_two_grippers_close_on_what_is_within_reach_carry_it_and_let_go():
+    """
+    Two grippers at the sheet's bottom corners close, lift them 10 cm, and open.
+
+    Each holds the corner particle (within 2 cm of its frame); moved up, the corners follow
+    to within the hold's bound; opened, they let go. A gripper with no pose yet, or nothing
+    within reach, cannot close, and says why; refused: a name that is no gripper.
+    """
+    sim = build_simulation(variant('sheet_10x10', anchor_motion=[]),
+                           SimulationConfig(method='full'))
+    values = dict(VALUES, **{'grasp.frames': 'left, right', 'grasp.reach': 0.02})
+    assert 'left cannot close: left has no pose yet' in GRASP.apply(sim, grasp(left=1), values)
+    corners = sim.positions()[[0, 9]]
+    for frame, corner in zip(('left', 'right'), corners):
+        FRAME_POSE.apply(sim, frame_pose(frame, corner), values)
+    assert GRASP.refusal(grasp(left=1, right=1), values, None) is None
+    said = GRASP.apply(sim, grasp(left=1, right=1), values)
+    assert said == 'left closed on 1 particles; right closed on 1 particles'
+    for k in range(1, 201):                             # up 10 cm over 0.2 s, then held
+        for frame, corner in zip(('left', 'right'), corners):
+            FRAME_POSE.apply(sim, frame_pose(frame, corner + [0, 0, 0.1 * min(k / 100, 1)]),
+                             values)
+        sim.step(1)
+    np.testing.assert_allclose(sim.positions()[[0, 9]], corners + [0, 0, 0.1], atol=2e-3)
+    assert GRASP.apply(sim, grasp(left=0, right=0), values) == (
+        'left opened: 1 particles let go; right opened: 1 particles let go')
+    sim.step(300)                                       # let go: they fall back
+    assert (sim.positions()[[0, 9], 2] < corners[:, 2] + 0.09).all()
+    FRAME_POSE.apply(sim, frame_pose('left', corners[0] + [0, 0.5, 0]), values)
+    assert 'nothing within reach of left' in GRASP.apply(sim, grasp(left=1), values)
+    assert 'thumb is not a gripper' in GRASP.refusal(grasp(thumb=1), values, None)
+    assert 'one position for each name' in GRASP.refusal(JointState(name=['left']), values,
+                                                         None)
+    assert recorded_messages(GRASP, grasp(left=1)) == [('/grasp', grasp(left=1))]

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_harness import Client, frames_since, node_with_client, running_node, wait_for
-from sensor_msgs.msg import PointCloud2
+from sensor_msgs.msg import JointState, PointCloud2
 from test_node_inputs import (click_beside_the_corner, latest, PIVOT, pose, settles_turned,
                               top_row)
 import yaml
@@ -254,7 +254,7 @@ def test_a_collider_on_a_tf_frame_pushes_the_sheet_as_the_frame_moves_and_replay
     ``world -> fist`` on /tf at 50 Hz, 0.15 m along +x over 1.5 s, level with the edge's
     middle particle: before TF has the frame there is nothing there; then the edge is pushed
     along +x past where the sphere's surface is (no particle inside it), and the capture keeps
-    each pose the node took (``/collider_pose``) and re-simulates frame for frame.
+    each pose the node took (``/frame_pose``) and re-simulates frame for frame.
     """
     scene_file, out = tmp_path / 'finger.yaml', tmp_path / 'pushed'
     scene = variant('sheet_10x10', anchor_motion=[], contact={'colliders': [
@@ -281,7 +281,53 @@ def test_a_collider_on_a_tf_frame_pushes_the_sheet_as_the_frame_moves_and_replay
     assert pushed[40, 0] - edge[0] > 0.12
     assert np.linalg.norm(pushed - centre, axis=1).min() > 0.15 - 0.005
     bag = BagReader(out)
-    assert bag.topics['/collider_pose'].count >= 20
+    assert bag.topics['/frame_pose'].count >= 20
+    again = tmp_path / 'again'
+    n = resimulate(out, again)
+    t_rec, x_rec = bag.points()
+    t_new, x_new = BagReader(again).points()
+    assert n == len(t_rec) and np.array_equal(t_new, t_rec)
+    np.testing.assert_allclose(x_new, x_rec, rtol=0, atol=2e-6)   # every frame
+
+
+def test_two_grippers_on_tf_frames_lift_the_sheets_corners_and_the_capture_replays(tmp_path):
+    """
+    Two grippers (``grasp.frames``) at the still sheet's bottom corners, on /tf.
+
+    A ``sensor_msgs/JointState`` on ``grasp`` closes both; their frames rise 10 cm over a
+    second and the corners follow them (to 1 cm); opened, they let go and fall back. The
+    capture keeps the frames' poses and the grasps, and re-simulates frame for frame.
+    """
+    scene_file, out = tmp_path / 'still.yaml', tmp_path / 'lifted'
+    scene_file.write_text(yaml.safe_dump(scene_to_dict(variant('sheet_10x10', anchor_motion=[]))))
+    with node_with_client(f'scene:={scene_file}', f'record.bag:={out}', 'publish_rate_hz:=30.0',
+                          'grasp.frames:=left,right', 'grasp.reach:=0.03',
+                          namespace='grippers') as (node, client):
+        points = client.collect(PointCloud2, '/grippers/points', qos=500)
+        assert wait_for(lambda: len(points) > 5, 30)
+        corners = latest(points)[[0, 9]]
+        tf = client.node.create_publisher(tf2_msgs.TFMessage, '/tf', 100)
+        grasp = client.node.create_publisher(JointState, '/grippers/grasp', 10)
+
+        def frames(lift: float) -> None:
+            tf.publish(tf2_msgs.TFMessage(transforms=[
+                link('world', name, corner + [0.0, 0.0, lift])
+                for name, corner in zip(('left', 'right'), corners)]))
+
+        frames(0.0)
+        time.sleep(1.0)                  # the node has looked the frames up
+        grasp.publish(JointState(name=['left', 'right'], position=[1.0, 1.0]))
+        time.sleep(0.5)
+        start = time.monotonic()
+        while (elapsed := time.monotonic() - start) < 1.5:
+            frames(0.1 * min(elapsed, 1.0))
+            time.sleep(0.02)
+        frames_since(points, time.monotonic(), 10, timeout=30)
+        np.testing.assert_allclose(latest(points)[[0, 9]], corners + [0, 0, 0.1], atol=0.01)
+        grasp.publish(JointState(name=['left', 'right'], position=[0.0, 0.0]))
+        assert wait_for(lambda: (latest(points)[[0, 9], 2] < corners[:, 2] + 0.05).all(), 20)
+    bag = BagReader(out)
+    assert bag.topics['/grasp'].count >= 2 and bag.topics['/frame_pose'].count >= 20
     again = tmp_path / 'again'
     n = resimulate(out, again)
     t_rec, x_rec = bag.points()

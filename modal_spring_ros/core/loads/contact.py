@@ -140,9 +140,7 @@ class ContactLoad(Load):
     def _points(self, model, world_positions: WorldPositions) -> tuple[np.ndarray, np.ndarray]:
         """Return every free particle's world position in 3D, and their slots."""
         slots = np.arange(model.free_particles.size)
-        points = model.scene.rest_positions[model.free_particles].astype(float)
-        points[:, list(model.axes)] = world_positions(slots)
-        return points, slots
+        return free_points(model, world_positions, slots), slots
 
     def _at(self, c: int, idx: np.ndarray, x: np.ndarray, depth: np.ndarray,
             normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -190,6 +188,32 @@ class ContactLoad(Load):
         return f'{self.touching} particles touching, deepest {self.deepest:.3g} m'
 
 
+def penalty(model, dt: float, stability_limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the stiffness and damping of a penalty on each free particle for a run's step.
+
+    ``k = m (c / dt)^2``, ``c`` what the explicit step leaves beside the fastest coordinate
+    stepped (``stability_limit``: ``2 / omega``; inf for an implicit step, which takes
+    :data:`IMPLICIT_RATE`); half-critical damping. Contact and a gripper's hold use it.
+    """
+    low, high = CONTACT_RATE
+    if math.isfinite(stability_limit):
+        omega_dt = 2.0 * dt / stability_limit
+        rate = min(high, max(low, math.sqrt(max(STEP_SHARE ** 2 - omega_dt ** 2, 0.0))))
+    else:       # an implicit step: what its fixed-tangent iteration converges with
+        rate = IMPLICIT_RATE
+    mass = model.mass_dof.reshape(-1, model.dimension)[:, 0]
+    stiffness = mass * (rate / dt) ** 2
+    return stiffness, 2.0 * DAMPING_RATIO * np.sqrt(stiffness * mass)
+
+
+def free_points(model, world_positions, slots: np.ndarray) -> np.ndarray:
+    """Return the world positions in 3D of the free particles at ``slots``."""
+    points = model.scene.rest_positions[model.free_particles[slots]].astype(float)
+    points[:, list(model.axes)] = world_positions(slots)
+    return points
+
+
 def contact_load(model, contact: Contact, dt: float, stability_limit: float,
                  state: ContactLoad | None = None) -> ContactLoad:
     """
@@ -199,17 +223,8 @@ def contact_load(model, contact: Contact, dt: float, stability_limit: float,
     when nothing limits it). ``state``: a contact whose stick points and depths go on (a run
     that takes over from another).
     """
-    low, high = CONTACT_RATE
-    if math.isfinite(stability_limit):
-        omega_dt = 2.0 * dt / stability_limit
-        rate = min(high, max(low, math.sqrt(max(STEP_SHARE ** 2 - omega_dt ** 2, 0.0))))
-    else:       # an implicit step: what its fixed-tangent iteration converges with
-        rate = IMPLICIT_RATE
-    d = model.dimension
-    mass = model.mass_dof.reshape(-1, d)[:, 0]
-    stiffness = mass * (rate / dt) ** 2
-    damping = 2.0 * DAMPING_RATIO * np.sqrt(stiffness * mass)
-    shape = (len(contact.colliders), mass.size)
+    stiffness, damping = penalty(model, dt, stability_limit)
+    shape = (len(contact.colliders), stiffness.size)
     poses = ()
     if state is not None and state.depths.shape == shape:
         anchors, depths, slips, poses = state.anchors, state.depths, state.slips, state.poses

@@ -9,7 +9,8 @@ from another (a settings change, a watch's shadow runs) takes every one of them.
 from __future__ import annotations
 
 from modal_spring_ros.core.loads.base import Load
-from modal_spring_ros.core.loads.contact import ContactLoad
+from modal_spring_ros.core.loads.contact import ContactLoad, penalty
+from modal_spring_ros.core.loads.grasp import closed_on, Grasp, GraspError
 from modal_spring_ros.core.loads.pull import Pull
 from modal_spring_ros.core.loads.wrench import AppliedWrench
 from modal_spring_ros.core.model.colliders import Pose
@@ -21,6 +22,9 @@ class LoadHolder:
     #: what acts on the particles from outside the scene, by name (a new dict on every change,
     #: so that a copy handed over is never changed under its holder)
     loads: dict[str, Load] = {}
+    #: where the frames colliders and grippers are on were last said to be (kept by a reset
+    #: and handed over, as the world is)
+    frame_poses: dict[str, Pose] = {}
 
     def set_load(self, name: str, load: Load | None) -> None:
         """Apply ``load`` under ``name`` from now on (None: remove it). A reset ends it too."""
@@ -49,14 +53,49 @@ class LoadHolder:
         """Push a region with a wrench from now on (None: stop). A reset ends it too."""
         self.set_load(AppliedWrench.name, wrench)
 
-    def move_colliders(self, frame: str, pose: Pose) -> int:
+    def move_frame(self, frame: str, pose: Pose) -> int:
         """
-        Put the colliders attached to ``frame`` where ``pose`` says; return how many.
+        Tell the run where ``frame`` is; return how many colliders and grippers it moved.
 
-        They stay there through a reset (:meth:`~ContactLoad.placed_as`) until moved again.
+        The colliders attached to it go there (and stay through a reset:
+        :meth:`~ContactLoad.placed_as`), a gripper closed on it carries what it holds, and a
+        gripper closing on it later closes there (:meth:`close_gripper`).
         """
+        self.frame_poses = {**self.frame_poses, frame: pose}
+        moved = 0
         contact = self.loads.get(ContactLoad.name)
-        if contact is None:
+        if contact is not None:
+            self.set_load(ContactLoad.name, contact.moved(frame, pose))
+            moved += sum(f == frame for f in contact.contact.frames)
+        grasp = self.loads.get(Grasp.name)
+        if grasp is not None and grasp.held(frame):
+            self.set_load(Grasp.name, grasp.moved(frame, pose))
+            moved += 1
+        return moved
+
+    def close_gripper(self, frame: str, reach: float) -> int:
+        """
+        Close the gripper on ``frame``: hold the free particles within ``reach`` of it.
+
+        Return how many it holds. A reset opens every gripper.
+
+        :raises GraspError: the frame's pose is not known yet, or nothing is within reach.
+        """
+        pose = self.frame_poses.get(frame)
+        if pose is None:
+            raise GraspError(f'{frame} has no pose yet (TF or frame_pose has not said where '
+                             'it is)')
+        stiffness, damping = penalty(self.model, self.dt, self.penalty_limit())
+        grasp = closed_on(self.loads.get(Grasp.name), self.model, self.positions(), frame,
+                          pose, reach, stiffness, damping, self.dt)
+        self.set_load(Grasp.name, grasp)
+        return grasp.held(frame)
+
+    def open_gripper(self, frame: str) -> int:
+        """Open the gripper on ``frame``; return how many particles it let go."""
+        grasp = self.loads.get(Grasp.name)
+        if grasp is None or not grasp.held(frame):
             return 0
-        self.set_load(ContactLoad.name, contact.moved(frame, pose))
-        return sum(f == frame for f in contact.contact.frames)
+        let_go = grasp.held(frame)
+        self.set_load(Grasp.name, grasp.opened(frame))
+        return let_go

@@ -109,18 +109,12 @@ class Simulation(LoadHolder, abc.ABC):
             raise ValueError(f'dt ({dt}) must be a finite number of seconds, at least '
                              f'{MIN_DT_S:g} s (a smaller step does not advance time)')
         self._integrator: Integrator = make_integrator(integrator)
-        self.model = model
-        self.basis = basis
-        self.dt = float(dt)
-        self.integrator = integrator
+        self.model, self.basis, self.dt, self.integrator = model, basis, float(dt), integrator
         self.damping = model.scene.damping if damping is None else damping
         self.strain_limit = float(strain_limit)
-        self.time = 0.0
-        self.steps = 0
-        self._t0 = 0.0
-        self.last_iterations = 1
+        self.time, self.steps, self._t0, self.last_iterations = 0.0, 0, 0.0, 1
         self.diverged: DivergenceError | None = None
-        self.loads = {}
+        self.loads, self.frame_poses = {}, {}
 
     # -- what every method offers --------------------------------------------------------------
     #: the filter band, set by each method's constructor and by :meth:`set_band`
@@ -324,17 +318,20 @@ class Simulation(LoadHolder, abc.ABC):
         """Continue from another simulation's physical state and time (a settings change)."""
         self._t0, self.steps, self.time = other.time, 0, other.time
         self.loads = {**other.loads, **self._scene_loads(other.loads.get(ContactLoad.name))}
+        self.frame_poses = other.frame_poses
         self.set_state(other.displacement(), other.velocity())
 
     def _scene_loads(self, contact: ContactLoad | None = None) -> dict:
         """Return the loads the scene itself brings (its contact, tuned to this run's step)."""
         if self.model.scene.contact is None:
             return {}
-        # the run's own integrator's limit: inf for an implicit one
-        limit = (stable_step(self.integrator, self.omega_max()) if self.basis is not None
-                 else math.inf)
         return {ContactLoad.name: contact_load(self.model, self.model.scene.contact, self.dt,
-                                               limit, contact)}
+                                               self.penalty_limit(), contact)}
+
+    def penalty_limit(self) -> float:
+        """Return the run's own integrator's step limit (inf: implicit) a penalty is tuned to."""
+        return (stable_step(self.integrator, self.omega_max()) if self.basis is not None
+                else math.inf)
 
     def _applied(self, displacement: Callable[[np.ndarray], np.ndarray], t: float,
                  in_world: bool = False) -> tuple[np.ndarray, np.ndarray] | None:

@@ -122,12 +122,14 @@ def _replaces(request: Request, following: Request | None) -> bool:
     Tell whether ``following`` replaces ``request`` outright.
 
     The run keeps one band, and one of each input's effects (the clamp follows the last pose,
-    one point pulls): a band change a band change follows, an input one of its kind follows.
+    one point pulls): a band change a band change follows, an input one of its kind follows
+    (of its kind and key: the pose of one frame does not replace another frame's).
     """
     if type(following) is not type(request):
         return False
-    return isinstance(request, ChangeBand) or (isinstance(request, TakeInput)
-                                               and request.kind is following.kind)
+    return isinstance(request, ChangeBand) or (
+        isinstance(request, TakeInput) and request.kind is following.kind
+        and request.kind.key(request.received) == following.kind.key(following.received))
 
 
 def drained(requests: 'queue.Queue[Request]') -> list[Request]:

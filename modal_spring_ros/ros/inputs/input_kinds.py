@@ -27,10 +27,15 @@ input is one entry of :data:`INPUTS`.
   Carried into the node's frame it becomes a :class:`WrenchAt` (the wrench on the node's axes
   and the point it acts at), which a capture keeps as two messages: the point on
   ``/wrench_point``, then the wrench on ``/wrench`` (``recorded_point_topic``).
-- ``collider_pose`` (``geometry_msgs/TransformStamped``, as TF carries a frame; also looked up
-  from TF for every frame a scene's collider is attached to, whenever TF changes it): the
-  colliders attached to ``child_frame_id`` are put where the transform says
-  (:meth:`~modal_spring_ros.core.loads.holder.LoadHolder.move_colliders`).
+- ``frame_pose`` (``geometry_msgs/TransformStamped``, as TF carries a frame; also looked up
+  from TF for every frame a scene's collider is attached to and every gripper of
+  ``grasp.frames``, whenever TF changes it): the run is told where ``child_frame_id`` is, and
+  the colliders and the closed gripper on it go there
+  (:meth:`~modal_spring_ros.core.loads.holder.LoadHolder.move_frame`).
+- ``grasp`` (``sensor_msgs/JointState``, as a gripper's joint is reported): each named gripper
+  (a frame of ``grasp.frames``) closes with a position above one half, holding the free
+  particles within ``grasp.reach`` of it (:mod:`~modal_spring_ros.core.loads.grasp`), and opens
+  with one at or below it.
 """
 from __future__ import annotations
 
@@ -40,6 +45,7 @@ from typing import Any, Callable
 
 from geometry_msgs.msg import (Point, PointStamped, Pose, PoseStamped, Quaternion,
                                TransformStamped, Vector3, Wrench, WrenchStamped)
+from modal_spring_ros.core.loads.grasp import GraspError
 from modal_spring_ros.core.loads.pull import make_pull, nearest_free_particle
 from modal_spring_ros.core.loads.wrench import default_radius, make_wrench
 from modal_spring_ros.core.model.colliders import Pose as ColliderPose
@@ -48,6 +54,7 @@ from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.frames.frame_tree import Transform
 from modal_spring_ros.ros.frames.tf import transform_message
 import numpy as np
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
 
@@ -73,6 +80,14 @@ class InputKind:
     #: where a capture keeps the point an input acts at, just before the input (a wrench
     #: carried through TF acts at its frame's origin, which the node's frame does not name)
     recorded_point_topic: str | None = None
+    #: the message is in a frame (its header's ``frame_id`` is checked): not a command
+    in_frame: bool = True
+    #: what a message is about: a newer one of the same key replaces it before it is taken
+    #: (the last pose of a frame wins; another frame's pose does not replace it)
+    key: Callable[[Any], Any] = lambda message: None
+    #: messages kept waiting on its topic (1: the newest; more where messages are about
+    #: different things: several frames' poses, several grippers)
+    depth: int = 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -221,7 +236,7 @@ def transform_arrays(message: TransformStamped) -> tuple[np.ndarray, np.ndarray]
     return np.array([t.x, t.y, t.z]), np.array([q.x, q.y, q.z, q.w])
 
 
-def _collider_refusal(message: TransformStamped, values: dict[str, Any], clamp) -> str | None:
+def _frame_refusal(message: TransformStamped, values: dict[str, Any], clamp) -> str | None:
     position, quaternion = transform_arrays(message)
     if not (np.isfinite(position).all() and np.isfinite(quaternion).all()):
         return 'non-finite values'
@@ -233,12 +248,45 @@ def _collider_refusal(message: TransformStamped, values: dict[str, Any], clamp) 
     return None
 
 
-def _apply_collider(sim: Simulation, message: TransformStamped, values: dict[str, Any]) -> str:
+def _apply_frame(sim: Simulation, message: TransformStamped, values: dict[str, Any]) -> str:
     position, quaternion = transform_arrays(message)
     frame = message.child_frame_id.lstrip('/')
-    moved = sim.move_colliders(frame, ColliderPose.of(position, quaternion))
-    return (f'{moved} collider{"s" * (moved != 1)} on {frame} moved' if moved
-            else f'no collider is attached to {frame}')
+    moved = sim.move_frame(frame, ColliderPose.of(position, quaternion))
+    return (f'{frame} moved: {moved} collider{"s" * (moved != 1)} or gripper on it' if moved
+            else f'{frame} moved: no collider or closed gripper is on it')
+
+
+def gripper_frames(values: dict[str, Any]) -> tuple[str, ...]:
+    """Return the gripper frames ``grasp.frames`` names (spaces or commas between)."""
+    return tuple(f.lstrip('/') for f in values['grasp.frames'].replace(',', ' ').split())
+
+
+def _grasp_refusal(message: JointState, values: dict[str, Any], clamp) -> str | None:
+    grippers = gripper_frames(values)
+    if not message.name or len(message.position) != len(message.name):
+        return 'one position for each name is needed (1 closes a gripper, 0 opens it)'
+    if not all(math.isfinite(p) for p in message.position):
+        return 'non-finite position'
+    unknown = [n for n in message.name if n.lstrip('/') not in grippers]
+    if unknown:
+        return f"{unknown[0]} is not a gripper (grasp.frames: {', '.join(grippers)})"
+    return None
+
+
+def _apply_grasp(sim: Simulation, message: JointState, values: dict[str, Any]) -> str:
+    """Close each named gripper whose position is above one half, open the others."""
+    reach = values['grasp.reach'] or _radius(sim, values)
+    said = []
+    for name, position in zip(message.name, message.position):
+        frame = name.lstrip('/')
+        if position <= 0.5:
+            said.append(f'{frame} opened: {sim.open_gripper(frame)} particles let go')
+            continue
+        try:
+            said.append(f'{frame} closed on {sim.close_gripper(frame, reach)} particles')
+        except GraspError as exc:
+            said.append(f'{frame} cannot close: {exc}')
+    return '; '.join(said)
 
 
 def _transform_to_frame(message: TransformStamped, transform: Transform, frame: str
@@ -266,9 +314,13 @@ CLICKED_POINT = InputKind('clicked_point', '/clicked_point', PointStamped, '/cli
 WRENCH = InputKind('wrench', 'wrench', WrenchStamped, '/wrench', wanted=lambda values: True,
                    refusal=_wrench_refusal, apply=_apply_wrench, to_frame=_wrench_to_frame,
                    recorded_point_topic='/wrench_point')
-COLLIDER_POSE = InputKind('collider_pose', 'collider_pose', TransformStamped,
-                          '/collider_pose', wanted=lambda values: True,
-                          refusal=_collider_refusal, apply=_apply_collider,
-                          to_frame=_transform_to_frame)
+FRAME_POSE = InputKind('frame_pose', 'frame_pose', TransformStamped, '/frame_pose',
+                       wanted=lambda values: True, refusal=_frame_refusal, apply=_apply_frame,
+                       to_frame=_transform_to_frame,
+                       key=lambda message: message.child_frame_id.lstrip('/'), depth=16)
+GRASP = InputKind('grasp', 'grasp', JointState, '/grasp',
+                  wanted=lambda values: bool(gripper_frames(values)), refusal=_grasp_refusal,
+                  apply=_apply_grasp, in_frame=False,
+                  key=lambda message: tuple(n.lstrip('/') for n in message.name), depth=16)
 #: the node's inputs
-INPUTS: tuple[InputKind, ...] = (ANCHOR_POSE, CLICKED_POINT, WRENCH, COLLIDER_POSE)
+INPUTS: tuple[InputKind, ...] = (ANCHOR_POSE, CLICKED_POINT, WRENCH, FRAME_POSE, GRASP)

@@ -7,7 +7,7 @@ A message stamped in another frame than the node's ``frame_id`` is carried into 
 throttled warning and changes nothing. With ``anchor.source`` tf the clamp follows the pose of
 ``anchor.frame`` in ``frame_id``, looked up whenever TF changes and taken as an ``anchor_pose``
 (judged, recorded and re-simulated as one); so is each frame a scene's collider is attached to,
-taken as a ``collider_pose``. Header stamps are not used for timing: an input takes
+taken as a ``frame_pose``. Header stamps are not used for timing: an input takes
 effect when it arrives (any stamp, 0 included, is accepted). Accepted inputs reach the simulation
 thread as :class:`~modal_spring_ros.ros.changes.requests.TakeInput` requests, with the parameter
 values they arrived with, applied between two steps at the simulation time they are recorded with
@@ -26,8 +26,8 @@ from modal_spring_ros.ros.changes.requests import Request, TakeInput
 from modal_spring_ros.ros.frames.frame_tree import Transform
 from modal_spring_ros.ros.frames.tf import (tf_available, TF_MISSING, TfListener,
                                             transform_message)
-from modal_spring_ros.ros.inputs.input_kinds import (ANCHOR_POSE, COLLIDER_POSE, InputKind,
-                                                     INPUTS, pose_message)
+from modal_spring_ros.ros.inputs.input_kinds import (ANCHOR_POSE, FRAME_POSE, gripper_frames,
+                                                     InputKind, INPUTS, pose_message)
 import numpy as np
 from std_msgs.msg import Header
 
@@ -35,9 +35,6 @@ from std_msgs.msg import Header
 POSE_TIMEOUT_S = 0.5
 #: refusals are logged at most this often, s
 WARN_PERIOD_S = 2.0
-#: each input keeps only its newest message waiting: a pose, a click or a wrench replaces the
-#: one before, so a sender faster than the input thread costs nothing and is never late
-QUEUE_DEPTH = 1
 
 
 class NodeInputs:
@@ -50,8 +47,9 @@ class NodeInputs:
         Subscribe on ``node``; TF on ``tf_node`` (a node spun on its own; None: ``node``).
 
         ``clamp``: the scene's clamp follower when ``anchor.source`` is topic, else None.
-        ``contact``: the scene's colliders; the frames some are attached to are looked up in
-        TF whenever it changes, each taken as a ``collider_pose``.
+        ``contact``: the scene's colliders; the frames some are attached to, and the grippers'
+        (``grasp.frames``), are looked up in TF whenever it changes, each taken as a
+        ``frame_pose``.
         """
         self._node = node
         self._clamp = clamp
@@ -65,16 +63,17 @@ class NodeInputs:
         self._follows_tf = wanted.get('anchor.source') == 'tf'
         self._followed: Transform | None = None     # the last pose of anchor.frame taken
         self._tf_problem = ''                       # why anchor.frame cannot be looked up
-        self._collider_frames = contact.attached if contact is not None else ()
+        self._tracked_frames = tuple(dict.fromkeys(
+            (contact.attached if contact is not None else ()) + gripper_frames(wanted)))
         self._placed: dict[str, Transform] = {}     # each collider frame's last pose taken
         self.tf = (TfListener(tf_node or node, self._tf_changed if (
-            self._follows_tf or self._collider_frames) else None) if tf_available() else None)
+            self._follows_tf or self._tracked_frames) else None) if tf_available() else None)
         if self.tf is None:
             node.get_logger().warning(TF_MISSING)
         for kind in kinds:
             if kind.wanted(wanted):
                 node.create_subscription(kind.message_type, kind.topic, self._taker(kind),
-                                         QUEUE_DEPTH)
+                                         kind.depth)
 
     def anchor_status(self) -> tuple[str, bool]:
         """Return what the clamp follows, and whether that is stale (no pose for a while)."""
@@ -107,7 +106,7 @@ class NodeInputs:
     def _in_frame(self, kind: InputKind, message, frame: str) -> tuple[Any, str | None]:
         """Return the message carried into ``frame`` through TF, or why it cannot be."""
         source = message.header.frame_id
-        if source.lstrip('/') == frame.lstrip('/'):
+        if not kind.in_frame or source.lstrip('/') == frame.lstrip('/'):
             return message, None
         if self.tf is None or kind.to_frame is None:
             why = TF_MISSING if self.tf is None else 'this input is taken in it only'
@@ -134,12 +133,12 @@ class NodeInputs:
         if self._follows_tf:
             self._follow_tf()
         frame_id = self._values()['frame_id']
-        for frame in self._collider_frames:
+        for frame in self._tracked_frames:
             found = self.tf.lookup(frame_id, frame)
             if isinstance(found, str) or _same(found, self._placed.get(frame)):
                 continue        # not known yet, or where it was
             self._placed[frame] = found
-            self._taker(COLLIDER_POSE)(transform_message(frame_id, frame, found, Time()))
+            self._taker(FRAME_POSE)(transform_message(frame_id, frame, found, Time()))
 
     def _follow_tf(self) -> None:
         """Take the pose of ``anchor.frame`` in ``frame_id`` when TF has changed it."""
