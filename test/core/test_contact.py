@@ -295,6 +295,7 @@ def test_a_gripper_holds_a_particle_within_the_contact_bound_and_a_reset_opens_i
         sim.move_frame('hand', Pose.of([0.0, 0.0, 0.05 * min(k / 500, 1.0)], [0, 0, 0, 1]))
         sim.step(1)
     assert sim.positions()[2, 2] == pytest.approx(0.05 - G * DT ** 2, rel=1e-4)
+    assert sim.status().contacts == '0 particles touching, deepest 0 m; hand holds 1 particles'
     sim.reset()                                     # opens: the particle falls to the table
     assert sim.loads.get('grasp') is None and 'hand' in sim.frame_poses
     sim.step(1000)

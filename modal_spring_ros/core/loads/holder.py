@@ -99,3 +99,9 @@ class LoadHolder:
         let_go = grasp.held(frame)
         self.set_load(Grasp.name, grasp.opened(frame))
         return let_go
+
+    def describe_contacts(self) -> str:
+        """Return what touches and what is held, as text (``no colliders``: neither)."""
+        said = [load.describe() for name, load in self.loads.items()
+                if name in (ContactLoad.name, Grasp.name) and load.describe()]
+        return '; '.join(said) or 'no colliders'

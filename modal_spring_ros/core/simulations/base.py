@@ -232,8 +232,7 @@ class Simulation(LoadHolder, abc.ABC):
             time=self.time, steps=self.steps, max_strain=self.max_strain(),
             fading=self.fading, forces=self.force_report(),
             measured=self.pilot.describe() if self.pilot is not None else 'off',
-            contacts=self.loads[ContactLoad.name].describe() if ContactLoad.name in self.loads
-            else 'no colliders')
+            contacts=self.describe_contacts())
 
     # -- state in physical terms ---------------------------------------------------------------
     @abc.abstractmethod
