@@ -132,10 +132,12 @@ class _State:
     u: np.ndarray
     v: np.ndarray
     loads: dict
+    frame_poses: dict
 
     @classmethod
     def of(cls, sim: Simulation) -> '_State':
-        return cls(sim.time, sim.displacement(), sim.velocity(), dict(sim.loads))
+        return cls(sim.time, sim.displacement(), sim.velocity(), dict(sim.loads),
+                   dict(sim.frame_poses))
 
     def displacement(self) -> np.ndarray:
         return self.u
