@@ -12,7 +12,7 @@ publish rate and end-to-end latency, seen from another process), ``tradeoff`` (e
 cost of every method, stability limits, the paper's figs. 7 and 8, the large-deformation
 failure, with CSV and PNG charts), ``promise`` (``modal.auto`` on 50 random scenes at 1 % and
 0.3 %: measured against printed error, and its cost against the full run's, with CSV and a PNG
-chart), ``promise_demanding`` (the same on 8 random scenes users bring: solids and shells from
+chart), ``promise_demanding`` (the same on 7 random scenes users bring: solids and shells from
 mesh files, sheets of 5,000-7,000 particles, clamps turning +-90 degrees, 20-40 s runs; the
 error in every 0.25 s window too), ``auto`` (``modal.auto`` on the built-in scenes: the plan as
 predicted against the plan measured, error and cost, with CSV), ``response`` (the filter's

@@ -19,7 +19,7 @@ from modal_spring_ros.core.auto.plan import PlanSettings
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.config import ConfigError, SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.scenes.generator import random_scene
+from modal_spring_ros.scenes.generator import demanding_scene, random_scene
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -168,3 +168,38 @@ def test_a_band_cut_at_max_modes_is_not_trusted_on_a_richer_plan_alone(monkeypat
     assert 'only against a richer plan cut the same way' in report.reason
     assert error_against_converged(scene, sim, 3.0) <= TOLERANCE
     assert np.isfinite(report.error)
+
+
+def test_the_budget_widens_where_a_plan_would_save_much_and_only_once():
+    """Up to twice the share, at most a quarter of the saving: a failed plan costs 1.2x."""
+    budget = PlanningBudget(limit_us=10.0, full_us=100.0)
+    budget.widen(saving_us=60.0)                    # a quarter of 60: 15
+    assert budget.limit_us == 15.0
+    budget.widen(saving_us=1000.0)                  # once only
+    assert budget.limit_us == 15.0
+    most = PlanningBudget(limit_us=10.0, full_us=100.0)
+    most.widen(saving_us=95.0)                      # twice the share at most: 20
+    assert most.limit_us == 20.0
+    little = PlanningBudget(limit_us=10.0, full_us=100.0)
+    little.widen(saving_us=20.0)                    # never narrower than the share
+    assert little.limit_us == 10.0
+    unbounded = PlanningBudget()
+    unbounded.widen(saving_us=1e9)
+    assert not unbounded.bounded
+
+
+@pytest.mark.slow
+def test_a_long_run_on_a_large_sheet_plans_a_modal_run_within_a_widened_budget(tmp_path):
+    """
+    Demanding scene 2: 5,092 particles shaken for 28 s (the full run: 29 s of modelled CPU).
+
+    At 10 % of the full run, measuring a plan did not fit beside the modes' set-up, and auto ran
+    the full run; a plan saving 97 % of it widens the budget to 20 %: a modal plan, its work a
+    fortieth of the full run's, its planning within the widened budget.
+    """
+    scene = demanding_scene(2, tmp_path)
+    sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=0.01,
+                                                   horizon_s=scene.default_duration))
+    assert sim.method == 'modal' and sim.pilot.cost_ratio < 0.05
+    assert sim.pilot.error <= 0.01
+    assert '20% of the full run' in sim.pilot.planning

@@ -21,7 +21,7 @@ from typing import Callable
 from modal_spring_ros.bench.accuracy import promise
 from modal_spring_ros.scenes.generator import demanding_scene
 
-SEEDS, QUICK_SEEDS = 8, 1
+SEEDS, QUICK_SEEDS = 7, 1
 NAME = 'promise_demanding'
 
 

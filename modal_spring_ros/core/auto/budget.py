@@ -31,6 +31,10 @@ from modal_spring_ros.core.simulations import Simulation
 
 #: Share of the full run's projected work (over the run's length) that planning may spend.
 PLANNING_SHARE = 0.1
+#: Where a plan could save much, planning may spend up to this many times its share, and at
+#: most this share of what the plan would save (so a plan that fails costs at most twice the
+#: share beside the full run, and only where winning saves four times what was spent).
+WIDEN, SAVING_SHARE = 2.0, 0.25
 #: A run whose full run costs less than this (modelled us) is run as the full run without
 #: planning: choosing modes and building a plan's coordinates take tens to hundreds of
 #: milliseconds that the work model does not count, as much as such a run could save.
@@ -57,6 +61,7 @@ class PlanningBudget:
     limit_us: float = math.inf
     full_us: float = math.inf
     spent_us: float = 0.0
+    widened: bool = False
 
     @classmethod
     def for_run(cls, full: Simulation, run_s: float | None,
@@ -79,6 +84,17 @@ class PlanningBudget:
     @property
     def remaining_us(self) -> float:
         return max(0.0, self.limit_us - self.spent_us)
+
+    def widen(self, saving_us: float) -> None:
+        """
+        Let planning spend more where the plan would save ``saving_us`` (modelled).
+
+        Up to ``WIDEN`` times what it may spend, and at most ``SAVING_SHARE`` of the saving.
+        """
+        if self.bounded and not self.widened:
+            self.widened = True
+            self.limit_us = max(self.limit_us, min(WIDEN * self.limit_us,
+                                                   SAVING_SHARE * saving_us))
 
     def affords(self, work_us: float) -> bool:
         """Tell whether ``work_us`` more stays within the limit."""
@@ -135,13 +151,15 @@ def worth_measuring(budget: PlanningBudget, full: Simulation, plan: Simulation,
     """
     Return why measuring ``plan`` is not worth it ('' where it is).
 
-    Not within the budget, or costing more than the plan could save over ``run_s`` (the plan's
-    work against the full run's).
+    Not within the budget (widened where the plan would save much: :meth:`PlanningBudget.
+    widen`), or costing more than the plan could save over ``run_s`` (the plan's work against
+    the full run's).
     """
     if not budget.bounded:
         return ''
     floor = measuring_floor(full, plan, sibling_us, window_s)
     saving = (work_per_second(full) - work_per_second(plan)) * run_s
+    budget.widen(saving)
     if not budget.affords(floor):
         return (f'measuring a plan would cost at least {floor / 1e6:.3g} s of CPU (modelled), '
                 f'beyond the planning budget of {budget.limit_us / 1e6:.3g} s '
