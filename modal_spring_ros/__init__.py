@@ -20,6 +20,7 @@ API = {
     'builtin_scene_names': 'modal_spring_ros.scenes.resources',
     'FilterBand': 'modal_spring_ros.core.filter_band',
     'load_scene': 'modal_spring_ros.scenes.resources',
+    'Pose': 'modal_spring_ros.core.model.colliders',
     'Load': 'modal_spring_ros.core.loads.base',
     'record': 'modal_spring_ros.runs.run',
     'Scene': 'modal_spring_ros.core.model.scene',
