@@ -302,3 +302,33 @@ def test_a_gripper_holds_a_particle_within_the_contact_bound_and_a_reset_opens_i
     assert sim.positions()[2, 2] < -0.9
     with pytest.raises(GraspError, match='nothing within reach'):
         sim.close_gripper('hand', 0.01)
+
+
+def test_colliders_added_at_run_time_are_touched_moved_and_removed():
+    """
+    A scene with no contact field: a tray added right under the particle holds it up.
+
+    Added again with the same shape 5 cm higher it is moved, and lifts the particle, which rests
+    on it by its weight over the contact stiffness; removed, it lets go; a reset clears them.
+    """
+    scene = particle(None)
+    del scene['contact']
+    sim = full_run(scene)
+    tray = Box(np.zeros(3), np.array([1.0, 1.0, 0.05]))
+    assert sim.add_collider('tray/0', tray, Pose.of([0.0, 0.0, -0.05], [0, 0, 0, 1])) == 1
+    sim.step(1000)
+    assert sim.positions()[2, 2] == pytest.approx(-G * DT ** 2, rel=1e-5)
+    for k in range(1, 501):                         # lifted 5 cm over 0.5 s, same shape: moved
+        sim.add_collider('tray/0', tray, Pose.of([0.0, 0.0, -0.05 + 0.05 * k / 500],
+                                                 [0, 0, 0, 1]))
+        sim.step(1)
+    sim.step(1000)
+    assert sim.positions()[2, 2] == pytest.approx(0.05 - G * DT ** 2, rel=1e-4)
+    assert sim.status().contacts.startswith('1 added: 1 particles touching')
+    assert sim.add_collider('ball/1', Sphere(np.zeros(3), 0.1),
+                            Pose.of([5.0, 0.0, 0.0], [0, 0, 0, 1])) == 2
+    assert sim.remove_collider('tray/0') == 1
+    sim.step(100)                                   # let go
+    assert sim.positions()[2, 2] < 0.01
+    sim.reset()
+    assert sim.loads.get('added_colliders') is None and sim.remove_collider(None) == 0

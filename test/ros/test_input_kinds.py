@@ -11,14 +11,15 @@ from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.loads.pull import nearest_free_particle
 from modal_spring_ros.ros.frames.frame_tree import Transform
 from modal_spring_ros.ros.frames.tf import transform_message
-from modal_spring_ros.ros.inputs.input_kinds import (CLICKED_POINT, FRAME_POSE, GRASP,
-                                                     recorded_messages, transform_arrays, WRENCH,
-                                                     WrenchAt)
+from modal_spring_ros.ros.inputs.input_kinds import (CLICKED_POINT, COLLIDER_MARKER, FRAME_POSE,
+                                                     GRASP, recorded_messages, WRENCH, WrenchAt)
+from modal_spring_ros.ros.inputs.robot_world import transform_arrays
 from modal_spring_ros.ros.parameters import PARAMETERS
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
 from sensor_msgs.msg import JointState
+from visualization_msgs.msg import Marker
 
 VALUES = {name: default for name, (default, _) in PARAMETERS.items()}
 
@@ -178,3 +179,40 @@ def test_two_grippers_close_on_what_is_within_reach_carry_it_and_let_go():
     assert 'one position for each name' in GRASP.refusal(JointState(name=['left']), values,
                                                          None)
     assert recorded_messages(GRASP, grasp(left=1)) == [('/grasp', grasp(left=1))]
+
+
+def marker(kind: int = Marker.CUBE, action: int = Marker.ADD, position=(0.0, 0.0, 0.0),
+           scale=(2.0, 2.0, 0.1), ns: str = 'table', marker_id: int = 0,
+           frame_id: str = 'world') -> Marker:
+    m = Marker(type=kind, action=action, ns=ns, id=marker_id)
+    m.header.frame_id = frame_id
+    m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(v) for v in position)
+    m.scale.x, m.scale.y, m.scale.z = (float(v) for v in scale)
+    return m                       # orientation all zero: no turn, as RViz takes it
+
+
+def test_a_marker_added_is_a_collider_moved_on_its_id_and_deleted():
+    """A CUBE under the sheet's bottom edge holds it up; DELETE lets it go; bad ones refused."""
+    sim = build_simulation(variant('sheet_10x10', anchor_motion=[]),
+                           SimulationConfig(method='full'))
+    sim.step(1000)
+    bottom = float(sim.positions()[:10, 2].min())
+    table = marker(position=(0.45, 0.0, bottom - 0.05))    # its top at the bottom edge
+    assert COLLIDER_MARKER.refusal(table, VALUES, None) is None
+    assert COLLIDER_MARKER.apply(sim, table, VALUES) == 'collider table/0 placed (1 added)'
+    for k in range(1, 101):                                  # the same shape: moved 5 cm up
+        moving = marker(position=(0.45, 0.0, bottom - 0.05 + 0.0005 * k))
+        COLLIDER_MARKER.apply(sim, moving, VALUES)
+        sim.step(1)
+    sim.step(500)
+    assert sim.positions()[:10, 2].min() > bottom + 0.04          # the edge rests on it
+    assert COLLIDER_MARKER.apply(sim, marker(action=Marker.DELETE), VALUES) == (
+        'collider table/0 removed: 0 added left')
+    sim.step(2000)
+    assert sim.positions()[:10, 2].min() < bottom + 0.01          # fell back
+    for bad, why in ((marker(kind=Marker.ARROW), 'a collider is a SPHERE, CUBE or CYLINDER'),
+                     (marker(scale=(1.0, 0.0, 1.0)), 'scale must be positive'),
+                     (marker(position=(math.inf, 0, 0)), 'non-finite'),
+                     (marker(action=1), 'action 1')):
+        assert why in COLLIDER_MARKER.refusal(bad, VALUES, None)
+    assert recorded_messages(COLLIDER_MARKER, table) == [('/collider_marker', table)]

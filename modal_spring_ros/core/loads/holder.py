@@ -8,12 +8,13 @@ from another (a settings change, a watch's shadow runs) takes every one of them.
 """
 from __future__ import annotations
 
+from modal_spring_ros.core.loads.added_colliders import AddedContact, placed, removed
 from modal_spring_ros.core.loads.base import Load
 from modal_spring_ros.core.loads.contact import ContactLoad, penalty
 from modal_spring_ros.core.loads.grasp import closed_on, Grasp, GraspError
 from modal_spring_ros.core.loads.pull import Pull
 from modal_spring_ros.core.loads.wrench import AppliedWrench
-from modal_spring_ros.core.model.colliders import Pose
+from modal_spring_ros.core.model.colliders import Collider, Pose
 
 
 class LoadHolder:
@@ -100,8 +101,26 @@ class LoadHolder:
         self.set_load(Grasp.name, grasp.opened(frame))
         return let_go
 
+    def add_collider(self, key: str, collider: Collider, pose: Pose) -> int:
+        """
+        Touch ``collider`` (its shape at its own origin) on ``key`` where ``pose`` puts it.
+
+        Placing a key again moves it (the same shape) or replaces it; a reset clears them
+        (:mod:`~modal_spring_ros.core.loads.added_colliders`). Return how many are added.
+        """
+        added = placed(self.loads.get(AddedContact.name), self.model.scene.contact, self.model,
+                       key, collider, pose, self.dt, self.penalty_limit())
+        self.set_load(AddedContact.name, added)
+        return len(added.keys)
+
+    def remove_collider(self, key: str | None) -> int:
+        """Stop touching the collider added on ``key`` (None: every one); return how many left."""
+        added = removed(self.loads.get(AddedContact.name), key)
+        self.set_load(AddedContact.name, added)
+        return 0 if added is None else len(added.keys)
+
     def describe_contacts(self) -> str:
         """Return what touches and what is held, as text (``no colliders``: neither)."""
         said = [load.describe() for name, load in self.loads.items()
-                if name in (ContactLoad.name, Grasp.name) and load.describe()]
+                if name in (ContactLoad.name, AddedContact.name, Grasp.name) and load.describe()]
         return '; '.join(said) or 'no colliders'

@@ -36,6 +36,11 @@ input is one entry of :data:`INPUTS`.
   (a frame of ``grasp.frames``) closes with a position above one half, holding the free
   particles within ``grasp.reach`` of it (:mod:`~modal_spring_ros.core.loads.grasp`), and opens
   with one at or below it.
+- ``collider_marker`` (``visualization_msgs/Marker``, as RViz draws a primitive): a SPHERE, CUBE
+  or CYLINDER marker added is a collider the object touches from then on, where the marker is
+  (its pose, carried into the node's frame through TF); added again on its ``ns/id`` it moves
+  (the same shape) or changes; DELETE removes it, DELETEALL every one
+  (:mod:`~modal_spring_ros.core.loads.added_colliders`).
 """
 from __future__ import annotations
 
@@ -43,19 +48,22 @@ import dataclasses
 import math
 from typing import Any, Callable
 
-from geometry_msgs.msg import (Point, PointStamped, Pose, PoseStamped, Quaternion,
-                               TransformStamped, Vector3, Wrench, WrenchStamped)
-from modal_spring_ros.core.loads.grasp import GraspError
+from geometry_msgs.msg import (Point, PointStamped, PoseStamped, TransformStamped, Vector3,
+                               Wrench, WrenchStamped)
 from modal_spring_ros.core.loads.pull import make_pull, nearest_free_particle
-from modal_spring_ros.core.loads.wrench import default_radius, make_wrench
-from modal_spring_ros.core.model.colliders import Pose as ColliderPose
-from modal_spring_ros.core.motion.clamp_follower import QUATERNION_TOLERANCE
+from modal_spring_ros.core.loads.wrench import make_wrench
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.frames.frame_tree import Transform
-from modal_spring_ros.ros.frames.tf import transform_message
+from modal_spring_ros.ros.inputs.robot_world import (apply_frame, apply_grasp, apply_marker,
+                                                     frame_refusal, grasp_refusal,
+                                                     gripper_frames, interaction_radius,
+                                                     marker_key, marker_refusal,
+                                                     marker_to_frame, pose_message,
+                                                     transform_to_frame)
 import numpy as np
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
+from visualization_msgs.msg import Marker
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,13 +131,6 @@ def pose_arrays(message: PoseStamped) -> tuple[np.ndarray, np.ndarray]:
     return np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])
 
 
-def pose_message(transform: Transform, header: Header) -> PoseStamped:
-    """Return the pose of a frame whose transform into ``header.frame_id`` is ``transform``."""
-    (x, y, z), (qx, qy, qz, qw) = transform.translation.tolist(), transform.rotation.tolist()
-    return PoseStamped(header=header, pose=Pose(position=Point(x=x, y=y, z=z),
-                                                orientation=Quaternion(x=qx, y=qy, z=qz, w=qw)))
-
-
 def _pose_to_frame(message: PoseStamped, transform: Transform, frame: str) -> PoseStamped:
     position, quaternion = pose_arrays(message)
     if not (np.isfinite(position).all() and np.isfinite(quaternion).all()):
@@ -174,7 +175,8 @@ def _apply_click(sim: Simulation, message: PointStamped, values: dict[str, Any])
     point = np.array([message.point.x, message.point.y, message.point.z])
     positions = sim.positions()
     particle = nearest_free_particle(sim.model, positions, point)
-    on_object = float(np.linalg.norm(positions[particle] - point)) <= _radius(sim, values)
+    reach = interaction_radius(sim, values)
+    on_object = float(np.linalg.norm(positions[particle] - point)) <= reach
     held = sim.pull.particle if sim.pull is not None and sim.time <= sim.pull.until else None
     if held is not None and held != particle:
         particle, what = held, f'taking particle {held} to the point'
@@ -186,11 +188,6 @@ def _apply_click(sim: Simulation, message: PointStamped, values: dict[str, Any])
                              values['interaction.max_force_n'], sim.time,
                              values['interaction.hold_s']))
     return what
-
-
-def _radius(sim: Simulation, values: dict[str, Any]) -> float:
-    """Return ``interaction.radius``, or the scene's default for 0."""
-    return values['interaction.radius'] or default_radius(sim.model)
 
 
 def _vector(v: Vector3) -> np.ndarray:
@@ -222,80 +219,13 @@ def _apply_wrench(sim: Simulation, message, values: dict[str, Any]) -> str:
     if not (force.any() or torque.any()):
         sim.start_wrench(None)
         return 'wrench ended (a zero wrench)'
-    wrench = make_wrench(sim.model, sim.positions(), point, force, torque, _radius(sim, values),
+    wrench = make_wrench(sim.model, sim.positions(), point, force, torque,
+                         interaction_radius(sim, values),
                          values['interaction.max_force_n'], sim.time, values['interaction.hold_s'])
     sim.start_wrench(wrench)
     capped = ' (capped)' if wrench.capped else ''
     return (f'pushing {wrench.particles.size} particles with {np.linalg.norm(wrench.force):.3g} N'
             f' and {np.linalg.norm(wrench.torque):.3g} N m{capped}')
-
-
-def transform_arrays(message: TransformStamped) -> tuple[np.ndarray, np.ndarray]:
-    """Return a transform's translation and quaternion (x, y, z, w)."""
-    t, q = message.transform.translation, message.transform.rotation
-    return np.array([t.x, t.y, t.z]), np.array([q.x, q.y, q.z, q.w])
-
-
-def _frame_refusal(message: TransformStamped, values: dict[str, Any], clamp) -> str | None:
-    position, quaternion = transform_arrays(message)
-    if not (np.isfinite(position).all() and np.isfinite(quaternion).all()):
-        return 'non-finite values'
-    norm = float(np.linalg.norm(quaternion))
-    if abs(norm - 1.0) > QUATERNION_TOLERANCE:
-        return f'the rotation is not a unit quaternion (norm {norm:.4g})'
-    if not message.child_frame_id.strip('/'):
-        return 'no child_frame_id (the frame the colliders are attached to)'
-    return None
-
-
-def _apply_frame(sim: Simulation, message: TransformStamped, values: dict[str, Any]) -> str:
-    position, quaternion = transform_arrays(message)
-    frame = message.child_frame_id.lstrip('/')
-    moved = sim.move_frame(frame, ColliderPose.of(position, quaternion))
-    return (f'{frame} moved: {moved} collider{"s" * (moved != 1)} or gripper on it' if moved
-            else f'{frame} moved: no collider or closed gripper is on it')
-
-
-def gripper_frames(values: dict[str, Any]) -> tuple[str, ...]:
-    """Return the gripper frames ``grasp.frames`` names (spaces or commas between)."""
-    return tuple(f.lstrip('/') for f in values['grasp.frames'].replace(',', ' ').split())
-
-
-def _grasp_refusal(message: JointState, values: dict[str, Any], clamp) -> str | None:
-    grippers = gripper_frames(values)
-    if not message.name or len(message.position) != len(message.name):
-        return 'one position for each name is needed (1 closes a gripper, 0 opens it)'
-    if not all(math.isfinite(p) for p in message.position):
-        return 'non-finite position'
-    unknown = [n for n in message.name if n.lstrip('/') not in grippers]
-    if unknown:
-        return f"{unknown[0]} is not a gripper (grasp.frames: {', '.join(grippers)})"
-    return None
-
-
-def _apply_grasp(sim: Simulation, message: JointState, values: dict[str, Any]) -> str:
-    """Close each named gripper whose position is above one half, open the others."""
-    reach = values['grasp.reach'] or _radius(sim, values)
-    said = []
-    for name, position in zip(message.name, message.position):
-        frame = name.lstrip('/')
-        if position <= 0.5:
-            said.append(f'{frame} opened: {sim.open_gripper(frame)} particles let go')
-            continue
-        try:
-            said.append(f'{frame} closed on {sim.close_gripper(frame, reach)} particles')
-        except GraspError as exc:
-            said.append(f'{frame} cannot close: {exc}')
-    return '; '.join(said)
-
-
-def _transform_to_frame(message: TransformStamped, transform: Transform, frame: str
-                        ) -> TransformStamped:
-    position, quaternion = transform_arrays(message)
-    if not (np.isfinite(position).all() and np.isfinite(quaternion).all()):
-        return message          # refused as it is, with its reason
-    moved = transform.then(Transform(position, quaternion))
-    return transform_message(frame, message.child_frame_id, moved, message.header.stamp)
 
 
 def recorded_messages(kind: InputKind, received) -> list[tuple[str, Any]]:
@@ -315,12 +245,18 @@ WRENCH = InputKind('wrench', 'wrench', WrenchStamped, '/wrench', wanted=lambda v
                    refusal=_wrench_refusal, apply=_apply_wrench, to_frame=_wrench_to_frame,
                    recorded_point_topic='/wrench_point')
 FRAME_POSE = InputKind('frame_pose', 'frame_pose', TransformStamped, '/frame_pose',
-                       wanted=lambda values: True, refusal=_frame_refusal, apply=_apply_frame,
-                       to_frame=_transform_to_frame,
+                       wanted=lambda values: True, refusal=frame_refusal, apply=apply_frame,
+                       to_frame=transform_to_frame,
                        key=lambda message: message.child_frame_id.lstrip('/'), depth=16)
 GRASP = InputKind('grasp', 'grasp', JointState, '/grasp',
-                  wanted=lambda values: bool(gripper_frames(values)), refusal=_grasp_refusal,
-                  apply=_apply_grasp, in_frame=False,
+                  wanted=lambda values: bool(gripper_frames(values)), refusal=grasp_refusal,
+                  apply=apply_grasp, in_frame=False,
                   key=lambda message: tuple(n.lstrip('/') for n in message.name), depth=16)
+COLLIDER_MARKER = InputKind('collider_marker', 'collider_marker', Marker, '/collider_marker',
+                            wanted=lambda values: True, refusal=marker_refusal,
+                            apply=apply_marker, to_frame=marker_to_frame,
+                            key=lambda marker: (marker.action == Marker.DELETEALL
+                                                or marker_key(marker)), depth=16)
 #: the node's inputs
-INPUTS: tuple[InputKind, ...] = (ANCHOR_POSE, CLICKED_POINT, WRENCH, FRAME_POSE, GRASP)
+INPUTS: tuple[InputKind, ...] = (ANCHOR_POSE, CLICKED_POINT, WRENCH, FRAME_POSE, GRASP,
+                                 COLLIDER_MARKER)

@@ -26,8 +26,8 @@ from modal_spring_ros.ros.changes.requests import Request, TakeInput
 from modal_spring_ros.ros.frames.frame_tree import Transform
 from modal_spring_ros.ros.frames.tf import (tf_available, TF_MISSING, TfListener,
                                             transform_message)
-from modal_spring_ros.ros.inputs.input_kinds import (ANCHOR_POSE, FRAME_POSE, gripper_frames,
-                                                     InputKind, INPUTS, pose_message)
+from modal_spring_ros.ros.inputs.input_kinds import ANCHOR_POSE, FRAME_POSE, InputKind, INPUTS
+from modal_spring_ros.ros.inputs.robot_world import gripper_frames, pose_message
 import numpy as np
 from std_msgs.msg import Header
 
