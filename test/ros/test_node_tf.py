@@ -365,9 +365,7 @@ def test_a_marker_sent_as_a_collider_lifts_the_sheet_and_the_capture_replays(tmp
             time.sleep(0.05)
         frames_since(points, time.monotonic(), 15, timeout=30)
         assert latest(points)[:10, 2].min() > bottom + 0.04
-        gone = Marker(action=Marker.DELETE, ns='table', id=0)
-        gone.header.frame_id = 'table'
-        pub.publish(gone)
+        pub.publish(Marker(action=Marker.DELETE, ns='table', id=0))   # in no frame
         assert wait_for(lambda: latest(points)[:10, 2].min() < bottom + 0.02, 20)
         del keep
     bag = BagReader(out)

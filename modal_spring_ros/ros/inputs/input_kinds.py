@@ -88,8 +88,9 @@ class InputKind:
     #: where a capture keeps the point an input acts at, just before the input (a wrench
     #: carried through TF acts at its frame's origin, which the node's frame does not name)
     recorded_point_topic: str | None = None
-    #: the message is in a frame (its header's ``frame_id`` is checked): not a command
-    in_frame: bool = True
+    #: whether a message is in a frame (its header's ``frame_id`` checked, carried through TF);
+    #: a command (a gripper closing, a marker deleted) is not
+    in_frame: Callable[[Any], bool] = lambda message: True
     #: what a message is about: a newer one of the same key replaces it before it is taken
     #: (the last pose of a frame wins; another frame's pose does not replace it)
     key: Callable[[Any], Any] = lambda message: None
@@ -250,11 +251,12 @@ FRAME_POSE = InputKind('frame_pose', 'frame_pose', TransformStamped, '/frame_pos
                        key=lambda message: message.child_frame_id.lstrip('/'), depth=16)
 GRASP = InputKind('grasp', 'grasp', JointState, '/grasp',
                   wanted=lambda values: bool(gripper_frames(values)), refusal=grasp_refusal,
-                  apply=apply_grasp, in_frame=False,
+                  apply=apply_grasp, in_frame=lambda message: False,
                   key=lambda message: tuple(n.lstrip('/') for n in message.name), depth=16)
 COLLIDER_MARKER = InputKind('collider_marker', 'collider_marker', Marker, '/collider_marker',
                             wanted=lambda values: True, refusal=marker_refusal,
                             apply=apply_marker, to_frame=marker_to_frame,
+                            in_frame=lambda marker: marker.action == Marker.ADD,
                             key=lambda marker: (marker.action == Marker.DELETEALL
                                                 or marker_key(marker)), depth=16)
 #: the node's inputs

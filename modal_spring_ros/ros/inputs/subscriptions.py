@@ -106,7 +106,7 @@ class NodeInputs:
     def _in_frame(self, kind: InputKind, message, frame: str) -> tuple[Any, str | None]:
         """Return the message carried into ``frame`` through TF, or why it cannot be."""
         source = message.header.frame_id
-        if not kind.in_frame or source.lstrip('/') == frame.lstrip('/'):
+        if not kind.in_frame(message) or source.lstrip('/') == frame.lstrip('/'):
             return message, None
         if self.tf is None or kind.to_frame is None:
             why = TF_MISSING if self.tf is None else 'this input is taken in it only'
