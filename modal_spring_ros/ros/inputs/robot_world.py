@@ -73,7 +73,7 @@ def apply_frame(sim: Simulation, message: TransformStamped, values: dict[str, An
 
 def gripper_frames(values: dict[str, Any]) -> tuple[str, ...]:
     """Return the gripper frames ``grasp.frames`` names (spaces or commas between)."""
-    return tuple(f.lstrip('/') for f in values['grasp.frames'].replace(',', ' ').split())
+    return tuple(f.lstrip('/') for f in values.get('grasp.frames', '').replace(',', ' ').split())
 
 
 def grasp_refusal(message: JointState, values: dict[str, Any], clamp) -> str | None:
