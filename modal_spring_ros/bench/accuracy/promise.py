@@ -29,6 +29,7 @@ from typing import Callable
 from modal_spring_ros.bench.charts import subplots
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
+from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.simulations import Simulation
@@ -46,6 +47,9 @@ TIMED_S = 1.0
 REFERENCE_ACCURACY = 0.1
 #: the promise holds within 2 T in every window this long, s
 WINDOW_S = 0.25
+#: the converged reference halves its step at most this many times (a scene whose full run
+#: does not converge by then is reported, not waited for)
+REFERENCE_HALVINGS = 5
 WORKERS = 2
 
 
@@ -101,9 +105,11 @@ def check_scene(scene, seed: int, tolerances: tuple[float, ...], duration_s: flo
             full = build_simulation(scene, SimulationConfig(method='full'))
             found = converged_trajectory(lambda dt: on_samples(full, sample_s, dt),
                                          0.2 * full.stability_limit(), sample_s, samples,
-                                         REFERENCE_ACCURACY * min(tolerances))
+                                         REFERENCE_ACCURACY * min(tolerances),
+                                         reference_cap(full, sample_s))
             if found is None:
-                row['refused'] = 'the reference did not converge'
+                row['refused'] = (f'the reference did not converge within {REFERENCE_HALVINGS} '
+                                  'halvings of its step')
                 break
             truth = (found[0], full, sample_s)
         reference, full, sample_s = truth
@@ -127,6 +133,16 @@ def check_scene(scene, seed: int, tolerances: tuple[float, ...], duration_s: flo
         row['whole_vs_default'] = row['auto_whole_s'] / row['default_whole_s']
         row['whole_vs_at_t'] = row['auto_whole_s'] / row['at_t_whole_s']
     return rows
+
+
+def reference_cap(full: Simulation, sample_s: float) -> float:
+    """
+    Return what the converged reference may cost (modelled us per simulated second).
+
+    Its step halved ``REFERENCE_HALVINGS`` times from a fifth of the stability limit.
+    """
+    first = work_per_second(on_samples(full, sample_s, 0.2 * full.stability_limit()))
+    return first * (2 ** (REFERENCE_HALVINGS + 1) - 1) * (1.0 + 1e-9)
 
 
 def worst_window(run: np.ndarray | None, reference: np.ndarray, sample_s: float) -> float:
