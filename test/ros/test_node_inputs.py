@@ -251,7 +251,7 @@ print('start', flush=True)
 start, clicks = time.monotonic(), 0
 while time.monotonic() - start < 3.0:
     click = PointStamped()
-    click.header.frame_id = 'world'
+    click.header.frame_id = sys.argv[3]
     click.point.x, click.point.z = 1.5 + 0.1 * (clicks % 2), -0.9
     pub.publish(click)
     clicks += 1
@@ -262,10 +262,12 @@ rclpy.shutdown()
 """
 
 
-def _flood(topic: str, wait: bool, points: list) -> tuple[float, float, int, np.ndarray]:
+def _flood(topic: str, wait: bool, points: list, frame_id: str = 'world'
+           ) -> tuple[float, float, int, np.ndarray]:
     """Send a flood of clicks on ``topic``; return its start, end, clicks and the cloud before."""
-    flood = subprocess.Popen([sys.executable, '-c', FLOOD, topic, 'wait' if wait else 'now'],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    flood = subprocess.Popen([sys.executable, '-c', FLOOD, topic, 'wait' if wait else 'now',
+                              frame_id], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True)
     try:
         assert flood.stdout.readline().strip() == 'start', flood.stderr.read()
         start = time.monotonic()
@@ -284,11 +286,13 @@ def test_a_flood_of_clicks_keeps_the_stream_at_its_rate(tmp_path):
 
     The rate is the one the node reports (``frames published`` on ``/diagnostics``), not what
     this process receives (a reader on a busy machine falls behind its writer whatever the node
-    does). Both are measured against the same run under the same load: the same flood sent on
-    a topic nobody listens to (the clicks come from a process of their own, which takes its
-    share of the machine whatever it sends), before and after, the slower of the two the
-    baseline (a busy machine's load drifts between windows). Every click is answered (applied,
-    or superseded by a newer one before the next step), and the last one pulls.
+    does). Both are measured against the same run under the same load: the same flood of
+    clicks in a frame the node does not know, before and after, the slower of the two the
+    baseline (a busy machine's load drifts between windows). Those reach the node's process as
+    the real ones do (their delivery, a thousand messages a second, costs the node what it
+    costs) and are refused there: the difference is what taking the clicks costs the stream.
+    Every click is answered (applied, or superseded by a newer one before the next step), and
+    the last one pulls.
     """
     scene_file = tmp_path / 'still.yaml'
     scene_file.write_text(yaml.safe_dump(scene_to_dict(variant('sheet_10x10', anchor_motion=[]))))
@@ -298,11 +302,11 @@ def test_a_flood_of_clicks_keeps_the_stream_at_its_rate(tmp_path):
         points = client.collect(PointCloud2, '/flood/points', qos=500)
         diagnostics = client.collect(DiagnosticArray, '/diagnostics', qos=100)
         assert wait_for(lambda: len(points) > 5, 30)
-        unheard = _flood('/flood/nobody_listens', False, points)
+        unheard = _flood('/clicked_point', True, points, frame_id='nowhere')
         heard = _flood('/clicked_point', True, points)
         frames_since(points, heard[1], 5, timeout=30)
         pulled = latest(points)
-        after = _flood('/flood/nobody_listens', False, points)
+        after = _flood('/clicked_point', True, points, frame_id='nowhere')
     received = [(t, m) for t, m in list(points)]
 
     def window(flood) -> tuple[float, float]:
@@ -318,11 +322,7 @@ def test_a_flood_of_clicks_keeps_the_stream_at_its_rate(tmp_path):
                                    for pair in zip(window(unheard), window(after)))
     rate, clock = window(heard)
     assert heard[2] > 1000
-    # the clicks' delivery (DDS receiving 1000 messages a second in the node's process) is
-    # work the unheard baseline does not have: on a 2-core machine beside two busy processes it
-    # took up to a fifth of the stream's frames (23 of 30 a second); the paced input thread
-    # itself takes none of them
-    assert rate >= 0.7 * rate_unheard, (rate_unheard, rate)
+    assert rate >= 0.8 * rate_unheard, (rate_unheard, rate)
     assert clock >= 0.8 * clock_unheard, (clock_unheard, clock)
     # the clicks pulled: the sheet left its sag toward +x
     assert (pulled[:, 0] - heard[3][:, 0]).max() > 0.01
