@@ -21,7 +21,8 @@ from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from ros_harness import Client, frames_since, node_with_client, running_node, wait_for
+from ros_harness import (assert_resimulates_exactly, Client, frames_since, node_with_client,
+                         running_node, wait_for)
 from sensor_msgs.msg import JointState, PointCloud2
 from test_node_inputs import (click_beside_the_corner, latest, PIVOT, pose, settles_turned,
                               top_row)
@@ -283,12 +284,7 @@ def test_a_collider_on_a_tf_frame_pushes_the_sheet_as_the_frame_moves_and_replay
     assert np.linalg.norm(pushed - centre, axis=1).min() > 0.15 - 0.005
     bag = BagReader(out)
     assert bag.topics['/frame_pose'].count >= 20
-    again = tmp_path / 'again'
-    n = resimulate(out, again)
-    t_rec, x_rec = bag.points()
-    t_new, x_new = BagReader(again).points()
-    assert n == len(t_rec) and np.array_equal(t_new, t_rec)
-    np.testing.assert_allclose(x_new, x_rec, rtol=0, atol=2e-6)   # every frame
+    assert_resimulates_exactly(out, tmp_path / 'again', 0)      # every frame
 
 
 def test_two_grippers_on_tf_frames_lift_the_sheets_corners_and_the_capture_replays(tmp_path):
@@ -329,12 +325,7 @@ def test_two_grippers_on_tf_frames_lift_the_sheets_corners_and_the_capture_repla
         assert wait_for(lambda: (latest(points)[[0, 9], 2] < corners[:, 2] + 0.05).all(), 20)
     bag = BagReader(out)
     assert bag.topics['/grasp'].count >= 2 and bag.topics['/frame_pose'].count >= 20
-    again = tmp_path / 'again'
-    n = resimulate(out, again)
-    t_rec, x_rec = bag.points()
-    t_new, x_new = BagReader(again).points()
-    assert n == len(t_rec) and np.array_equal(t_new, t_rec)
-    np.testing.assert_allclose(x_new, x_rec, rtol=0, atol=2e-6)   # every frame
+    assert_resimulates_exactly(out, tmp_path / 'again', 0)      # every frame
 
 
 def test_a_marker_sent_as_a_collider_lifts_the_sheet_and_the_capture_replays(tmp_path):
@@ -371,9 +362,4 @@ def test_a_marker_sent_as_a_collider_lifts_the_sheet_and_the_capture_replays(tmp
     bag = BagReader(out)
     first = bag.decode(next(iter(bag.messages(['/collider_marker']))))
     assert first.header.frame_id == 'world' and abs(first.pose.position.z - (bottom - 0.05)) < 0.01
-    again = tmp_path / 'again'
-    n = resimulate(out, again)
-    t_rec, x_rec = bag.points()
-    t_new, x_new = BagReader(again).points()
-    assert n == len(t_rec) and np.array_equal(t_new, t_rec)
-    np.testing.assert_allclose(x_new, x_rec, rtol=0, atol=2e-6)   # every frame
+    assert_resimulates_exactly(out, tmp_path / 'again', 0)      # every frame
