@@ -10,7 +10,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from modal_spring_ros.core.auto.budget import PlanningBudget, setup_work, unplanned_full
+from modal_spring_ros.core.auto.budget import (modes_work, PlanningBudget, setup_work,
+                                               unplanned_full)
 from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.pilot import Pilot, PILOT_MARGIN, SAMPLES as PILOT_SAMPLES
 from modal_spring_ros.core.auto.pilot_window import pilot_window
@@ -157,7 +158,13 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
               if everything else PlanningBudget())
     limit = min(config.max_modes or DEFAULT_MAX_MODES, basis.n_dof)
     sampled = model.scene.n_springs >= SAMPLE_MIN_SPRINGS
-    why = _not_worth_planning(model, budget, basis.dense, sampled)
+    why = _not_worth_planning(model, budget, basis, sampled)
+    charged = [basis.modes_solved]
+
+    def charge_modes() -> None:   # modes solved for since last counted, against the budget
+        if not basis.dense:
+            budget.spend(modes_work(model, basis.modes_solved - charged[0]))
+            charged[0] = basis.modes_solved
     # modes a small scene has anyway (dense): the step its response's period error allows the
     # full run, a prediction of whether the default step meets the tolerance
     choice = (choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
@@ -173,6 +180,7 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
         return sim
     if choice is None:
         choice = choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
+    charge_modes()
     bank = shared_bank(basis, config.derivative_directions)
     chosen = choose_basis(model, basis, choice.modes, SHARE * config.tolerance,
                           lambda keep: bank.for_band(keep)[1])
@@ -199,7 +207,9 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
         return make(settings)
 
     def more_modes(hz: float) -> float | None:
-        return _more_modes(basis, config.band, hz, limit)
+        found = _more_modes(basis, config.band, hz, limit, budget if planning else None)
+        charge_modes()
+        return found
 
     pilot = Pilot(model, config.tolerance, made, full if everything else None, more_modes,
                   basis.frequencies_hz[choice.modes], can_halve_step=not keep_dt,
@@ -212,7 +222,7 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     return sim
 
 
-def _not_worth_planning(model: MassSpringModel, budget: PlanningBudget, dense: bool,
+def _not_worth_planning(model: MassSpringModel, budget: PlanningBudget, basis: ModalBasis,
                         sampled: bool) -> str:
     """
     Return why a plan is not worth making for a run of ``budget``'s length ('' where it is).
@@ -225,9 +235,9 @@ def _not_worth_planning(model: MassSpringModel, budget: PlanningBudget, dense: b
     if budget.small:
         return (f'the whole full run costs {budget.full_us / 1e6:.3g} s of CPU (modelled): '
                 'less than choosing and building a plan')
-    if dense or not budget.bounded:
+    if basis.dense or not budget.bounded:
         return ''
-    setup = setup_work(model, sampled)
+    setup = setup_work(model, sampled, basis.modes_solved)
     if not budget.affords(setup):
         parts = 'its modes, their derivatives' + (', a spring sample' if sampled else '')
         return (f'making a plan ({parts}: about {setup / 1e6:.3g} s of CPU, modelled) would '
@@ -236,8 +246,14 @@ def _not_worth_planning(model: MassSpringModel, budget: PlanningBudget, dense: b
     return ''
 
 
-def _more_modes(basis: ModalBasis, band: FilterBand, hz: float, limit: int) -> float | None:
-    """Return a mode limit with half as many more modes of ``band`` as up to ``hz`` (or None)."""
+def _more_modes(basis: ModalBasis, band: FilterBand, hz: float, limit: int,
+                budget: PlanningBudget | None = None) -> float | None:
+    """
+    Return a mode limit with half as many more modes of ``band`` as up to ``hz`` (or None).
+
+    None also where solving for them would pass ``budget`` (what solving costs is counted by
+    the caller from ``basis.modes_solved``).
+    """
     def kept() -> np.ndarray:
         f = basis.frequencies_hz
         return f[band.keeps(f)]
@@ -247,7 +263,11 @@ def _more_modes(basis: ModalBasis, band: FilterBand, hz: float, limit: int) -> f
     if target <= now:
         return None
     if not basis.complete and basis.count < target:
-        basis.ensure_count(min(2 * target, limit, basis.n_dof - 2))
+        count = min(2 * target, limit, basis.n_dof - 2)
+        solving = max(count, min(2 * basis.count, basis.n_dof - 2))
+        if budget is not None and not budget.affords(modes_work(basis.model, solving)):
+            return None
+        basis.ensure_count(count)
     freqs = kept()
     if freqs.size <= now:
         return None

@@ -5,20 +5,25 @@ The budget's arithmetic; a run too short to measure a plan for runs the full run
 ``method full`` takes (checked, within the tolerance); a default step that misses the tolerance
 lifts the budget; a long run is measured within its budget; a plan's step is never refined
 below the full run's own converged step; a band cut at ``max_modes`` is not trusted on a richer
-plan alone.
+plan alone; a plan's set-up and every solve for more modes are priced, and not made beyond it.
 """
 from __future__ import annotations
 
 import math
+import re
 
 from modal_spring_ros.core.auto import pilot, sibling_check
-from modal_spring_ros.core.auto.budget import PLANNING_SHARE, PlanningBudget
+from modal_spring_ros.core.auto.budget import (modes_work, PLANNING_SHARE, PlanningBudget,
+                                               setup_work)
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.auto.plan import PlanSettings
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.config import ConfigError, SimulationConfig
-from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.factory import _more_modes, build_simulation
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.scenes.generator import demanding_scene, random_scene
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
@@ -164,7 +169,7 @@ def test_a_band_cut_at_max_modes_is_not_trusted_on_a_richer_plan_alone(monkeypat
                                                    max_modes=4))
     report = sim.pilot
     assert report.method == 'full', report.describe()
-    assert 'cut at max_modes (4 of 180 modes)' in report.reason, report.reason
+    assert 'cut (4 of 180 modes: max_modes' in report.reason, report.reason
     assert 'only against a richer plan cut the same way' in report.reason
     assert error_against_converged(scene, sim, 3.0) <= TOLERANCE
     assert np.isfinite(report.error)
@@ -203,3 +208,44 @@ def test_a_long_run_on_a_large_sheet_plans_a_modal_run_within_a_widened_budget(t
     assert sim.method == 'modal' and sim.pilot.cost_ratio < 0.05
     assert sim.pilot.error <= 0.01
     assert '20% of the full run' in sim.pilot.planning
+
+
+@pytest.mark.slow
+def test_a_plan_whose_set_up_passes_the_budget_is_not_made(tmp_path):
+    """
+    Demanding scene 5 at 0.3 %: 6,970 particles, 27,381 springs, 35 s.
+
+    Its plan's set-up (modes, derivatives, a spring sample) is priced at 8 s of CPU against a
+    budget of 3.7 s: no mode beyond the first solve is computed, no sample trained, and the
+    full run is taken at its default step, planning within the budget.
+    """
+    scene = demanding_scene(5, tmp_path)
+    sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=0.003,
+                                                   horizon_s=scene.default_duration))
+    assert sim.method == 'full'
+    assert 'making a plan' in sim.pilot.reason, sim.pilot.reason
+    assert sim.basis.modes_solved == sim.basis.count == 32
+    default = build_simulation(scene, SimulationConfig(method='full'))
+    assert sim.dt == pytest.approx(default.dt, rel=0.01)
+    spent, limit = (float(x) for x in re.findall(r'([\d.]+) s', sim.pilot.planning)[:2])
+    assert spent <= limit
+
+
+def test_solving_for_more_modes_is_priced_and_refused_beyond_the_budget():
+    """A richer sibling's modes cost 1.35 us per free DOF and mode solved; beyond: a cut."""
+    model = MassSpringModel(load_scene('sheet_10x10'))
+    band = FilterBand()
+    basis = ModalBasis(model, initial_modes=8, dense_limit=10)
+    assert basis.modes_solved == 8
+    highest = float(basis.frequencies_hz[7])
+    solving = 24                        # twice the target: 8 kept and half as many more
+    assert modes_work(model, solving) == pytest.approx(1.35 * model.n_free_dof * solving)
+    poor = PlanningBudget(limit_us=modes_work(model, solving) * 0.99, full_us=1e9)
+    assert _more_modes(basis, band, highest, 100, poor) is None
+    assert basis.modes_solved == 8 and basis.count == 8
+    rich = PlanningBudget(limit_us=modes_work(model, solving), full_us=1e9)
+    more = _more_modes(basis, band, highest, 100, rich)
+    assert more is not None and more > highest
+    assert basis.modes_solved == 8 + solving and basis.count == solving
+    assert setup_work(model, False, basis.modes_solved) == pytest.approx(
+        modes_work(model, 8 + solving) + 140.0 * model.n_free_dof)

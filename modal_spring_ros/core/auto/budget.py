@@ -40,9 +40,11 @@ WIDEN, SAVING_SHARE = 2.0, 0.25
 #: milliseconds that the work model does not count, as much as such a run could save.
 SMALL_RUN_US = 1e6
 #: What making a plan costs on a scene too large for every mode (modelled us), fitted to the
-#: 10,000-particle sheet's set-up (5.2 s): its modes, per free DOF; their derivatives, per free
-#: DOF; training a spring sample, per spring (each plan of other coordinates trains its own).
-SETUP_US = {'modes': 50.0, 'derivatives': 120.0, 'training': 50.0}
+#: set-up of sheets of 5,000-10,000 particles (the modes' shift-invert solves took 0.8-1.3 us
+#: per free DOF and mode solved for, their derivatives 120-140 us per free DOF, a spring
+#: sample's training 200 us per spring at 0.3 %): per free DOF and mode solved; per free DOF;
+#: per spring (each plan of other coordinates trains its own).
+SETUP_US = {'modes': 1.35, 'derivatives': 140.0, 'training': 200.0}
 #: A step-doubling check of the full run covers at least this many samples.
 MIN_CHECK_SAMPLES = 2
 #: The full reference over a window costs its run at a step and at half of it: three runs' worth.
@@ -117,16 +119,22 @@ class PlanningBudget:
                 f"run's {self.full_us / 1e6:.3g} s")
 
 
-def setup_work(model, sampled: bool) -> float:
+def setup_work(model, sampled: bool, modes_solved: int) -> float:
     """
     Return what making a plan costs before it is measured, us (modelled).
 
-    Its modes, their derivatives and, with ``sampled`` springs, training a sample. Counted
-    against the budget like the pilot's runs, for scenes beyond the dense limit (a small
-    scene's modes are one dense eigensolve, and it trains no sample).
+    Its modes (``modes_solved`` so far: :func:`modes_work`), their derivatives and, with
+    ``sampled`` springs, training a sample. Counted against the budget like the pilot's runs,
+    for scenes beyond the dense limit (a small scene's modes are one dense eigensolve, and it
+    trains no sample).
     """
-    return (model.n_free_dof * (SETUP_US['modes'] + SETUP_US['derivatives'])
+    return (modes_work(model, modes_solved) + model.n_free_dof * SETUP_US['derivatives']
             + (training_work(model) if sampled else 0.0))
+
+
+def modes_work(model, solved: int) -> float:
+    """Return what solving for ``solved`` modes (summed over solves) costs, us (modelled)."""
+    return SETUP_US['modes'] * model.n_free_dof * solved
 
 
 def training_work(model) -> float:

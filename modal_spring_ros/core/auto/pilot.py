@@ -333,7 +333,7 @@ class Pilot:
         return reference
 
     def _cut(self, sim: Simulation) -> bool:
-        """Tell whether ``sim``'s modes stop at the mode limit while the band keeps more."""
+        """Tell whether ``sim``'s modes stop (the mode limit, the budget) where the band keeps more."""
         return (sim.method == 'modal' and sim.kept_modes.size < self.model.n_free_dof
                 and self.more_modes(sim.highest_hz or math.inf) is None)
 
@@ -358,9 +358,9 @@ class Pilot:
             return sim, report
         reason = (f'no plan within {self.tolerance:.2%} after refining: the best measured '
                   f'{error:.2%}' if error > self.tolerance else
-                  f'the plan is cut at max_modes ({sim.kept_modes.size} of '
-                  f'{self.model.n_free_dof} modes) and measured {error:.2%} only against '
-                  'a richer plan cut the same way' if cut else
+                  f'the plan is cut ({sim.kept_modes.size} of {self.model.n_free_dof} '
+                  'modes: max_modes, or no budget to solve for more) and measured '
+                  f'{error:.2%} only against a richer plan cut the same way' if cut else
                   f'cheaper: the plan needs {ratio:.2g} x its work')
         return full, dataclasses.replace(report, error=full_error, method='full', cost_ratio=1.0,
                                          reason=reason, against=full_against)

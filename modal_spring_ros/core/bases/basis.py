@@ -80,6 +80,9 @@ class ModalBasis:
         self.progress = progress or _no_progress
         self.dense = self.n_dof <= dense_limit
         self.solve_seconds = 0.0
+        #: modes solved for by the sparse eigensolver, summed over its solves (what a planning
+        #: budget prices: :func:`~modal_spring_ros.core.auto.budget.modes_work`)
+        self.modes_solved = 0
         self.worker = worker
         self._solver: ShiftInvertModes | None = None
         self._cholesky = None  # dense scenes: the factor of K0, made when first needed
@@ -200,6 +203,7 @@ class ModalBasis:
             lam, phi = self.worker.call(_lowest_modes_in_worker, self._solver, count)
         self._check_zero_modes(lam, lam_scale=self._solver.lam_scale)
         self._store(lam, phi)
+        self.modes_solved += count
         self.solve_seconds += time.perf_counter() - start
         self.progress(f'{count} modes ready: {self.frequencies_hz[0]:.4g} .. '
                       f'{self.frequencies_hz[-1]:.4g} Hz '
