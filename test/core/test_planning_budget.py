@@ -19,8 +19,8 @@ from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.auto.plan import PlanSettings
 from modal_spring_ros.core.auto.work_model import work_per_second
-from modal_spring_ros.core.config import ConfigError, SimulationConfig
 from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.config import ConfigError, SimulationConfig
 from modal_spring_ros.core.factory import _more_modes, build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel

@@ -333,7 +333,7 @@ class Pilot:
         return reference
 
     def _cut(self, sim: Simulation) -> bool:
-        """Tell whether ``sim``'s modes stop (the mode limit, the budget) where the band keeps more."""
+        """Tell whether ``sim``'s modes stop (mode limit, budget) where the band keeps more."""
         return (sim.method == 'modal' and sim.kept_modes.size < self.model.n_free_dof
                 and self.more_modes(sim.highest_hz or math.inf) is None)
 
