@@ -76,6 +76,6 @@ def _rebuilt(added, kept, scene_contact, model, colliders, keys, poses, dt,
     if added is not None and kept:       # the colliders kept keep what they hold
         anchors[:len(kept)], depths[:len(kept)] = added.anchors[kept], added.depths[kept]
         slips[:len(kept)] = added.slips[kept]
-    return AddedContact(fresh.contact, fresh.stiffness, fresh.damping, fresh.dt,
+    return AddedContact(fresh.contact, fresh.stiffness, fresh.damping, fresh.mass, fresh.dt,
                         np.asarray(anchors), np.asarray(depths), np.asarray(slips),
                         poses=tuple(poses))
