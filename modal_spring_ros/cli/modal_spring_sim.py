@@ -97,7 +97,8 @@ def main(argv: list[str] | None = None) -> int:
                          on_frame=bag.frame if bag else None, watch=watch,
                          on_watch=None if args.quiet else
                          lambda window, now: print(f'[{PROG}] {watched_line(window, now)}',
-                                                   file=sys.stderr))
+                                                   file=sys.stderr),
+                         keep_frames=bool(args.output))
             if bag:
                 bag.close()
         except BaseException:  # a full disk, Ctrl-C: no half-written bag is left behind
@@ -112,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
             write_output(args.output, '--output', lambda: run.save_npz(args.output))
             print(f'wrote {args.output} ({run.t.size} frames)')
         if args.bag:
-            print(f'wrote bag {args.bag} ({run.t.size} frames)')
+            print(f'wrote bag {args.bag} ({run.frames_made} frames)')
         return 1 if run.diverged else 0
 
     return run_main(PROG, body)

@@ -40,6 +40,8 @@ class Run:
     integrator: str
     band: str
     diverged: str = ''
+    #: frames made (those in ``t`` and ``positions``, or more where only the last was kept)
+    frames_made: int = 0
     #: the simulation the run ended on (not saved: a watched run may have fallen back)
     simulation: Simulation | None = dataclasses.field(default=None, repr=False, compare=False)
 
@@ -65,7 +67,8 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
            on_frame: Callable[[float, np.ndarray], None] | None = None,
            progress_interval_s: float = PROGRESS_INTERVAL_S,
            watch: RunWatch | None = None,
-           on_watch: Callable[[WatchedWindow, Simulation], None] | None = None) -> Run:
+           on_watch: Callable[[WatchedWindow, Simulation], None] | None = None,
+           keep_frames: bool = True) -> Run:
     """
     Step ``sim`` for ``duration`` seconds.
 
@@ -79,6 +82,10 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
     window and the simulation that goes on (the fallback, where the window was beyond the
     tolerance: the run continues as it from the window's start, at a step that divides the frame
     interval). The run's :attr:`Run.simulation` is the one it ended on.
+
+    Not ``keep_frames``: only the last frame is kept (``on_frame`` still sees each; without it,
+    no other frame is made): a run whose frames go to a bag or nowhere holds one frame, not
+    every one (the 10k sheet over 10 s at every step would hold 21 GB).
     """
     frame_s = frame_every * sim.dt
     steps = int(round(duration / sim.dt))
@@ -92,7 +99,7 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
     check_every = max(1, steps // 100)
     last_report = time.monotonic()
     next_frame = sim.time + frame_s
-    k = 0
+    k, made = 0, 1
     while sim.time + 0.5 * sim.dt < end:
         if watch is not None:
             sim, window = watch.before_step(sim, frame_s)
@@ -109,18 +116,25 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
         k += 1
         if sim.time >= next_frame - 0.5 * sim.dt:
             next_frame += frame_s
-            frames.append(sim.positions())
-            times.append(sim.time)
-            if on_frame:
-                on_frame(times[-1], frames[-1])
+            made += 1
+            if keep_frames or on_frame:
+                if not keep_frames:
+                    frames.clear()
+                    times.clear()
+                frames.append(sim.positions())
+                times.append(sim.time)
+                if on_frame:
+                    on_frame(times[-1], frames[-1])
         if on_progress and k % check_every == 0:
             now = time.monotonic()
             if now - last_report >= progress_interval_s:
                 on_progress(min(1.0, (sim.time - start) / (end - start)))
                 last_report = now
+    if not (keep_frames or on_frame):            # no frame was made but the last
+        frames, times = [sim.positions()], [sim.time]
     freqs = sim.basis.frequencies_hz if sim.basis is not None else np.empty(0)
     kept, band = sim.kept_modes, sim.describe_band()
     return Run(scene=sim.model.scene, t=np.array(times), positions=np.array(frames),
                frequencies_hz=freqs, kept_modes=np.asarray(kept, dtype=np.int64), dt=sim.dt,
                method=sim.method, integrator=sim.integrator, band=band, diverged=diverged,
-               simulation=sim)
+               frames_made=made, simulation=sim)

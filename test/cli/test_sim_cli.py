@@ -135,6 +135,23 @@ def test_progress_comes_at_whole_percents_and_no_more_often_than_asked():
     assert run() == []  # a run far shorter than the default interval reports nothing
 
 
+def test_a_run_not_written_keeps_its_last_frame_only_and_ends_where_a_kept_one_does():
+    """Frames nobody keeps are not held: the 10k sheet over 10 s at every step is 21 GB."""
+    model = MassSpringModel(load_scene('sheet_10x10'))
+    basis = ModalBasis(model)
+    kept = record(FullSimulation(model, dt=1e-3, basis=basis), 0.2)
+    seen = []
+    streamed = record(FullSimulation(model, dt=1e-3, basis=basis), 0.2, keep_frames=False,
+                      on_frame=lambda t, p: seen.append(t))
+    alone = record(FullSimulation(model, dt=1e-3, basis=basis), 0.2, keep_frames=False)
+    assert kept.t.size == kept.frames_made == 201
+    np.testing.assert_array_equal(seen, kept.t)           # every frame still seen
+    for run in (streamed, alone):
+        assert run.t.size == 1 and run.frames_made == 201
+        assert run.t[0] == kept.t[-1]
+        np.testing.assert_array_equal(run.positions[0], kept.positions[-1])
+
+
 def test_a_short_run_prints_no_progress_lines(tmp_path):
     proc = subprocess.run([sys.executable, '-m', 'modal_spring_ros.cli.modal_spring_sim',
                            '--scene',
