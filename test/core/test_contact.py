@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 
 from helpers import variant
+from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
+                                                       trajectory, trajectory_error)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.loads.contact import ContactLoad, IMPLICIT_RATE, V_OUT
@@ -216,6 +218,36 @@ def test_a_string_starting_inside_a_sphere_leaves_it_at_a_bounded_speed_and_rest
     assert farthest < 2e-3
 
 
+@pytest.mark.slow
+def test_a_cloth_swung_against_a_sphere_converges_in_its_step_and_auto_keeps_its_tolerance():
+    """
+    cloth_3d shaken 6 cm toward a sphere 5 mm from it: it drapes on it twice a second.
+
+    Halving the step converges (contact below the full run's step is the full run's: a
+    penalty stiffened at each halving never did, and auto's reference halved for minutes), and
+    ``--auto --duration 1.5`` at 1 % is within 1 % of the converged run, touching as it does.
+    """
+    cloth = variant('cloth_3d', anchor_motion=[
+        {'axis': 'y', 'amplitude': 0.06, 'frequency_hz': 0.5, 'ramp_s': 0.5}], contact={
+            'friction': 0.4,
+            'colliders': [{'shape': 'sphere', 'center': [0.0, 0.1, 0.7], 'radius': 0.095}]})
+    sample_s, samples = 0.02, 75
+    full = build_simulation(cloth, SimulationConfig(method='full'))
+    found = converged_trajectory(lambda dt: on_samples(full, sample_s, dt),
+                                 full.stability_limit(), sample_s, samples, 2e-3)
+    assert found is not None
+
+    def planned():
+        return on_samples(build_simulation(cloth, SimulationConfig(
+            auto=True, tolerance=0.01, horizon_s=sample_s * samples)), sample_s)
+    assert trajectory_error(trajectory(planned(), sample_s, samples), found[0]) <= 0.01
+    auto, touched = planned(), 0
+    for _ in range(samples):
+        auto.step(int(round(sample_s / auto.dt)))
+        touched = max(touched, auto.loads[ContactLoad.name].touching)
+    assert touched >= 2
+
+
 def test_contact_outlives_a_reset_and_a_change_of_step():
     sim = table_sheet(SimulationConfig(method='full'))
     sim.step(1300)
@@ -223,8 +255,9 @@ def test_contact_outlives_a_reset_and_a_change_of_step():
     again = sim.with_dt(sim.dt / 2)
     again.take_over(sim)
     contact = again.loads[ContactLoad.name]
-    assert contact.dt == sim.dt / 2 and contact.touching > 0      # tuned, its state kept
-    assert contact.stiffness[0] == pytest.approx(4 * sim.loads[ContactLoad.name].stiffness[0])
+    assert contact.dt == sim.dt / 2 and contact.touching > 0      # its state kept
+    # a finer step than the full run's keeps the full run's contact (the same physics)
+    assert contact.stiffness[0] == pytest.approx(sim.loads[ContactLoad.name].stiffness[0])
     sim.reset()
     assert ContactLoad.name in sim.loads and sim.loads[ContactLoad.name].touching == 0
     sim.step(1300)

@@ -11,7 +11,8 @@ particle in two colliders is pushed by both). A collider attached to a frame is 
 that frame (:meth:`ContactLoad.moved` sets its pose): its stick points ride with it, so a
 moving finger carries what it holds.
 
-The contact's stiffness is the run's: each particle's ``k = m (c / dt)^2``, with ``c`` what the
+The contact's stiffness is the run's (below its full run's step, the full run's:
+:func:`finest_step`): each particle's ``k = m (c / dt)^2``, with ``c`` what the
 explicit step leaves beside the fastest coordinate the run steps (``sqrt(1.2^2 - (omega dt)^2)``,
 at most 1 and at least 0.2): stiff at the run's step without making it unstable; under an
 implicit step, :data:`IMPLICIT_RATE` (its iteration's fixed tangent leaves contact out). A particle
@@ -213,15 +214,34 @@ def penalty(model, dt: float, stability_limit: float) -> tuple[np.ndarray, np.nd
     stepped (``stability_limit``: ``2 / omega``; inf for an implicit step, which takes
     :data:`IMPLICIT_RATE`); half-critical damping. Contact and a gripper's hold use it.
     """
-    low, high = CONTACT_RATE
-    if math.isfinite(stability_limit):
-        omega_dt = 2.0 * dt / stability_limit
-        rate = min(high, max(low, math.sqrt(max(STEP_SHARE ** 2 - omega_dt ** 2, 0.0))))
-    else:       # an implicit step: what its fixed-tangent iteration converges with
-        rate = IMPLICIT_RATE
+    # an implicit step: what its fixed-tangent iteration converges with
+    rate = (_rate(2.0 * dt / stability_limit) if math.isfinite(stability_limit)
+            else IMPLICIT_RATE)
     mass = model.mass_dof.reshape(-1, model.dimension)[:, 0]
-    stiffness = mass * (rate / dt) ** 2
+    # at a step finer than the full run's own, the full run's contact (:func:`finest_step`)
+    floor = finest_step(model)
+    stiffness = mass * min((rate / dt) ** 2, (_rate(floor * model.omega_bound) / floor) ** 2)
     return stiffness, 2.0 * DAMPING_RATIO * np.sqrt(stiffness * mass)
+
+
+def finest_step(model) -> float:
+    """
+    Return the step below which contact is the same whatever a run's step: the full run's.
+
+    The scene's step, or half the full explicit run's stability limit (``1 / omega``, from the
+    bound :attr:`~modal_spring_ros.core.model.model.MassSpringModel.omega_bound`). A penalty
+    tuned to each step would stiffen four times at each halving: runs at ever finer steps would
+    be ever different physics, and a step-doubled reference (the automatic choice's, the
+    benchmarks') would never converge. Below this step the penalty is the full run's at it.
+    """
+    omega = model.omega_bound
+    return model.scene.default_dt or (1.0 / omega if omega > 0.0 else math.inf)
+
+
+def _rate(omega_dt: float) -> float:
+    """Return the contact's ``omega dt`` beside a coordinate at ``omega_dt`` (``c``, above)."""
+    low, high = CONTACT_RATE
+    return min(high, max(low, math.sqrt(max(STEP_SHARE ** 2 - omega_dt ** 2, 0.0))))
 
 
 def free_points(model, world_positions, slots: np.ndarray) -> np.ndarray:

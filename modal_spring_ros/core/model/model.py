@@ -54,6 +54,18 @@ class MassSpringModel:
 
     # -- stiffness and mass at rest ------------------------------------------------------------
     @functools.cached_property
+    def omega_bound(self) -> float:
+        """
+        Return a bound on the highest circular frequency at rest, rad/s (Gershgorin's).
+
+        The largest absolute row sum of ``M^-1/2 K M^-1/2``, square-rooted: never below the
+        highest mode's, found without an eigensolve.
+        """
+        scale = sp.diags(1.0 / np.sqrt(self.mass_dof))
+        a = abs(scale @ self.stiffness_free @ scale)
+        return float(np.sqrt(np.asarray(a.sum(axis=1)).max(initial=0.0)))
+
+    @functools.cached_property
     def stiffness_free(self) -> sp.csr_matrix:
         """
         Sparse stiffness at the reference shape, reduced to the free DOF (symmetric).
