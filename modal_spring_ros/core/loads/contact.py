@@ -214,14 +214,20 @@ def penalty(model, dt: float, stability_limit: float) -> tuple[np.ndarray, np.nd
     stepped (``stability_limit``: ``2 / omega``; inf for an implicit step, which takes
     :data:`IMPLICIT_RATE`); half-critical damping. Contact and a gripper's hold use it.
     """
-    # an implicit step: what its fixed-tangent iteration converges with
+    # an implicit step takes what its fixed-tangent iteration converges with
     rate = (_rate(2.0 * dt / stability_limit) if math.isfinite(stability_limit)
             else IMPLICIT_RATE)
-    mass = model.mass_dof.reshape(-1, model.dimension)[:, 0]
+    mass = particle_masses(model)
     # at a step finer than the full run's own, the full run's contact (:func:`finest_step`)
     floor = finest_step(model)
-    stiffness = mass * min((rate / dt) ** 2, (_rate(floor * model.omega_bound) / floor) ** 2)
+    finest = (_rate(floor * model.omega_bound) / floor) ** 2 if math.isfinite(floor) else math.inf
+    stiffness = mass * min((rate / dt) ** 2, finest)
     return stiffness, 2.0 * DAMPING_RATIO * np.sqrt(stiffness * mass)
+
+
+def particle_masses(model) -> np.ndarray:
+    """Return each free particle's mass, kg."""
+    return model.mass_dof.reshape(-1, model.dimension)[:, 0]
 
 
 def finest_step(model) -> float:
@@ -261,7 +267,7 @@ def contact_load(model, contact: Contact, dt: float, stability_limit: float,
     that takes over from another).
     """
     stiffness, damping = penalty(model, dt, stability_limit)
-    mass = model.mass_dof.reshape(-1, model.dimension)[:, 0]
+    mass = particle_masses(model)
     shape = (len(contact.colliders), stiffness.size)
     poses = ()
     if state is not None and state.depths.shape == shape:
