@@ -6,7 +6,7 @@ stays there; on an incline it sticks below the friction angle and slides above i
 ``g (sin a - mu cos a)``; static friction holds what sliding friction would let go; a fast
 particle never ends on the far side of a thin box; a sheet pressed onto a table steps the same
 in the full run and in a modal run of every mode; a string that starts deep inside a sphere leaves
-it at a bounded speed and rests on it.
+it at a bounded speed and rests on it; a dropped particle lands without bouncing back up.
 """
 from __future__ import annotations
 
@@ -17,7 +17,8 @@ from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.loads.contact import ContactLoad, IMPLICIT_RATE, V_OUT
+from modal_spring_ros.core.loads.contact import (CONTACT_RATE, ContactLoad, HOLD_RATE,
+                                                 IMPLICIT_RATE, V_OUT)
 from modal_spring_ros.core.loads.grasp import GraspError
 from modal_spring_ros.core.model.colliders import Box, Capsule, Cylinder, Plane, Pose, Sphere
 from modal_spring_ros.core.model.scene import SceneError
@@ -51,9 +52,11 @@ def full_run(scene: dict, integrator: str = 'explicit'):
                                                                      integrator=integrator))
 
 
-#: the contact's omega dt under each integrator: what the explicit step leaves (here all of
-#: it: c = 1), and what an implicit step's fixed-tangent iteration converges with
-RATES = {'explicit': 1.0, 'average': IMPLICIT_RATE}
+#: the contact's omega dt under each integrator: what the explicit step leaves (here its most:
+#: c = 0.5), and what an implicit step's fixed-tangent iteration converges with
+RATES = {'explicit': CONTACT_RATE[1], 'average': IMPLICIT_RATE}
+#: how deep a particle rests under its weight in the explicit full run (the stated bound)
+SINK = G * DT ** 2 / RATES['explicit'] ** 2
 INTEGRATORS = pytest.mark.parametrize('integrator', list(RATES))
 
 
@@ -67,6 +70,29 @@ def test_a_particle_rests_on_a_plane_sunk_by_its_weight_over_the_contact_stiffne
     sim.step(2000)
     assert abs(sim.positions()[2, 2] - z) < 1e-12              # no drift
     assert sim.loads[ContactLoad.name].touching == 1
+
+
+@INTEGRATORS
+@pytest.mark.parametrize('height', [0.01, 0.05])
+def test_a_particle_dropped_onto_a_plane_lands_and_does_not_bounce_back_up(integrator, height):
+    """
+    Dropped from 1 cm and 5 cm, it rebounds below a tenth of its drop and comes to rest.
+
+    (Under the implicit step, whose contact is damped at half of critical, below 0.15.)
+
+    With the explicit step's contact at ``c = 1`` it rebounded to 91 % of 5 cm: a touch resolved
+    within a step throws the particle back as fast as it came, whatever the damping.
+    """
+    sim = full_run(particle(incline(0.0, 0.0), start=(0.0, 0.0, height)), integrator)
+    heights = []
+    for _ in range(1500):                                  # 1.5 s
+        sim.step(1)
+        heights.append(sim.positions()[2, 2])
+    heights = np.array(heights)
+    landed = int(np.argmax(heights <= 0.0))
+    assert landed > 0
+    assert heights[landed:].max() < (0.1 if integrator == 'explicit' else 0.15) * height
+    assert abs(heights[-1]) < 2 * G * DT ** 2 / RATES[integrator] ** 2     # resting on it
 
 
 @INTEGRATORS
@@ -96,7 +122,7 @@ def test_above_the_friction_angle_it_slides_with_g_sin_minus_mu_cos(degrees, int
 def resting(degrees: float) -> list[float]:
     """Return where a particle rests on the incline: sunk by its weight's normal share."""
     a = math.radians(degrees)
-    depth = G * math.cos(a) * DT ** 2
+    depth = SINK * math.cos(a)
     return [depth * math.sin(a), 0.0, -depth * math.cos(a)]
 
 
@@ -198,7 +224,7 @@ def test_a_string_starting_inside_a_sphere_leaves_it_at_a_bounded_speed_and_rest
     The penalty would resolve 2.7 cm in about a step (160 m/s at 0.17 ms): the run diverged at
     an eighth of its stability limit. Pushed out at 3 m/s, the string leaves the sphere, falls
     back, and rests on it: no particle inside by more than 0.5 mm from 0.4 s on, and none more
-    than 2 mm off its surface from 1.2 s on (its far clamp swings it).
+    than 3 mm off its surface from 1.2 s on (its far clamp swings it).
     """
     sim = string_over_sphere(config)
     center = np.array([0.6, 0.0, 0.8])
@@ -215,7 +241,7 @@ def test_a_string_starting_inside_a_sphere_leaves_it_at_a_bounded_speed_and_rest
     assert np.isfinite(sim.positions()).all()
     assert fastest < 2.0 * V_OUT
     assert deepest < 5e-4
-    assert farthest < 2e-3
+    assert farthest < 3e-3
 
 
 @pytest.mark.slow
@@ -314,7 +340,7 @@ def test_a_collider_on_a_frame_is_where_its_pose_puts_it_and_absent_before():
     sim.step(3000)
     # resting on it: its weight over the contact stiffness below its surface, no drift
     z = sim.positions()[2, 2]
-    assert z == pytest.approx(-0.2 - G * DT ** 2, rel=1e-6)
+    assert z == pytest.approx(-0.2 - SINK, rel=1e-6)
     sim.step(500)
     assert abs(sim.positions()[2, 2] - z) < 1e-12
     sim.reset()                                     # the table stays where it was put
@@ -364,7 +390,7 @@ def test_a_gripper_holds_a_particle_within_the_contact_bound_and_a_reset_opens_i
     for k in range(1, 1001):
         sim.move_frame('hand', Pose.of([0.0, 0.0, 0.05 * min(k / 500, 1.0)], [0, 0, 0, 1]))
         sim.step(1)
-    assert sim.positions()[2, 2] == pytest.approx(0.05 - G * DT ** 2, rel=1e-4)
+    assert sim.positions()[2, 2] == pytest.approx(0.05 - G * DT ** 2 / HOLD_RATE ** 2, rel=1e-4)
     assert sim.status().contacts == '0 particles touching, deepest 0 m; hand holds 1 particles'
     sim.reset()                                     # opens: the particle falls to the table
     assert sim.loads.get('grasp') is None and 'hand' in sim.frame_poses
@@ -387,13 +413,13 @@ def test_colliders_added_at_run_time_are_touched_moved_and_removed():
     tray = Box(np.zeros(3), np.array([1.0, 1.0, 0.05]))
     assert sim.add_collider('tray/0', tray, Pose.of([0.0, 0.0, -0.05], [0, 0, 0, 1])) == 1
     sim.step(1000)
-    assert sim.positions()[2, 2] == pytest.approx(-G * DT ** 2, rel=1e-5)
+    assert sim.positions()[2, 2] == pytest.approx(-SINK, rel=1e-5)
     for k in range(1, 501):                         # lifted 5 cm over 0.5 s, same shape: moved
         sim.add_collider('tray/0', tray, Pose.of([0.0, 0.0, -0.05 + 0.05 * k / 500],
                                                  [0, 0, 0, 1]))
         sim.step(1)
     sim.step(1000)
-    assert sim.positions()[2, 2] == pytest.approx(0.05 - G * DT ** 2, rel=1e-4)
+    assert sim.positions()[2, 2] == pytest.approx(0.05 - SINK, rel=1e-4)
     assert sim.status().contacts.startswith('1 added: 1 particles touching')
     assert sim.add_collider('ball/1', Sphere(np.zeros(3), 0.1),
                             Pose.of([5.0, 0.0, 0.0], [0, 0, 0, 1])) == 2

@@ -14,11 +14,16 @@ moving finger carries what it holds.
 The contact's stiffness is the run's (below its full run's step, the full run's:
 :func:`finest_step`): each particle's ``k = m (c / dt)^2``, with ``c`` what the
 explicit step leaves beside the fastest coordinate the run steps (``sqrt(1.2^2 - (omega dt)^2)``,
-at most 1 and at least 0.2): stiff at the run's step without making it unstable; under an
+at most 0.5 and at least 0.2): stiff at the run's step without making it unstable; under an
 implicit step, :data:`IMPLICIT_RATE` (its iteration's fixed tangent leaves contact out). A particle
-pressed with a force ``F`` sinks ``F / k = F dt^2 / (m c^2)``: with ``c = 1`` and gravity alone,
-``g dt^2`` (2.5 micrometres at 0.5 ms), the stated bound. The damping is half of critical, on
-the depth's change since the last step (no velocity needed; a run in any coordinates can step it).
+pressed with a force ``F`` sinks ``F / k = F dt^2 / (m c^2)``: with ``c = 0.5`` and gravity alone,
+``4 g dt^2`` (10 micrometres at 0.5 ms), the stated bound. The damping is critical (half of it
+under an implicit step), on the depth's change since the last step (no velocity needed; a run
+in any coordinates can step it).
+Why not stiffer: at ``c`` near 1 the explicit step resolves a touch within a step and throws
+the particle back at its depth over the step, whatever the damping (a particle dropped 5 cm
+onto a plane rebounded to 4.6 cm at ``c = 1``, 3.5 cm at 0.7); at 0.5, critically damped, the
+touch lasts several steps and the damping takes its energy (a rebound to 2 mm).
 
 A penalty that resolves a depth in about a step would throw out a particle found deep inside (a
 scene that starts overlapping a collider, a collider moved or added into the object) at the
@@ -27,7 +32,8 @@ penalty pushes out at ``V_OUT`` in a step; millimetres, against micrometres at r
 that much, to the spring and to the damping alike, and a particle moving out faster than
 ``V_OUT`` is held back to it: a deep particle leaves at ``V_OUT``, as physics engines bound their
 depenetration speed. A particle hitting faster than ``V_OUT`` is stopped over a few steps
-instead of one (a particle at 5 m/s under a 1 ms step sinks about 5 mm).
+instead of one (a particle at 5 m/s under a 1 ms step stays within the 10 mm half-thickness of
+a box: tested).
 
 What a step changes (the stick points, the depths) the load keeps: after each step the run
 replaces it by :meth:`ContactLoad.stepped`, as the contract allows
@@ -45,13 +51,16 @@ import numpy as np
 
 #: what the explicit step may take in all (``omega dt`` of the fastest coordinate and contact)
 STEP_SHARE = 1.2
-#: the contact's own ``omega dt``: at most, and at least
-CONTACT_RATE = (0.2, 1.0)
+#: the contact's own ``omega dt``: at least, and at most
+CONTACT_RATE = (0.2, 0.5)
+#: a gripper's hold's ``omega dt`` at most (it holds, it never lands: stiffer does not bounce)
+HOLD_RATE = 1.0
 #: the contact's ``omega dt`` under an implicit step (whose fixed tangent leaves contact out):
 #: each iteration then shrinks a contact force's change to about ``(rate^2 + rate) / 4`` of it
 IMPLICIT_RATE = 0.4
-#: the normal damping, a share of critical
-DAMPING_RATIO = 0.5
+#: the normal damping, a share of critical: under the explicit step, and under an implicit step
+#: (whose fixed-tangent iteration stops converging on a sliding particle with more)
+DAMPING_RATIO, IMPLICIT_DAMPING_RATIO = 1.0, 0.5
 #: the fastest a particle is pushed out of a collider, m/s
 V_OUT = 3.0
 
@@ -206,23 +215,29 @@ class ContactLoad(Load):
         return f'{self.touching} particles touching, deepest {self.deepest:.3g} m'
 
 
-def penalty(model, dt: float, stability_limit: float) -> tuple[np.ndarray, np.ndarray]:
+def penalty(model, dt: float, stability_limit: float,
+            hold: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """
     Return the stiffness and damping of a penalty on each free particle for a run's step.
 
     ``k = m (c / dt)^2``, ``c`` what the explicit step leaves beside the fastest coordinate
     stepped (``stability_limit``: ``2 / omega``; inf for an implicit step, which takes
-    :data:`IMPLICIT_RATE`); half-critical damping. Contact and a gripper's hold use it.
+    :data:`IMPLICIT_RATE`), at most ``CONTACT_RATE``'s; critical damping (half under an implicit
+    step). A gripper's ``hold`` is a spring that never lets go, not a touch that could bounce:
+    up to :data:`HOLD_RATE`, half-critically damped, it holds four times as stiffly.
     """
     # an implicit step takes what its fixed-tangent iteration converges with
-    rate = (_rate(2.0 * dt / stability_limit) if math.isfinite(stability_limit)
-            else IMPLICIT_RATE)
+    explicit = math.isfinite(stability_limit)
+    most = HOLD_RATE if hold else CONTACT_RATE[1]
+    rate = _rate(2.0 * dt / stability_limit, most) if explicit else IMPLICIT_RATE
+    ratio = (IMPLICIT_DAMPING_RATIO if hold or not explicit else DAMPING_RATIO)
     mass = particle_masses(model)
     # at a step finer than the full run's own, the full run's contact (:func:`finest_step`)
     floor = finest_step(model)
-    finest = (_rate(floor * model.omega_bound) / floor) ** 2 if math.isfinite(floor) else math.inf
+    finest = ((_rate(floor * model.omega_bound, most) / floor) ** 2 if math.isfinite(floor)
+              else math.inf)
     stiffness = mass * min((rate / dt) ** 2, finest)
-    return stiffness, 2.0 * DAMPING_RATIO * np.sqrt(stiffness * mass)
+    return stiffness, 2.0 * ratio * np.sqrt(stiffness * mass)
 
 
 def particle_masses(model) -> np.ndarray:
@@ -244,10 +259,10 @@ def finest_step(model) -> float:
     return model.scene.default_dt or (1.0 / omega if omega > 0.0 else math.inf)
 
 
-def _rate(omega_dt: float) -> float:
-    """Return the contact's ``omega dt`` beside a coordinate at ``omega_dt`` (``c``, above)."""
-    low, high = CONTACT_RATE
-    return min(high, max(low, math.sqrt(max(STEP_SHARE ** 2 - omega_dt ** 2, 0.0))))
+def _rate(omega_dt: float, most: float) -> float:
+    """Return the penalty's ``omega dt`` beside a coordinate at ``omega_dt`` (``c``), at most."""
+    return min(most, max(CONTACT_RATE[0],
+                         math.sqrt(max(STEP_SHARE ** 2 - omega_dt ** 2, 0.0))))
 
 
 def free_points(model, world_positions, slots: np.ndarray) -> np.ndarray:

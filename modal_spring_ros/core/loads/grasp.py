@@ -5,7 +5,8 @@ A gripper is a frame (a robot's tool, from TF: :meth:`~modal_spring_ros.core.loa
 LoadHolder.move_frame` tells the run where it is). Closing it takes the free particles within
 ``reach`` of its origin and keeps each where it was in the gripper's frame: a stiff spring
 (the run's penalty, :func:`~modal_spring_ros.core.loads.contact.penalty`: ``k = m (c / dt)^2``
-with half-critical damping on its stretch's change) pulls it to that point as the frame moves.
+up to ``c = 1``, half-critical damping on its stretch's change) pulls it to that point as the
+frame moves.
 Opening it lets them go. Several grippers hold at once (two fold a towel), each its own
 :class:`Hold` in the run's one :class:`Grasp`; a particle two grippers hold is pulled by both.
 

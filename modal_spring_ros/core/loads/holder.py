@@ -86,7 +86,7 @@ class LoadHolder:
         if pose is None:
             raise GraspError(f'{frame} has no pose yet (TF or frame_pose has not said where '
                              'it is)')
-        stiffness, damping = penalty(self.model, self.dt, self.penalty_limit())
+        stiffness, damping = penalty(self.model, self.dt, self.penalty_limit(), hold=True)
         grasp = closed_on(self.loads.get(Grasp.name), self.model, self.positions(), frame,
                           pose, reach, stiffness, damping, self.dt)
         self.set_load(Grasp.name, grasp)
