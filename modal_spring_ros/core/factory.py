@@ -264,8 +264,8 @@ def _more_modes(basis: ModalBasis, band: FilterBand, hz: float, limit: int,
         return None
     if not basis.complete and basis.count < target:
         count = min(2 * target, limit, basis.n_dof - 2)
-        solving = max(count, min(2 * basis.count, basis.n_dof - 2))
-        if budget is not None and not budget.affords(modes_work(basis.model, solving)):
+        if budget is not None and not budget.affords(modes_work(basis.model,
+                                                                basis.to_solve(count))):
             return None
         basis.ensure_count(count)
     freqs = kept()

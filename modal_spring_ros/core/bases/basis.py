@@ -108,16 +108,23 @@ class ModalBasis:
 
     def ensure_count(self, count: int) -> bool:
         """Make at least ``count`` lowest modes available; True when the basis changed."""
-        count = min(int(count), self.n_dof)
-        if count <= self.count or self.complete:
+        count, solving = min(int(count), self.n_dof), self.to_solve(count)
+        if not solving:
             return False
         if count >= self.n_dof - 1:
             # ARPACK cannot return every mode; a scene this size asking for all is a dense job.
             raise ValueError(f'{count} modes requested of a {self.n_dof}-DOF scene: computing '
                              '(nearly) all modes of a large scene is not supported; narrow the '
                              'band or raise modal.max_modes only as far as needed')
-        self._compute_sparse(max(count, min(2 * self.count, self.n_dof - 2)))
+        self._compute_sparse(solving)
         return True
+
+    def to_solve(self, count: int) -> int:
+        """Return how many modes :meth:`ensure_count` solves for to have ``count`` (0: none)."""
+        count = min(int(count), self.n_dof)
+        if count <= self.count or self.complete:
+            return 0
+        return max(count, min(2 * self.count, self.n_dof - 2))
 
     def ensure_frequency(self, max_hz: float, max_modes: int) -> bool:
         """Make every mode up to ``max_hz`` available (at most ``max_modes``)."""
