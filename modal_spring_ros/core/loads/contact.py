@@ -53,8 +53,9 @@ import numpy as np
 STEP_SHARE = 1.2
 #: the contact's own ``omega dt``: at least, and at most
 CONTACT_RATE = (0.2, 0.5)
-#: a gripper's hold's ``omega dt`` at most (it holds, it never lands: stiffer does not bounce)
-HOLD_RATE = 1.0
+#: a gripper's hold's ``omega dt`` at most (it holds, it never lands: stiffer does not bounce),
+#: and its damping, a share of critical
+HOLD_RATE, HOLD_DAMPING_RATIO = 1.0, 0.5
 #: the contact's ``omega dt`` under an implicit step (whose fixed tangent leaves contact out):
 #: each iteration then shrinks a contact force's change to about ``(rate^2 + rate) / 4`` of it
 IMPLICIT_RATE = 0.4
@@ -230,7 +231,8 @@ def penalty(model, dt: float, stability_limit: float,
     explicit = math.isfinite(stability_limit)
     most = HOLD_RATE if hold else CONTACT_RATE[1]
     rate = _rate(2.0 * dt / stability_limit, most) if explicit else IMPLICIT_RATE
-    ratio = (IMPLICIT_DAMPING_RATIO if hold or not explicit else DAMPING_RATIO)
+    ratio = (HOLD_DAMPING_RATIO if hold else DAMPING_RATIO if explicit
+             else IMPLICIT_DAMPING_RATIO)
     mass = particle_masses(model)
     # at a step finer than the full run's own, the full run's contact (:func:`finest_step`)
     floor = finest_step(model)
