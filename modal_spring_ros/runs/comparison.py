@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+from modal_spring_ros.core.laws import scene_law
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.scenes.files.scene_archive import recorded_scene
 import numpy as np
@@ -89,7 +90,7 @@ def energy(run: RunData) -> np.ndarray | None:
     x = run.positions
     i, j = s.springs[:, 0], s.springs[:, 1]
     length = np.linalg.norm(x[:, j] - x[:, i], axis=2)
-    spring = 0.5 * ((length - s.rest_length) ** 2 * s.stiffness).sum(axis=1)
+    spring = scene_law(s).energy(length).sum(axis=1)
     if s.bending is not None:   # 1/2 sum_h |sum_i w_hi x_hi|^2, every frame at once
         bent = np.einsum('hi,fhid->fhd', s.bending.weights, x[:, s.bending.hinges])
         spring = spring + 0.5 * np.einsum('fhd,fhd->f', bent, bent)

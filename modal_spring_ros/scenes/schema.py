@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from typing import Any, Callable, Mapping
 
+from modal_spring_ros.core.laws import DEFAULT_LAW, SPRING_LAWS
 from modal_spring_ros.core.memory_estimate import gib
 from modal_spring_ros.core.model.loaded_shape import needs_loaded_shape, settle
 from modal_spring_ros.core.model.scene import Damping, Scene, SceneError
@@ -58,7 +59,7 @@ class _SceneParser(FieldReader):
         data = self.mapping(data, 'scene')
         known = {'name', 'description', 'dimension', 'axis', 'plane', 'particles', 'springs',
                  'fixed', 'gravity', 'damping', 'anchor_motion', 'simulation', 'reference',
-                 'mesh', 'material', 'triangles', 'bending', 'contact'}
+                 'mesh', 'material', 'triangles', 'bending', 'contact', 'spring_law'}
         unknown = sorted(set(data) - known, key=str)
         if unknown:
             raise self.fail(unknown[0], f"unknown key (known keys: {', '.join(sorted(known))})")
@@ -119,10 +120,7 @@ class _SceneParser(FieldReader):
             a.setflags(write=False)
             return a
 
-        reference = data.get('reference', 'auto')
-        if not isinstance(reference, str) or reference not in REFERENCES:
-            raise self.fail('reference', f"must be one of {', '.join(REFERENCES)}, got "
-                            f'{short(reference)}')
+        reference = self.choice(data.get('reference', 'auto'), 'reference', REFERENCES)
         scene = Scene(
             name=name,
             dimension=int(dimension),
@@ -142,6 +140,8 @@ class _SceneParser(FieldReader):
             triangles=None if triangles is None else frozen(triangles),
             bending=bending,
             contact=contact_field(self, data.get('contact'), positions),
+            spring_law=self.choice(data.get('spring_law', DEFAULT_LAW), 'spring_law',
+                                   SPRING_LAWS),
         )
         if reference == 'loaded' or (reference == 'auto' and needs_loaded_shape(scene)):
             try:
@@ -198,8 +198,7 @@ class _SceneParser(FieldReader):
 
     def plane(self, value: Any) -> tuple[int, int]:
         """Return the world axes of the plane a 2D scene lives in: ``xz`` is x across, z up."""
-        if not isinstance(value, str) or value not in PLANES:
-            raise self.fail('plane', f"must be one of {', '.join(PLANES)}, got {short(value)}")
+        value = self.choice(value, 'plane', PLANES)
         return AXES[value[0]], AXES[value[1]]
 
     def positions(self, particles: Mapping[str, Any], axes: tuple[int, ...]

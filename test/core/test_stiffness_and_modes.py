@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.laws import LinearSpring
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.stiffness import (assemble_stiffness, element_stiffness,
                                                    local_stiffness_2d, rotation_matrix_2d)
@@ -42,7 +43,7 @@ def test_element_matrix_is_T_transpose_Kbar_T(theta):
     np.testing.assert_allclose(got, expected, atol=1e-12)
     # and the sparse assembly of that one spring gives the same matrix
     pos = np.array([[0.0, 0.0], [math.cos(theta), math.sin(theta)]]) * 0.7
-    assembled = assemble_stiffness(pos, np.array([[0, 1]]), np.array([k]), 2).toarray()
+    assembled = assemble_stiffness(pos, np.array([[0, 1]]), LinearSpring([k], [0.7]), 2).toarray()
     np.testing.assert_allclose(assembled, expected, atol=1e-12)
 
 

@@ -15,6 +15,7 @@ import subprocess
 import sys
 
 from helpers import REPO
+import pytest
 
 PACKAGE = 'modal_spring_ros'
 #: the layers, lowest first: a module may import from its own layer and the ones before it
@@ -200,21 +201,41 @@ def test_the_core_neither_reads_the_environment_nor_writes_files():
         '1: .write_bytes()', '2: open']
 
 
-def test_every_force_model_is_registered():
-    """Every concrete force model of ``core/forces`` is in ``FORCES`` under its own name."""
+def _concrete(room: str, contract: type) -> dict[str, type]:
+    """Return the concrete subclasses of ``contract`` defined in ``core/<room>``, by name."""
     import inspect
-    from modal_spring_ros.core.forces import FORCES, ForceModel
-    models = {}
+    found = {}
     for module in _modules():
-        if module.startswith(f'{PACKAGE}.core.forces'):
+        if module.startswith(f'{PACKAGE}.core.{room}'):
             for _, cls in inspect.getmembers(importlib.import_module(module), inspect.isclass):
-                if issubclass(cls, ForceModel) and not inspect.isabstract(cls) \
+                if issubclass(cls, contract) and not inspect.isabstract(cls) \
                         and cls.__module__ == module:
-                    models[cls.__name__] = cls
-    assert len(models) >= 3
-    for cls in models.values():
-        assert FORCES.get(cls.name) is cls, f'{cls.__name__} is not registered as {cls.name!r}'
-    assert sorted(FORCES) == sorted(cls.name for cls in models.values())
+                    found[cls.__name__] = cls
+    return found
+
+
+@pytest.mark.parametrize('room', ['forces', 'laws'])
+def test_every_force_model_and_spring_law_is_registered(room):
+    """Every concrete force model (spring law) of its room is in its registry by its own name."""
+    from modal_spring_ros.core.forces import FORCES, ForceModel
+    from modal_spring_ros.core.laws import SPRING_LAWS, SpringLaw
+    registry, contract, least = {'forces': (FORCES, ForceModel, 3),
+                                 'laws': (SPRING_LAWS, SpringLaw, 1)}[room]
+    classes = _concrete(room, contract)
+    assert len(classes) >= least
+    for cls in classes.values():
+        assert registry.get(cls.name) is cls, f'{cls.__name__} is not registered as {cls.name!r}'
+    assert sorted(registry) == sorted(cls.name for cls in classes.values())
+
+
+def test_the_spring_laws_import_nothing_of_the_engine():
+    """A law is the springs' formula alone: every other part asks it, it asks none."""
+    graph = _graph()
+    for module, imported in graph.items():
+        if module.startswith(f'{PACKAGE}.core.laws'):
+            outside = {m for m in imported if not m.startswith(f'{PACKAGE}.core.laws')}
+            assert not outside, f'{module} imports {outside}'
+    assert any(f'{PACKAGE}.core.laws' in m for m in graph[f'{PACKAGE}.core.forces.springs'])
 
 
 def test_modules_stay_readable():

@@ -19,6 +19,7 @@ is false and :data:`MISSING` says how to install it.
 """
 from __future__ import annotations
 
+from modal_spring_ros.core.laws import DEFAULT_LAW
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Scene
 import numpy as np
@@ -79,6 +80,8 @@ def refusal(scene: Scene) -> str:
         return 'the clamp turns (the peer moves clamps that translate)'
     if scene.damping.ratio:
         return 'modal damping ratios have no counterpart in physical coordinates'
+    if scene.spring_law != DEFAULT_LAW:
+        return f"its springs' law is '{scene.spring_law}' (Newton's springs are linear)"
     return ''
 
 

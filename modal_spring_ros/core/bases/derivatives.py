@@ -90,54 +90,53 @@ def tangent_derivative(model: MassSpringModel, a: np.ndarray, b: np.ndarray) -> 
     ``(dK/du along b) a`` at the reference shape (at rest, or the loaded shape).
 
     For free-DOF displacement fields ``a`` and ``b`` given as columns (n_free_dof, P): the change
-    of the springs' tangent stiffness applied to ``a`` per unit displacement along ``b``.
-
-    One spring's tangent block is ``k [(1 - l/L) I + (l/L) n n^T]``; along the spring's
-    difference ``beta`` of ``b`` (at rest ``L = l``, ``n = X / l``) its derivative is
-    ``k [(n.beta / l)(I - n n^T) + n' n^T + n n'^T]`` with ``n' = (beta - n (n.beta)) / l``.
+    of the springs' tangent stiffness applied to ``a`` per unit displacement along ``b``, from
+    the springs' law (:meth:`~modal_spring_ros.core.laws.SpringLaw.derivative_terms`).
     """
-    d, lengths, stiffness, unit, diff = _spring_geometry(model)
+    d, lengths, terms, unit, diff = _spring_geometry(model)
     n_springs = lengths.size
     alpha = np.asarray(diff @ a).reshape(d, n_springs, -1)   # (d, E, P) spring differences
     beta = np.asarray(diff @ b).reshape(d, n_springs, -1)
-    per_spring = _per_spring(alpha, beta, unit, lengths, stiffness)
+    per_spring = _per_spring(alpha, beta, unit, lengths, terms)
     return np.asarray(diff.T @ per_spring.reshape(d * n_springs, -1))
 
 
 def _per_spring(alpha: np.ndarray, beta: np.ndarray, unit: np.ndarray, lengths: np.ndarray,
-                stiffness: np.ndarray) -> np.ndarray:
+                terms: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """
     (d, E, P) per-spring vectors of the tangent derivative (see :func:`tangent_derivative`).
 
-    From the springs' differences ``alpha`` of ``a`` and ``beta`` of ``b``.
+    From the springs' differences ``alpha`` of ``a`` and ``beta`` of ``b`` and the law's
+    ``(f'', b)`` at the reference lengths: ``f'' (n.beta)(n.alpha) n + (b / L)(n.beta)(alpha -
+    n (n.alpha)) + b (n' (n.alpha) + n (n'.alpha))``, ``n' = (beta - n (n.beta)) / L``.
     """
+    curvature, along = terms
     n = unit[:, :, None]
     n_beta = (n * beta).sum(axis=0)                 # (E, P)
     n_alpha = (n * alpha).sum(axis=0)
     inv_l = (1.0 / lengths)[:, None]
     n_prime = (beta - n * n_beta) * inv_l
-    return stiffness[:, None] * (
+    out = along[:, None] * (
         n_beta * inv_l * (alpha - n * n_alpha)
         + n_prime * n_alpha
         + n * (n_prime * alpha).sum(axis=0))
+    if np.any(curvature):                           # zero for the linear spring
+        out += n * (curvature[:, None] * n_beta * n_alpha)
+    return out
 
 
 def _spring_geometry(model: MassSpringModel):
     """
-    Dimension, lengths ``L``, ``k l / L``, unit vectors (d, E) at the reference shape, and ``D``.
+    Dimension, lengths ``L``, the law's ``(f'', b)``, unit vectors (d, E), and ``D``.
 
-    With ``k l / L`` in place of ``k`` and the lengths at the reference, the derivative of the
-    rest tangent (:func:`_per_spring`, written for ``L = l``) is that of a stretched spring's,
-    ``k [(1 - l/L) I + (l/L) n n^T]``, about a loaded shape: its ``(l/L)`` part changes as the
-    rest one does with ``k l / L``, and its ``(1 - l/L) I`` part changes by ``k l (n.beta) / L^2``,
-    the term :func:`_per_spring` already adds with ``1 / L``.
+    All at the reference shape (at rest ``L = l``; about a loaded shape, the stretched lengths).
     """
-    s = model.scene
     rest = model.rest
-    delta = (rest[s.springs[:, 1]] - rest[s.springs[:, 0]]).T
+    springs = model.scene.springs
+    delta = (rest[springs[:, 1]] - rest[springs[:, 0]]).T
     lengths = np.sqrt(np.einsum('de,de->e', delta, delta))
-    stiffness = np.asarray(s.stiffness, dtype=float) * np.asarray(s.rest_length) / lengths
-    return model.dimension, lengths, stiffness, delta / lengths, model.spring_difference
+    return (model.dimension, lengths, model.law.derivative_terms(lengths), delta / lengths,
+            model.spring_difference)
 
 
 def loads_in_band(model: MassSpringModel, low_hz: float = 0.0,
@@ -234,7 +233,7 @@ def _compute(solve, model: MassSpringModel, below: np.ndarray, phi: np.ndarray,
     m = omega.size
     pairs = np.array([(i, j) for i in range(m) for j in range(i, m)],
                      dtype=np.int64).reshape(-1, 2)
-    d, lengths, stiffness, unit, diff = _spring_geometry(model)
+    d, lengths, terms, unit, diff = _spring_geometry(model)
     g = np.asarray(diff @ phi).reshape(d, lengths.size, -1)
     gain = drive_gains(model, omega)
     weights = (omega[0] ** 2 * gain[pairs[:, 0]] * gain[pairs[:, 1]]
@@ -245,7 +244,7 @@ def _compute(solve, model: MassSpringModel, below: np.ndarray, phi: np.ndarray,
     for first in range(0, len(pairs), step):
         chunk = pairs[first:first + step]
         per_spring = _per_spring(g[:, :, chunk[:, 0]], g[:, :, chunk[:, 1]], unit, lengths,
-                                 stiffness)
+                                 terms)
         rhs = -(diff.T @ per_spring.reshape(d * lengths.size, -1))
         del per_spring
         solved = solve(rhs) * weights[first:first + step]

@@ -56,10 +56,9 @@ class ExactForces(ForceModel):
         s = model.scene
         d = model.dimension
         self.dimension = d
-        # Spring force magnitudes k (L - l) / L are applied by -G^T (eq. 20 pulls i towards j).
-        self._k = np.asarray(s.stiffness, dtype=float)
-        self._l = np.asarray(s.rest_length, dtype=float)
-        self._inv_l = 1.0 / self._l
+        # The law's pulls f(L) / L are applied by -G^T (eq. 20 pulls i towards j).
+        self.law = model.law
+        self._l = self.law.rest_length
         rest = model.rest
         self._delta_rest = (rest[s.springs[:, 1]] - rest[s.springs[:, 0]]).T.ravel()
         self._anchors_move = not s.anchor_motion.is_static
@@ -90,7 +89,6 @@ class ExactForces(ForceModel):
         #: the inertial loads of a turning clamp's frame (modal coordinates in that frame)
         self.frame = FrameLoads(model, basis) if model.rotates and basis is not None else None
         self._gravity = self._load_matrix[:, 0].copy()
-        self._kl = self._k * self._l
         self.last_max_strain = 0.0
         # the bending of a flat surface: linear, -B (X + u), exact on any coordinates
         self._bend = self._bend_const = None
@@ -147,7 +145,7 @@ class ExactForces(ForceModel):
     def spring_force_vectors(self, q: np.ndarray) -> np.ndarray:
         """(d, E) force vectors of the springs at ``q`` (sets ``last_max_strain``)."""
         delta = self.spring_deltas(q)
-        self.last_max_strain = pull_springs(delta, self._k, self._kl, self._inv_l)
+        self.last_max_strain = pull_springs(delta, self.law)
         return delta
 
     def loads(self, t: float) -> np.ndarray:
@@ -171,15 +169,14 @@ class ExactForces(ForceModel):
         """
         Tangent stiffness ``-dQ_elastic/dq`` at ``q`` (dense, m x m; at rest ``Phi^T K Phi``).
 
-        Per spring the tangent of ``k (1 - l/L) delta`` is ``a I + b n n^T`` with
-        ``a = k (1 - l/L)``, ``b = k l / L``, ``n = delta / L``; summed over the springs as
+        Per spring the tangent of its pull is the law's ``a I + b n n^T`` (linear spring:
+        ``a = k (1 - l/L)``, ``b = k l / L``), ``n = delta / L``; summed over the springs as
         ``sum_c G_c^T diag(a) G_c + H^T diag(b) H`` with ``H = sum_c n_c G_c``, a chunk of
         springs at a time so that ``G`` is never held whole on large scenes.
         """
         delta = self.spring_deltas(q)
         length = spring_lengths(delta)
-        a = self._k * (1.0 - self._l / length)
-        b = self._k * self._l / length
+        a, b = self.law.tangent(length)
         unit = delta / length
         n_springs, d = self._l.size, self.dimension
         m = self._g.shape[1] if self._phi is None else self._phi.shape[1]
@@ -205,7 +202,7 @@ class ExactForces(ForceModel):
         matrices ``G_e G_e^T``).
         """
         largest = np.linalg.eigvalsh(self.spring_grams(chunk))[:, -1]
-        return float((np.sqrt(np.maximum(largest, 0.0)) * self._inv_l).max())
+        return float((np.sqrt(np.maximum(largest, 0.0)) * self.law.inv_l).max())
 
     def _g_rows(self, start: int, stop: int) -> np.ndarray:
         """Rows of ``G`` for springs ``start:stop``, as (d, stop - start, m)."""
@@ -238,16 +235,6 @@ class ExactForces(ForceModel):
     @property
     def n_springs(self) -> int:
         return int(self._l.size)
-
-    @property
-    def stiffness(self) -> np.ndarray:
-        """(E,) spring constants."""
-        return self._k
-
-    @property
-    def stiffness_length(self) -> np.ndarray:
-        """(E,) ``k l`` of each spring."""
-        return self._kl
 
     @property
     def rest_deltas(self) -> np.ndarray:

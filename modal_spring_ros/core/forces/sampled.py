@@ -68,9 +68,7 @@ class SampledForces(ForceModel):
         self._gt = np.ascontiguousarray(-self._g.T)
         rest = exact.rest_deltas.reshape(d, -1)[:, springs]
         self._rest = rest.ravel()
-        self._k = exact.stiffness[springs]
-        self._kl = exact.stiffness_length[springs]
-        self._inv_l = self._k / self._kl                                   # 1 / l
+        self._law = exact.law.subset(springs)
         self._w = sample.weights
         self._d = d
         self.fell_back = not sample.held_out_error <= tolerance   # NaN: never checked
@@ -90,7 +88,7 @@ class SampledForces(ForceModel):
             return force
         self._calls += 1
         delta = (self._g @ q + self._rest).reshape(self._d, -1)
-        strain = pull_springs(delta, self._k, self._kl, self._inv_l)
+        strain = pull_springs(delta, self._law)
         delta *= self._w
         force = self._gt @ delta.ravel()
         if self._calls % self.check_every == 1 or self.check_every == 1:

@@ -91,7 +91,8 @@ def training_snapshots(exact: ExactForces, omega2: np.ndarray, damping: np.ndarr
 def sample_key(exact: ExactForces, phi: np.ndarray, tolerance: float) -> str:
     """Return a hash of what a sample depends on: the springs, the coordinates, the tolerance."""
     h = hashlib.sha256()
-    for array in (exact.stiffness, exact.stiffness_length, exact.rest_deltas, phi):
+    h.update(exact.law.name.encode())
+    for array in (exact.law.stiffness, exact.law.rest_length, exact.rest_deltas, phi):
         h.update(np.ascontiguousarray(array).tobytes())
     h.update(repr(float(tolerance)).encode())
     return h.hexdigest()[:32]

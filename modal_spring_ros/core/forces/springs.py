@@ -1,11 +1,13 @@
 """
-The springs' own arithmetic (paper eq. 20), shared by every force model.
+The springs' geometry, shared by every force model.
 
 ``D``, the sparse spring-difference matrix (spring vectors from free-DOF displacements), and the
-vectorised pull of a (d, E) array of spring vectors: no Python loop over springs.
+vectorised pull of a (d, E) array of spring vectors by their law
+(:mod:`modal_spring_ros.core.laws`): no Python loop over springs.
 """
 from __future__ import annotations
 
+from modal_spring_ros.core.laws import SpringLaw
 import numpy as np
 import scipy.sparse as sp
 
@@ -37,18 +39,16 @@ def spring_lengths(delta: np.ndarray) -> np.ndarray:
     return np.sqrt(length, out=length)
 
 
-def pull_springs(delta: np.ndarray, stiffness: np.ndarray, stiffness_length: np.ndarray,
-                 inv_rest: np.ndarray) -> float:
+def pull_springs(delta: np.ndarray, law: SpringLaw) -> float:
     """
-    Turn the (d, E) spring vectors ``delta`` into the springs' force vectors in place (eq.
+    Turn the (d, E) spring vectors ``delta`` into the springs' force vectors in place.
 
-    20: each pulls with ``k (L - l) / L (x_j - x_i) = (k - k l / L) delta``) and return the largest
-    strain ``|L / l - 1|`` (through the largest and smallest ``L / l``).
+    Each pulls with ``f(L) / L (x_j - x_i)`` (``law``'s tension; paper eq. 20 for the linear
+    spring: ``k (L - l) / L``). Returns the largest strain ``|L / l - 1|`` (through the largest
+    and smallest ``L / l``).
     """
     length = spring_lengths(delta)
-    ratio = length * inv_rest
+    ratio = length * law.inv_l
     strain = max(float(np.maximum.reduce(ratio)) - 1.0, 1.0 - float(np.minimum.reduce(ratio)))
-    np.divide(stiffness_length, length, out=length)
-    np.subtract(stiffness, length, out=length)
-    delta *= length
+    delta *= law.pull_per_length(length)
     return strain

@@ -227,8 +227,6 @@ class _Energy:
         self.model = model
         self.scene = model.scene
         self.free_dof, self.mass, self.weight = model.free_dof, model.mass_dof, model.gravity_force
-        self.k = np.asarray(self.scene.stiffness, dtype=float)
-        self.rest = np.asarray(self.scene.rest_length, dtype=float)
         #: an energy scale: the work of the weight over the object's size
         self.scale = float(np.sum(np.abs(self.weight))) * max(
             float(np.max(np.ptp(self.scene.rest_positions, axis=0))), 1e-12)
@@ -247,8 +245,8 @@ class _Energy:
         Without compressed springs' geometric term unless ``compression``: then it may be
         indefinite.
         """
-        full = assemble_stiffness(x, self.scene.springs, self.k, x.shape[1], self.rest,
-                                  compression=compression)
+        full = assemble_stiffness(x, self.scene.springs, self.model.law, x.shape[1],
+                                  stretched=True, compression=compression)
         hessian = reduce_to_free(full, self.free_dof)
         if self.model.bending_free is not None:  # constant: the bending is quadratic
             hessian = (hessian + self.model.bending_free).tocsr()

@@ -15,6 +15,7 @@ import functools
 
 from modal_spring_ros.core.forces.exact import ExactForces
 from modal_spring_ros.core.forces.springs import spring_difference_matrix
+from modal_spring_ros.core.laws import scene_law
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.model.stiffness import assemble_stiffness, reduce_to_free
 from modal_spring_ros.core.motion.rigid_frame import RigidFrame
@@ -37,8 +38,9 @@ class MassSpringModel:
         self.rest = np.ascontiguousarray(scene.rest_positions[:, self.axes], dtype=float)
         self._i = np.ascontiguousarray(scene.springs[:, 0])
         self._j = np.ascontiguousarray(scene.springs[:, 1])
-        self._k = np.asarray(scene.stiffness, dtype=float)
-        self._l = np.asarray(scene.rest_length, dtype=float)
+        #: the springs' law (:mod:`modal_spring_ros.core.laws`), bound to their k and l
+        self.law = scene_law(scene)
+        self._l = self.law.rest_length
         #: lumped mass per free DOF
         self.mass_dof = np.repeat(scene.mass[self.free_particles], d)
         self.gravity_force = (scene.mass[self.free_particles][:, None]
@@ -74,8 +76,8 @@ class MassSpringModel:
         with the springs' tension (:func:`~.stiffness.assemble_stiffness`).
         """
         s = self.scene
-        full = assemble_stiffness(s.rest_positions[:, self.axes], s.springs, s.stiffness,
-                                  s.dimension, s.rest_length if s.loaded else None)
+        full = assemble_stiffness(s.rest_positions[:, self.axes], s.springs, self.law,
+                                  s.dimension, stretched=s.loaded)
         stiffness = reduce_to_free(full, self.free_dof)
         if self.bending_free is not None:
             stiffness = (stiffness + self.bending_free).tocsr()
@@ -257,7 +259,7 @@ class MassSpringModel:
         """
         _, length = self.spring_vectors(x)
         kinetic = 0.5 * float(np.dot(self.mass_dof * v, v))
-        spring = 0.5 * float(np.dot(self._k, (length - self._l) ** 2))
+        spring = float(np.sum(self.law.energy(length)))
         if self._bending_matrix is not None:   # the bending's energy counts as the springs'
             spring += 0.5 * float(x.ravel() @ (self._bending_matrix @ x.ravel()))
         xf = x[self.free_particles].ravel()

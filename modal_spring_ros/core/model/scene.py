@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from modal_spring_ros.core.laws import DEFAULT_LAW
 from modal_spring_ros.core.model.bending import Bending
 from modal_spring_ros.core.model.colliders import Contact
 from modal_spring_ros.core.motion.anchor_motion import AnchorMotion
@@ -75,6 +76,8 @@ class Scene:
         (:mod:`~modal_spring_ros.core.model.colliders`), or None.
     :ivar bending: the quadratic bending of a surface flat as built
         (:mod:`~modal_spring_ros.core.model.bending`), or None.
+    :ivar spring_law: the springs' law, by its name in
+        :data:`~modal_spring_ros.core.laws.SPRING_LAWS` (the paper's linear spring by default).
     """
 
     name: str
@@ -96,6 +99,7 @@ class Scene:
     triangles: np.ndarray | None = None
     bending: Bending | None = None
     contact: Contact | None = None
+    spring_law: str = DEFAULT_LAW
 
     @property
     def n_particles(self) -> int:

@@ -9,6 +9,7 @@ dropped, as in the paper's 1D example.
 """
 from __future__ import annotations
 
+from modal_spring_ros.core.laws import SpringLaw
 import numpy as np
 import scipy.sparse as sp
 
@@ -41,30 +42,36 @@ def element_stiffness(k: float, direction: np.ndarray) -> np.ndarray:
     return np.block([[block, -block], [-block, block]])
 
 
-def assemble_stiffness(positions: np.ndarray, springs: np.ndarray, stiffness: np.ndarray,
-                       dimension: int, rest_length: np.ndarray | None = None,
+def assemble_stiffness(positions: np.ndarray, springs: np.ndarray, law: SpringLaw,
+                       dimension: int, stretched: bool = False,
                        compression: bool = True) -> sp.csr_matrix:
     """
     Global ``(n d) x (n d)`` stiffness at ``positions``; DOF ``p * d + axis``; vectorised COO.
 
-    ``positions`` holds the ``dimension`` moving coordinates of each particle. Without
-    ``rest_length`` every spring is at its rest length there (the paper's rest stiffness, eq. 13:
-    blocks ``k u u^T``). With it, the tangent stiffness of stretched springs: each block gains the
-    geometric term ``k (1 - l/L) (I - u u^T)`` of its tension, what gives a hanging cloth or cable
-    its stiffness across itself. ``compression=False`` leaves that term out of compressed springs
-    (a positive semi-definite stiffness, for the descent of :mod:`.loaded_shape`).
+    ``positions`` holds the ``dimension`` moving coordinates of each particle; ``law`` is the
+    springs' (:mod:`modal_spring_ros.core.laws`). Unless ``stretched`` every spring is taken at
+    its rest length there (the paper's rest stiffness, eq. 13: blocks ``f'(l) u u^T``, ``k u u^T``
+    for the linear spring). ``stretched``: the tangent stiffness at the springs' lengths there,
+    the law's ``a I + b u u^T`` (``a = f / L``: the geometric term of the tension, what gives a
+    hanging cloth or cable its stiffness across itself). ``compression=False`` leaves that term
+    out of compressed springs (a positive semi-definite stiffness, for the descent of
+    :mod:`.loaded_shape`).
     """
     x = np.asarray(positions, dtype=float)[:, :dimension]
     i, j = springs[:, 0], springs[:, 1]
     delta = x[j] - x[i]
     length = np.linalg.norm(delta, axis=1)
     u = delta / length[:, None]
-    blocks = stiffness[:, None, None] * u[:, :, None] * u[:, None, :]  # (E, d, d)
-    if rest_length is not None:
-        tension = stiffness * (1.0 - rest_length / length)
+    outer = u[:, :, None] * u[:, None, :]                           # (E, d, d)
+    if stretched:
+        tension, along = law.tangent(length)
+        along = along + tension                                     # f'(L)
         if not compression:
             tension = np.maximum(tension, 0.0)
-        blocks += tension[:, None, None] * (np.eye(dimension) - u[:, :, None] * u[:, None, :])
+        blocks = along[:, None, None] * outer + tension[:, None, None] * (
+            np.eye(dimension) - outer)
+    else:
+        blocks = law.rest_stiffness()[:, None, None] * outer
     a = np.arange(dimension)
     # DOF indices of each block entry (E, d, d)
     ri = (i[:, None] * dimension + a)[:, :, None].repeat(dimension, 2)

@@ -101,10 +101,7 @@ def _friction(reader: FieldReader, value: Any) -> tuple[float, float]:
 
 def _collider(reader: FieldReader, value: Any, field: str):
     item = reader.mapping(value, field)
-    shape = item.get('shape')
-    if not isinstance(shape, str) or shape not in SHAPES:
-        raise reader.fail(f'{field}.shape', f"must be one of {', '.join(SHAPES)}, got "
-                          f'{short(shape)}')
+    shape = reader.choice(item.get('shape'), f'{field}.shape', SHAPES)
     vectors, lengths = SHAPE_FIELDS[shape]
     reader.known_keys(item, field, ('shape', 'frame') + vectors + lengths)
     values: dict[str, Any] = {}

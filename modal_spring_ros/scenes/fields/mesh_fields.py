@@ -43,9 +43,7 @@ def mesh_network(reader: FieldReader, spec: Any, material: Any,
     name = reader.required(spec, 'file', 'mesh')
     if not isinstance(name, str) or not name:
         raise reader.fail('mesh.file', f'must be a file name, got {short(name)}')
-    kind = spec.get('kind', 'surface')
-    if not isinstance(kind, str) or kind not in KINDS:
-        raise reader.fail('mesh.kind', f"must be one of {', '.join(KINDS)}, got {short(kind)}")
+    kind = reader.choice(spec.get('kind', 'surface'), 'mesh.kind', KINDS)
     if material is None:
         raise reader.fail('material', 'missing: a mesh scene needs density and stiffness')
     properties = _material(reader, material)

@@ -103,6 +103,12 @@ class FieldReader:
                             f'got {short(value)}')
         return AXES[value]
 
+    def choice(self, value: Any, field: str, choices) -> str:
+        """Return ``value``, one of the names ``choices`` (else the error lists them)."""
+        if not isinstance(value, str) or value not in choices:
+            raise self.fail(field, f"must be one of {', '.join(choices)}, got {short(value)}")
+        return value
+
     def required(self, spec: Mapping[str, Any], key: str, parent: str) -> Any:
         if key not in spec:
             raise self.fail(f'{parent}.{key}', 'missing')

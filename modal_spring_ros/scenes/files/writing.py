@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from modal_spring_ros.core.laws import DEFAULT_LAW
 from modal_spring_ros.core.model.scene import Scene
 import numpy as np
 import yaml
@@ -74,6 +75,7 @@ def scene_header(scene: Scene) -> dict[str, Any]:
         'anchor_motion': scene.anchor_motion.to_list(),
         'simulation': {'dt': scene.default_dt, 'duration': scene.default_duration},
         **({'contact': scene.contact.to_dict()} if scene.contact is not None else {}),
+        **({'spring_law': scene.spring_law} if scene.spring_law != DEFAULT_LAW else {}),
     }
 
 
