@@ -27,7 +27,8 @@ REAL_BAGS = Path(os.environ.get('MODAL_SPRING_REAL_BAGS', REPO.parent / 'shared'
 #: ROS packages made unimportable (as in a venv without the ROS wheels)
 HIDDEN = ('rclpy', 'rosidl', 'rpyutils', 'ament_index_python', 'builtin_interfaces',
           'std_msgs', 'sensor_msgs', 'geometry_msgs', 'std_srvs', 'rcl_interfaces',
-          'diagnostic_msgs', 'visualization_msgs', 'rosgraph_msgs', 'tf2_msgs', 'rosbags')
+          'diagnostic_msgs', 'visualization_msgs', 'rosgraph_msgs', 'tf2_msgs', 'rosbags',
+          'simulation_interfaces')
 
 #: Python that hides them from what runs after it (``python -c HIDE_ROS + code``)
 HIDE_ROS = f"""

@@ -18,11 +18,11 @@ Topics (relative names, so namespaces and remapping work): ``points`` (PointClou
 :mod:`~modal_spring_ros.ros.inputs.input_node`): ``anchor_pose`` (PoseStamped, with
 ``anchor.source`` topic), ``/clicked_point`` (PointStamped), ``wrench`` (WrenchStamped), ``/tf``
 and ``/tf_static``. Services: ``~/reset`` (Trigger), ``~/pause`` (SetBool), ``~/step`` (Trigger,
-while paused). See docs/node.md.
+while paused), and ROS 2's standard simulation services (``~/step_simulation``,
+``~/set_simulation_state``, ``~/get_simulation_state``, ``~/reset_simulation``,
+``~/get_simulator_features``). See docs/node.md.
 """
 from __future__ import annotations
-
-import contextlib
 
 from modal_spring_ros.bags.files.capture import RunBagWriter
 from modal_spring_ros.core.config import POSE_SOURCES
@@ -31,7 +31,7 @@ from modal_spring_ros.core.memory_estimate import check_run_memory
 from modal_spring_ros.core.worker import WorkerProcess
 from modal_spring_ros.ros.changes.node_parameters import NodeParameters
 from modal_spring_ros.ros.changes.parameter_changes import ChangePlanner
-from modal_spring_ros.ros.changes.requests import applied_within, Pause, Request, Reset, Step
+from modal_spring_ros.ros.changes.run_services import RunServices
 from modal_spring_ros.ros.frames.tf import tf_available
 from modal_spring_ros.ros.inputs.input_node import InputNode, TF_CPU_SHARE, TF_MAX_RATE_HZ
 from modal_spring_ros.ros.inputs.subscriptions import NodeInputs
@@ -51,18 +51,13 @@ from modal_spring_ros.ros.stream.stream_time import clock_warnings, StreamTime
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.fields.limits import available_memory
 from modal_spring_ros.scenes.resources import load_scene
-from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from std_srvs.srv import SetBool, Trigger
 
 NODE_NAME = 'modal_spring'
-#: longest a service waits for the simulation thread to apply its request, s
-SERVICE_TIMEOUT_S = 5.0
-#: how often the executor wakes while a service awaits (the timeout's resolution), and how
-#: often the graph is searched for other nodes of this node's name, s
-SERVICE_WAKE_S, NAMESAKE_CHECK_S = 0.25, 2.0
+#: how often the graph is searched for other nodes of this node's name, s
+NAMESAKE_CHECK_S = 2.0
 #: the node's parts, stopped in this order (inputs first, the capture last), as attribute and
 #: method names: a node stopped while it starts stops the parts it has
 STOP_ORDER = (('_input_node', 'close'), ('_tf_node', 'close'), ('_preparer', 'stopping'),
@@ -143,18 +138,12 @@ class ModalSpringNode(Node):
                                   self._thread.submit,
                                   tf_node=self._tf_node.node if self._tf_node else None,
                                   contact=scene.contact)
-        services = ReentrantCallbackGroup()     # awaiting coroutines: no thread held
-        self._answered = self.create_guard_condition(lambda: None, callback_group=services)
-        # wall-time chores on the steady clock: under use_sim_time a timer on the ROS clock
-        # would stop with a paused /clock (and with it the services' wake-ups)
-        steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(SERVICE_WAKE_S, lambda: None, callback_group=services, clock=steady)
-        self.create_service(Trigger, '~/reset', self._on_reset, callback_group=services)
-        self.create_service(SetBool, '~/pause', self._on_pause, callback_group=services)
-        self.create_service(Trigger, '~/step', self._on_step, callback_group=services)
+        self._run_services = RunServices(  # the thread's submit looked up per call
+            self, lambda request: self._thread.submit(request), lambda: self._thread.paused,
+            lambda: self._thread.sim.time == 0.0)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)    # wall time, even under use_sim_time
         self._namesakes = 0
-        self.create_timer(NAMESAKE_CHECK_S, self._check_namesakes, callback_group=services,
-                          clock=steady)
+        self.create_timer(NAMESAKE_CHECK_S, self._check_namesakes, clock=steady)
         status = sim.status()
         log.info(f'scene {scene.name}: {scene.n_particles} particles, {status.modes_computed} '
                  f'modes computed; {status.method}, {status.band}, {status.coordinates} '
@@ -219,27 +208,6 @@ class ModalSpringNode(Node):
         if found > 0 and found != self._namesakes:   # once per change
             self.get_logger().warning(namesakes_warning(found, self.get_fully_qualified_name()))
         self._namesakes = found
-
-    # -- services ------------------------------------------------------------------------------
-    async def _answer(self, request: Request, response):
-        request.on_finish = self._wake
-        self._thread.submit(request)
-        response.success = await applied_within(request, SERVICE_TIMEOUT_S)
-        response.message = request.message or 'not applied in time: the simulation is busy'
-        return response
-
-    def _wake(self) -> None:     # an answer a service awaits is ready (unless ROS is gone)
-        with contextlib.suppress(RuntimeError):     # InvalidHandle, RCLError: shutting down
-            self._answered.trigger()
-
-    async def _on_reset(self, _request, response):
-        return await self._answer(Reset(), response)
-
-    async def _on_pause(self, request, response):
-        return await self._answer(Pause(paused=bool(request.data)), response)
-
-    async def _on_step(self, _request, response):
-        return await self._answer(Step(), response)
 
     def stop(self) -> None:
         """Stop the threads (before destroy_node) and finalise the capture; whatever started."""

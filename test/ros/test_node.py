@@ -281,3 +281,66 @@ def test_force_refresh_is_set_at_runtime_and_reported(running):
     exact = time.monotonic()
     assert wait_for(lambda: (s := latest_status(diagnostics, exact)) is not None
                     and status_values(s)['measured force error'] == 'exact every step', 20.0)
+
+
+def test_a_harness_written_for_the_standard_simulation_services_drives_the_node(running):
+    """ROS 2's ``simulation_interfaces``: features, state, stepping N frames, reset, stop, play."""
+    from simulation_interfaces.msg import Result, SimulationState, SimulatorFeatures
+    from simulation_interfaces.srv import (GetSimulationState, GetSimulatorFeatures,
+                                           ResetSimulation, SetSimulationState, StepSimulation)
+    _, client, points, _ = running
+
+    def state() -> int:
+        res = client.call(GetSimulationState, f'/{NODE}/get_simulation_state',
+                          GetSimulationState.Request())
+        assert res.result.result == Result.RESULT_OK
+        return res.state.state
+
+    def set_state(target: int) -> int:
+        return client.call(SetSimulationState, f'/{NODE}/set_simulation_state',
+                           SetSimulationState.Request(state=SimulationState(state=target))
+                           ).result.result
+
+    def step(steps: int):
+        return client.call(StepSimulation, f'/{NODE}/step_simulation',
+                           StepSimulation.Request(steps=steps)).result
+
+    features = client.call(GetSimulatorFeatures, f'/{NODE}/get_simulator_features',
+                           GetSimulatorFeatures.Request()).features
+    assert {SimulatorFeatures.STEP_SIMULATION_MULTIPLE, SimulatorFeatures.SIMULATION_RESET,
+            SimulatorFeatures.SIMULATION_STATE_PAUSE} <= set(features.features)
+    assert 'published frame' in features.custom_info
+    assert state() == SimulationState.STATE_PLAYING
+    refused = step(3)
+    assert refused.result == Result.RESULT_OPERATION_FAILED and 'pause' in refused.error_message
+    try:
+        assert set_state(SimulationState.STATE_PAUSED) == Result.RESULT_OK
+        assert state() == SimulationState.STATE_PAUSED
+        assert set_state(SimulationState.STATE_PAUSED) == \
+            SetSimulationState.Response.ALREADY_IN_TARGET_STATE
+        time.sleep(0.3)
+        start = time.monotonic()
+        assert step(4).result == Result.RESULT_OK
+        time.sleep(0.5)                                      # and nothing more while paused
+        stepped = [m for t, m in points if t > start]
+        assert len(stepped) == 4                             # one published frame a step
+        assert np.allclose(np.diff([sim_time(m) for m in stepped]), 1.0 / RATE, atol=2e-3)
+        time_only = ResetSimulation.Request(scope=ResetSimulation.Request.SCOPE_TIME)
+        unsupported = client.call(ResetSimulation, f'/{NODE}/reset_simulation', time_only)
+        assert unsupported.result.result == Result.RESULT_FEATURE_UNSUPPORTED
+        assert state() == SimulationState.STATE_PAUSED       # and nothing changed
+        reset = client.call(ResetSimulation, f'/{NODE}/reset_simulation',
+                            ResetSimulation.Request())
+        assert reset.result.result == Result.RESULT_OK
+        assert state() == SimulationState.STATE_STOPPED      # paused at the rest state, t = 0
+        assert set_state(SimulationState.STATE_PAUSED) == \
+            SetSimulationState.Response.INCORRECT_TRANSITION
+        assert step(1).result == Result.RESULT_OK and state() == SimulationState.STATE_PAUSED
+        assert set_state(SimulationState.STATE_STOPPED) == Result.RESULT_OK
+        assert state() == SimulationState.STATE_STOPPED
+        assert set_state(SimulationState.STATE_QUITTING) == Result.RESULT_FEATURE_UNSUPPORTED
+    finally:
+        assert set_state(SimulationState.STATE_PLAYING) == Result.RESULT_OK
+    played = time.monotonic()
+    assert wait_for(lambda: sum(t > played for t, _ in points) > 5, 5.0)
+    assert state() == SimulationState.STATE_PLAYING

@@ -11,7 +11,7 @@ import threading
 import time
 
 from modal_spring_ros.ros.changes.requests import Pause, Reset
-from modal_spring_ros.ros.node import SERVICE_TIMEOUT_S
+from modal_spring_ros.ros.changes.run_services import SERVICE_TIMEOUT_S
 import pytest
 from ros_harness import Client, node_in_process, wait_for
 from std_srvs.srv import SetBool, Trigger

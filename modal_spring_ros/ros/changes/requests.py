@@ -101,7 +101,9 @@ class Pause(Request):
 
 @dataclasses.dataclass(eq=False)
 class Step(Request):
-    """While paused: advance one frame's worth of simulated time and publish that frame."""
+    """While paused: advance ``frames`` frames' worth of simulated time, publishing each."""
+
+    frames: int = 1
 
 
 class StepRefused(RuntimeError):

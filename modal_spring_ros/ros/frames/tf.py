@@ -11,7 +11,7 @@ carried into the node's frame through it, and with ``anchor.source`` tf the clam
 of it.
 
 ``tf2_msgs`` (``/tf``'s message) is not among the ROS wheels on PyPI; the bootstrap generates it
-(``.ci/tf2_msgs``), a ROS install has it. Without it the node runs without TF and says so once.
+(``.ci/interfaces``), a ROS install has it. Without it the node runs without TF and says so once.
 """
 from __future__ import annotations
 

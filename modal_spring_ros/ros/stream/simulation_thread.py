@@ -268,19 +268,22 @@ class SimulationThread:
         return 'paused' if request.paused else 'running'
 
     def _step(self, request: Step) -> str:
-        """Advance one frame period (times the real-time factor, when set) and publish it."""
+        """Advance ``request.frames`` frame periods (times the real-time factor), publish each."""
         if not self.paused:
             raise StepRefused('stepping is for a paused run: call ~/pause with true first')
         self._streak.refuse_while_held()
         settings, steps, divergences = (self._settings(), self._book.window.steps,
                                         self._book.divergences)
-        self._step_until(self.sim.time + (settings.realtime_factor or 1.0)
-                         / settings.publish_rate_hz, float('inf'))
-        if self._book.divergences != divergences:
-            raise StepRefused(f'{self._book.last_divergence} (reported on /diagnostics)')
-        self._book.frame_after_pause()
-        self._publish_frame(settings.mesh_rate_hz > 0)
-        return f'stepped {self._book.window.steps - steps} steps to t = {self.sim.time:.6g} s'
+        period = (settings.realtime_factor or 1.0) / settings.publish_rate_hz
+        for _ in range(request.frames):
+            self._step_until(self.sim.time + period, float('inf'))
+            if self._book.divergences != divergences:
+                raise StepRefused(f'{self._book.last_divergence} (reported on /diagnostics)')
+            self._book.frame_after_pause()
+            self._publish_frame(settings.mesh_rate_hz > 0)
+        return (f'stepped {self._book.window.steps - steps} steps '
+                f'({request.frames} frame{"s" if request.frames != 1 else ""}) to '
+                f't = {self.sim.time:.6g} s')
 
     def _fail_pending(self, why: str) -> None:
         for request in drained(self._requests):
