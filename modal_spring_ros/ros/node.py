@@ -8,7 +8,7 @@ slow part is prepared off the services' thread,
 :mod:`~modal_spring_ros.ros.changes.change_preparer`) and ``~/reset``, ``~/pause`` and ``~/step``,
 awaited without holding an executor thread; every change reaches the simulation thread as one
 request (:mod:`~modal_spring_ros.ros.changes.requests`); large scenes stream before all is prepared
-(:mod:`~modal_spring_ros.ros.stream.start_up`).
+(:mod:`~modal_spring_ros.ros.start.start_up`).
 
 Topics (relative names, so namespaces and remapping work): ``points`` (PointCloud2), ``mesh``
 (Marker: the surface's triangles, or the springs' lines, when subscribed), ``/diagnostics``,
@@ -40,12 +40,12 @@ from modal_spring_ros.ros.parameters import (CLOCK_OFFSET, CLOCK_OFFSET_DESCRIPT
                                              FREQUENCIES_DESCRIPTOR, PARAMETERS)
 from modal_spring_ros.ros.process.namesakes import count_namesakes, namesakes_warning
 from modal_spring_ros.ros.process.stop_signals import StopSignals
+from modal_spring_ros.ros.start.start_up import first_values
+from modal_spring_ros.ros.start.start_up_report import StartUpReport
 from modal_spring_ros.ros.stream.outputs import NodeOutputs
 from modal_spring_ros.ros.stream.plan_watch import fall_back
 from modal_spring_ros.ros.stream.run_pace import pace_reading
 from modal_spring_ros.ros.stream.simulation_thread import SimulationThread
-from modal_spring_ros.ros.stream.start_up import first_values
-from modal_spring_ros.ros.stream.start_up_report import StartUpReport
 from modal_spring_ros.ros.stream.stream_settings import StreamSettings
 from modal_spring_ros.ros.stream.stream_time import clock_warnings, StreamTime
 from modal_spring_ros.runs.sample_cache import sample_cache

@@ -24,8 +24,8 @@ MAX_MODULE_LINES = 400
 MAX_NODE_LINES = 250
 #: the ROS layer's rooms, lowest first (the top-level modules are rooms of their own): a room
 #: imports from the rooms before it only
-ROS_ROOMS = ['process', 'frames', 'markers', 'parameters', 'changes', 'inputs', 'stream', 'tools',
-             'node', 'managed_node']
+ROS_ROOMS = ['process', 'frames', 'markers', 'parameters', 'changes', 'inputs', 'stream', 'start',
+             'tools', 'node', 'managed_node']
 #: most modules side by side in one folder: beyond it, rooms by concept
 MAX_FOLDER_MODULES = 12
 

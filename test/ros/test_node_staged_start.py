@@ -11,7 +11,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from helpers import hanging_sheet
-from modal_spring_ros.ros.stream.start_up import FIRST_MODES
+from modal_spring_ros.ros.start.start_up import FIRST_MODES
 import numpy as np
 import pytest
 from ros_harness import (assert_resimulates_exactly, Client, running_node, SimTimes,

@@ -6,8 +6,8 @@ import dataclasses
 from helpers import hanging_sheet
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.filter_band import FilterBand
-from modal_spring_ros.ros.stream.start_up import (FIRST_MODES, first_values, STAGED_DOF,
-                                                  STAGED_SPRINGS)
+from modal_spring_ros.ros.start.start_up import (FIRST_MODES, first_values, STAGED_DOF,
+                                                 STAGED_SPRINGS)
 from modal_spring_ros.scenes.resources import load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict
 import pytest

@@ -4,7 +4,7 @@ from __future__ import annotations
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from modal_spring_ros.ros.stream.start_up_report import PERIOD_S, StartUpReport
+from modal_spring_ros.ros.start.start_up_report import PERIOD_S, StartUpReport
 import pytest
 import rclpy
 from ros_harness import Client, wait_for

@@ -76,7 +76,7 @@ class NodeParameters:
         """
         Say the run was built with ``first`` in place of these parameters' values.
 
-        (a quicker start, :mod:`~modal_spring_ros.ros.stream.start_up`); :meth:`prepare_asked` then
+        (a quicker start, :mod:`~modal_spring_ros.ros.start.start_up`); :meth:`prepare_asked` then
         prepares the values asked for as a change. Before :meth:`listen`.
         """
         with self._lock:

@@ -4,9 +4,11 @@ The node's simulation thread.
 Steps at a fixed ``dt``, publishes on its own period, applies state changes between steps, and
 survives anything a step or a change can raise. It alone changes the running simulation: requests
 (:mod:`modal_spring_ros.ros.changes.requests`) are applied one at a time between two steps, in the
-order they came. The thread is supervised: a divergence sends the run back to rest; any other
-exception is reported as ERROR on ``/diagnostics`` with its message, the run goes back to rest (or,
-if it cannot even reset, to a simulation rebuilt from the settings), and it goes on.
+order they came, each by its handler (:mod:`~modal_spring_ros.ros.stream.request_handling`, to
+which the thread is a :class:`~modal_spring_ros.ros.stream.request_handling.RunHost`). The thread
+is supervised: a divergence sends the run back to rest; any other exception is reported as ERROR
+on ``/diagnostics`` with its message, the run goes back to rest (or, if it cannot even reset, to
+a simulation rebuilt from the settings), and it goes on.
 """
 from __future__ import annotations
 
@@ -18,14 +20,13 @@ from typing import Callable
 from modal_spring_ros.bags.messages.pointcloud import CloudBuffer
 from modal_spring_ros.core.simulations import DivergenceError, Simulation
 from modal_spring_ros.core.threads import stepping_threads
-from modal_spring_ros.ros.changes.requests import (ChangeBand, drained, Pause, ReplaceSimulation,
-                                                   Request, Reset, Step, StepRefused, TakeInput,
+from modal_spring_ros.ros.changes.requests import (drained, Request, StepRefused,
                                                    without_superseded)
-from modal_spring_ros.ros.inputs.input_kinds import recorded_messages
 from modal_spring_ros.ros.stream.diagnostics import StreamReport
 from modal_spring_ros.ros.stream.divergence_streak import DivergenceStreak, HeldError
 from modal_spring_ros.ros.stream.outputs import Outputs
 from modal_spring_ros.ros.stream.plan_watch import FallBack, PlanWatch
+from modal_spring_ros.ros.stream.request_handling import apply_request
 from modal_spring_ros.ros.stream.run_pace import Reading, RunPace, wall_pace
 from modal_spring_ros.ros.stream.stream_book import StreamBook
 from modal_spring_ros.ros.stream.stream_settings import StreamSettings
@@ -66,18 +67,18 @@ class SimulationThread:
         self.sim = sim
         self.paused = False
         self._suspended = False  # a managed node inactive: no steps, no frames
-        self._outputs = outputs
-        self._settings = settings
+        self.outputs = outputs
+        self.settings = settings
         self._rebuild = rebuild
         self._requests: queue.Queue[Request] = queue.Queue()
         self._stop = threading.Event()
         self._wake = threading.Event()  # the settings changed: stop waiting out the old period
-        self._book = StreamBook(sim.status(), computing_modes)
+        self.book = StreamBook(sim.status(), computing_modes)
         self._cloud: CloudBuffer | None = None  # the frames' bytes, reused (see _publish_frame)
         self._cloud_scene = None
-        self._streak = DivergenceStreak()
+        self.streak = DivergenceStreak()
         self._pace = RunPace(pace, sim.time)
-        self._plan_watch = PlanWatch(on_watch_beyond)
+        self.plan_watch = PlanWatch(on_watch_beyond)
         self._thread = threading.Thread(target=self._run, name='modal_spring_sim', daemon=True)
 
     # -- from other threads --------------------------------------------------------------------
@@ -111,7 +112,7 @@ class SimulationThread:
 
     def resume(self) -> None:
         """Step and publish again, from where the run was (its time does not jump)."""
-        self._reanchor(window_valid=False)
+        self.reanchor(window_valid=False)
         self._suspended = False
         self._wake.set()
 
@@ -140,7 +141,7 @@ class SimulationThread:
         published_time = None
         period = None
         while self._active():
-            settings = self._settings()
+            settings = self.settings()
             if period != 1.0 / settings.publish_rate_hz:  # a new rate counts from now
                 period = 1.0 / settings.publish_rate_hz
                 next_publish = min(next_publish, time.monotonic() + period)
@@ -154,13 +155,13 @@ class SimulationThread:
                     target, jumped = self._pace.owed(self.sim.time, rtf)
                     if jumped:
                         self._start_window(valid=False)
-                    self._step_until(target, next_publish + FRAME_LATENESS * period)
+                    self.step_until(target, next_publish + FRAME_LATENESS * period)
                     behind = self.sim.time + self.sim.dt < target
                     if target - self.sim.time > rtf * period:  # could not keep up: the debt
                         # beyond one frame's steps is dropped (the frames keep their rate)
                         self._pace.anchor(self.sim.time + rtf * period, at_last_reading=True)
                 else:  # as fast as possible: as many steps as fit until the frame is due
-                    self._step_until(float('inf'), next_publish)
+                    self.step_until(float('inf'), next_publish)
             now = time.monotonic()
             # woken before the frame is due (a setting changed): the frame stays on its grid
             due = now >= next_publish
@@ -168,11 +169,11 @@ class SimulationThread:
             if due and (self.sim.time != published_time or self.held) and not (
                     self.paused or self._suspended):
                 mesh = now >= next_mesh and settings.mesh_rate_hz > 0
-                self._publish_frame(mesh)
+                self.publish_frame(mesh)
                 published_time = self.sim.time
                 if mesh:
                     next_mesh = now + 1.0 / settings.mesh_rate_hz
-            if now >= next_diagnostics or self._book.report_due():   # modes begun or ready
+            if now >= next_diagnostics or self.book.report_due():   # modes begun or ready
                 self._publish_diagnostics(settings, error=self.held)
                 next_diagnostics = now + DIAGNOSTICS_PERIOD_S
             if due:
@@ -180,13 +181,13 @@ class SimulationThread:
                 if next_publish < now:
                     next_publish = now + period
             if not still:   # in the idle time before the next frame (behind: one sample)
-                self._plan_watch.step(self.sim, settings.watch_s,
-                                      next_publish - FRAME_MARGIN * period)
+                self.plan_watch.step(self.sim, settings.watch_s,
+                                     next_publish - FRAME_MARGIN * period)
             if (rtf > 0.0 and not behind) or still:   # behind: step on towards the next frame
                 self._wake.wait(max(0.0, next_publish - time.monotonic()))
                 self._wake.clear()
 
-    def _step_until(self, target: float, deadline: float) -> None:
+    def step_until(self, target: float, deadline: float) -> None:
         """
         Step until the simulation reaches ``target`` or the wall clock passes ``deadline``.
 
@@ -200,7 +201,7 @@ class SimulationThread:
             except DivergenceError as exc:
                 self._on_divergence(exc)
                 return
-            self._book.stepped(time.perf_counter() - start)
+            self.book.stepped(time.perf_counter() - start)
             if time.monotonic() > deadline:
                 return
 
@@ -214,7 +215,7 @@ class SimulationThread:
         applied = False
         for request in without_superseded(drained(self._requests)):
             try:
-                message = self._apply(request)
+                message = apply_request(self, request)
             except (HeldError, StepRefused) as exc:  # said once (held), or not an error
                 request.finish(False, str(exc))
                 continue
@@ -226,71 +227,14 @@ class SimulationThread:
             applied = True
         return applied
 
-    def _apply(self, request: Request) -> str:
-        """Apply one request; returns what happened. Raises with the run unchanged."""
-        handlers: dict[type, Callable[[Request], str]] = {
-            ChangeBand: self._change_band, ReplaceSimulation: self._replace,
-            Reset: self._reset, Pause: self._pause, Step: self._step, TakeInput: self._take_input}
-        return handlers[type(request)](request)
-
-    held = property(lambda self: self._streak.held, doc='Why the run is held, or empty.')
-
-    def _take_input(self, request: TakeInput) -> str:
-        self._streak.refuse_while_held()
-        message = request.kind.apply(self.sim, request.received, request.values)
-        self._outputs.received(self.sim, recorded_messages(request.kind, request.received))
-        return message
-
-    def _change_band(self, request: ChangeBand) -> str:
-        self.sim.set_band(request.band, request.transition_s)
-        self._plan_watch.band_changed(self.sim)
-        self._outputs.changed(self.sim, request.changed)
-        return f'band {request.band.describe()}'
-
-    def _replace(self, request: ReplaceSimulation) -> str:
-        request.simulation.take_over(self.sim)
-        self.sim = request.simulation
-        self._outputs.changed(self.sim, request.changed)
-        self._reanchor(window_valid=False)
-        return f'{self.sim.method} run continues'
-
-    def _reset(self, request: Reset) -> str:
-        self.sim.model.scene.anchor_motion.clear()  # a followed clamp forgets its poses
-        self.sim.reset()
-        self._streak.clear()
-        self._plan_watch.restart()
-        self._reanchor(window_valid=False)
-        return 'back to the rest state at t = 0'
-
-    def _pause(self, request: Pause) -> str:
-        self.paused = request.paused
-        self._reanchor(window_valid=False)
-        return 'paused' if request.paused else 'running'
-
-    def _step(self, request: Step) -> str:
-        """Advance ``request.frames`` frame periods (times the real-time factor), publish each."""
-        if not self.paused:
-            raise StepRefused('stepping is for a paused run: call ~/pause with true first')
-        self._streak.refuse_while_held()
-        settings, steps, divergences = (self._settings(), self._book.window.steps,
-                                        self._book.divergences)
-        period = (settings.realtime_factor or 1.0) / settings.publish_rate_hz
-        for _ in range(request.frames):
-            self._step_until(self.sim.time + period, float('inf'))
-            if self._book.divergences != divergences:
-                raise StepRefused(f'{self._book.last_divergence} (reported on /diagnostics)')
-            self._book.frame_after_pause()
-            self._publish_frame(settings.mesh_rate_hz > 0)
-        return (f'stepped {self._book.window.steps - steps} steps '
-                f'({request.frames} frame{"s" if request.frames != 1 else ""}) to '
-                f't = {self.sim.time:.6g} s')
+    held = property(lambda self: self.streak.held, doc='Why the run is held, or empty.')
 
     def _fail_pending(self, why: str) -> None:
         for request in drained(self._requests):
             request.finish(False, why)
 
     # -- frames and reports --------------------------------------------------------------------
-    def _publish_frame(self, mesh: bool) -> None:
+    def publish_frame(self, mesh: bool) -> None:
         scene = self.sim.model.scene
         if self._cloud is None or self._cloud_scene is not scene:  # once per scene
             self._cloud, self._cloud_scene = CloudBuffer(scene.rest_positions), scene
@@ -299,52 +243,52 @@ class SimulationThread:
             self._on_divergence(DivergenceError('non-finite positions', self.sim.time,
                                                 self.sim.steps))
             return
-        self._outputs.frame(self.sim, self._cloud, mesh)
-        self._book.framed()
+        self.outputs.frame(self.sim, self._cloud, mesh)
+        self.book.framed()
 
     def _report(self, settings: StreamSettings, error: str = '') -> StreamReport:
-        return self._book.report(
-            self.sim.time, self._pace.since(self._book.window.pace),  # the clock the run follows
+        return self.book.report(
+            self.sim.time, self._pace.since(self.book.window.pace),  # the clock the run follows
             requested_rtf=settings.realtime_factor,
             publish_period_s=1.0 / settings.publish_rate_hz,
             paused=self.paused, strain_warning=settings.strain_warning, error=error,
-            **self._plan_watch.report(), **self._node_report())
+            **self.plan_watch.report(), **self._node_report())
 
     def _publish_diagnostics(self, settings: StreamSettings, error: str = '') -> None:
-        self._outputs.diagnostics(self._book.status(self.sim), self._report(settings, error))
+        self.outputs.diagnostics(self.book.status(self.sim), self._report(settings, error))
         self._start_window(valid=True)
         if not error:
-            self._book.diverged_recently = False
+            self.book.diverged_recently = False
 
     def _start_window(self, valid: bool) -> None:
-        self._book.open_window(self.sim.time, valid, self._pace.read())
+        self.book.open_window(self.sim.time, valid, self._pace.read())
 
-    def _reanchor(self, window_valid: bool) -> None:
+    def reanchor(self, window_valid: bool) -> None:
         self._pace.anchor(self.sim.time)
         if not window_valid:
-            self._book.invalidate()
+            self.book.invalidate()
 
     # -- failures ------------------------------------------------------------------------------
     def _on_divergence(self, exc: DivergenceError) -> None:
-        self._book.diverged(str(exc))
-        if self._streak.diverged(exc):
-            self._outputs.log('error', self.held)
-            self._publish_diagnostics(self._settings(), error=self.held)
+        self.book.diverged(str(exc))
+        if self.streak.diverged(exc):
+            self.outputs.log('error', self.held)
+            self._publish_diagnostics(self.settings(), error=self.held)
         else:
-            self._outputs.log('error', f'{exc}; back to the rest state')
-            self._publish_diagnostics(self._settings(),
+            self.outputs.log('error', f'{exc}; back to the rest state')
+            self._publish_diagnostics(self.settings(),
                                       error=f'{exc}; recovered: back to the rest state')
         self._to_rest()
 
     def _report_error(self, message: str) -> None:
         """Log and publish ERROR; never raises (it is what failures end in)."""
         try:
-            self._outputs.log('error', message)
-            self._outputs.diagnostics(self._book.last_status,
-                                      self._report(self._settings(), message))
+            self.outputs.log('error', message)
+            self.outputs.diagnostics(self.book.last_status,
+                                     self._report(self.settings(), message))
         except Exception as exc:  # publishing itself failed (shutting down): log only
             try:
-                self._outputs.log('error', f'{message} (not reported: {exc!r})')
+                self.outputs.log('error', f'{message} (not reported: {exc!r})')
             except Exception:
                 pass
 
@@ -364,6 +308,6 @@ class SimulationThread:
             except Exception as again:
                 self._report_error(f'rebuilding the simulation failed: {again!r}')
                 return False
-        self._plan_watch.restart()
-        self._reanchor(window_valid=False)
+        self.plan_watch.restart()
+        self.reanchor(window_valid=False)
         return True

@@ -1,7 +1,7 @@
 """
 The node's progress while it prepares: logged, kept, and on ``/diagnostics`` before it streams.
 
-A large scene takes seconds before its first frame (its modes, ``ros/stream/start_up.py``), and a
+A large scene takes seconds before its first frame (its modes, ``ros/start/start_up.py``), and a
 monitor of ``/diagnostics`` (rqt_robot_monitor, Foxglove) would otherwise see nothing of the
 node meanwhile. :class:`StartUpReport` takes the progress lines of the scene's preparation
 (the basis's factor and modes, a spring sample's training): each is logged, the last is kept
