@@ -2,7 +2,7 @@
 ``modal_spring_bench``: the project's benchmarks, as suites, with their results on disk.
 
     modal_spring_bench [--suite steps,stream,tradeoff,promise,promise_demanding,auto,response,
-                                scale,headline,peer,meshes,storm]
+                                scale,headline,peer,contact,meshes,storm]
                        [--quick]
                        [--case TEXT]
                        [--out DIR]
@@ -22,7 +22,10 @@ set-up, step and frame, and the sizes that stream at 60 Hz, with CSV and a PNG c
 ``headline`` (the README's figures over whole runs of 1 s and 5 s: the cost at 1 % error of
 ``--auto`` and of sampled springs against the full run's, with CSV), ``peer`` (the resonance
 scenes at 1 % against Newton's semi-implicit run, an optional peer: error and CPU per simulated
-second of each, with CSV and a PNG chart), ``meshes`` (a 10,000-vertex cloth and a
+second of each, with CSV and a PNG chart), ``contact`` (a sheet lowered onto a sphere and onto a
+table at 1 %: the project's runs and Newton's semi-implicit run with its particle-shape contact,
+error and CPU per simulated second, and what contact costs a modal run, with CSV and a PNG
+chart), ``meshes`` (a 10,000-vertex cloth and a
 10,000-particle solid brought as mesh files: load and precompute time with progress, the modal
 step and frame against the full run's, cost per simulated second), ``storm`` (four clients
 sending parameter requests without pause for 10 minutes: answer times, requests unanswered, the
@@ -47,6 +50,7 @@ from modal_spring_ros.bench.costs import meshes
 from modal_spring_ros.bench.costs import steps
 from modal_spring_ros.bench.costs import storm
 from modal_spring_ros.bench.costs import stream
+from modal_spring_ros.bench.peers import contact_drop
 from modal_spring_ros.bench.peers import peer
 from modal_spring_ros.cli.common import fail, script_parser
 
@@ -55,7 +59,8 @@ PROG = 'modal_spring_bench'
 SUITES = {'steps': steps, 'stream': stream, 'tradeoff': tradeoff, 'promise': promise,
           'promise_demanding': promise_demanding,
           'auto': auto_scenes, 'response': response, 'scale': memory,
-          'headline': headline, 'peer': peer, 'meshes': meshes, 'storm': storm}
+          'headline': headline, 'peer': peer, 'contact': contact_drop, 'meshes': meshes,
+          'storm': storm}
 
 
 def main(argv: list[str] | None = None) -> int:

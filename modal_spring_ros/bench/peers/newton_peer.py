@@ -9,16 +9,19 @@ examples do, and offers what :func:`~modal_spring_ros.core.auto.measured_error.t
 the benchmarks' timing read of a run (``dt``, ``model``, ``reset``, ``step``, ``displacement``):
 the free particles' displacement from rest in the clamp's frame.
 
-What the scene has and Newton's solver has not is refused (:class:`PeerRefused`): a turning
-clamp, modal damping ratios. Mass-proportional Rayleigh damping is a force ``-alpha m v`` (``v``
-relative to the clamp, as the core damps) written into the particles' force buffer before each
-step (where Newton's examples clear it); the stiffness-proportional term is each spring's
-damping ``kd = beta k`` (the same damping on the springs' material stiffness). Particle
-contact is switched off (the scene has none). Newton is optional: without it :data:`AVAILABLE`
-is false and :data:`MISSING` says how to install it.
+What the scene has and Newton's solver has not is refused (:class:`PeerRefused`): a turning clamp,
+modal damping ratios, another spring law, bending, colliders it cannot place. Mass-proportional
+Rayleigh damping is a force ``-alpha m v`` (``v`` relative to the clamp, as the core damps) written
+into the particles' force buffer before each step (where Newton's examples clear it); the
+stiffness-proportional term is each spring's damping ``kd = beta k`` (the same damping on the
+springs' material stiffness). Contact between particles is switched off (the core has none); the
+scene's colliders are Newton shapes the particles touch
+(:mod:`~modal_spring_ros.bench.peers.newton_contact`). Newton is optional: without it
+:data:`AVAILABLE` is false and :data:`MISSING` says how to install it.
 """
 from __future__ import annotations
 
+from modal_spring_ros.bench.peers.newton_contact import contact_refusal, NewtonContact
 from modal_spring_ros.core.laws import DEFAULT_LAW
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Scene
@@ -82,7 +85,9 @@ def refusal(scene: Scene) -> str:
         return 'modal damping ratios have no counterpart in physical coordinates'
     if scene.spring_law != DEFAULT_LAW:
         return f"its springs' law is '{scene.spring_law}' (Newton's springs are linear)"
-    return ''
+    if scene.bending is not None and scene.bending.count:
+        return "it bends (the peer's object is springs alone)"
+    return contact_refusal(scene)
 
 
 class NewtonRun:
@@ -110,12 +115,16 @@ class NewtonRun:
         builder = newton.ModelBuilder(gravity=tuple(float(g) for g in scene.gravity))
         builder.add_particles(pos=[tuple(p) for p in scene.rest_positions],
                               vel=[(0.0, 0.0, 0.0)] * scene.n_particles,
-                              mass=np.where(scene.fixed, 0.0, scene.mass).tolist())
+                              mass=np.where(scene.fixed, 0.0, scene.mass).tolist(),
+                              radius=[0.0] * scene.n_particles)     # points, as the core's
+        self._contact = None if scene.contact is None else NewtonContact(builder, scene, dt)
         beta = float(scene.damping.rayleigh_beta)
         for (i, j), k in zip(scene.springs.tolist(), np.asarray(scene.stiffness).tolist()):
             builder.add_spring(i, j, k, beta * k, 0.0)
         self._newton = builder.finalize(device='cpu')
-        self._newton.particle_grid = None       # no particle contact: the scene has none
+        self._newton.particle_grid = None       # no contact between particles: the core has none
+        if self._contact is not None:
+            self._contact.finalize(self._newton)
         self._newton.spring_rest_length.assign(np.asarray(scene.rest_length, dtype=np.float32))
         self._solver = newton.solvers.SolverSemiImplicit(self._newton)
         self._control = self._newton.control()  # made once, as Newton's examples do
@@ -173,7 +182,8 @@ class NewtonRun:
                   inputs=[self._fixed, self._rest, self._offsets, self._velocities, self._index,
                           self._mass_alpha],
                   outputs=[state.particle_q, state.particle_qd, state.particle_f])
-        self._solver.step(state, into, self._control, None, self.dt)
+        contacts = None if self._contact is None else self._contact.collide(state)
+        self._solver.step(state, into, self._control, contacts, self.dt)
         wp.launch(_count_step, dim=1, device='cpu', inputs=[self._index])
 
     def _two_steps(self) -> None:

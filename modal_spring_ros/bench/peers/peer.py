@@ -59,8 +59,8 @@ def _row(run: str, coordinates: int, dt: float, error: float, cpu: float) -> dic
             'cpu_per_s': cpu}
 
 
-def _peer_rows(scene, reference, samples: int, limit: float, duration: float,
-               progress: Callable[[str], None]) -> list[dict]:
+def peer_rows(scene, reference, samples: int, limit: float, duration: float,
+              progress: Callable[[str], None]) -> list[dict]:
     """Newton's runs from 0.9 of the limit down, until one meets the tolerance."""
     rows = []
     step = PEER_START * limit
@@ -108,8 +108,8 @@ def measure(scene_name: str, duration: float | None, progress: Callable[[str], N
             step = rows[-1]['dt'] / 2.0
     refused = newton_peer.refusal(scene) if newton_peer.AVAILABLE else newton_peer.MISSING
     if not refused:
-        rows += _peer_rows(scene, reference, samples, full.stability_limit(), duration,
-                           progress)
+        rows += peer_rows(scene, reference, samples, full.stability_limit(), duration,
+                          progress)
     return {'scene': scene_name, 'particles': scene.n_particles, 'duration_s': duration,
             'tolerance': TOLERANCE, 'peer': '' if refused else 'newton', 'peer_note': refused,
             'rows': rows, 'figure': figure(rows)}
@@ -174,7 +174,8 @@ def write_outputs(results: dict, out: Path, progress) -> None:
     progress(f"wrote {out / 'peer.csv'} and {chart(results, out / 'peer.png')}")
 
 
-def chart(results: dict, path: Path) -> Path:
+def chart(results: dict, path: Path, title: str = "The project against Newton's semi-implicit "
+          'run (sampled runs: the default step and its halves)') -> Path:
     """Error against CPU per simulated second, a panel per scene: a colour per kind of run."""
     scenes = results['scenes']
     fig, axes = subplots(1, len(scenes), figsize=(6.5 * len(scenes), 5), squeeze=False)
@@ -199,8 +200,7 @@ def chart(results: dict, path: Path) -> Path:
                      + ('' if not res['peer_note'] else '\n(no peer: ' + res['peer_note'] + ')'),
                      fontsize=8)
         ax.legend(fontsize=6)
-    fig.suptitle("The project against Newton's semi-implicit run (sampled runs: the default "
-                 'step and its halves)', fontsize=9)
+    fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     return path

@@ -1,0 +1,175 @@
+"""
+Contact beside a peer: a sheet lowered onto a sphere and onto a table, and Newton doing the same.
+
+Two scenes made here (:func:`lowered_sheet`): a 0.44 m square sheet of 12 x 12 particles (200 g,
+springs of 200 N/m along its edges and diagonals, no bending: Newton's springs are the same
+object) hung in the x-z plane from its top corners, lowered 15 cm in its first second and swayed
+3 cm across (so that it folds one way), onto a sphere of 8 cm radius or a table, each 2 cm below
+its lowest particle, with friction 0.4. Over that second, every run is checked as the peer suite
+checks one (:mod:`~modal_spring_ros.bench.peers.peer`): the relative L2 error of the displacement
+against the full run converged in its step, and its CPU seconds per simulated second, one after
+the other in one process with one BLAS thread:
+
+- ``full``: the project's full explicit run at the longest step that meets the tolerance;
+- ``auto``: ``--auto --tolerance 0.01`` planned for the second (unbudgeted, as the peer suite);
+- ``N modes + derivatives``: a fixed band, with the colliders, and ``... without colliders``: the
+  same run of the same scene with its contact left out, costed only (it misses the touch by
+  design), so that the ratio says what contact costs a modal run; the same for ``full``;
+- ``newton``: Newton's ``SolverSemiImplicit`` with its particle-shape contact set as the
+  project's (:mod:`~modal_spring_ros.bench.peers.newton_contact`), from 0.9 of the stability
+  limit down by halves until it meets the tolerance.
+
+Results: ``contact.json``, ``contact.csv`` and ``contact.png`` (error against cost).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Callable
+
+from modal_spring_ros.bench.accuracy.promise import converged_reference, cpu_per_second, write_csv
+from modal_spring_ros.bench.peers import newton_peer
+from modal_spring_ros.bench.peers.peer import chart as peer_chart
+from modal_spring_ros.bench.peers.peer import figure, peer_rows
+from modal_spring_ros.core.auto.measured_error import on_samples, trajectory, trajectory_error
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.model.scene import Scene
+from modal_spring_ros.core.threads import stepping_threads
+from modal_spring_ros.scenes.schema import scene_from_dict
+import numpy as np
+
+COLLIDERS = ('sphere', 'table')
+TOLERANCE = 0.01
+SAMPLE_S = 0.01
+DURATION_S, QUICK_DURATION_S = 1.0, 0.5
+#: the fixed bands (lowest N rest modes, with their derivatives) run with and without colliders
+BANDS, QUICK_BANDS = (16, 32), (16,)
+#: the sheet: particles along a side, their spacing (m), mass (kg), springs' stiffness (N/m)
+COUNT, SPACING, MASS, STIFFNESS = 12, 0.04, 0.2, 200.0
+#: how far it is lowered in its first second, and swayed across, m; the collider's clearance
+LOWERED, SWAYED, CLEARANCE = 0.15, 0.03, 0.02
+SPHERE_RADIUS, FRICTION = 0.08, 0.4
+
+
+def lowered_sheet(collider: str) -> Scene:
+    """Return the sheet hung from its top corners, lowered onto ``collider`` (sphere, table)."""
+    data = {
+        'name': f'sheet_onto_{collider}', 'dimension': 3,
+        'particles': {'lattice': {'counts': [COUNT, 1, COUNT], 'spacing': SPACING},
+                      'mass': MASS / COUNT ** 2},
+        'springs': {'connect': ['edges', 'diagonals'], 'stiffness': STIFFNESS},
+        'fixed': {'indices': [COUNT * COUNT - COUNT, COUNT * COUNT - 1]},   # the top corners
+        'gravity': [0.0, 0.0, -9.81], 'damping': {'rayleigh': {'alpha': 0.5}},
+        'anchor_motion': [   # down a quarter period of 1 Hz / 4, across half a period of 0.5 Hz
+            {'axis': 'z', 'amplitude': LOWERED, 'frequency_hz': 0.25, 'phase': math.pi,
+             'ramp_s': 0.3},
+            {'axis': 'y', 'amplitude': SWAYED, 'frequency_hz': 0.5, 'ramp_s': 0.3}],
+        'simulation': {'duration': DURATION_S}}
+    hanging = scene_from_dict(data, source='contact benchmark')      # the shape it hangs in
+    x = hanging.rest_positions[~hanging.fixed]
+    low = float(x[:, 2].min()) - CLEARANCE
+    middle = float(x[:, 0].mean())
+    shape = ({'shape': 'sphere', 'center': [middle, 0.0, low - SPHERE_RADIUS],
+              'radius': SPHERE_RADIUS} if collider == 'sphere'
+             else {'shape': 'plane', 'point': [0.0, 0.0, low], 'normal': [0.0, 0.0, 1.0]})
+    return scene_from_dict({**data, 'contact': {'friction': FRICTION, 'colliders': [shape]}},
+                           source='contact benchmark')
+
+
+def _row(run: str, coordinates: int, dt: float, error: float, cpu: float) -> dict:
+    return {'run': run, 'coordinates': int(coordinates), 'dt': float(dt), 'error': error,
+            'cpu_per_s': cpu}
+
+
+@stepping_threads()         # one BLAS thread, as the node and modal_spring_sim step
+def measure(collider: str, duration: float, bands: tuple[int, ...],
+            progress: Callable[[str], None]) -> dict:
+    """Return every run's error and cost on the sheet lowered onto ``collider``."""
+    scene = lowered_sheet(collider)
+    free = dataclasses.replace(scene, contact=None)
+    samples = int(round(duration / SAMPLE_S))
+    reference, full, full_error = converged_reference(scene, SAMPLE_S, samples, TOLERANCE,
+                                                      progress)
+    rows = [_row('full', full.coordinates, full.dt, full_error, cpu_per_second(full, duration))]
+    bare = build_simulation(free, SimulationConfig(method='full', dt=full.dt))
+    rows.append(_row('full, without colliders', bare.coordinates, bare.dt, math.nan,
+                     cpu_per_second(bare, duration)))
+
+    def ours(name: str, config: SimulationConfig) -> None:
+        progress(f'{scene.name}: {name}')
+        sim = on_samples(build_simulation(scene, config), SAMPLE_S)
+        error = trajectory_error(trajectory(sim, SAMPLE_S, samples), reference)
+        rows.append(_row(name, sim.coordinates, sim.dt, error,
+                         cpu_per_second(sim, duration) if math.isfinite(error) else math.nan))
+
+    ours('auto', SimulationConfig(auto=True, tolerance=TOLERANCE, horizon_s=duration,
+                                  planning_share=None))
+    for count in bands:
+        config = SimulationConfig(band=FilterBand('lowpass', 0, count - 1, 'index'),
+                                  basis='derivatives')
+        ours(f'{count} modes + derivatives', config)
+        sim = build_simulation(free, config)
+        rows.append(_row(f'{count} modes + derivatives, without colliders', sim.coordinates,
+                         sim.dt, math.nan, cpu_per_second(sim, duration)))
+    refused = newton_peer.refusal(scene) if newton_peer.AVAILABLE else newton_peer.MISSING
+    if not refused:
+        rows += peer_rows(scene, reference, samples, full.stability_limit(), duration, progress)
+    return {'scene': scene.name, 'particles': scene.n_particles, 'duration_s': duration,
+            'tolerance': TOLERANCE, 'peer': '' if refused else 'newton', 'peer_note': refused,
+            'rows': rows, 'figure': figure(rows), 'contact_cost': contact_cost(rows)}
+
+
+def contact_cost(rows: list[dict]) -> dict[str, float]:
+    """Return each run's CPU with its colliders over the same run's without them."""
+    by_name = {r['run']: r['cpu_per_s'] for r in rows}
+    suffix = ', without colliders'
+    return {name[:-len(suffix)]: by_name[name[:-len(suffix)]] / cpu
+            for name, cpu in by_name.items()
+            if name.endswith(suffix) and name[:-len(suffix)] in by_name and cpu > 0}
+
+
+def run(quick: bool, progress: Callable[[str], None]) -> dict:
+    duration, bands = (QUICK_DURATION_S, QUICK_BANDS) if quick else (DURATION_S, BANDS)
+    return {'scenes': [measure(c, duration, bands, progress) for c in COLLIDERS]}
+
+
+def table(results: dict) -> str:
+    lines = []
+    for res in results['scenes']:
+        lines.append(f"{res['scene']} ({res['particles']} particles), {res['duration_s']:g} s, "
+                     f"tolerance {res['tolerance']:.0%}")
+        lines.append(f"{'run':<44} {'coords':>6} {'dt (s)':>9} {'error':>8} {'CPU s/s':>9}")
+        for r in res['rows']:
+            error = f"{r['error']:>8.2%}" if np.isfinite(r['error']) else f"{'-':>8}"
+            lines.append(f"{r['run']:<44} {r['coordinates']:>6} {r['dt']:>9.3g} {error} "
+                         f"{r['cpu_per_s']:>9.4f}")
+        for name, ratio in res['contact_cost'].items():
+            lines.append(f'  contact costs {name} {ratio:.2f}x its run without colliders')
+        lines.append(_peer_line(res))
+    return '\n'.join(lines)
+
+
+def _peer_line(res: dict) -> str:
+    fig = res['figure']
+    if res['peer_note']:
+        return f"  no peer: {res['peer_note']}"
+    if not fig:
+        return '  Newton met the tolerance at none of its steps'
+    peer, mine = fig['peer_run'], fig['ours']
+    head = (f"  Newton within {res['tolerance']:.0%}: dt {peer['dt']:.3g} s, "
+            f"{peer['error']:.2%}, {peer['cpu_per_s']:.4f} CPU s/s; ")
+    if mine is None:
+        return head + 'no run of the project at that error or better'
+    return head + (f"the project's cheapest at that error or better: {mine['run']} at "
+                   f"{mine['error']:.2%}, Newton's CPU {fig['ratio']:.2f}x its")
+
+
+def write_outputs(results: dict, out: Path, progress) -> None:
+    rows = [dict(r, scene=res['scene']) for res in results['scenes'] for r in res['rows']]
+    write_csv(rows, out / 'contact.csv')
+    path = peer_chart(results, out / 'contact.png', 'A sheet lowered onto a sphere and onto a '
+                      "table: the project's runs and Newton's semi-implicit run with contact")
+    progress(f"wrote {out / 'contact.csv'} and {path}")
