@@ -32,8 +32,8 @@ def test_the_sheet_hangs_its_clearance_above_what_it_is_lowered_onto(collider):
 
 
 def test_what_contact_costs_is_each_run_over_the_same_run_without_colliders():
-    rows = [{'run': 'full', 'cpu_per_s': 0.3}, {'run': 'full, without colliders',
-                                                 'cpu_per_s': 0.2},
+    rows = [{'run': 'full', 'cpu_per_s': 0.3},
+            {'run': 'full, without colliders', 'cpu_per_s': 0.2},
             {'run': '16 modes + derivatives', 'cpu_per_s': 0.06},
             {'run': '16 modes + derivatives, without colliders', 'cpu_per_s': 0.04},
             {'run': 'auto', 'cpu_per_s': 0.1}]
@@ -52,7 +52,7 @@ def test_colliders_the_peer_cannot_place_are_refused_with_the_reason():
 
 
 def _particle(dt: float):
-    """A 10 g particle 1 cm over a plane on a spring too soft to matter (as the core's test)."""
+    """Return a 10 g particle 1 cm over a plane, on a spring too soft to matter."""
     return scene_from_dict({
         'name': 'particle', 'dimension': 3,
         'particles': {'positions': [[0.0, 0.0, 1.0], [0.0, 0.0, 0.01]], 'mass': 0.01},
