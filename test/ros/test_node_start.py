@@ -40,7 +40,7 @@ def test_a_start_interrupted_leaves_no_thread_and_no_node(stage, monkeypatch):
     if stage == 'services_made':
         def interrupted(*args, **kwargs):
             raise KeyboardInterrupt
-        monkeypatch.setattr(node_module, 'ReentrantCallbackGroup', interrupted)
+        monkeypatch.setattr(node_module, 'RunServices', interrupted)   # making the services
     else:
         def interrupted(self):
             real_start(self)
