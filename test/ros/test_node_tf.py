@@ -198,8 +198,10 @@ def test_a_clamp_following_tf_keeps_up_with_one_following_the_pose_topic(tmp_pat
 
     Each node hears both nodes' own broadcasts on /tf too (60 Hz each) besides the gripper's
     (50 Hz). TF was paced as a flood of clicks is: its queue stayed full, and the clamp that
-    followed the frame trailed the one that followed the topic by about a second. Heard on its
-    own thread it trails by no more than a few frames (judged on a busy machine).
+    followed the frame trailed the one that followed the topic by 1.3 s. Heard on its own thread
+    it trails by a few frames on a quiet machine; beside two busy processes and the rest of the
+    suite, every message of /tf (170 a second here) waits for the interpreter and it trailed by
+    0.3 s once: the bound, half a second, still tells the old pacing from the new.
     """
     scene_file = tmp_path / 'still_sheet.yaml'
     scene_file.write_text(yaml.safe_dump(scene_to_dict(variant('sheet_10x10', anchor_motion=[]))))
@@ -241,7 +243,7 @@ def test_a_clamp_following_tf_keeps_up_with_one_following_the_pose_topic(tmp_pat
                             and moved('lagpose/modal_spring_clamp') is not None, 30), \
                 (moved('lagtf/modal_spring_clamp'), moved('lagpose/modal_spring_clamp'))
             by_tf, by_pose = moved('lagtf/modal_spring_clamp'), moved('lagpose/modal_spring_clamp')
-            assert by_tf < by_pose + 0.25, (by_tf, by_pose)
+            assert by_tf < by_pose + 0.5, (by_tf, by_pose)
         finally:
             stop.set()
             thread.join(2.0)
