@@ -34,6 +34,7 @@ from modal_spring_ros.bench.accuracy.promise import converged_reference, cpu_per
 from modal_spring_ros.bench.peers import newton_peer
 from modal_spring_ros.bench.peers.peer import chart as peer_chart
 from modal_spring_ros.bench.peers.peer import figure, peer_rows
+from modal_spring_ros.bench.peers.peer import table as peer_table
 from modal_spring_ros.core.auto.measured_error import on_samples, trajectory, trajectory_error
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
@@ -41,7 +42,6 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.threads import stepping_threads
 from modal_spring_ros.scenes.schema import scene_from_dict
-import numpy as np
 
 COLLIDERS = ('sphere', 'table')
 TOLERANCE = 0.01
@@ -138,34 +138,15 @@ def run(quick: bool, progress: Callable[[str], None]) -> dict:
 
 
 def table(results: dict) -> str:
-    lines = []
-    for res in results['scenes']:
-        lines.append(f"{res['scene']} ({res['particles']} particles), {res['duration_s']:g} s, "
-                     f"tolerance {res['tolerance']:.0%}")
-        lines.append(f"{'run':<44} {'coords':>6} {'dt (s)':>9} {'error':>8} {'CPU s/s':>9}")
-        for r in res['rows']:
-            error = f"{r['error']:>8.2%}" if np.isfinite(r['error']) else f"{'-':>8}"
-            lines.append(f"{r['run']:<44} {r['coordinates']:>6} {r['dt']:>9.3g} {error} "
-                         f"{r['cpu_per_s']:>9.4f}")
-        for name, ratio in res['contact_cost'].items():
-            lines.append(f'  contact costs {name} {ratio:.2f}x its run without colliders')
-        lines.append(_peer_line(res))
-    return '\n'.join(lines)
+    return peer_table(results, lambda res: [
+        f'  contact costs {name} {ratio:.2f}x its run without colliders'
+        for name, ratio in res['contact_cost'].items()], _against_newton)
 
 
-def _peer_line(res: dict) -> str:
-    fig = res['figure']
-    if res['peer_note']:
-        return f"  no peer: {res['peer_note']}"
-    if not fig:
-        return '  Newton met the tolerance at none of its steps'
-    peer, mine = fig['peer_run'], fig['ours']
-    head = (f"  Newton within {res['tolerance']:.0%}: dt {peer['dt']:.3g} s, "
-            f"{peer['error']:.2%}, {peer['cpu_per_s']:.4f} CPU s/s; ")
-    if mine is None:
-        return head + 'no run of the project at that error or better'
-    return head + (f"the project's cheapest at that error or better: {mine['run']} at "
-                   f"{mine['error']:.2%}, Newton's CPU {fig['ratio']:.2f}x its")
+def _against_newton(fig: dict) -> str:
+    mine = fig['ours']
+    return (f"the project's cheapest at that error or better: {mine['run']} at "
+            f"{mine['error']:.2%}, Newton's CPU {fig['ratio']:.2f}x its")
 
 
 def write_outputs(results: dict, out: Path, progress) -> None:

@@ -139,20 +139,29 @@ def run(quick: bool, progress: Callable[[str], None]) -> dict:
                        for name in (QUICK_SCENES if quick else SCENES)]}
 
 
-def table(results: dict) -> str:
+def table(results: dict, extra: Callable[[dict], list[str]] = lambda res: [],
+          verdict: Callable[[dict], str] | None = None) -> str:
+    """
+    Return every scene's runs as a table, ``extra`` lines of it, and the figure's line.
+
+    ``verdict`` says what the project's run at Newton's error is against it (default: the
+    goal's ratio).
+    """
     lines = []
     for res in results['scenes']:
         lines.append(f"{res['scene']} ({res['particles']} particles), {res['duration_s']:g} s, "
                      f"tolerance {res['tolerance']:.0%}")
-        lines.append(f"{'run':<36} {'coords':>6} {'dt (s)':>9} {'error':>8} {'CPU s/s':>9}")
+        lines.append(f"{'run':<44} {'coords':>6} {'dt (s)':>9} {'error':>8} {'CPU s/s':>9}")
         for r in res['rows']:
-            lines.append(f"{r['run']:<36} {r['coordinates']:>6} {r['dt']:>9.3g} "
-                         f"{r['error']:>8.2%} {r['cpu_per_s']:>9.4f}")
-        lines.append(_figure_line(res))
+            error = f"{r['error']:>8.2%}" if math.isfinite(r['error']) else f"{'-':>8}"
+            lines.append(f"{r['run']:<44} {r['coordinates']:>6} {r['dt']:>9.3g} {error} "
+                         f"{r['cpu_per_s']:>9.4f}")
+        lines += extra(res)
+        lines.append(_figure_line(res, verdict or _against_goal))
     return '\n'.join(lines)
 
 
-def _figure_line(res: dict) -> str:
+def _figure_line(res: dict, verdict: Callable[[dict], str] | None = None) -> str:
     fig = res['figure']
     if res['peer_note']:
         return f"  no peer: {res['peer_note']}"
@@ -161,11 +170,15 @@ def _figure_line(res: dict) -> str:
     peer = fig['peer_run']
     head = (f"  Newton within {res['tolerance']:.0%}: dt {peer['dt']:.3g} s, "
             f"{peer['error']:.2%}, {peer['cpu_per_s']:.4f} CPU s/s; ")
-    mine = fig['ours']
-    if mine is None:
+    if fig['ours'] is None:
         return head + 'no run of the project at that error or better'
-    return head + (f"{mine['run']} at {mine['error']:.2%}: {fig['ratio']:.1f}x cheaper "
-                   f"(goal {GOAL:g}x {'met' if fig['goal_met'] else 'not met'})")
+    return head + (verdict or _against_goal)(fig)
+
+
+def _against_goal(fig: dict) -> str:
+    mine = fig['ours']
+    return (f"{mine['run']} at {mine['error']:.2%}: {fig['ratio']:.1f}x cheaper "
+            f"(goal {GOAL:g}x {'met' if fig['goal_met'] else 'not met'})")
 
 
 def write_outputs(results: dict, out: Path, progress) -> None:

@@ -1,0 +1,15 @@
+# The message wheels' exported targets name the include paths of the machine that built them;
+# keep only the paths that exist here (this build adds its own Python's).
+get_directory_property(imported IMPORTED_TARGETS)
+foreach(target IN LISTS imported)
+  get_target_property(dirs ${target} INTERFACE_INCLUDE_DIRECTORIES)
+  if(dirs)
+    set(kept "")
+    foreach(dir IN LISTS dirs)
+      if(EXISTS "${dir}" OR dir MATCHES "^\\$<")
+        list(APPEND kept "${dir}")
+      endif()
+    endforeach()
+    set_target_properties(${target} PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${kept}")
+  endif()
+endforeach()
