@@ -30,11 +30,11 @@ import math
 from pathlib import Path
 from typing import Callable
 
-from modal_spring_ros.bench.accuracy.promise import converged_reference, cpu_per_second, write_csv
+from modal_spring_ros.bench.accuracy.promise import converged_reference, cpu_per_second
 from modal_spring_ros.bench.peers import newton_peer
-from modal_spring_ros.bench.peers.peer import chart as peer_chart
 from modal_spring_ros.bench.peers.peer import figure, peer_rows
 from modal_spring_ros.bench.peers.peer import table as peer_table
+from modal_spring_ros.bench.peers.peer import write_outputs as peer_outputs
 from modal_spring_ros.core.auto.measured_error import on_samples, trajectory, trajectory_error
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
@@ -150,8 +150,5 @@ def _against_newton(fig: dict) -> str:
 
 
 def write_outputs(results: dict, out: Path, progress) -> None:
-    rows = [dict(r, scene=res['scene']) for res in results['scenes'] for r in res['rows']]
-    write_csv(rows, out / 'contact.csv')
-    path = peer_chart(results, out / 'contact.png', 'A sheet lowered onto a sphere and onto a '
-                      "table: the project's runs and Newton's semi-implicit run with contact")
-    progress(f"wrote {out / 'contact.csv'} and {path}")
+    peer_outputs(results, out, progress, 'contact', 'A sheet lowered onto a sphere and onto a '
+                 "table: the project's runs and Newton's semi-implicit run with contact")

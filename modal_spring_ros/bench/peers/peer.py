@@ -181,10 +181,14 @@ def _against_goal(fig: dict) -> str:
             f"(goal {GOAL:g}x {'met' if fig['goal_met'] else 'not met'})")
 
 
-def write_outputs(results: dict, out: Path, progress) -> None:
+def write_outputs(results: dict, out: Path, progress, name: str = 'peer',
+                  title: str | None = None) -> None:
+    """Write every scene's rows as ``<name>.csv`` and their chart as ``<name>.png``."""
     rows = [dict(r, scene=res['scene']) for res in results['scenes'] for r in res['rows']]
-    write_csv(rows, out / 'peer.csv')
-    progress(f"wrote {out / 'peer.csv'} and {chart(results, out / 'peer.png')}")
+    write_csv(rows, out / f'{name}.csv')
+    path = (chart(results, out / f'{name}.png') if title is None
+            else chart(results, out / f'{name}.png', title))
+    progress(f"wrote {out / f'{name}.csv'} and {path}")
 
 
 def chart(results: dict, path: Path, title: str = "The project against Newton's semi-implicit "
