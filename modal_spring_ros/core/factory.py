@@ -16,6 +16,7 @@ from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.pilot import Pilot, PILOT_MARGIN, SAMPLES as PILOT_SAMPLES
 from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PlanSettings
+from modal_spring_ros.core.auto.step_error import predicted_step
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis, Progress
 from modal_spring_ros.core.bases.basis_choice import choose_basis
 from modal_spring_ros.core.bases.mode_selection import (choose_modes, choose_refresh, choose_step,
@@ -165,12 +166,15 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
         if not basis.dense:
             budget.spend(modes_work(model, basis.modes_solved - charged[0]))
             charged[0] = basis.modes_solved
-    # modes a small scene has anyway (dense): the step its response's period error allows the
-    # full run, a prediction of whether the default step meets the tolerance
+    # every mode a small scene has anyway (dense): the longest stable step the full run is
+    # predicted to meet the tolerance at over the run, within the pilot's margin (a scene with
+    # colliders is checked over the whole window instead: a linear prediction sees no touch)
+    # (a step the user gave is the longest)
+    predicted = (predicted_step(model, basis, 'explicit', full_dt if config.dt else longest.dt,
+                                horizon_s, PILOT_MARGIN * config.tolerance)
+                 if basis.dense and model.scene.contact is None else None)
     choice = (choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
-              if basis.dense or not why else None)
-    predicted = (choose_step(choice, 'explicit', config.tolerance, model.scene.damping)
-                 if basis.dense else math.inf)
+              if not why else None)
     if measured and why:
         # a plan's set-up would cost more than it could save: the full run, before any plan
         window = min(pilot_window(model, basis.frequencies_hz[:1]), horizon_s)
@@ -300,8 +304,9 @@ def build_simulation(scene: Scene, config: SimulationConfig, *,
     what the machine has): a run estimated beyond it is refused before any stage runs
     (:mod:`~modal_spring_ros.core.memory_estimate`); None: not checked.
 
-    With ``config.anchor`` ``topic`` or ``tf`` the scene's clamp follows poses given to its
-    :class:`~modal_spring_ros.core.motion.clamp_follower.ClampFollower` instead of its own motion.
+    With ``config.anchor`` ``topic`` or ``tf`` the scene's clamp follows poses given to the
+    model's :class:`~modal_spring_ros.core.motion.clamp_follower.ClampFollower` (``model.motion``:
+    input state, the run's) instead of the scene's own motion.
 
     :raises SceneError: a mechanism (the stiffness is singular on the free DOF), or a run that
         would not fit in ``memory_available`` (:class:`MemoryLimitError`, before any of it).
@@ -312,14 +317,15 @@ def build_simulation(scene: Scene, config: SimulationConfig, *,
     config.validate()
     if memory_available is not None:
         check_run_memory(scene, config, memory_available)
+    follower = None
     if config.anchor in POSE_SOURCES:  # the clamp follows poses (from t = 0: at its rest pose)
         rest = np.asarray(scene.rest_positions, dtype=float)
         fixed = np.flatnonzero(scene.fixed)
         clamp = rest[fixed] if fixed.size else rest
         reach = max(float(np.max(np.ptp(rest, axis=0))), REACH_MIN_M)
-        scene = dataclasses.replace(scene, anchor_motion=ClampFollower(
-            config.follow_hz, scene.axes, home=clamp.mean(axis=0), reach_m=reach))
-    model = MassSpringModel(scene)
+        follower = ClampFollower(config.follow_hz, scene.axes, home=clamp.mean(axis=0),
+                                 reach_m=reach)
+    model = MassSpringModel(scene, follower)
     first = min(INITIAL_MODES, config.max_modes or INITIAL_MODES)  # no more than the run may use
     basis = ModalBasis(model, initial_modes=first, progress=progress, worker=worker,
                        samples=samples)

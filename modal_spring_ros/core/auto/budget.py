@@ -26,6 +26,7 @@ from typing import Callable
 from modal_spring_ros.core.auto.full_candidate import BY_ITSELF, by_step_doubling
 from modal_spring_ros.core.auto.plan import PilotReport
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK
+from modal_spring_ros.core.auto.step_error import StepPrediction
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.simulations import Simulation
 
@@ -181,62 +182,83 @@ def worth_measuring(budget: PlanningBudget, full: Simulation, plan: Simulation,
 def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningBudget,
                    default_dt: float, window_s: float, horizon_s: float, tolerance: float,
                    margin: float, samples: int, reason: str,
-                   predicted_dt: float = math.inf) -> tuple[Simulation, PilotReport]:
+                   prediction: StepPrediction | None = None) -> tuple[Simulation, PilotReport]:
     """
-    Return the full run at the step ``--method full`` takes, checked; or at the one it needs.
+    Return the full run at the longest step that meets the tolerance, checked.
 
-    The default step (``default_dt``: the scene's, or half the stability limit) is checked by
-    step doubling (against its run at half the step) over as much of the window's start as the
-    budget affords, at least ``MIN_CHECK_SAMPLES`` of its ``samples``. Where that start is
-    within ``margin * tolerance``, the default step is the answer: the run costs what the full
-    run a user would have run costs, and its error is reported over the start it was measured
-    on (a drift fitted to a fraction of the slowest period extrapolates the start's transient,
-    not a drift). Where it is not, the default run misses the tolerance too, so it is no
-    baseline to stay near: the step is halved by step doubling over the whole window, its error
-    extrapolated over ``horizon_s``, whatever that costs (on random scenes the full run needed
-    a tenth to a fortieth of its stability limit to meet 1 % over 3 s). A start can miss an
-    error that grows later: where ``predicted_dt`` (the step Newmark's period error of the
-    modes that carry the response allows, :func:`~modal_spring_ros.core.bases.mode_selection.
-    choose_step`) is shorter than the default, the default is taken to miss too, and the step
-    is found over the whole window from the longer of the two predictions' neighbours (twice the
-    predicted step, at most the default). A scene with colliders is checked over the whole
-    window: its touches come when they come (a start checked a random scene's default step at
-    0.05 % where it missed 0.3 % by 2.6 times once the object reached a sphere).
+    ``prediction`` is the longest stable step every mode, stepped under the scene's loads
+    with the period error and damping the integrator gives it, is predicted to keep within
+    ``margin * tolerance`` over the run (:mod:`~modal_spring_ros.core.auto.step_error`; None:
+    no prediction, a scene beyond the dense limit or with colliders). The step run is that one
+    where it is longer than the default (``default_dt``: the one ``--method full`` takes, the
+    scene's or half the stability limit), else the default: a user pays no more than the full
+    run they would have run, and less where its default step is needlessly short.
+
+    That step is checked by step doubling (against its run at half the step) over as much of
+    the window's start as the budget affords, at least ``MIN_CHECK_SAMPLES`` of its
+    ``samples``. Where that start is within ``margin * tolerance``, the step is the answer, its
+    error reported over the start it was measured on (a drift fitted to a fraction of the
+    slowest period extrapolates the start's transient, not a drift). Where it is not, the run
+    misses the tolerance, so it is no baseline to stay near: the step is halved by step
+    doubling over the whole window, its error extrapolated over ``horizon_s``, whatever that
+    costs (on random scenes the full run needed a tenth to a fortieth of its stability limit to
+    meet 1 % over 3 s). A start can miss an error that grows later: where the prediction puts
+    the default step beyond the tolerance itself, the step is found over the whole window from
+    the predicted one. A scene with colliders is checked over the whole window: its touches
+    come when they come (a start checked a random scene's default step at 0.05 % where it
+    missed 0.3 % by 2.6 times once the object reached a sphere).
     """
     sample_s = window_s / samples
-    if predicted_dt < default_dt * (1.0 - 1e-9):
-        reason += ('; the default step is predicted beyond the tolerance (the period error of '
-                   'the modes that carry the response): the step needed was found over the '
-                   'whole window, beyond the budget')
+    predicted_dt = prediction.step if prediction is not None else math.inf
+    if predicted_dt < default_dt * math.sqrt(margin) * (1.0 - 1e-9):
+        # the error grows as the step's square: the default's is predicted beyond the tolerance
+        reason += ('; the default step is predicted beyond the tolerance (every mode stepped '
+                   'with the period error and damping of the step): the step needed was found '
+                   'over the whole window, beyond the budget')
         sim, error = by_step_doubling(full, sample_s, samples, horizon_s, margin * tolerance,
-                                      math.inf, first_dt=min(default_dt, 2.0 * predicted_dt))
+                                      math.inf, first_dt=predicted_dt)
         budget.charge(sim, REFERENCE_RUNS * window_s)
         report = PilotReport(error, math.nan, window_s, BY_ITSELF, (), 'full', 1.0,
                              reason=reason, horizon_s=horizon_s, window_error=error,
                              tolerance=tolerance)
         return sim, report
-    default = full(default_dt, sample_s)
-    rate = work_per_second(default)
+    step = default_dt
+    if prediction is not None:
+        if predicted_dt > default_dt:
+            step = predicted_dt
+            reason += (f'; the longest step predicted within the tolerance ({step:.3g} s, '
+                       f'{step / default_dt:.2g} times the default step)')
+    checked = full(step, sample_s)
+    rate = work_per_second(checked)
     affordable = budget.remaining_us / (REFERENCE_RUNS * rate * sample_s) if rate > 0 else 0
     count = int(min(samples, max(MIN_CHECK_SAMPLES, affordable)))
-    if default.model.scene.contact is not None and count < samples:
+    if checked.model.scene.contact is not None and count < samples:
         # a start sees none of the touches to come: a scene with colliders is checked whole
         count = samples
         reason += ('; the scene has colliders, and a start sees none of the touches to come: '
-                   'the default step was checked over the whole window, beyond the budget')
+                   'the step was checked over the whole window, beyond the budget')
     checked_s = count * sample_s
     over_s = horizon_s if count == samples else checked_s
     sim, error = by_step_doubling(full, sample_s, count, over_s, margin * tolerance, math.inf,
-                                  first_dt=default_dt)
+                                  first_dt=step)
     budget.charge(sim, REFERENCE_RUNS * checked_s)
-    if sim.dt < default.dt * (1.0 - 1e-9) and count < samples:
-        reason += ('; the default step missed the tolerance over the first '
-                   f'{checked_s:.2g} s: the step needed was found over the whole window, '
-                   'beyond the budget')
+    if sim.dt < checked.dt * (1.0 - 1e-9) and step > default_dt:
+        # a start's transient can miss where the run would not: the default step, checked so
+        reason += ('; the longer step missed over the start: the default step was checked')
+        checked = full(default_dt, sample_s)
+        sim, error = by_step_doubling(full, sample_s, count, over_s, margin * tolerance,
+                                      math.inf, first_dt=default_dt)
+        budget.charge(sim, REFERENCE_RUNS * checked_s)
+    if sim.dt < checked.dt * (1.0 - 1e-9) and count < samples:
+        reason += (f'; the step missed the tolerance over the first {checked_s:.2g} s: the step '
+                   'needed was found over the whole window, beyond the budget')
         sim, error = by_step_doubling(full, sample_s, samples, horizon_s, margin * tolerance,
                                       math.inf, first_dt=sim.dt)
         budget.charge(sim, REFERENCE_RUNS * window_s)
         checked_s, over_s = window_s, horizon_s
+    if prediction is not None:
+        reason += (f'; {prediction.error_at(sim.dt):.2%} predicted over the {horizon_s:.3g} s '
+                   'run (every mode stepped with its period error)')
     report = PilotReport(error, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0, reason=reason,
                          horizon_s=over_s, window_error=error, tolerance=tolerance)
     return sim, report

@@ -50,6 +50,7 @@ from modal_spring_ros.core.auto.refinement import (lengthened, refinements, rich
                                                    shared_step_error, still_richer)
 from modal_spring_ros.core.auto.run_watch import WatchReference
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK, full_run_start
+from modal_spring_ros.core.auto.step_error import StepPrediction
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import Simulation
@@ -84,7 +85,7 @@ class Pilot:
     ``horizon_s``: how long the run is, s (the tolerance holds over it; None: the window);
     ``budget``: what measuring may spend (:mod:`~modal_spring_ros.core.auto.budget`; None:
     not budgeted); ``full_dt``: the full run's default step (the one ``method full`` takes),
-    and the step its period error is predicted to need (``inf``: no prediction).
+    and the longest step it is predicted to meet the tolerance at (None: no prediction).
     """
 
     def __init__(self, model: MassSpringModel, tolerance: float,
@@ -93,7 +94,7 @@ class Pilot:
                  more_modes: Callable[[float], float | None], kept_hz: np.ndarray,
                  can_halve_step: bool = True, horizon_s: float | None = None,
                  budget: PlanningBudget | None = None,
-                 full_dt: tuple[float, float] = (math.inf, math.inf)):
+                 full_dt: tuple[float, StepPrediction | None] = (math.inf, None)):
         self.model, self.full_dt, self.tolerance = model, full_dt, float(tolerance)
         self.budget = budget if budget is not None else PlanningBudget()
         self.make, self.full, self.more_modes = make, full, more_modes

@@ -1,0 +1,176 @@
+"""
+The error a full run's step is predicted to make, from every mode and the integrator's own step.
+
+A start checked by step doubling does not see an error that grows later (a mode's period error
+drifts its phase a little more every period), so a small scene's default step is also judged
+before it is run. Every mode is stepped twice over the run, exactly, under the scene's loads
+projected on it (gravity, the clamp's shake or turn: the state-independent loads of the clamp's
+frame): once with its own frequency and damping, once with those the integrator's step gives it.
+Those are read from the integrator itself (one step of every mode at once, the eigenvalues of
+that step's map: the period error and the numerical damping), so an integrator added to the
+registry is predicted without a formula of its own. The relative L2 difference of the two
+displacements over the run's samples, in the clamp's frame as runs are measured
+(:mod:`~modal_spring_ros.core.auto.measured_error`), is the step's predicted error.
+
+It is a linear prediction: the springs' nonlinearity and the frame's Coriolis and centrifugal
+coupling are left out, which is why it only decides how the default step is checked, never what
+is printed. What the static response carries (gravity's sag, a slow drive's quasi-static part)
+has no period error, and a damped mode's error decays with it: the period error's growth alone,
+weighted by the modes' static shares (:func:`~modal_spring_ros.core.bases.mode_selection.
+choose_step`), flagged damped scenes whose default step met the tolerance by up to 7 times.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.integrators import DiagonalOperators, integrator
+from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.motion.frame_loads import FrameLoads
+import numpy as np
+
+#: Instants the modes are stepped at over the run, at most (the loads are sampled there).
+MAX_INSTANTS = 1500
+#: Instants per period of the fastest drive term, at least; and the longest interval, s.
+PER_DRIVE_PERIOD, LONGEST_INTERVAL_S = 16, 0.02
+#: A step's error grows as its square (second-order schemes): the step predicted to meet a
+#: tolerance is found from one prediction, then confirmed once.
+ORDER = 2
+#: Predictions made at most while looking for it, and how far under the order's step each goes.
+MAX_PREDICTIONS, SETTLE = 4, 0.97
+
+
+def scheme_frequencies(name: str, omega: np.ndarray, damping: np.ndarray, dt: float
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the frequency and decay rate (rad/s, 1/s) the integrator ``name`` gives each mode.
+
+    A mode of circular frequency ``omega`` and damping coefficient ``damping`` (``q'' + c q' +
+    omega^2 q = 0``), stepped by ``dt``: the complex eigenvalue ``z`` of one step's map is
+    ``exp((-sigma + i w) dt)``. Beyond the integrator's stability limit the decay is negative.
+    """
+    omega = np.asarray(omega, dtype=float)
+    n = omega.size
+    stiffness = omega ** 2
+    ops = DiagonalOperators(1.0, np.asarray(damping, dtype=float), stiffness, dt)
+    scheme = integrator(name)
+
+    def force(u: np.ndarray) -> np.ndarray:
+        return -stiffness * u
+
+    # the step's map on (u, v, a), column by column (the state a step starts from)
+    columns = []
+    for k in range(3):
+        state = [np.zeros(n), np.zeros(n), np.zeros(n)]
+        state[k] = np.ones(n)
+        result = scheme.step(state[0], state[1], state[2], dt, force, ops)
+        columns.append(np.stack([result.u, result.v, result.a], axis=-1))
+    maps = np.stack(columns, axis=-1)                     # (n, 3, 3): row = output
+    roots = np.linalg.eigvals(maps)                       # (n, 3)
+    # the oscillation's pair: the roots of largest modulus, the one turning positively
+    order = np.argsort(-np.abs(roots) + 1e-12 * -roots.imag, axis=1)
+    root = np.take_along_axis(roots, order[:, :1], axis=1)[:, 0]
+    root = np.where(root.imag < 0, root.conj(), root)
+    with np.errstate(divide='ignore'):
+        sigma = -np.log(np.abs(root)) / dt
+    return np.abs(np.angle(root)) / dt, sigma
+
+
+def _propagators(omega: np.ndarray, sigma: np.ndarray, h: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the exact step of ``q'' + 2 sigma q' + w0^2 q = p`` over ``h`` (p held), per mode.
+
+    ``omega`` is the damped frequency, ``w0^2 = omega^2 + sigma^2``. Returns the (n, 2, 2) map of
+    ``(q, q')`` and the (n, 2) response to a unit ``p``.
+    """
+    w0sq = omega ** 2 + sigma ** 2
+    decay = np.exp(-sigma * h)
+    c = np.cos(omega * h)
+    s_over = np.where(omega * h > 1e-9, np.sin(omega * h) / np.where(omega > 0, omega, 1.0), h)
+    phi = np.empty((omega.size, 2, 2))
+    phi[:, 0, 0] = decay * (c + sigma * s_over)
+    phi[:, 0, 1] = decay * s_over
+    phi[:, 1, 0] = -decay * w0sq * s_over
+    phi[:, 1, 1] = decay * (c - sigma * s_over)
+    gamma = np.empty((omega.size, 2))
+    gamma[:, 0] = (1.0 - phi[:, 1, 1] - 2.0 * sigma * phi[:, 0, 1]) / np.maximum(w0sq, 1e-300)
+    gamma[:, 1] = phi[:, 0, 1]
+    return phi, gamma
+
+
+def _instants(model: MassSpringModel, horizon_s: float) -> tuple[float, int]:
+    """Return the interval the modes are stepped at, and how many (the drive sampled finely)."""
+    drive_hz = model.motion.frequencies_hz
+    fastest = float(drive_hz.max()) if drive_hz.size else 0.0
+    h = LONGEST_INTERVAL_S
+    if fastest > 0:
+        h = min(h, 1.0 / (PER_DRIVE_PERIOD * fastest))
+    count = int(min(MAX_INSTANTS, max(1, math.ceil(horizon_s / h))))
+    return horizon_s / count, count
+
+
+def predicted_step_error(model: MassSpringModel, basis: ModalBasis, name: str, dt: float,
+                         horizon_s: float) -> float:
+    """
+    Return the relative L2 error predicted for a full run at ``dt`` over ``horizon_s``.
+
+    ``basis`` holds every mode (a dense one); ``name`` is the run's integrator. ``inf`` where
+    the step is unstable for some mode; 0 where the scene has no load.
+    """
+    omega = basis.omega
+    damping = (model.scene.damping.modal_coefficients(omega)
+               if model.scene.damping is not None else np.zeros_like(omega))
+    stepped, decay = scheme_frequencies(name, omega, damping, dt)
+    if np.any(decay < -1e-9 * np.maximum(omega, 1.0)):
+        return math.inf
+    sigma = 0.5 * damping
+    exact_omega = np.sqrt(np.maximum(omega ** 2 - sigma ** 2, 0.0))
+    h, count = _instants(model, horizon_s)
+    phi, gamma = _propagators(np.concatenate([exact_omega, stepped]),
+                              np.concatenate([sigma, decay]), h)
+    frame = FrameLoads(model, basis.vectors)
+    loads = np.array([frame.loads((k + 0.5) * h) for k in range(count)])    # (count, m)
+    loads = np.concatenate([loads, loads], axis=1)
+    state = np.zeros((phi.shape[0], 2))
+    q = np.empty((count, phi.shape[0]))
+    for k in range(count):
+        state = np.einsum('mij,mj->mi', phi, state) + gamma * loads[k][:, None]
+        q[k] = state[:, 0]
+    m = omega.size
+    exact = q[:, :m] @ basis.vectors.T
+    norm = float(np.linalg.norm(exact))
+    if norm == 0.0:
+        return 0.0
+    return float(np.linalg.norm((q[:, m:] - q[:, :m]) @ basis.vectors.T)) / norm
+
+
+@dataclasses.dataclass(frozen=True)
+class StepPrediction:
+    """The longest step predicted within a tolerance, and its predicted error over the run."""
+
+    step: float
+    error: float
+
+    def error_at(self, dt: float) -> float:
+        """Return the error predicted at ``dt`` (the step's square from this one)."""
+        return self.error * (dt / self.step) ** ORDER
+
+
+def predicted_step(model: MassSpringModel, basis: ModalBasis, name: str, dt: float,
+                   horizon_s: float, tolerance: float) -> StepPrediction:
+    """
+    Return the longest step predicted to keep a full run within ``tolerance``, at most ``dt``.
+
+    From ``dt``'s prediction and the error's order in the step, confirmed at the step it gives
+    (``dt`` where ``dt`` is predicted within it).
+    """
+    step = dt
+    for _ in range(MAX_PREDICTIONS):
+        error = predicted_step_error(model, basis, name, step, horizon_s)
+        if error <= tolerance:
+            break
+        step *= (SETTLE * (tolerance / error) ** (1.0 / ORDER) if math.isfinite(error)
+                 else 0.5)
+    return StepPrediction(step, error)
