@@ -119,7 +119,7 @@ class ModalSpringNode(Node):
         self._report_parameter(FREQUENCIES, sim.basis.frequencies_hz.tolist(),
                                FREQUENCIES_DESCRIPTOR)
         self._report_parameter(CLOCK_OFFSET, self._time.offset, CLOCK_OFFSET_DESCRIPTOR)
-        scene = sim.model.scene     # as the run has it (a loaded shape, a clamp following poses)
+        scene = sim.model.scene     # as the run has it (a loaded shape)
         self._outputs = NodeOutputs(self, scene, lambda: self._params.values,
                                     self._open_capture(sim), self._time)
         self._thread = SimulationThread(
@@ -130,7 +130,7 @@ class ModalSpringNode(Node):
                 self.get_clock(), self._params.values['publish_clock']),
             on_watch_beyond=lambda window, plan: fall_back(self, window, plan, self._running))
         self._params.listen()
-        follower = scene.anchor_motion if values['anchor.source'] in POSE_SOURCES else None
+        follower = sim.model.motion if values['anchor.source'] in POSE_SOURCES else None
         self._input_node = InputNode(self)      # its own thread: a flood never starves the run
         self._tf_node = (InputNode(self, TF_MAX_RATE_HZ, TF_CPU_SHARE, suffix='tf')
                          if tf_available() else None)   # TF on its own: it keeps up

@@ -4,8 +4,12 @@ from __future__ import annotations
 import math
 import pickle
 
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.motion.clamp_follower import ClampFollower
+from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
+import pytest
 
 Q0 = np.array([0.0, 0.0, 0.0, 1.0])
 
@@ -120,3 +124,32 @@ def test_clearing_forgets_every_pose():
     follower.clear()
     np.testing.assert_allclose(follower.frame(10.0).translation, 0.0, atol=1e-12)
     assert follower.check([5.0, 0.0, 0.0], Q0, 0.5).startswith('the first pose is 5 m')
+
+
+def test_a_followed_clamp_is_the_runs_state_never_the_scenes():
+    """
+    Two runs of one scene follow poses each on their own; the scene stays the data it was.
+
+    The follower is the run's model's motion (``model.motion``), handed to it when the run is
+    built; the scene keeps its own ``anchor_motion``, and a run of the scene's motion built
+    after them moves as the scene says.
+    """
+    scene = load_scene('sheet_10x10')
+    first = build_simulation(scene, SimulationConfig(anchor='topic'))
+    second = build_simulation(scene, SimulationConfig(anchor='topic'))
+    assert isinstance(first.model.motion, ClampFollower)
+    assert first.model.motion is not second.model.motion
+    assert first.model.scene.anchor_motion is scene.anchor_motion
+    first.model.motion.follow(0.0, [0.45, 0.0, -0.9], Q0)
+    first.step(10)
+    first.model.motion.follow(first.time, [0.47, 0.0, -0.9], Q0)   # 2 cm along x
+    first.step(1000)
+    second.step(1010)
+    assert first.model.frame(first.time).translation[0] == pytest.approx(0.02, rel=0.01)
+    np.testing.assert_allclose(second.model.frame(second.time).translation, 0.0, atol=1e-12)
+    own = build_simulation(scene, SimulationConfig())
+    assert own.model.motion is scene.anchor_motion
+    own.step(200)                                        # the scene's shake, on its axes x, z
+    np.testing.assert_allclose(own.model.frame(own.time).translation,
+                               scene.anchor_motion.frame(own.time).translation[[0, 2]])
+    assert np.linalg.norm(own.model.frame(own.time).translation) > 1e-5

@@ -31,7 +31,7 @@ def pilot_window(model: MassSpringModel, kept_hz: np.ndarray) -> float:
     A few periods of the slowest kept mode and of the drive, or a drive's build-up near a kept
     mode (:func:`build_up_s`) where that is longer.
     """
-    drive = [f for f in model.scene.anchor_motion.frequencies_hz.tolist() if f > 0]
+    drive = [f for f in model.motion.frequencies_hz.tolist() if f > 0]
     slowest = min([float(np.min(kept_hz)), *drive])
     window = WINDOW_PERIODS / slowest if slowest > 0 else MAX_WINDOW_S
     window = min(MAX_WINDOW_S, max(MIN_WINDOW_S, window))
@@ -47,7 +47,7 @@ def build_up_s(model: MassSpringModel, kept_hz: np.ndarray) -> float:
     its damping or the beat with the drive stops it: over ``BUILD_UP_SETTLING`` times the
     shorter of the mode's decay time and the beat's period. 0 with no drive near a mode.
     """
-    drive = model.scene.anchor_motion.frequencies_hz
+    drive = model.motion.frequencies_hz
     kept = np.asarray(kept_hz, dtype=float)
     if not drive.size or not kept.size:
         return 0.0

@@ -43,7 +43,7 @@ WORK_SHARE = 0.25
 
 def watchable(model: MassSpringModel) -> bool:
     """Tell whether a run of ``model`` can be watched (its clamp moves as a function of time)."""
-    return isinstance(model.scene.anchor_motion, AnchorMotion)
+    return isinstance(model.motion, AnchorMotion)
 
 
 def watch_of(sim: Simulation, interval_s: float | None, budget: float | None = None,

@@ -89,7 +89,7 @@ def _drives(model: MassSpringModel):
     through its angle.
     """
     d, mass = model.dimension, model.mass_dof
-    motion = model.scene.anchor_motion
+    motion = model.motion
     for c in motion.components:
         if c.amplitude != 0.0 and c.axis in model.axes:
             slot = model.axes.index(c.axis)

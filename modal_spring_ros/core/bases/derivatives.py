@@ -150,7 +150,7 @@ def loads_in_band(model: MassSpringModel, low_hz: float = 0.0,
     mask = np.zeros(4, dtype=bool)
     mask[0] = bool(np.any(model.gravity_force != 0.0)) and low_hz <= 0.0
     drives: dict[int, list[float]] = {}
-    for c in model.scene.anchor_motion.components:
+    for c in model.motion.components:
         if c.amplitude != 0.0 and c.axis in model.axes:
             drives.setdefault(c.axis, []).append(c.frequency_hz)
     for axis, f in drives.items():
@@ -182,7 +182,7 @@ def static_load_vectors(model: MassSpringModel, low_hz: float = 0.0,
 
 def _turns_in_band(model: MassSpringModel, low_hz: float, high_hz: float) -> bool:
     """Tell whether the clamp turns only at frequencies within ``low_hz .. high_hz``."""
-    f = model.scene.anchor_motion.rotation_frequencies_hz
+    f = model.motion.rotation_frequencies_hz
     return bool(f.size) and low_hz <= float(f.min()) and float(f.max()) <= high_hz
 
 
@@ -272,7 +272,7 @@ def drive_gains(model: MassSpringModel, omega: np.ndarray) -> np.ndarray:
     omega = np.asarray(omega, dtype=float)
     damping = model.scene.damping.modal_coefficients(omega)
     gain = np.ones(omega.size)
-    for drive in 2.0 * np.pi * np.asarray(model.scene.anchor_motion.frequencies_hz, float):
+    for drive in 2.0 * np.pi * np.asarray(model.motion.frequencies_hz, float):
         response = np.abs(omega ** 2 - drive ** 2 + 1j * damping * drive)
         gain = np.maximum(gain, omega ** 2 / np.maximum(response, omega ** 2 / MAX_DRIVE_GAIN))
     return gain

@@ -87,7 +87,7 @@ def scene_loads(model: MassSpringModel) -> dict[str, np.ndarray]:
     loads = {}
     if np.any(model.gravity_force != 0.0):
         loads['gravity'] = model.gravity_force
-    motion = model.scene.anchor_motion
+    motion = model.motion
     for axis in sorted({c.axis for c in motion.components if c.amplitude != 0.0}):
         if axis in model.axes:
             a = model.axes.index(axis)
@@ -146,7 +146,7 @@ def choose_modes(model: MassSpringModel, basis: ModalBasis, band: FilterBand = F
         raise ValueError(f'modal.tolerance ({tolerance}) must be between 0 and 1')
     band.validate()
     estimator = TruncationEstimator(model)
-    excitation = model.scene.anchor_motion.frequencies_hz
+    excitation = model.motion.frequencies_hz
     f_exc = float(excitation.max()) if excitation.size else 0.0
     limit = min(max_modes, basis.n_dof)
     while True:

@@ -61,8 +61,8 @@ class ExactForces(ForceModel):
         self._l = self.law.rest_length
         rest = model.rest
         self._delta_rest = (rest[s.springs[:, 1]] - rest[s.springs[:, 0]]).T.ravel()
-        self._anchors_move = not s.anchor_motion.is_static
-        self._base_motion = s.anchor_motion
+        self._anchors_move = not model.motion.is_static
+        self._base_motion = model.motion
         # Loads as one product: [gravity, -M 1_x, -M 1_y, -M 1_z] @ [1, base acceleration (3,)]
         # (-M 1_axis: the inertial load of a unit base acceleration; zero on axes not modelled).
         base_load = np.zeros((model.n_free_dof, 3))

@@ -53,7 +53,7 @@ def stepped_loads(model, loads: Mapping[str, Load],
 def _world_positions(model, displacement: Callable[[np.ndarray], np.ndarray], t: float,
                      in_world: bool):
     """Return ``world_positions(slots)`` of the free particles at ``t``, and the clamp's frame."""
-    frame = None if in_world or model.scene.anchor_motion.is_static else model.frame(t)
+    frame = None if in_world or model.motion.is_static else model.frame(t)
     d = model.dimension
     free = model.free_particles
 

@@ -18,16 +18,25 @@ from modal_spring_ros.core.forces.springs import spring_difference_matrix
 from modal_spring_ros.core.laws import scene_law
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.model.stiffness import assemble_stiffness, reduce_to_free
+from modal_spring_ros.core.motion.clamp_motion import ClampMotion
 from modal_spring_ros.core.motion.rigid_frame import RigidFrame
 import numpy as np
 import scipy.sparse as sp
 
 
 class MassSpringModel:
-    """Vectorised mechanics of one scene."""
+    """
+    Vectorised mechanics of one scene, and how its clamp moves in this run.
 
-    def __init__(self, scene: Scene):
+    ``motion`` is the clamp's motion when it is not the scene's own ``anchor_motion``: a
+    :class:`~modal_spring_ros.core.motion.clamp_follower.ClampFollower` that follows the poses
+    a run is given (input state belongs to the run, never to the scene, which stays data).
+    """
+
+    def __init__(self, scene: Scene, motion: ClampMotion | None = None):
         self.scene = scene
+        #: the clamp's motion: the scene's, or the poses this run follows
+        self.motion: ClampMotion = scene.anchor_motion if motion is None else motion
         d = scene.dimension
         self.dimension = d
         self.axes = list(scene.axes)
@@ -134,7 +143,7 @@ class MassSpringModel:
     @property
     def rotates(self) -> bool:
         """Tell whether the clamp turns: displacements live in its (floating) frame."""
-        return self.scene.anchor_motion.rotates
+        return self.motion.rotates
 
     def frame(self, t: float) -> RigidFrame:
         """
@@ -144,7 +153,7 @@ class MassSpringModel:
         is asked for by the forces, the positions and the energy; a clamp following poses changes
         its revision when it gets a new one).
         """
-        motion = self.scene.anchor_motion
+        motion = self.motion
         key = (t, motion.revision)
         cached = self._frame
         if cached is not None and cached[0] == key:
@@ -155,7 +164,7 @@ class MassSpringModel:
 
     def restart_clamp(self) -> None:
         """Go back to t = 0 with the run: so does a clamp with a state of its own."""
-        self.scene.anchor_motion.restart()
+        self.motion.restart()
 
     def anchor_offset(self, t: float) -> np.ndarray:
         """
@@ -163,7 +172,7 @@ class MassSpringModel:
 
         The offset of a clamp that only translates.
         """
-        return self.scene.anchor_motion.offset(t)[self.axes]
+        return self.motion.offset(t)[self.axes]
 
     def positions(self, u: np.ndarray, t: float) -> np.ndarray:
         """

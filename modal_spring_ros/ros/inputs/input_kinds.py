@@ -155,7 +155,7 @@ def _pose_refusal(message: PoseStamped, values: dict[str, Any], clamp) -> str | 
 
 def _apply_pose(sim: Simulation, message: PoseStamped, values: dict[str, Any]) -> str:
     position, quaternion = pose_arrays(message)
-    sim.model.scene.anchor_motion.follow(sim.time, position, quaternion)
+    sim.model.motion.follow(sim.time, position, quaternion)
     return 'following the pose'
 
 

@@ -134,7 +134,7 @@ class NodeOutputs:
         self._sim_time.publish(TimeReference(header=header, time_ref=to_time_msg(published),
                                              source=SOURCE))
         if self._tf is not None:
-            motion = sim.model.scene.anchor_motion.frame(sim.time)
+            motion = sim.model.motion.frame(sim.time)
             self._tf.publish(motion.rotation, motion.translation, stamp)
         if self._bag is not None:
             self._capture(lambda: self._bag.cloud_frame(sim.time, cloud))

@@ -74,7 +74,7 @@ def _replace(host: RunHost, request: ReplaceSimulation) -> str:
 
 
 def _reset(host: RunHost, request: Reset) -> str:
-    host.sim.model.scene.anchor_motion.clear()  # a followed clamp forgets its poses
+    host.sim.model.motion.clear()  # a followed clamp forgets its poses
     host.sim.reset()
     host.streak.clear()
     host.plan_watch.restart()
