@@ -55,6 +55,7 @@ IMPORT_KEYS = {
     'diagnostic_msgs': 'diagnostic_msgs',
     'rosgraph_msgs': 'rosgraph_msgs',
     'tf2_msgs': 'tf2_msgs',
+    'tf2_ros': 'tf2_ros',
     'simulation_interfaces': 'simulation_interfaces',
     'lifecycle_msgs': 'lifecycle_msgs',
     'ament_index_python': 'ament_index_python',

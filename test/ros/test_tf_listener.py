@@ -50,6 +50,8 @@ def _stand_in():
 
 
 class _Node:
+    """A node's subscriptions, by topic."""
+
     def __init__(self):
         self.callbacks = {}
 
