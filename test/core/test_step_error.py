@@ -4,7 +4,8 @@ from __future__ import annotations
 import math
 
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
-                                                       trajectory, trajectory_error)
+                                                       trajectory, trajectory_error,
+                                                       WINDOW_ALLOWANCE, worst_window)
 from modal_spring_ros.core.auto.step_error import (predicted_step, predicted_step_error,
                                                    scheme_frequencies)
 from modal_spring_ros.core.bases.basis import ModalBasis
@@ -51,15 +52,16 @@ def test_an_integrator_from_the_registry_is_predicted_without_a_formula(monkeypa
     np.testing.assert_allclose(decay, 0.0, atol=1e-6)
 
 
-def _measured_error(scene, sim) -> float:
-    """``sim``'s error over the run against the full run converged in its step."""
+def _measured_error(scene, sim) -> tuple[float, float]:
+    """``sim``'s error over the run against the full run converged in its step; its worst window."""
     full = build_simulation(scene, SimulationConfig(method='full'))
     sample_s = sim.dt * max(1, round(SAMPLE_S / sim.dt))
     samples = int(round(DURATION_S / sample_s))
     found = converged_trajectory(lambda step: on_samples(full, sample_s, step),
                                  0.2 * full.stability_limit(), sample_s, samples, 1e-4)
     assert found is not None
-    return trajectory_error(trajectory(sim, sample_s, samples), found[0])
+    run = trajectory(sim, sample_s, samples)
+    return trajectory_error(run, found[0]), worst_window(run, found[0], sample_s)
 
 
 @pytest.mark.slow
@@ -69,7 +71,8 @@ def test_the_prediction_is_the_measured_error_of_the_default_step(seed):
     Random scenes (shaken, turned, damped or not): the predicted error is the measured one.
 
     Measured: the full run at the step ``method full`` takes, over 3 s, against the full run
-    converged in its step. On seeds 0-49 the prediction was 0.83-1.76 times the measured error
+    converged in its step, as the promise has it (over the run, or its worst quarter-second
+    window's share of the window allowance where that is more). On seeds 0-49 the prediction was 0.83-1.76 times the measured error
     (the most on damped scenes, seed 10 here); the period error's growth weighted by static
     shares had been 0.6-11 times.
     """
@@ -77,7 +80,8 @@ def test_the_prediction_is_the_measured_error_of_the_default_step(seed):
     model = MassSpringModel(scene)
     basis = ModalBasis(model)
     default = build_simulation(scene, SimulationConfig(method='full'))
-    measured = _measured_error(scene, default)
+    whole, window = _measured_error(scene, default)
+    measured = max(whole, window / WINDOW_ALLOWANCE)     # the promise, as predicted
     predicted = predicted_step_error(model, basis, 'explicit', default.dt, DURATION_S)
     assert 0.8 * measured <= predicted <= 1.8 * measured
 
@@ -117,4 +121,5 @@ def test_a_damped_scene_whose_default_step_meets_the_tolerance_is_not_flagged():
     assert 'predicted beyond the tolerance' not in sim.pilot.reason, sim.pilot.reason
     # the default step or a longer one, landed on the pilot's samples
     assert 0.9 * default.dt <= sim.dt
-    assert _measured_error(scene, sim) <= 0.01
+    whole, window = _measured_error(scene, sim)
+    assert whole <= 0.01 and window <= WINDOW_ALLOWANCE * 0.01

@@ -21,6 +21,8 @@ import numpy as np
 DRIFT_BLOCKS = 4
 #: How often over its window a run that may be abandoned is checked.
 GIVE_UP_CHECKS = 8
+#: The promise's window, s, and how many tolerances a run may be off within any one of them.
+PROMISE_WINDOW_S, WINDOW_ALLOWANCE = 0.25, 2.0
 
 
 def on_samples(sim: Simulation, sample_s: float, longest_dt: float | None = None
@@ -100,6 +102,20 @@ def trajectory_error(run: np.ndarray | None, reference: np.ndarray) -> float:
         return math.inf
     norm = float(np.linalg.norm(reference))
     return float(np.linalg.norm(run - reference)) / norm if norm > 0 else 0.0
+
+
+def worst_window(run: np.ndarray | None, reference: np.ndarray, sample_s: float) -> float:
+    """
+    Return the largest error of ``run`` over any ``PROMISE_WINDOW_S`` window (inf: diverged).
+
+    The promise holds over the run within the tolerance and within ``WINDOW_ALLOWANCE`` times
+    it in every such window: an error averaged over a run hides one that grows.
+    """
+    if run is None:
+        return math.inf
+    per = max(1, int(round(PROMISE_WINDOW_S / sample_s)))
+    return max(trajectory_error(run[k:k + per], reference[k:k + per])
+               for k in range(0, len(reference), per))
 
 
 def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sample_s: float,

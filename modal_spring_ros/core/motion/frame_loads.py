@@ -31,7 +31,8 @@ class FrameLoads:
     displacement, and the Coriolis load).
     """
 
-    def __init__(self, model, phi: np.ndarray):
+    def __init__(self, model, phi: np.ndarray, coupling: bool = True):
+        """``coupling``: whether :meth:`coupling` is wanted (its ``m x d^2 m`` matrix is made)."""
         d = model.dimension
         self.model = model
         mass = model.scene.mass[model.free_particles]                 # (p,)
@@ -45,9 +46,11 @@ class FrameLoads:
         #: Phi^T M (e_i X_j): axis-i loads in proportion to the rest coordinate j (i-major)
         self._rest = np.ascontiguousarray(projected[:, :, 1:].reshape(m, d * d))
         #: Phi_i^T M Phi_j for every axis pair, laid out (m, d*d*m) for one product per step
-        coupling = np.stack([rows[i].T @ (mass[:, None] * rows[j])
-                             for i in range(d) for j in range(d)])   # (d*d, m, m)
-        self._coupling = np.ascontiguousarray(coupling.transpose(1, 0, 2).reshape(m, -1))
+        self._coupling = None
+        if coupling:
+            pairs = np.stack([rows[i].T @ (mass[:, None] * rows[j])
+                              for i in range(d) for j in range(d)])   # (d*d, m, m)
+            self._coupling = np.ascontiguousarray(pairs.transpose(1, 0, 2).reshape(m, -1))
 
     def loads(self, t: float) -> np.ndarray:
         """State-independent generalized load at ``t``."""
