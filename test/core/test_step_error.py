@@ -53,7 +53,7 @@ def test_an_integrator_from_the_registry_is_predicted_without_a_formula(monkeypa
 
 
 def _measured_error(scene, sim) -> tuple[float, float]:
-    """``sim``'s error over the run against the full run converged in its step; its worst window."""
+    """``sim``'s error over the run against the converged full run, and its worst window's."""
     full = build_simulation(scene, SimulationConfig(method='full'))
     sample_s = sim.dt * max(1, round(SAMPLE_S / sim.dt))
     samples = int(round(DURATION_S / sample_s))
@@ -72,9 +72,9 @@ def test_the_prediction_is_the_measured_error_of_the_default_step(seed):
 
     Measured: the full run at the step ``method full`` takes, over 3 s, against the full run
     converged in its step, as the promise has it (over the run, or its worst quarter-second
-    window's share of the window allowance where that is more). On seeds 0-49 the prediction was 0.83-1.76 times the measured error
-    (the most on damped scenes, seed 10 here); the period error's growth weighted by static
-    shares had been 0.6-11 times.
+    window's share of the window allowance where that is more). On seeds 0-49 the prediction
+    of the error over the run was 0.83-1.76 times the measured one (the most on damped scenes,
+    seed 10 here); the period error's growth weighted by static shares had been 0.6-11 times.
     """
     scene = random_scene(seed, max_particles=80)
     model = MassSpringModel(scene)
