@@ -20,25 +20,30 @@ def test_one_random_scene_is_planned_checked_and_charted(tmp_path):
     assert row['auto_whole_s'] == pytest.approx(row['plan_cpu_s'] + 3.0 * row['auto_cpu_per_s'])
     assert row['whole_vs_default'] == pytest.approx(row['auto_whole_s'] / row['default_whole_s'])
     assert row['default_error'] >= 0.0 and row['default_dt'] >= row['full_dt']
+    # no window is better than the run's average
+    assert row['default_window'] >= row['default_error'] * (1.0 - 1e-12)
     refused = dict(row, seed=2, refused='modal.auto cannot measure a plan for this scene')
     worse = dict(row, seed=3, achieved=0.015, cost_ratio=2.0, whole_vs_at_t=2.0,
-                 whole_vs_default=3.0, default_error=0.0)
-    results = {'rows': [row, refused, worse],
-               'summary': promise.summary([row, refused, worse])}
+                 whole_vs_default=3.0, default_error=0.0, default_window=0.0)
+    # a default step within T over the run but not in every window keeps no promise
+    windowed = dict(row, seed=4, whole_vs_default=9.0, default_error=0.0, default_window=0.05)
+    results = {'rows': [row, refused, worse, windowed],
+               'summary': promise.summary([row, refused, worse, windowed])}
     (s,) = results['summary']
-    assert (s['scenes'], s['refused']) == (3, 1)
-    assert s['within_t'] == np.mean([row['achieved'] <= 0.01, False])
+    assert (s['scenes'], s['refused']) == (4, 1)
+    assert s['within_t'] == np.mean([row['achieved'] <= 0.01, False, row['achieved'] <= 0.01])
     assert s['within_2t'] == 1.0 and s['worst_ratio'] == pytest.approx(1.5)
     assert s['max_cost_ratio'] == max(2.0, row['cost_ratio'])
     assert s['max_whole_vs_at_t'] == max(2.0, row['whole_vs_at_t'])
     # only where the full run at its default step meets T
-    assert s['max_whole_vs_default'] == max(
-        [3.0] + [row['whole_vs_default']] * (row['default_error'] <= 0.01))
-    assert s['default_meets_t'] == 1 + (row['default_error'] <= 0.01)
+    kept = row['default_error'] <= 0.01 and row['default_window'] <= 0.02
+    assert s['max_whole_vs_default'] == max([3.0] + [row['whole_vs_default']] * kept)
+    assert s['default_meets_t'] == 1 + kept
+    assert s['within_1_2_of_default'] == int(kept and row['whole_vs_default'] <= 1.2)
     assert '1.0%' in promise.table(results).splitlines()[1]
     promise.write_outputs(results, tmp_path, lambda msg: None)
     assert (tmp_path / 'promise.png').stat().st_size > 10_000
-    assert len((tmp_path / 'promise.csv').read_text().splitlines()) == 4
+    assert len((tmp_path / 'promise.csv').read_text().splitlines()) == 5
 
 
 def test_the_worst_window_is_the_error_of_the_window_that_misses_most():
