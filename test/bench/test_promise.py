@@ -47,12 +47,20 @@ def test_one_random_scene_is_planned_checked_and_charted(tmp_path):
 
 
 def test_the_worst_window_is_the_error_of_the_window_that_misses_most():
-    """50 samples of 0.02 s: 0.25 s windows of 12 (13 over 0.26 s rounded), one 10 % off."""
+    """
+    50 samples of 0.02 s (1 s): four equal windows of 12-13 samples, the third one 10 % off.
+
+    Equal windows: 0.25 s windows of 12 samples would leave a last one of 2 samples.
+    """
     reference = np.ones((50, 3))
     run = reference.copy()
-    run[24:36] *= 1.1                         # the third window, exactly
+    run[26:38] *= 1.1                         # the third window (samples 26-37), exactly
     assert promise.worst_window(run, reference, 0.02) == pytest.approx(0.1)
     assert promise.trajectory_error(run, reference) == pytest.approx(0.1 * np.sqrt(12 / 50))
+    run = reference.copy()
+    run[26:38] *= 1.1
+    run[37] = 1.0                             # 11 of the window's 12 samples off
+    assert promise.worst_window(run, reference, 0.02) == pytest.approx(0.1 * np.sqrt(11 / 12))
     assert promise.worst_window(None, reference, 0.02) == np.inf
 
 

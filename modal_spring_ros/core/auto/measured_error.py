@@ -106,16 +106,18 @@ def trajectory_error(run: np.ndarray | None, reference: np.ndarray) -> float:
 
 def worst_window(run: np.ndarray | None, reference: np.ndarray, sample_s: float) -> float:
     """
-    Return the largest error of ``run`` over any ``PROMISE_WINDOW_S`` window (inf: diverged).
+    Return the largest error of ``run`` over windows of about ``PROMISE_WINDOW_S`` (inf: diverged).
 
     The promise holds over the run within the tolerance and within ``WINDOW_ALLOWANCE`` times
-    it in every such window: an error averaged over a run hides one that grows.
+    it in every such window: an error averaged over a run hides one that grows. The samples are
+    split into windows of equal length, the nearest to ``PROMISE_WINDOW_S`` that fits the run
+    (a last window of a few samples would judge a moment, not a window).
     """
     if run is None:
         return math.inf
-    per = max(1, int(round(PROMISE_WINDOW_S / sample_s)))
-    return max(trajectory_error(run[k:k + per], reference[k:k + per])
-               for k in range(0, len(reference), per))
+    count = max(1, int(round(len(reference) * sample_s / PROMISE_WINDOW_S)))
+    return max(trajectory_error(run[window], reference[window])
+               for window in np.array_split(np.arange(len(reference)), count))
 
 
 def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sample_s: float,
