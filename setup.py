@@ -21,7 +21,7 @@ setup(
     ],
     python_requires='>=3.10',
     install_requires=['setuptools', 'numpy', 'scipy', 'PyYAML', 'matplotlib', 'mcap',
-                      'mcap-ros2-support', 'trimesh', 'meshio', 'threadpoolctl'],
+                      'mcap-ros2-support', 'trimesh', 'meshio', 'threadpoolctl', 'tqdm'],
     extras_require={
         # ROS 2 Jazzy from PyPI wheels, for machines without a ROS install.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],

@@ -21,11 +21,14 @@ from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.simulations import DEFAULT_MAX_MODES, METHODS
 from modal_spring_ros.core.simulations.coordinates import BASES
 from modal_spring_ros.scenes.resources import DEFAULT_SCENE
+from tqdm import tqdm
 
 #: Exit status for bad input (as argparse uses).
 EXIT_USAGE = 2
 #: Bytes written (and taken back) to check that an output file has room.
 PROBE_BYTES = 4096
+#: Long work shows a progress bar once it has taken this long, s (a short run shows none).
+PROGRESS_DELAY_S = 1.0
 
 #: the core's defaults, which the options take (one place for each)
 DEFAULTS = SimulationConfig()
@@ -312,3 +315,28 @@ def run_main(prog: str, body: Callable[[], int]) -> int:
         fail(prog, f'not enough memory: {exc or "an allocation failed"}')
     except KeyboardInterrupt:
         return 130
+
+
+def progress_bar(prog: str, total: float, unit: str, what: str, quiet: bool = False,
+                 delay_s: float = PROGRESS_DELAY_S) -> Callable[..., None]:
+    """
+    Return ``show(done, final=False)``: a progress bar on stderr, its rate and time left (tqdm).
+
+    ``total`` of ``unit`` (``what`` names the work); shown only once the work has taken
+    ``delay_s`` (a short run shows none), and closed when ``done`` reaches ``total`` or is
+    ``final`` (work that ended early: a divergence). ``quiet``: nothing is shown.
+    """
+    if quiet:
+        return lambda done, final=False: None
+    bar = tqdm(total=total, unit=unit, desc=f'[{prog}] {what}', file=sys.stderr,
+               delay=delay_s, leave=True, dynamic_ncols=True,
+               bar_format='{desc}: {percentage:3.0f}%|{bar}| {n:.4g}/{total:.4g} {unit} '
+                          '[{elapsed}<{remaining}]')
+
+    def show(done: float, final: bool = False) -> None:
+        if bar.disable:
+            return
+        bar.update(min(done, total) - bar.n)
+        if final or done >= total:
+            bar.close()
+    return show

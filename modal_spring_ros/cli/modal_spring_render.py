@@ -14,7 +14,8 @@ import math
 import sys
 
 from modal_spring_ros.bags.files.run_loading import load_run
-from modal_spring_ros.cli.common import claimed_outputs, run_main, script_parser, write_output
+from modal_spring_ros.cli.common import (claimed_outputs, progress_bar, run_main, script_parser,
+                                         write_output)
 from modal_spring_ros.runs.rendering import render
 
 PROG = 'modal_spring_render'
@@ -36,9 +37,12 @@ def main(argv: list[str] | None = None) -> int:
     if problem:
         p.error(problem)
 
-    def progress(done: int, total: int) -> None:
-        if done == total or done % 20 == 0:
-            print(f'drawn {done}/{total} frames', file=sys.stderr)
+    bars = []
+
+    def progress(done: int, total: int) -> None:   # frames drawn, with the time left
+        if not bars:
+            bars.append(progress_bar(PROG, total, 'frames', 'drawn'))
+        bars[0](done)
 
     def body() -> int:
         with claimed_outputs({'--output': args.output}, {'the run': args.run}):

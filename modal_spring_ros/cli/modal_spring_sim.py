@@ -16,7 +16,7 @@ import sys
 import time
 
 from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs, config_from_args,
-                                         run_main, script_parser, write_output)
+                                         progress_bar, run_main, script_parser, write_output)
 from modal_spring_ros.cli.launcher import install_hint
 try:
     from modal_spring_ros.bags.files.capture import RunBagWriter
@@ -90,15 +90,17 @@ def main(argv: list[str] | None = None) -> int:
                                frame_every=args.frame_every, duration=duration)
         start = time.perf_counter()
         watch = watch_of(sim, config.watch_s, run_s=duration)
+        # simulated seconds done, with the time left (a bar once the run has taken a second)
+        shown = progress_bar(PROG, duration, 's', 'simulated', quiet=args.quiet)
         try:
             run = record(sim, duration, frame_every=args.frame_every,
-                         on_progress=None if args.quiet else
-                         (lambda frac: print(f'[{PROG}] {frac:4.0%}', file=sys.stderr)),
+                         on_progress=lambda fraction: shown(fraction * duration),
                          on_frame=bag.frame if bag else None, watch=watch,
                          on_watch=None if args.quiet else
                          lambda window, now: print(f'[{PROG}] {watched_line(window, now)}',
                                                    file=sys.stderr),
                          keep_frames=bool(args.output))
+            shown(run.simulation.time, final=True)
             if bag:
                 bag.close()
         except BaseException:  # a full disk, Ctrl-C: no half-written bag is left behind

@@ -5,7 +5,7 @@ import subprocess
 import sys
 
 from helpers import HIDE_ROS, variant
-from modal_spring_ros.cli.common import parse_mode_range, run_main
+from modal_spring_ros.cli.common import parse_mode_range, progress_bar, run_main
 from modal_spring_ros.cli.modal_spring_sim import main
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import BandError, FilterBand
@@ -159,6 +159,21 @@ def test_a_short_run_prints_no_progress_lines(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert '%' not in proc.stderr
+
+
+def test_a_long_run_shows_a_bar_with_the_time_left_and_a_quiet_one_nothing(capsys):
+    """The bar (tqdm) counts simulated seconds and ends where the run ended (a divergence)."""
+    show = progress_bar('modal_spring_sim', 4.0, 's', 'simulated', delay_s=0.0)
+    show(1.0)
+    show(2.5, final=True)                     # the run stopped there
+    show(3.0)                                 # nothing after the end
+    err = capsys.readouterr().err
+    assert '[modal_spring_sim] simulated:  62%' in err
+    assert '2.5/4 s [' in err and '<' in err   # elapsed < time left
+    assert '3/4' not in err
+    quiet = progress_bar('modal_spring_sim', 4.0, 's', 'simulated', quiet=True, delay_s=0.0)
+    quiet(4.0, final=True)
+    assert capsys.readouterr().err == ''
 
 
 def test_finding_the_shape_a_cloth_hangs_in_shows_progress(tmp_path, capsys):

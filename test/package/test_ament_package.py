@@ -43,6 +43,7 @@ IMPORT_KEYS = {
     'trimesh': 'python3-trimesh-pip',
     'meshio': 'python3-meshio-pip',
     'threadpoolctl': 'python3-threadpoolctl-pip',
+    'tqdm': 'python3-tqdm',
     'foxglove': 'python3-foxglove-sdk-pip',
     'rclpy': 'rclpy',
     'builtin_interfaces': 'builtin_interfaces',
