@@ -1,7 +1,7 @@
 """The nested dissection ordering of large factors: valid, lower in fill, the same solutions."""
 from __future__ import annotations
 
-from modal_spring_ros.core.bases.basis import ShiftInvertModes
+from modal_spring_ros.core.bases.shift_invert import ShiftInvertModes
 from modal_spring_ros.core.model.definite_factor import (DISSECTION_MIN_ROWS, factor_definite,
                                                          negative_pivots, OrderedFactor)
 from modal_spring_ros.core.model.dissection import nested_dissection

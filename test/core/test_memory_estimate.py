@@ -4,7 +4,7 @@ from __future__ import annotations
 import dataclasses
 
 from modal_spring_ros.core import factory
-from modal_spring_ros.core.bases.basis import ShiftInvertModes
+from modal_spring_ros.core.bases.shift_invert import ShiftInvertModes
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.memory_estimate import (estimate, factor_entries, layers_across,

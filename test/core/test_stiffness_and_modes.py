@@ -109,7 +109,7 @@ def test_modes_already_computed_stay_as_they_are_when_the_basis_grows(monkeypatc
     whatever the eigensolver's round-off does with the tie: a run carries its state over by
     mode index.
     """
-    from modal_spring_ros.core.bases.basis import ShiftInvertModes
+    from modal_spring_ros.core.bases.shift_invert import ShiftInvertModes
     model = MassSpringModel(load_scene('sheet_32x32'))
     basis = ModalBasis(model, initial_modes=16)
     before = basis.vectors.copy()

@@ -36,7 +36,9 @@ def reported(diagnostics: list, key: str) -> list[str]:
     return [values[key] for values in statuses(diagnostics) if key in values]
 
 
-def test_a_huge_scene_streams_its_lowest_modes_first_then_its_whole_band(tmp_path):
+def test_a_huge_scene_streams_its_lowest_modes_first_then_its_whole_band(tmp_path, monkeypatch):
+    # a cache of its own: the modes solved, not read back from another test's run
+    monkeypatch.setenv('MODAL_SPRING_ROS_CACHE', str(tmp_path / 'cache'))
     scene_file = tmp_path / 'sheet.yaml'
     scene_file.write_text(yaml.safe_dump(hanging_sheet(COUNT)))
     capture = tmp_path / 'capture'

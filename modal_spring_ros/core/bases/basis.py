@@ -16,10 +16,13 @@ from __future__ import annotations
 
 import time
 from typing import Any, Callable
-import uuid
 
+from modal_spring_ros.core.bases.mass_products import mass_gram
+from modal_spring_ros.core.bases.shift_invert import (call_with_solve_in_worker,
+                                                      lowest_modes_in_worker, ShiftInvertModes)
+from modal_spring_ros.core.bases.stored_modes import modes_arrays, modes_key, validated_modes
 from modal_spring_ros.core.forces.base import SampleStore
-from modal_spring_ros.core.model.definite_factor import factor_definite
+from modal_spring_ros.core.forces.samples import CacheEntryError
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.worker import WorkerProcess
@@ -37,17 +40,11 @@ INITIAL_MODES = 32
 #: Largest number of free DOF for which every mode is computed with a dense solver.
 DENSE_LIMIT = 1000
 
-#: Iterative refinement steps of a solve with the shifted factor of the rest stiffness.
-REFINEMENT_STEPS = 2
-
 #: Relative size (against the largest eigenvalue scale) below which an eigenvalue is zero.
 ZERO_MODE_RTOL = 1e-9
 
 #: Seed of the generic vector that fixes the modes' signs (see ``_deterministic_signs``).
 SIGN_SEED = 20240611
-
-#: Bytes of rows :func:`mass_gram` weights at a time.
-GRAM_BLOCK_BYTES = 16 * 2**20
 
 Progress = Callable[[str], None]
 
@@ -64,7 +61,8 @@ class ModalBasis:
     eigensolver in (results are identical), so that computing modes does not hold this
     process's interpreter lock; the node uses one to keep its stream going meanwhile.
     ``samples``: where spring samples trained on this scene's coordinates are kept between runs
-    (a :class:`~modal_spring_ros.core.forces.base.SampleStore`; None: trained every run).
+    (a :class:`~modal_spring_ros.core.forces.base.SampleStore`; None: trained every run); a
+    large scene's modes are kept there too (:mod:`~modal_spring_ros.core.bases.stored_modes`).
 
     :ivar omega: (m,) circular frequencies (rad/s) of the computed modes, ascending.
     :ivar vectors: (n_free_dof, m) mass-normalised mode shapes.
@@ -94,7 +92,7 @@ class ModalBasis:
         self.banks: dict[int, object] = {}
         if self.dense:
             self._compute_dense()
-        else:
+        elif not self._read_stored(min(initial_modes, self.n_dof - 1)):
             self._compute_sparse(min(initial_modes, self.n_dof - 1))
 
     # -- public --------------------------------------------------------------------------------
@@ -164,7 +162,7 @@ class ModalBasis:
             return function(self.solve_stiffness, *args)
         if self._solver is None:
             self._solver = self._shift_invert()
-        return self.worker.call(_call_with_solve_in_worker, self._solver, function, args)
+        return self.worker.call(call_with_solve_in_worker, self._solver, function, args)
 
     def _shift_invert(self) -> ShiftInvertModes:
         return ShiftInvertModes(self.model.stiffness_free, self.model.mass_dof,
@@ -207,14 +205,43 @@ class ModalBasis:
         if self.worker is None:
             lam, phi = self._solver.lowest(count)
         else:
-            lam, phi = self.worker.call(_lowest_modes_in_worker, self._solver, count)
+            lam, phi = self.worker.call(lowest_modes_in_worker, self._solver, count)
         self._check_zero_modes(lam, lam_scale=self._solver.lam_scale)
         self._store(lam, phi)
+        if self.samples is not None:     # the next run of this scene reads them back
+            self.samples.save(modes_key(self.model), modes_arrays(self.omega, self.vectors))
         self.modes_solved += count
         self.solve_seconds += time.perf_counter() - start
         self.progress(f'{count} modes ready: {self.frequencies_hz[0]:.4g} .. '
                       f'{self.frequencies_hz[-1]:.4g} Hz '
                       f'({time.perf_counter() - start:.2f} s)')
+
+    def _read_stored(self, count: int) -> bool:
+        """
+        Take at least ``count`` lowest modes from the store, checked; True when it had them.
+
+        (:mod:`~modal_spring_ros.core.bases.stored_modes`: an entry that fails its check is
+        reported, removed, and the modes are solved for again.)
+        """
+        if self.samples is None:
+            return False
+        key = modes_key(self.model)
+        try:
+            entry = self.samples.load(key)
+            if entry is None:
+                return False
+            omega, vectors = validated_modes(entry, self.model)
+        except CacheEntryError as exc:
+            self.progress(f'modes cache entry {self.samples.where(key)} refused: {exc}; '
+                          'removed, solving again')
+            self.samples.discard(key)
+            return False
+        if omega.size < count:
+            return False
+        self.omega, self.vectors = omega, vectors
+        self.progress(f'{omega.size} modes read from the cache: {self.frequencies_hz[0]:.4g} .. '
+                      f'{self.frequencies_hz[-1]:.4g} Hz')
+        return True
 
     def _check_zero_modes(self, lam: np.ndarray, lam_scale: float) -> None:
         zero = int(np.sum(lam <= ZERO_MODE_RTOL * lam_scale))
@@ -267,21 +294,6 @@ def _deterministic_signs(phi: np.ndarray, mass: np.ndarray) -> np.ndarray:
     return phi
 
 
-def mass_gram(x: np.ndarray, mass: np.ndarray) -> np.ndarray:
-    """
-    Return ``x^T M x`` (symmetric) for a lumped mass ``mass`` and columns ``x``.
-
-    In blocks of rows, so that no temporary the size of ``x`` is made (on a large scene ``x`` can
-    be a stage's largest array).
-    """
-    out = np.zeros((x.shape[1], x.shape[1]))
-    rows = max(1, GRAM_BLOCK_BYTES // max(8 * x.shape[1], 1))
-    for start in range(0, x.shape[0], rows):
-        block = x[start:start + rows]
-        out += block.T @ (mass[start:start + rows, None] * block)
-    return 0.5 * (out + out.T)
-
-
 def _grown(old_lam: np.ndarray, old_phi: np.ndarray, lam: np.ndarray, phi: np.ndarray,
            mass: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
@@ -304,90 +316,3 @@ def _grown(old_lam: np.ndarray, old_phi: np.ndarray, lam: np.ndarray, phi: np.nd
     # Loewdin orthonormalisation: the M-orthonormal set nearest to the fresh modes (signs kept).
     extra = extra @ (vector @ np.diag(value ** -0.5) @ vector.T)
     return np.concatenate([old_lam, lam[k:]]), np.concatenate([old_phi, extra], axis=1)
-
-
-class ShiftInvertModes:
-    """
-    Lowest modes of ``K phi = lam M phi`` (sparse ``K``, lumped ``M``) by shift-invert Lanczos.
-
-    Mass-normalised and ascending; the sparse LU of ``K - sigma M`` is made on the first call and
-    kept for the next ones.
-    """
-
-    def __init__(self, stiffness: sp.spmatrix, mass_dof: np.ndarray,
-                 points: np.ndarray | None = None):
-        self.k = stiffness.tocsc()
-        self.mass_dof = np.asarray(mass_dof, dtype=float)
-        self.points = points  # where the particles are: the factor's ordering
-        self.lam_scale = float(np.max(self.k.diagonal() / self.mass_dof))
-        # A small negative shift keeps K - sigma M definite even when K is singular (a
-        # mechanism, reported from the modes), and small enough that the same factor solves
-        # with K itself after a few refinement steps (see solve).
-        self.sigma = -1e-9 * self.lam_scale
-        self.token = uuid.uuid4().hex  # names this solver in a worker process
-        self._factor = None
-
-    def __getstate__(self) -> dict:
-        return dict(self.__dict__, _factor=None)  # the factor stays where it was made
-
-    def _factorised(self):
-        if self._factor is None:
-            m = sp.diags(self.mass_dof).tocsc()
-            self._factor = factor_definite(self.k - self.sigma * m, points=self.points)
-        return self._factor
-
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """
-        ``K^-1 rhs`` with the kept factor of ``K - sigma M`` and iterative refinement.
-
-        Each step shrinks the error by about ``|sigma| / lambda_min``, under 1e-3 on the sheets.
-        """
-        factor = self._factorised()
-        x = factor.solve(rhs)
-        for _ in range(REFINEMENT_STEPS):
-            x += factor.solve(rhs - self.k @ x)
-        return x
-
-    def lowest(self, count: int) -> tuple[np.ndarray, np.ndarray]:
-        n = self.mass_dof.size
-        m = sp.diags(self.mass_dof).tocsc()
-        op = spla.LinearOperator((n, n), matvec=self._factorised().solve, dtype=float)
-        try:
-            lam, phi = spla.eigsh(self.k, k=count, M=m, sigma=self.sigma, OPinv=op, which='LM',
-                                  v0=np.ones(n), tol=1e-12)
-        except spla.ArpackError:
-            # a cluster of (near) zero modes, a mechanism's, can leave ARPACK's default space of
-            # 2 k + 1 vectors without a shift to apply: the space twice that size
-            lam, phi = spla.eigsh(self.k, k=count, M=m, sigma=self.sigma, OPinv=op, which='LM',
-                                  v0=np.ones(n), tol=1e-12, ncv=min(n, 4 * count + 2))
-        order = np.argsort(lam)
-        if np.any(order != np.arange(order.size)):
-            lam, phi = lam[order], phi[:, order]
-        # Renormalise against M (ARPACK's scaling is close, not exact), in place: at this size
-        # each copy of the modes is a stage's peak.
-        phi /= np.sqrt(np.einsum('ij,i,ij->j', phi, self.mass_dof, phi))
-        return lam, phi
-
-
-#: A worker process's solver (by token), kept with its factor for the next call.
-_WORKER_SOLVERS: dict[str, ShiftInvertModes] = {}
-
-
-def _in_worker(solver: ShiftInvertModes) -> ShiftInvertModes:
-    """Return the worker's copy of ``solver`` (factorised by an earlier call, if any)."""
-    if solver.token not in _WORKER_SOLVERS:
-        _WORKER_SOLVERS.clear()  # one at a time: no factor outlives its use
-        _WORKER_SOLVERS[solver.token] = solver
-    return _WORKER_SOLVERS[solver.token]
-
-
-def _lowest_modes_in_worker(solver: ShiftInvertModes, count: int
-                            ) -> tuple[np.ndarray, np.ndarray]:
-    """Run in a :class:`WorkerProcess`: ``solver.lowest(count)``."""
-    return _in_worker(solver).lowest(count)
-
-
-def _call_with_solve_in_worker(solver: ShiftInvertModes, function: Callable[..., Any],
-                               args: tuple) -> Any:
-    """Run in a :class:`WorkerProcess`: ``function(solve, *args)`` with the worker's factor."""
-    return function(_in_worker(solver).solve, *args)

@@ -43,7 +43,8 @@ from __future__ import annotations
 import dataclasses
 import time
 
-from modal_spring_ros.core.bases.basis import mass_gram, ModalBasis, Progress
+from modal_spring_ros.core.bases.basis import ModalBasis, Progress
+from modal_spring_ros.core.bases.mass_products import mass_gram
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.motion.frame_loads import frame_load_patterns
 import numpy as np
