@@ -9,6 +9,8 @@ node meanwhile. :class:`StartUpReport` takes the progress lines of the scene's p
 :data:`PERIOD_S` after the start until the run streams a thread publishes it every
 :data:`PERIOD_S` as the node's status (OK, ``starting: <line>``; the executor does not spin
 before the node is built); a node that starts within a period says nothing before it streams.
+A stage that lasts (a large scene's modes: minutes) is logged again every :data:`LINE_PERIOD_S`
+with the time it has taken, so a console that follows the log sees the node is at work.
 """
 from __future__ import annotations
 
@@ -23,6 +25,8 @@ from rclpy.node import Node
 
 #: how often the status is published while the node starts, s (as the running node's)
 PERIOD_S = 1.0
+#: how often a stage still under way is logged again, s
+LINE_PERIOD_S = 5.0
 
 
 class StartUpReport:
@@ -33,8 +37,9 @@ class StartUpReport:
     the block ends; :meth:`progress` is the callback the preparation reports through.
     """
 
-    def __init__(self, node: Node, hardware_id: str):
+    def __init__(self, node: Node, hardware_id: str, line_period_s: float = LINE_PERIOD_S):
         self._node = node
+        self._line_period_s = line_period_s
         self._hardware_id = hardware_id
         self._lock = threading.Lock()
         self._latest = ('preparing the scene', time.monotonic())   # (line, when)
@@ -70,8 +75,15 @@ class StartUpReport:
 
     def _publish_until_stopped(self) -> None:
         name = self._node.get_fully_qualified_name()
+        logged = time.monotonic()
         while not self._stop.wait(PERIOD_S):    # a start within a period says nothing
-            message = starting_array(self.latest(), time.monotonic() - self._started, node=name,
+            with self._lock:
+                line, since = self._latest
+            now = time.monotonic()
+            if now - max(since, logged) >= self._line_period_s:   # a stage that lasts
+                self._node.get_logger().info(f'{line} (still at it: {now - since:.0f} s)')
+                logged = now
+            message = starting_array(line, now - self._started, node=name,
                                      hardware_id=self._hardware_id,
                                      stamp=self._node.get_clock().now().to_msg())
             with contextlib.suppress(Exception):     # ROS shutting down (Ctrl-C while starting)
