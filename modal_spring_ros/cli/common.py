@@ -6,9 +6,11 @@ import contextlib
 import dataclasses
 import os
 from pathlib import Path
+import re
 import signal
 import subprocess
 import sys
+import time
 from typing import Callable, Iterator, NoReturn
 
 from modal_spring_ros.core.auto.budget import PLANNING_SHARE
@@ -340,3 +342,38 @@ def progress_bar(prog: str, total: float, unit: str, what: str, quiet: bool = Fa
         if final or done >= total:
             bar.close()
     return show
+
+
+#: a benchmark's count of its jobs at the start of a progress line: ``promise 41/100: ...``
+COUNTED = re.compile(r'^(\w+) (\d+)/(\d+):')
+
+
+def progress_lines(prog: str, clock: Callable[[], float] = time.monotonic
+                   ) -> Callable[[str], None]:
+    """
+    Return ``say(line)``: progress lines on stderr, a counted one with the time it has left.
+
+    A line that counts its jobs (``promise 41/100: ...``) gets the time the rest is estimated
+    to take at the pace of the jobs counted so far (from its first counted line on).
+    """
+    first: dict[str, tuple[float, int]] = {}
+
+    def say(line: str) -> None:
+        counted = COUNTED.match(line)
+        if counted:
+            name, done, total = counted[1], int(counted[2]), int(counted[3])
+            since, done_then = first.setdefault(name, (clock(), done))
+            if done > done_then and done < total:
+                left = (clock() - since) / (done - done_then) * (total - done)
+                line += f' (about {_duration(left)} left)'
+        print(f'[{prog}] {line}', file=sys.stderr, flush=True)
+    return say
+
+
+def _duration(seconds: float) -> str:
+    """Return ``seconds`` as people say it: 40 s, 3 min, 1 h 20 min."""
+    if seconds < 90:
+        return f'{seconds:.0f} s'
+    if seconds < 90 * 60:
+        return f'{seconds / 60:.0f} min'
+    return f'{int(seconds // 3600)} h {int(seconds % 3600 // 60)} min'

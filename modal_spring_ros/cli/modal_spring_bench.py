@@ -52,7 +52,7 @@ from modal_spring_ros.bench.costs import storm
 from modal_spring_ros.bench.costs import stream
 from modal_spring_ros.bench.peers import contact_drop
 from modal_spring_ros.bench.peers import peer
-from modal_spring_ros.cli.common import fail, script_parser
+from modal_spring_ros.cli.common import fail, progress_lines, script_parser
 
 PROG = 'modal_spring_bench'
 #: suite name -> module with run(quick, progress), table(results), write_outputs(...)
@@ -96,8 +96,7 @@ def main(argv: list[str] | None = None) -> int:
         except OSError as exc:
             fail(PROG, f'--out {out}: cannot create: {exc.strerror or exc}')
 
-    def progress(msg: str) -> None:
-        print(f'[{PROG}] {msg}', file=sys.stderr, flush=True)
+    progress = progress_lines(PROG)     # a suite's counted jobs with the time they have left
 
     # a suite's worker processes end with it: SIGTERM unwinds as Ctrl-C does (a pool's exit
     # terminates its workers), where it would leave them running

@@ -5,7 +5,7 @@ import subprocess
 import sys
 
 from helpers import HIDE_ROS, variant
-from modal_spring_ros.cli.common import parse_mode_range, progress_bar, run_main
+from modal_spring_ros.cli.common import parse_mode_range, progress_bar, progress_lines, run_main
 from modal_spring_ros.cli.modal_spring_sim import main
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import BandError, FilterBand
@@ -174,6 +174,23 @@ def test_a_long_run_shows_a_bar_with_the_time_left_and_a_quiet_one_nothing(capsy
     quiet = progress_bar('modal_spring_sim', 4.0, 's', 'simulated', quiet=True, delay_s=0.0)
     quiet(4.0, final=True)
     assert capsys.readouterr().err == ''
+
+
+def test_a_benchmark_s_counted_jobs_say_the_time_they_have_left(capsys):
+    """At the pace of the jobs counted so far: 2 of 10 in 30 s after the first, 8 left."""
+    now = [100.0]
+    say = progress_lines('modal_spring_bench', clock=lambda: now[0])
+    say('promise 1/10: seed 0 at 1.0%: full')
+    now[0] += 30.0
+    say('promise 3/10: seed 1 at 1.0%: full')
+    say('computing the 32 lowest modes')
+    now[0] += 1e4
+    say('promise 10/10: seed 4 at 0.3%: full')
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == ['[modal_spring_bench] promise 1/10: seed 0 at 1.0%: full',
+                     '[modal_spring_bench] promise 3/10: seed 1 at 1.0%: full (about 2 min left)',
+                     '[modal_spring_bench] computing the 32 lowest modes',
+                     '[modal_spring_bench] promise 10/10: seed 4 at 0.3%: full']
 
 
 def test_finding_the_shape_a_cloth_hangs_in_shows_progress(tmp_path, capsys):
