@@ -170,8 +170,9 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     # predicted to meet the tolerance at over the run, within the pilot's margin (a scene with
     # colliders is checked over the whole window instead: a linear prediction sees no touch)
     # (a step the user gave is the longest)
-    predicted = (predicted_step(model, basis, 'explicit', full_dt if config.dt else longest.dt,
-                                horizon_s, PILOT_MARGIN * config.tolerance)
+    predicted = (predicted_step(model, basis, 'explicit', full_dt, horizon_s,
+                                PILOT_MARGIN * config.tolerance,
+                                None if config.dt else longest.dt)
                  if basis.dense and model.scene.contact is None else None)
     choice = (choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
               if not why else None)

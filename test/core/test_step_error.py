@@ -65,7 +65,7 @@ def _measured_error(scene, sim) -> tuple[float, float]:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('seed', [2, 10, 22, 43])
+@pytest.mark.parametrize('seed', [2, 10, 22, 28, 43])
 def test_the_prediction_is_the_measured_error_of_the_default_step(seed):
     """
     Random scenes (shaken, turned, damped or not): the predicted error is the measured one.
@@ -73,8 +73,11 @@ def test_the_prediction_is_the_measured_error_of_the_default_step(seed):
     Measured: the full run at the step ``method full`` takes, over 3 s, against the full run
     converged in its step, as the promise has it (over the run, or its worst quarter-second
     window's share of the window allowance where that is more). On seeds 0-49 the prediction
-    of the error over the run was 0.83-1.76 times the measured one (the most on damped scenes,
+    of the error over the run was 0.75-1.7 times the measured one (the most on damped scenes,
     seed 10 here); the period error's growth weighted by static shares had been 0.6-11 times.
+    Seed 28 (shaken at 5.4 Hz) was predicted 3.3 times its error while the loads were held
+    between the prediction's instants: each jump rang the fast modes, whose period errors the
+    smooth drive never excites.
     """
     scene = random_scene(seed, max_particles=80)
     model = MassSpringModel(scene)
@@ -123,3 +126,27 @@ def test_a_damped_scene_whose_default_step_meets_the_tolerance_is_not_flagged():
     assert 0.9 * default.dt <= sim.dt
     whole, window = _measured_error(scene, sim)
     assert whole <= 0.01 and window <= WINDOW_ALLOWANCE * 0.01
+
+
+def test_a_default_step_well_within_the_tolerance_is_lengthened_up_to_the_longest():
+    """
+    Random scene 12 (its default step 0.05 T off over 3 s at 0.3 %): a longer step, confirmed.
+
+    From the default's prediction and the error's order, one longer step is predicted and kept
+    where its own prediction is within the tolerance; never beyond the longest step given.
+    """
+    scene = random_scene(12, max_particles=80)
+    model = MassSpringModel(scene)
+    basis = ModalBasis(model)
+    default = build_simulation(scene, SimulationConfig(method='full')).dt
+    longest = 1.8 * default
+    prediction = predicted_step(model, basis, 'explicit', default, DURATION_S, 0.003, longest)
+    assert default < prediction.step <= longest
+    assert prediction.error <= 0.003
+    assert prediction.error == predicted_step_error(model, basis, 'explicit', prediction.step,
+                                                    DURATION_S)
+    # the default's own prediction is kept, not extrapolated
+    assert prediction.error_at(default) == predicted_step_error(model, basis, 'explicit',
+                                                                default, DURATION_S)
+    # no longest step given (a user's step): the step given is the longest
+    assert predicted_step(model, basis, 'explicit', default, DURATION_S, 0.003).step == default

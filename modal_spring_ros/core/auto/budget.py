@@ -50,6 +50,9 @@ SETUP_US = {'modes': 1.35, 'derivatives': 140.0, 'training': 200.0}
 MIN_CHECK_SAMPLES = 2
 #: The full reference over a window costs its run at a step and at half of it: three runs' worth.
 REFERENCE_RUNS = 3.0
+#: A start measured within this many times its predicted error confirms the prediction (the
+#: linear prediction was within 0.8-1.2 times the measured error over starts of random scenes).
+AGREEMENT = 1.5
 
 
 @dataclasses.dataclass
@@ -196,38 +199,40 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
 
     That step is checked by step doubling (against its run at half the step) over as much of
     the window's start as the budget affords, at least ``MIN_CHECK_SAMPLES`` of its
-    ``samples``. Where that start is within ``margin * tolerance``, the step is the answer, its
-    error reported over the start it was measured on (a drift fitted to a fraction of the
-    slowest period extrapolates the start's transient, not a drift). Where it is not, the run
-    misses the tolerance, so it is no baseline to stay near: the step is halved by step
-    doubling over the whole window, its error extrapolated over ``horizon_s``, whatever that
-    costs (on random scenes the full run needed a tenth to a fortieth of its stability limit to
-    meet 1 % over 3 s). A start can miss an error that grows later: where the prediction puts
-    the default step beyond the tolerance itself, the step is found over the whole window from
-    the predicted one. A scene with colliders is checked over the whole window: its touches
-    come when they come (a start checked a random scene's default step at 0.05 % where it
-    missed 0.3 % by 2.6 times once the object reached a sphere).
+    ``samples``. With a prediction, the check is of the prediction: where the start is within
+    ``AGREEMENT`` times the error predicted over that start (or within ``margin * tolerance``),
+    the prediction holds where it was measured and the step is the answer, its error the one
+    predicted over the run, said so (a start's transient is often beyond the tolerance of the
+    whole run: judged against it, random scenes whose default step met the tolerance had their
+    step searched over the whole window, at up to ten times the run's cost). A start can miss an
+    error that grows later, which the prediction sees: where it puts the default step beyond
+    the tolerance itself, the step run is the longest predicted within the margin, checked the
+    same way.
+
+    Without a prediction, or where the start disproves it, the step is the answer where that
+    start is within ``margin * tolerance``, its error reported over the start it was measured on
+    (a drift fitted to a fraction of the slowest period extrapolates the start's transient, not
+    a drift). Where it is not, the run misses the tolerance, so it is no baseline to stay near:
+    the step is halved by step doubling over the whole window, its error extrapolated over
+    ``horizon_s``, whatever that costs (on random scenes the full run needed a tenth to a
+    fortieth of its stability limit to meet 1 % over 3 s). A scene with colliders is checked
+    over the whole window: its touches come when they come (a start checked a random scene's
+    default step at 0.05 % where it missed 0.3 % by 2.6 times once the object reached a sphere).
     """
     sample_s = window_s / samples
-    predicted_dt = prediction.step if prediction is not None else math.inf
-    if predicted_dt < default_dt * math.sqrt(margin) * (1.0 - 1e-9):
-        # the error grows as the step's square: the default's is predicted beyond the tolerance
-        reason += ('; the default step is predicted beyond the tolerance (every mode stepped '
-                   'with the period error and damping of the step): the step needed was found '
-                   'over the whole window, beyond the budget')
-        sim, error = by_step_doubling(full, sample_s, samples, horizon_s, margin * tolerance,
-                                      math.inf, first_dt=predicted_dt)
-        budget.charge(sim, REFERENCE_RUNS * window_s)
-        report = PilotReport(error, math.nan, window_s, BY_ITSELF, (), 'full', 1.0,
-                             reason=reason, horizon_s=horizon_s, window_error=error,
-                             tolerance=tolerance)
-        return sim, report
     step = default_dt
-    if prediction is not None:
-        if predicted_dt > default_dt:
-            step = predicted_dt
-            reason += (f'; the longest step predicted within the tolerance ({step:.3g} s, '
-                       f'{step / default_dt:.2g} times the default step)')
+    if prediction is not None and prediction.error_at(default_dt) > tolerance:
+        # the default misses over the run: the longest step predicted within the margin, its
+        # start checked as the budget affords (a longer search would cost more than the run)
+        step = prediction.step
+        reason += (f'; the default step is predicted beyond the tolerance '
+                   f'({prediction.error_at(default_dt):.2%} over the run, every mode stepped with '
+                   f'the period error and damping of the step): the longest step predicted within '
+                   f'it ({step:.3g} s)')
+    elif prediction is not None and prediction.step > default_dt:
+        step = prediction.step
+        reason += (f'; the longest step predicted within the tolerance ({step:.3g} s, '
+                   f'{step / default_dt:.2g} times the default step)')
     checked = full(step, sample_s)
     rate = work_per_second(checked)
     affordable = budget.remaining_us / (REFERENCE_RUNS * rate * sample_s) if rate > 0 else 0
@@ -238,6 +243,20 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
         reason += ('; the scene has colliders, and a start sees none of the touches to come: '
                    'the step was checked over the whole window, beyond the budget')
     checked_s = count * sample_s
+    if prediction is not None and prediction.predictor is not None:
+        # the prediction checked where it is cheap: the start, against its run at half the step
+        sim, error = by_step_doubling(full, sample_s, count, checked_s, math.inf, 0.0,
+                                      first_dt=step)
+        budget.charge(sim, REFERENCE_RUNS * checked_s)
+        expected = prediction.start_error(sim.dt, checked_s)
+        if error <= max(margin * tolerance, AGREEMENT * expected):
+            reason += f'; {expected:.2%} predicted over the first {checked_s:.2g} s'
+            report = PilotReport(prediction.predictor.error(sim.dt), math.nan, checked_s,
+                                 BY_ITSELF, (), 'full', 1.0, reason=reason, horizon_s=horizon_s,
+                                 window_error=error, tolerance=tolerance, predicted=True)
+            return sim, report
+        reason += (f'; the prediction missed over the first {checked_s:.2g} s ({error:.2%} '
+                   f'measured, {expected:.2%} predicted): the step was measured instead')
     over_s = horizon_s if count == samples else checked_s
     sim, error = by_step_doubling(full, sample_s, count, over_s, margin * tolerance, math.inf,
                                   first_dt=step)

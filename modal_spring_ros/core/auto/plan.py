@@ -46,9 +46,15 @@ class PilotReport:
     window_error: float = math.nan  # the chosen plan's error measured over the window
     tolerance: float = math.nan     # what the plan was to meet
     planning: str = ''              # what planning spent of its budget
+    predicted: bool = False         # error predicted over the horizon, checked over the window
 
     def _over(self) -> str:
         """Say how the error was found: measured over the window, extrapolated beyond."""
+        if self.predicted:
+            return (f'predicted over a {self.horizon_s:.3g} s run (every mode stepped with the '
+                    f"step's period error; the prediction held where measured: "
+                    f'{self.window_error:.2%} against {self.against} over the first '
+                    f'{self.window_s:.3g} s)')
         if self.horizon_s <= self.window_s * (1.0 + 1e-9):
             return f'against {self.against} over {self.window_s:.3g} s (pilot)'
         return (f'over a {self.horizon_s:.3g} s run (measured {self.window_error:.2%} against '

@@ -58,10 +58,7 @@ class PhysicalOperators:
             phi = basis.vectors
             cm = damping.modal_coefficients(basis.omega)
             self._modal = (phi, cm, basis.omega)
-            # explicit step: (M + dt/2 C)^-1 (f - C v_pred) = M^-1 f - B (dt/2 f + M v_pred)
-            # with B = Phi diag(c s) Phi^T, s = 1 / (1 + dt/2 c)  (Phi Phi^T = M^-1 since
-            # Phi^T M Phi = I, and s = 1 - dt/2 c s): one n x n product per step
-            self._explicit_b = (phi * (cm / (1.0 + 0.5 * dt * cm))[None, :]) @ phi.T
+            self._explicit_b = None          # made at the first explicit step
             return
         if damping.ratio != 0.0:
             if basis is None:
@@ -103,6 +100,13 @@ class PhysicalOperators:
             y = force * (0.5 * self.dt)
             y += self.m * v_pred
             a = force / self.m
+            if self._explicit_b is None:
+                # explicit step: (M + dt/2 C)^-1 (f - C v_pred) = M^-1 f - B (dt/2 f + M v_pred)
+                # with B = Phi diag(c s) Phi^T, s = 1 / (1 + dt/2 c)  (Phi Phi^T = M^-1 since
+                # Phi^T M Phi = I, and s = 1 - dt/2 c s): one n x n product per step, the
+                # matrix made once per run (a run built only to be re-stepped never makes it)
+                phi, cm, _ = self._modal
+                self._explicit_b = (phi * (cm / (1.0 + 0.5 * self.dt * cm))[None, :]) @ phi.T
             a -= self._explicit_b @ y
             return a
         rhs = force - self.damp(v_pred)
