@@ -48,20 +48,24 @@ def streaming_statuses(diags: list, prefix: str) -> list:
             and not d.status[0].message.startswith('starting: ')]
 
 
-def published_rate(diags: list, prefix: str, start: float, end: float) -> float:
+def reported_per_second(diags: list, prefix: str, key: str, start: float, end: float) -> float:
     """
-    Return the frames a second the node under ``prefix`` says it published between two times.
+    Return how fast the node under ``prefix`` says ``key`` grew between two times, a second.
 
-    From its ``frames published`` on /diagnostics (received between ``start`` and ``end``,
-    monotonic): what the node did, whatever a reader on a busy machine keeps up with.
+    From its reports on /diagnostics (received between ``start`` and ``end``, monotonic): what
+    the node did, whatever a reader on a busy machine keeps up with.
     """
-    reports = [(t, int(v['frames published'])) for t, v in
+    reports = [(t, float(v[key])) for t, v in
                ((t, {kv.key: kv.value for kv in d.status[0].values}) for t, d in list(diags))
-               if v.get('node', '').startswith(prefix) and 'frames published' in v
-               and start <= t < end]
+               if v.get('node', '').startswith(prefix) and key in v and start <= t < end]
     assert len(reports) >= 2, reports      # the node reports every second
     (t0, n0), (t1, n1) = reports[0], reports[-1]
     return (n1 - n0) / (t1 - t0)
+
+
+def published_rate(diags: list, prefix: str, start: float, end: float) -> float:
+    """Return the frames a second the node under ``prefix`` says it published (its reports)."""
+    return reported_per_second(diags, prefix, 'frames published', start, end)
 
 
 def assert_resimulates_exactly(capture, again, changes: int) -> int:

@@ -19,6 +19,12 @@ def test_one_random_scene_is_planned_checked_and_charted(tmp_path):
     assert row['cost_ratio'] == pytest.approx(row['auto_cpu_per_s'] / row['full_cpu_per_s'])
     assert row['auto_whole_s'] == pytest.approx(row['plan_cpu_s'] + 3.0 * row['auto_cpu_per_s'])
     assert row['whole_vs_default'] == pytest.approx(row['auto_whole_s'] / row['default_whole_s'])
+    # and as processes: modal_spring_sim --auto and --method full, interpreter and imports
+    # included (more than what they plan and step)
+    assert row['process_auto_s'] > row['auto_whole_s']
+    assert row['process_default_s'] > row['default_whole_s']
+    assert row['process_vs_default'] == pytest.approx(row['process_auto_s']
+                                                      / row['process_default_s'])
     assert row['default_error'] >= 0.0 and row['default_dt'] >= row['full_dt']
     # no window is better than the run's average
     assert row['default_window'] >= row['default_error'] * (1.0 - 1e-12)
@@ -40,6 +46,10 @@ def test_one_random_scene_is_planned_checked_and_charted(tmp_path):
     assert s['max_whole_vs_default'] == max([3.0] + [row['whole_vs_default']] * kept)
     assert s['default_meets_t'] == 1 + kept
     assert s['within_1_2_of_default'] == int(kept and row['whole_vs_default'] <= 1.2)
+    # ``worse`` keeps the row's process figures, and its default run keeps the promise
+    in_line = row['process_vs_default'] <= 1.2
+    assert s['process_within_1_2_of_default'] == int(kept and in_line) + int(in_line)
+    assert s['max_process_vs_default'] == row['process_vs_default']
     assert '1.0%' in promise.table(results).splitlines()[1]
     promise.write_outputs(results, tmp_path, lambda msg: None)
     assert (tmp_path / 'promise.png').stat().st_size > 10_000

@@ -26,7 +26,7 @@ import pytest
 import rclpy
 from rclpy.context import Context
 from ros_harness import (console_script, DOMAIN_ID, frames_since, node_of, node_with_client,
-                         published_rate, wait_for)
+                         published_rate, reported_per_second, wait_for)
 from sensor_msgs.msg import PointCloud2
 import yaml
 
@@ -284,9 +284,11 @@ def test_a_flood_of_clicks_keeps_the_stream_at_its_rate(tmp_path):
     """
     A thousand clicks a second for three seconds: the stream keeps its rate and its clock.
 
-    The rate is the one the node reports (``frames published`` on ``/diagnostics``), not what
-    this process receives (a reader on a busy machine falls behind its writer whatever the node
-    does). Both are measured against the same run under the same load: the same flood of
+    The rate and the clock are the ones the node reports (``frames published`` and ``simulation
+    time (s)`` on ``/diagnostics``), not what this process receives (a reader on a busy machine
+    falls behind its writer whatever the node does: the clock read from the frames received
+    fell to 0.72 of its baseline once, beside two busy processes and the rest of the suite).
+    Both are measured against the same run under the same load: the same flood of
     clicks in a frame the node does not know, before and after, the slower of the two the
     baseline (a busy machine's load drifts between windows). Those reach the node's process as
     the real ones do (their delivery, a thousand messages a second, costs the node what it
@@ -307,15 +309,12 @@ def test_a_flood_of_clicks_keeps_the_stream_at_its_rate(tmp_path):
         frames_since(points, heard[1], 5, timeout=30)
         pulled = latest(points)
         after = _flood('/clicked_point', True, points, frame_id='nowhere')
-    received = [(t, m) for t, m in list(points)]
 
     def window(flood) -> tuple[float, float]:
         """Frames the node published a second during ``flood``, simulated seconds a second."""
         start, end = flood[:2]
-        inside = [m for t, m in received if start <= t < end]
-        stamps = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in inside]
-        span = (stamps[-1] - stamps[0]) if len(stamps) > 1 else 0.0
-        return published_rate(diagnostics, '/flood/', start, end), span / (end - start)
+        return (published_rate(diagnostics, '/flood/', start, end),
+                reported_per_second(diagnostics, '/flood/', 'simulation time (s)', start, end))
 
     # the slower baseline of the two, rate and clock each
     rate_unheard, clock_unheard = (min(pair)

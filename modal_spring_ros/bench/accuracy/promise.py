@@ -10,8 +10,10 @@ user pays for the whole run, planning included (``auto_whole_s``: the CPU time o
 of stepping the run), against the full run at its default step (the one ``--method full``
 takes: ``default_whole_s``, its build and its run) and at the longest step that meets ``T``
 (halved from 0.9 of its stability limit: ``at_t_whole_s``), all timed in the same process one
-after the other. Each scene runs in a worker process with single-threaded BLAS (two at a
-time).
+after the other; and as whole processes, the way a user pays it (``process_auto_s`` and
+``process_default_s``: ``modal_spring_sim --auto`` and ``--method full`` on the scene written to
+a file, interpreter, imports and all). Each scene runs in a worker process with single-threaded
+BLAS (two at a time).
 
 Results: ``promise.json``, ``promise.csv`` and ``promise.png`` (achieved against printed
 error, and the cost against the full run's, per tolerance).
@@ -27,6 +29,7 @@ import time
 from typing import Callable
 
 from modal_spring_ros.bench.charts import subplots
+from modal_spring_ros.bench.costs.cli_runs import process_costs
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error,
                                                        WINDOW_ALLOWANCE, worst_window)
@@ -69,12 +72,17 @@ def measure(seed: int, tolerance: float) -> dict:
 
 
 def check_scene(scene, seed: int, tolerances: tuple[float, ...], duration_s: float,
-                progress: Callable[[str], None] = lambda msg: None) -> list[dict]:
+                progress: Callable[[str], None] = lambda msg: None,
+                processes: bool = True) -> list[dict]:
     """
     Plan ``scene`` automatically at each of ``tolerances`` for ``duration_s``, check each plan.
 
     One truth serves every tolerance: the full run converged to ``REFERENCE_ACCURACY`` of the
     smallest. A row per tolerance (``refused`` says why where a plan or the truth is missing).
+    What the whole run costs is measured in this process (planning and the run's stepping,
+    against the full run's build and stepping) and, with ``processes``, as a user pays it:
+    ``modal_spring_sim --auto`` against ``--method full``, each a process of its own
+    (:func:`~modal_spring_ros.bench.costs.cli_runs.process_costs`).
     """
     base = {'seed': seed, 'scene': scene.name, 'particles': scene.n_particles,
             'dimension': scene.dimension, 'turning': bool(scene.anchor_motion.rotates),
@@ -133,6 +141,12 @@ def check_scene(scene, seed: int, tolerances: tuple[float, ...], duration_s: flo
         row['at_t_whole_s'] = built_s + row['full_cpu_per_s'] * duration_s
         row['whole_vs_default'] = row['auto_whole_s'] / row['default_whole_s']
         row['whole_vs_at_t'] = row['auto_whole_s'] / row['at_t_whole_s']
+        if processes:
+            # what a user pays: modal_spring_sim as a process, --auto and --method full
+            progress(f'{scene.name}: modal_spring_sim --auto and --method full as processes')
+            row['process_auto_s'], row['process_default_s'] = process_costs(scene, tolerance,
+                                                                            duration_s)
+            row['process_vs_default'] = row['process_auto_s'] / row['process_default_s']
     return rows
 
 
@@ -239,8 +253,10 @@ def summary(rows: list[dict]) -> list[dict]:
         whole = np.array([r['whole_vs_at_t'] for r in ran])
         # against the full run at its default step where that run keeps the promise (the
         # acceptance): within T over the run, and within the allowance in every window
-        meets = np.array([r['whole_vs_default'] for r in ran if r['default_error'] <= t
-                          and r.get('default_window', 0.0) <= WINDOW_ALLOWANCE * t])
+        keeps = [r for r in ran if r['default_error'] <= t
+                 and r.get('default_window', 0.0) <= WINDOW_ALLOWANCE * t]
+        meets = np.array([r['whole_vs_default'] for r in keeps])
+        process = np.array([r['process_vs_default'] for r in keeps if 'process_vs_default' in r])
         out.append({
             'tolerance': t, 'scenes': len(mine), 'refused': len(mine) - len(ran),
             'within_t': float(np.mean(achieved <= t)) if ran else math.nan,
@@ -257,7 +273,10 @@ def summary(rows: list[dict]) -> list[dict]:
             'default_meets_t': int(meets.size),
             'median_whole_vs_default': float(np.median(meets)) if meets.size else math.nan,
             'within_1_2_of_default': int(np.sum(meets <= 1.2)),
-            'max_whole_vs_default': float(meets.max()) if meets.size else math.nan})
+            'max_whole_vs_default': float(meets.max()) if meets.size else math.nan,
+            'median_process_vs_default': float(np.median(process)) if process.size else math.nan,
+            'process_within_1_2_of_default': int(np.sum(process <= 1.2)),
+            'max_process_vs_default': float(process.max()) if process.size else math.nan})
     return out
 
 
@@ -265,7 +284,8 @@ def table(results: dict) -> str:
     lines = [f"{'T':>6s} {'scenes':>6s} {'refused':>7s} {'<= T':>6s} {'<= 2T':>6s} "
              f"{'windows <= 2T':>13s} {'worst/T':>7s} {'full':>5s} "
              f"{'whole/default (n) median':>24s} {'<= 1.2':>6s} {'max':>6s} "
-             f"{'whole/at T median':>17s} {'max':>6s}"]
+             f"{'whole/at T median':>17s} {'max':>6s} "
+             f"{'process/default median':>22s} {'<= 1.2':>6s} {'max':>6s}"]
     for s in results['summary']:
         lines.append(f"{s['tolerance']:6.1%} {s['scenes']:6d} {s['refused']:7d} "
                      f"{s['within_t']:6.0%} {s['within_2t']:6.0%} "
@@ -274,7 +294,10 @@ def table(results: dict) -> str:
                      f"{'(' + str(s['default_meets_t']) + ')':>8s} "
                      f"{s['median_whole_vs_default']:15.2f} "
                      f"{s.get('within_1_2_of_default', 0):6d} {s['max_whole_vs_default']:6.2f} "
-                     f"{s['median_whole_vs_at_t']:17.2f} {s['max_whole_vs_at_t']:6.2f}")
+                     f"{s['median_whole_vs_at_t']:17.2f} {s['max_whole_vs_at_t']:6.2f} "
+                     f"{s.get('median_process_vs_default', math.nan):22.2f} "
+                     f"{s.get('process_within_1_2_of_default', 0):6d} "
+                     f"{s.get('max_process_vs_default', math.nan):6.2f}")
     return '\n'.join(lines)
 
 
@@ -303,7 +326,12 @@ def chart(rows: list[dict], path: Path) -> Path:
         achieved = np.array([max(r['achieved'], 1e-6) for r in ran])
         cost = np.array([r['whole_vs_default'] for r in ran])
         left.scatter(printed, achieved, s=14, color=color, label=f'T = {t:.1%}')
-        right.scatter(cost, achieved, s=14, color=color, label=f'T = {t:.1%}')
+        right.scatter(cost, achieved, s=14, color=color, label=f'T = {t:.1%}: in process')
+        timed = [r for r in ran if 'process_vs_default' in r]
+        if timed:
+            right.scatter([r['process_vs_default'] for r in timed],
+                          [max(r['achieved'], 1e-6) for r in timed], s=22, facecolors='none',
+                          edgecolors=color, label=f'T = {t:.1%}: modal_spring_sim processes')
         for ax in (left, right):
             ax.axhline(t, color=color, lw=0.8)
             ax.axhline(2 * t, color=color, lw=0.8, ls='--')

@@ -7,8 +7,8 @@ Loads ``SCENE`` (a built-in name or a scene file), builds it in Newton
 (:class:`~modal_spring_ros.bench.peers.newton_peer.NewtonRun`: Warp's kernels compiled or taken
 from Warp's cache, two steps captured as a graph) and steps it for ``S`` simulated seconds at
 ``DT`` (the step the peer suite found to meet the tolerance), as a Newton user's script does;
-then prints the steps taken and the largest displacement. What ``farm-bench`` times of it is
-what a user of Newton pays for the same run.
+then prints the steps taken and the largest displacement. Its CPU time as a whole process
+(``/usr/bin/time -v``) is what a user of Newton pays for the same run.
 """
 from __future__ import annotations
 

@@ -1,0 +1,63 @@
+"""
+What a run costs a user as a whole process: ``modal_spring_sim`` run on a scene, its CPU time.
+
+A user pays the process: the interpreter, the imports, loading the scene, planning and the run.
+Measured in-process, planning's fixed part (tens of milliseconds) looks large beside the full
+run of a small scene over 3 s (hundreds of milliseconds less than the process around it).
+:func:`process_costs` writes the scene to a file and runs ``modal_spring_sim`` on it twice, with
+``--auto`` at the tolerance and with ``--method full`` (its default step), each in a process of
+its own, one BLAS thread, a modes cache of their own; their CPU time (user and system, the
+process and whatever it waited for) is what each costs.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import resource
+import subprocess
+import sys
+import tempfile
+
+from modal_spring_ros.core.model.scene import Scene
+from modal_spring_ros.runs.sample_cache import CACHE_ENV
+from modal_spring_ros.scenes.files.writing import scene_to_yaml
+
+#: the command, run by this interpreter (the package's console script, as a module)
+COMMAND = (sys.executable, '-m', 'modal_spring_ros.cli.modal_spring_sim')
+#: a run that takes longer is reported as failed, s
+TIMEOUT_S = 1800.0
+
+
+def cli_cpu_seconds(args: list[str], env: dict[str, str]) -> float:
+    """
+    Return the CPU seconds ``modal_spring_sim args`` took as a process (raises where it failed).
+
+    Read from the children's resource usage before and after: the process is waited for, so its
+    own time and its children's are there.
+    """
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    done = subprocess.run([*COMMAND, *args], env=env, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.PIPE, text=True, timeout=TIMEOUT_S)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        raise RuntimeError(f'modal_spring_sim {" ".join(args)} exited with {done.returncode}: '
+                           f'{done.stderr.strip()[-300:]}')
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def process_costs(scene: Scene, tolerance: float, duration_s: float) -> tuple[float, float]:
+    """
+    Return the CPU seconds of ``--auto`` at ``tolerance`` and of ``--method full``, as processes.
+
+    Both over ``duration_s`` on ``scene`` (written to a scene file), quiet, no output written.
+    """
+    with tempfile.TemporaryDirectory(prefix='cli_runs_') as folder:
+        path = Path(folder) / f'{scene.name}.yaml'
+        path.write_text(scene_to_yaml(scene))
+        env = dict(os.environ, OPENBLAS_NUM_THREADS='1', OMP_NUM_THREADS='1',
+                   MKL_NUM_THREADS='1')
+        env[CACHE_ENV] = str(Path(folder) / 'cache')
+        common = ['--scene', str(path), '--duration', repr(float(duration_s)), '--quiet']
+        auto = cli_cpu_seconds([*common, '--auto', '--tolerance', repr(float(tolerance))], env)
+        full = cli_cpu_seconds([*common, '--method', 'full'], env)
+    return auto, full
