@@ -72,15 +72,14 @@ def measure(seed: int, tolerance: float) -> dict:
 
 
 def check_scene(scene, seed: int, tolerances: tuple[float, ...], duration_s: float,
-                progress: Callable[[str], None] = lambda msg: None,
-                processes: bool = True) -> list[dict]:
+                progress: Callable[[str], None] = lambda msg: None) -> list[dict]:
     """
     Plan ``scene`` automatically at each of ``tolerances`` for ``duration_s``, check each plan.
 
     One truth serves every tolerance: the full run converged to ``REFERENCE_ACCURACY`` of the
     smallest. A row per tolerance (``refused`` says why where a plan or the truth is missing).
     What the whole run costs is measured in this process (planning and the run's stepping,
-    against the full run's build and stepping) and, with ``processes``, as a user pays it:
+    against the full run's build and stepping) and as a user pays it:
     ``modal_spring_sim --auto`` against ``--method full``, each a process of its own
     (:func:`~modal_spring_ros.bench.costs.cli_runs.process_costs`).
     """
@@ -141,12 +140,11 @@ def check_scene(scene, seed: int, tolerances: tuple[float, ...], duration_s: flo
         row['at_t_whole_s'] = built_s + row['full_cpu_per_s'] * duration_s
         row['whole_vs_default'] = row['auto_whole_s'] / row['default_whole_s']
         row['whole_vs_at_t'] = row['auto_whole_s'] / row['at_t_whole_s']
-        if processes:
-            # what a user pays: modal_spring_sim as a process, --auto and --method full
-            progress(f'{scene.name}: modal_spring_sim --auto and --method full as processes')
-            row['process_auto_s'], row['process_default_s'] = process_costs(scene, tolerance,
-                                                                            duration_s)
-            row['process_vs_default'] = row['process_auto_s'] / row['process_default_s']
+        # what a user pays: modal_spring_sim as a process, --auto and --method full
+        progress(f'{scene.name}: modal_spring_sim --auto and --method full as processes')
+        row['process_auto_s'], row['process_default_s'] = process_costs(scene, tolerance,
+                                                                        duration_s)
+        row['process_vs_default'] = row['process_auto_s'] / row['process_default_s']
     return rows
 
 
