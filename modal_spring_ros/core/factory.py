@@ -16,7 +16,7 @@ from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.pilot import Pilot, PILOT_MARGIN, SAMPLES as PILOT_SAMPLES
 from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PlanSettings
-from modal_spring_ros.core.auto.step_error import predicted_step
+from modal_spring_ros.core.auto.step_error import predicted_step, predicts
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis, Progress
 from modal_spring_ros.core.bases.basis_choice import choose_basis
 from modal_spring_ros.core.bases.mode_selection import (choose_modes, choose_refresh, choose_step,
@@ -166,14 +166,15 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
         if not basis.dense:
             budget.spend(modes_work(model, basis.modes_solved - charged[0]))
             charged[0] = basis.modes_solved
-    # every mode a small scene has anyway (dense): the longest stable step the full run is
-    # predicted to meet the tolerance at over the run, within the pilot's margin (a scene with
-    # colliders is checked over the whole window instead: a linear prediction sees no touch)
-    # (a step the user gave is the longest)
+    # the modes the basis has anyway (every mode of a small scene, the lowest of a large one
+    # driven slowly enough for them): the longest stable step the full run is predicted to
+    # meet the tolerance at over the run, within the pilot's margin (a scene with colliders is
+    # checked over the whole window instead: a linear prediction sees no touch) (a step the
+    # user gave is the longest)
     predicted = (predicted_step(model, basis, 'explicit', full_dt, horizon_s,
                                 PILOT_MARGIN * config.tolerance,
                                 None if config.dt else longest.dt)
-                 if basis.dense and model.scene.contact is None else None)
+                 if predicts(model, basis) and model.scene.contact is None else None)
     choice = (choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
               if not why else None)
     if measured and why:

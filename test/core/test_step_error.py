@@ -6,7 +6,8 @@ import math
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error,
                                                        WINDOW_ALLOWANCE, worst_window)
-from modal_spring_ros.core.auto.step_error import (predicted_step, predicted_step_error,
+from modal_spring_ros.core.auto.step_error import (AGREEMENT, predicted_step,
+                                                   predicted_step_error, predicts,
                                                    scheme_frequencies)
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.config import SimulationConfig
@@ -14,6 +15,7 @@ from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.integrators import INTEGRATORS
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.scenes.generator import random_scene
+from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
 from toy_integrators import SymplecticEuler
@@ -150,3 +152,39 @@ def test_a_default_step_well_within_the_tolerance_is_lengthened_up_to_the_longes
                                                                 default, DURATION_S)
     # no longest step given (a user's step): the step given is the longest
     assert predicted_step(model, basis, 'explicit', default, DURATION_S, 0.003).step == default
+
+
+def test_a_large_scene_is_predicted_from_its_lowest_modes_where_the_rest_follow_the_drive():
+    """
+    ``sheet_32x32_resonance``: 1,984 free DOF (beyond the dense limit), shaken at its first mode.
+
+    Its lowest modes predict the step's error where every drive term is ``QUASI_STATIC`` times
+    slower than the highest of them (the others then follow the drive); its two lowest do not
+    (the second is within four times the drive). What a start measures beyond ``AGREEMENT``
+    times the prediction there is the left-out modes', grown over the run in proportion to time:
+    added to the run's predicted error, and refused where that passes what is allowed.
+    """
+    model = MassSpringModel(load_scene('sheet_32x32_resonance'))
+    drive = float(model.motion.frequencies_hz.max())
+    few = ModalBasis(model, initial_modes=2)
+    assert not few.complete and few.frequencies_hz[-1] < 4.0 * drive
+    assert not predicts(model, few)
+    basis = ModalBasis(model, initial_modes=16)
+    assert not basis.complete and predicts(model, basis)
+    horizon, start, allowed = 2.0, 0.2, 0.008
+    dt = 0.9 * 2.0 / basis.omega_max_estimate()
+    prediction = predicted_step(model, basis, 'explicit', dt, horizon, allowed)
+    run, expected = prediction.predictor.error(dt), prediction.start_error(dt, start)
+    assert 0.0 < expected and 0.0 < run < allowed
+    # a start the lowest modes explain: the run's error is theirs
+    assert prediction.confirmed(AGREEMENT * expected, dt, start, allowed) == run
+    # beyond it, the left-out modes' share grows over the run
+    beyond = 2e-4
+    assert prediction.confirmed(AGREEMENT * expected + beyond, dt, start, allowed) == (
+        pytest.approx(run + beyond * horizon / start))
+    assert math.isnan(prediction.confirmed(AGREEMENT * expected + allowed / 5.0, dt, start,
+                                           allowed))
+    # a start beyond what is allowed and what the prediction explains disproves it
+    assert math.isnan(prediction.confirmed(max(allowed, AGREEMENT * expected) * 1.01, dt, start,
+                                           allowed))
+    assert 'its 16 lowest modes' in prediction.describe()

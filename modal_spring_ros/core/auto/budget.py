@@ -50,9 +50,6 @@ SETUP_US = {'modes': 1.35, 'derivatives': 140.0, 'training': 200.0}
 MIN_CHECK_SAMPLES = 2
 #: The full reference over a window costs its run at a step and at half of it: three runs' worth.
 REFERENCE_RUNS = 3.0
-#: A start measured within this many times its predicted error confirms the prediction (the
-#: linear prediction was within 0.8-1.2 times the measured error over starts of random scenes).
-AGREEMENT = 1.5
 
 
 @dataclasses.dataclass
@@ -191,8 +188,9 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
 
     ``prediction`` is the longest stable step every mode, stepped under the scene's loads
     with the period error and damping the integrator gives it, is predicted to keep within
-    ``margin * tolerance`` over the run (:mod:`~modal_spring_ros.core.auto.step_error`; None:
-    no prediction, a scene beyond the dense limit or with colliders). The step run is that one
+    ``margin * tolerance`` over the run (:mod:`~modal_spring_ros.core.auto.step_error`; from
+    the lowest modes only on a scene beyond the dense limit; None: no prediction, a scene with
+    colliders or driven too fast for the modes it has). The step run is that one
     where it is longer than the default (``default_dt``: the one ``--method full`` takes, the
     scene's or half the stability limit), else the default: a user pays no more than the full
     run they would have run, and less where its default step is needlessly short.
@@ -202,7 +200,9 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     ``samples``. With a prediction, the check is of the prediction: where the start is within
     ``AGREEMENT`` times the error predicted over that start (or within ``margin * tolerance``),
     the prediction holds where it was measured and the step is the answer, its error the one
-    predicted over the run, said so (a start's transient is often beyond the tolerance of the
+    predicted over the run (with what the start measured beyond the modes a large scene's
+    prediction has, grown over the run: :meth:`~.step_error.StepPrediction.confirmed`), said so
+    (a start's transient is often beyond the tolerance of the
     whole run: judged against it, random scenes whose default step met the tolerance had their
     step searched over the whole window, at up to ten times the run's cost). A start can miss an
     error that grows later, which the prediction sees: where it puts the default step beyond
@@ -249,11 +249,14 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
                                       first_dt=step)
         budget.charge(sim, REFERENCE_RUNS * checked_s)
         expected = prediction.start_error(sim.dt, checked_s)
-        if error <= max(margin * tolerance, AGREEMENT * expected):
-            reason += f'; {expected:.2%} predicted over the first {checked_s:.2g} s'
-            report = PilotReport(prediction.predictor.error(sim.dt), math.nan, checked_s,
-                                 BY_ITSELF, (), 'full', 1.0, reason=reason, horizon_s=horizon_s,
-                                 window_error=error, tolerance=tolerance, predicted=True)
+        predicted = prediction.confirmed(error, sim.dt, checked_s, margin * tolerance)
+        if math.isfinite(predicted):
+            told = prediction.describe()
+            reason += (f'; {told}' if told else '') + (
+                f'; {expected:.2%} predicted over the first {checked_s:.2g} s')
+            report = PilotReport(predicted, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0,
+                                 reason=reason, horizon_s=horizon_s, window_error=error,
+                                 tolerance=tolerance, predicted=True)
             return sim, report
         reason += (f'; the prediction missed over the first {checked_s:.2g} s ({error:.2%} '
                    f'measured, {expected:.2%} predicted): the step was measured instead')

@@ -51,7 +51,7 @@ class PilotReport:
     def _over(self) -> str:
         """Say how the error was found: measured over the window, extrapolated beyond."""
         if self.predicted:
-            return (f'predicted over a {self.horizon_s:.3g} s run (every mode stepped with the '
+            return (f'predicted over a {self.horizon_s:.3g} s run (the modes stepped with the '
                     f"step's period error; the prediction held where measured: "
                     f'{self.window_error:.2%} against {self.against} over the first '
                     f'{self.window_s:.3g} s)')
