@@ -1,8 +1,10 @@
 """The full run as auto's candidate, measured by its own step doubling where nothing else can."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
+from modal_spring_ros.core.auto import full_candidate
 from modal_spring_ros.core.auto.full_candidate import by_step_doubling
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
@@ -52,6 +54,29 @@ def test_out_of_work_it_returns_the_coarser_run_with_its_estimate(sheet):
     assert achieved == pytest.approx(estimate, rel=0.05)
 
 
+def test_a_second_look_at_the_same_start_steps_only_what_it_has_not(sheet, monkeypatch):
+    """The runs' samples kept between looks: the start's pair once, then only finer runs."""
+    full, _ = sheet
+    stepped: dict = {}
+    first = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES, math.inf, 0.0,
+                             stepped=stepped)
+    assert len(stepped) == 2                                       # the step and its half
+    calls = []
+
+    def counted(*args, **kwargs):
+        calls.append(args[0].dt)
+        return trajectory(*args, **kwargs)
+    monkeypatch.setattr(full_candidate, 'trajectory', counted)
+    again = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES, math.inf, 0.0,
+                             stepped=stepped)
+    assert calls == [] and again[1] == first[1] and again[0].dt == first[0].dt
+    finer = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES, first[1] / 10.0,
+                             math.inf, stepped=stepped)
+    assert finer[1] <= first[1] / 10.0
+    assert len(calls) >= 1 and min(calls) == pytest.approx(finer[0].dt / 2.0)
+    assert all(dt < first[0].dt / 1.5 for dt in calls)            # the pair not stepped again
+
+
 def test_a_full_run_beyond_the_tolerance_says_so():
     report = PilotReport(0.05, 0.2, 3.0, 'its own run at half the step', (), 'full', 1.0,
                          reason='no plan within 1.00% after refining: the best measured 16%',
@@ -61,6 +86,28 @@ def test_a_full_run_beyond_the_tolerance_says_so():
     within = PilotReport(0.004, 0.2, 3.0, 'the full run', (), 'full', 1.0, reason='r',
                          tolerance=0.01)
     assert 'NOT within' not in within.describe()
+
+
+def test_a_full_run_chosen_over_a_plan_says_how_its_own_check_found_its_error():
+    """
+    Where the pilot's budget is spent, the full run's error is its own check's: said as found.
+
+    A predicted error (checked over the start) is never printed as measured and extrapolated.
+    """
+    plan = PilotReport(0.02, 0.03, 1.0, 'the full run', (), 'modal', 0.1, tolerance=0.01,
+                       horizon_s=6.0, window_error=0.015)
+    checked = PilotReport(0.004, math.nan, 0.17, 'its own run at half the step', (), 'full',
+                          1.0, horizon_s=6.0, window_error=0.0009, tolerance=0.01,
+                          predicted=True)
+    chosen = dataclasses.replace(plan, error=checked.error, method='full', cost_ratio=1.0,
+                                 reason='no plan within 1.00% after refining',
+                                 against=checked.against)
+    assert 'drift extrapolated' in chosen.describe()          # as the plan's window had it
+    told = chosen.as_checked(checked).describe()
+    assert 'error 0.40% predicted over a 6 s run' in told, told
+    assert '0.09% against its own run at half the step over the first 0.17 s' in told
+    assert 'drift extrapolated' not in told
+    assert chosen.as_checked(None) is chosen
 
 
 def test_the_full_run_over_the_window_start_is_as_long_as_its_work_affords(sheet):

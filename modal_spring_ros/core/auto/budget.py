@@ -226,7 +226,7 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
         # start checked as the budget affords (a longer search would cost more than the run)
         step = prediction.step
         reason += (f'; the default step is predicted beyond the tolerance '
-                   f'({prediction.error_at(default_dt):.2%} over the run, every mode stepped with '
+                   f'({prediction.error_at(default_dt):.2%} over the run, the modes stepped with '
                    f'the period error and damping of the step): the longest step predicted within '
                    f'it ({step:.3g} s)')
     elif prediction is not None and prediction.step > default_dt:
@@ -243,11 +243,20 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
         reason += ('; the scene has colliders, and a start sees none of the touches to come: '
                    'the step was checked over the whole window, beyond the budget')
     checked_s = count * sample_s
+    stepped: dict = {}         # every run's samples, once: a second look steps nothing again
+
+    def doubling(samples_: int, over_s: float, allowed: float, work_per_s: float,
+                 first_dt: float) -> tuple[Simulation, float]:
+        before = len(stepped)
+        found = by_step_doubling(full, sample_s, samples_, over_s, allowed, work_per_s,
+                                 first_dt=first_dt, stepped=stepped)
+        if len(stepped) > before:
+            budget.charge(found[0], REFERENCE_RUNS * samples_ * sample_s)
+        return found
+
     if prediction is not None and prediction.predictor is not None:
         # the prediction checked where it is cheap: the start, against its run at half the step
-        sim, error = by_step_doubling(full, sample_s, count, checked_s, math.inf, 0.0,
-                                      first_dt=step)
-        budget.charge(sim, REFERENCE_RUNS * checked_s)
+        sim, error = doubling(count, checked_s, math.inf, 0.0, step)
         expected = prediction.start_error(sim.dt, checked_s)
         predicted = prediction.confirmed(error, sim.dt, checked_s, margin * tolerance)
         if math.isfinite(predicted):
@@ -261,26 +270,20 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
         reason += (f'; the prediction missed over the first {checked_s:.2g} s ({error:.2%} '
                    f'measured, {expected:.2%} predicted): the step was measured instead')
     over_s = horizon_s if count == samples else checked_s
-    sim, error = by_step_doubling(full, sample_s, count, over_s, margin * tolerance, math.inf,
-                                  first_dt=step)
-    budget.charge(sim, REFERENCE_RUNS * checked_s)
+    sim, error = doubling(count, over_s, margin * tolerance, math.inf, step)
     if sim.dt < checked.dt * (1.0 - 1e-9) and step > default_dt:
         # a start's transient can miss where the run would not: the default step, checked so
         reason += ('; the longer step missed over the start: the default step was checked')
         checked = full(default_dt, sample_s)
-        sim, error = by_step_doubling(full, sample_s, count, over_s, margin * tolerance,
-                                      math.inf, first_dt=default_dt)
-        budget.charge(sim, REFERENCE_RUNS * checked_s)
+        sim, error = doubling(count, over_s, margin * tolerance, math.inf, default_dt)
     if sim.dt < checked.dt * (1.0 - 1e-9) and count < samples:
         reason += (f'; the step missed the tolerance over the first {checked_s:.2g} s: the step '
                    'needed was found over the whole window, beyond the budget')
-        sim, error = by_step_doubling(full, sample_s, samples, horizon_s, margin * tolerance,
-                                      math.inf, first_dt=sim.dt)
-        budget.charge(sim, REFERENCE_RUNS * window_s)
+        sim, error = doubling(samples, horizon_s, margin * tolerance, math.inf, sim.dt)
         checked_s, over_s = window_s, horizon_s
     if prediction is not None:
         reason += (f'; {prediction.error_at(sim.dt):.2%} predicted over the {horizon_s:.3g} s '
-                   'run (every mode stepped with its period error)')
+                   'run (the modes stepped with their period error)')
     report = PilotReport(error, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0, reason=reason,
                          horizon_s=over_s, window_error=error, tolerance=tolerance)
     return sim, report

@@ -22,6 +22,7 @@ from typing import Callable
 from modal_spring_ros.core.auto.measured_error import horizon_error, trajectory
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.simulations import Simulation
+import numpy as np
 
 #: Order of the schemes' step error.
 STEP_ORDER = 2
@@ -51,7 +52,8 @@ def against_reference(full: Callable[[float, float], Simulation],
 
 def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float,
                      samples: int, horizon_s: float, budget: float, work_per_s: float,
-                     first_dt: float = math.inf) -> tuple[Simulation, float]:
+                     first_dt: float = math.inf, stepped: dict | None = None
+                     ) -> tuple[Simulation, float]:
     """
     Return the full run at the longest step its own step doubling puts within ``budget``.
 
@@ -60,16 +62,25 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
     the run at half the step, over ``horizon_s`` as :func:`horizon_error` extrapolates it) is
     over the budget and the runs' modelled work (us per simulated second, summed) stays within
     ``work_per_s``. Where it never meets the budget, the finest run measured is returned with
-    its estimate, which then says so.
+    its estimate, which then says so. ``stepped``: the runs' samples kept between calls (by
+    step and count), so that a second look at the same start steps nothing again.
     """
     share = 1.0 / (1.0 - 0.5 ** STEP_ORDER)       # the coarse run's error / the difference
+    stepped = {} if stepped is None else stepped
+
+    def run(sim: Simulation) -> np.ndarray | None:
+        key = (sim.dt, sample_s, samples)
+        if key not in stepped:
+            stepped[key] = trajectory(sim, sample_s, samples)
+        return stepped[key]
+
     coarse = full(first_dt, sample_s)
-    coarse_run = trajectory(coarse, sample_s, samples)
+    coarse_run = run(coarse)
     spent = work_per_second(coarse)
     while True:
         fine = full(coarse.dt / 2.0, sample_s)
         spent += work_per_second(fine)
-        fine_run = trajectory(fine, sample_s, samples)
+        fine_run = run(fine)
         if fine_run is None:
             return coarse, math.inf
         error = horizon_error(coarse_run, fine_run, sample_s, horizon_s) * share

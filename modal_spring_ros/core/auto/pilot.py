@@ -98,7 +98,7 @@ class Pilot:
         self.model, self.full_dt, self.tolerance = model, full_dt, float(tolerance)
         self.budget = budget if budget is not None else PlanningBudget()
         self.make, self.full, self.more_modes = make, full, more_modes
-        self.can_halve_step = can_halve_step
+        self.can_halve_step, self._checked = can_halve_step, None   # the full run's own check
         window = pilot_window(model, kept_hz)
         self.horizon_s = float(horizon_s) if horizon_s is not None else window
         self.window_s = min(window, self.horizon_s)
@@ -109,8 +109,7 @@ class Pilot:
         # what the full candidate is measured with: sample_s, samples, reference, against
         self._sampling: tuple[float, int, np.ndarray, str] | None = None
         # the full run over the window's start checking a sibling (None: none); whether sought
-        self._start: np.ndarray | None = None
-        self._start_sought = False
+        self._start, self._start_sought = None, False
         self._fallback: Simulation | None = None   # the full candidate, once measured
         self._reference_dt = 0.0                   # the converged full reference's step
 
@@ -364,7 +363,8 @@ class Pilot:
                   f'{error:.2%} only against a richer plan cut the same way' if cut else
                   f'cheaper: the plan needs {ratio:.2g} x its work')
         return full, dataclasses.replace(report, error=full_error, method='full', cost_ratio=1.0,
-                                         reason=reason, against=full_against)
+                                         reason=reason, against=full_against
+                                         ).as_checked(self._checked)
 
     def _full_candidate(self, against: str, error: float) -> tuple[Simulation, float, str]:
         """
@@ -389,6 +389,7 @@ class Pilot:
                                           self.window_s, self.horizon_s, self.tolerance,
                                           PILOT_MARGIN, SAMPLES, 'the budget was spent',
                                           self.full_dt[1])
+            self._checked = report
             return full, report.error, report.against
         if against != 'the full run' and error > self.tolerance:
             full, full_error = by_step_doubling(self.full, sample_s, samples, self.horizon_s,

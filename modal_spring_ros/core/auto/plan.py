@@ -60,6 +60,13 @@ class PilotReport:
         return (f'over a {self.horizon_s:.3g} s run (measured {self.window_error:.2%} against '
                 f'{self.against} over {self.window_s:.3g} s, drift extrapolated)')
 
+    def as_checked(self, checked: 'PilotReport | None') -> 'PilotReport':
+        """Return this report with how ``checked`` (the full run's own check) found its error."""
+        if checked is None:
+            return self
+        return dataclasses.replace(self, window_s=checked.window_s, horizon_s=checked.horizon_s,
+                                   window_error=checked.window_error, predicted=checked.predicted)
+
     def describe(self) -> str:
         spent = f'; {self.planning}' if self.planning else ''
         if self.method == 'full':
