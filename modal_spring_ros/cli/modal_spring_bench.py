@@ -5,6 +5,7 @@
                                 scale,headline,peer,contact,meshes,storm]
                        [--quick]
                        [--case TEXT]
+                       [--seeds LIST]
                        [--out DIR]
 
 Suites: ``steps`` (median time per step, basis cost, peak memory), ``stream`` (the node's
@@ -70,6 +71,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--quick', action='store_true', help='fewer repetitions and cases')
     p.add_argument('--case', default=None, metavar='TEXT',
                    help="stream suite: only the cases whose label contains TEXT (e.g. '100k')")
+    p.add_argument('--seeds', default=None, metavar='LIST',
+                   help="promise_demanding suite: only these seeds (e.g. '1-6' or '1,3,5'; "
+                        'default all)')
     p.add_argument('--out', default=None, help='folder for the JSON results')
     args = p.parse_args(argv)
     suites = [s.strip() for s in args.suite.split(',') if s.strip()]
@@ -89,6 +93,14 @@ def main(argv: list[str] | None = None) -> int:
             stream.select_cases(args.case, args.quick)
         except ValueError as exc:
             fail(PROG, str(exc))
+    seeds = None
+    if args.seeds is not None:
+        if suites != ['promise_demanding']:
+            fail(PROG, '--seeds picks promise_demanding seeds: use it with that suite alone')
+        try:
+            seeds = promise_demanding.select_seeds(args.seeds)
+        except ValueError as exc:
+            fail(PROG, f'--seeds: {exc}')
     out = Path(args.out) if args.out else None
     if out is not None:
         try:
@@ -105,6 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in suites:
         module = SUITES[name]
         results = (module.run(args.quick, progress, args.case) if args.case is not None
+                   else module.run(args.quick, progress, seeds) if seeds is not None
                    else module.run(args.quick, progress))
         print(f'== {name} ==')
         print(module.table(results))

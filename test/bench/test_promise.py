@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from modal_spring_ros.bench.accuracy import promise
 from modal_spring_ros.bench.accuracy import promise_demanding
+from modal_spring_ros.cli.modal_spring_bench import main
 import numpy as np
 import pytest
 
@@ -88,3 +89,30 @@ def test_the_demanding_suite_tabulates_every_run_and_its_windows(tmp_path):
     assert 'refused: the reference did not converge' in text
     promise_demanding.write_outputs(results, tmp_path, lambda msg: None)
     assert (tmp_path / 'promise_demanding.png').stat().st_size > 10_000
+
+
+def test_the_demanding_suite_runs_the_seeds_a_user_lists(monkeypatch):
+    """``--seeds 1-3,5``: those seeds, once each, in order; every other seed left alone."""
+    assert promise_demanding.select_seeds('1-3,5') == [1, 2, 3, 5]
+    assert promise_demanding.select_seeds(' 4 , 4,0-1') == [4, 0, 1]
+    for bad, message in (('7', 'the seeds are 0 to 6'), ('3-1', 'each range ascending'),
+                         ('a', "'a' is not a seed"), ('1-', "'1-' is not a seed"),
+                         ('', "'' is not a seed")):
+        with pytest.raises(ValueError, match=message):
+            promise_demanding.select_seeds(bad)
+    measured = []
+    monkeypatch.setattr(promise, 'in_workers',
+                        lambda measure, seeds, name, progress: measured.append(seeds) or {})
+    promise_demanding.run(False, lambda msg: None, [1, 5])
+    promise_demanding.run(True, lambda msg: None)
+    assert measured == [[1, 5], list(range(promise_demanding.QUICK_SEEDS))]
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--suite', 'promise_demanding', '--seeds', '9'], '--seeds: '),
+    (['--suite', 'promise', '--seeds', '1'], '--seeds picks promise_demanding seeds'),
+])
+def test_seeds_that_cannot_be_run_are_refused_before_any_work(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2 and message in capsys.readouterr().err

@@ -35,9 +35,29 @@ def measure(seed: int) -> list[dict]:
     return rows
 
 
-def run(quick: bool, progress: Callable[[str], None]) -> dict:
-    seeds = list(range(QUICK_SEEDS if quick else SEEDS))
+def run(quick: bool, progress: Callable[[str], None], seeds: list[int] | None = None) -> dict:
+    """Check every seed (``QUICK_SEEDS`` with ``quick``), or only ``seeds``."""
+    if seeds is None:
+        seeds = list(range(QUICK_SEEDS if quick else SEEDS))
     return promise.in_workers(measure, seeds, NAME, progress)
+
+
+def select_seeds(text: str) -> list[int]:
+    """
+    Return the seeds ``text`` lists: numbers and ranges, comma-separated (``1-6``, ``0,2,5``).
+
+    :raises ValueError: not such a list, or a seed outside ``0 .. SEEDS - 1``.
+    """
+    seeds: list[int] = []
+    for part in (p.strip() for p in text.split(',')):
+        first, dash, last = part.partition('-')
+        if not first.strip().isdigit() or (dash and not last.strip().isdigit()):
+            raise ValueError(f"'{part}' is not a seed or a range of seeds (such as 1-6)")
+        low, high = int(first), int(last) if dash else int(first)
+        if low > high or high >= SEEDS:
+            raise ValueError(f"'{part}': the seeds are 0 to {SEEDS - 1}, each range ascending")
+        seeds += [s for s in range(low, high + 1) if s not in seeds]
+    return seeds
 
 
 def table(results: dict) -> str:
