@@ -3,7 +3,6 @@ from __future__ import annotations
 
 from modal_spring_ros.bench.accuracy import promise
 from modal_spring_ros.bench.accuracy import promise_demanding
-from modal_spring_ros.cli.modal_spring_bench import main
 import numpy as np
 import pytest
 
@@ -106,13 +105,3 @@ def test_the_demanding_suite_runs_the_seeds_a_user_lists(monkeypatch):
     promise_demanding.run(False, lambda msg: None, [1, 5])
     promise_demanding.run(True, lambda msg: None)
     assert measured == [[1, 5], list(range(promise_demanding.QUICK_SEEDS))]
-
-
-@pytest.mark.parametrize('argv, message', [
-    (['--suite', 'promise_demanding', '--seeds', '9'], '--seeds: '),
-    (['--suite', 'promise', '--seeds', '1'], '--seeds picks promise_demanding seeds'),
-])
-def test_seeds_that_cannot_be_run_are_refused_before_any_work(argv, message, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(argv)
-    assert exc.value.code == 2 and message in capsys.readouterr().err

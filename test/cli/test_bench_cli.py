@@ -1,4 +1,4 @@
-"""``modal_spring_bench`` as a user runs it: a suite stopped by SIGTERM takes its workers along."""
+"""``modal_spring_bench`` as a user runs it: what it refuses, and a suite stopped by SIGTERM."""
 from __future__ import annotations
 
 import os
@@ -7,8 +7,21 @@ import subprocess
 import time
 
 from helpers import process_group
+from modal_spring_ros.cli.modal_spring_bench import main
 import pytest
 from ros_harness import console_script
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--suite', 'stream', '--case', 'nothing'], "--case 'nothing' matches no stream case"),
+    (['--suite', 'steps', '--case', '100k'], '--case picks stream cases'),
+    (['--suite', 'promise_demanding', '--seeds', '9'], '--seeds: '),
+    (['--suite', 'promise', '--seeds', '1'], '--seeds picks promise_demanding seeds'),
+])
+def test_a_case_or_seed_that_cannot_be_run_is_refused_before_any_work(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2 and message in capsys.readouterr().err
 
 
 @pytest.mark.slow
