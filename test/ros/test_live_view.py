@@ -21,6 +21,7 @@ from sensor_msgs.msg import PointCloud2
 
 pytestmark = pytest.mark.ros
 websockets_client = pytest.importorskip('websockets.sync.client')
+websockets_exceptions = pytest.importorskip('websockets.exceptions')
 
 #: Foxglove's WebSocket protocol: the subprotocol, and the opcode of a message's data
 SUBPROTOCOL, MESSAGE_DATA = 'foxglove.sdk.v1', 1
@@ -110,9 +111,14 @@ def test_a_client_flooding_the_view_with_unknown_channels_costs_a_few_log_lines(
     try:
         ws = connect(port)
         advertised(ws, {'/points'})
-        for k in range(3000):
-            ws.send(json.dumps({'op': 'subscribe',
-                                'subscriptions': [{'id': 5000 + k, 'channelId': 900000 + k}]}))
+        try:
+            for k in range(3000):
+                ws.send(json.dumps({'op': 'subscribe', 'subscriptions': [
+                    {'id': 5000 + k, 'channelId': 900000 + k}]}))
+        except websockets_exceptions.ConnectionClosed:
+            # the server answers each with a status this client never reads; where its queue
+            # of answers fills (a busy machine), it drops the client, as the SDK documents
+            pass
         time.sleep(2.0)
         ws.close()
     finally:
