@@ -108,3 +108,21 @@ def test_newton_replayed_from_its_captured_graph_is_the_same_run_as_launched_ste
     np.testing.assert_array_equal(first, trajectory(launched, 0.005, 300))
     assert np.abs(first).max() > 1e-3 and replayed.steps == 0           # reset after
     np.testing.assert_array_equal(trajectory(replayed, 0.005, 300), first)   # from rest again
+
+
+def test_the_whole_process_line_says_what_users_pay_on_each_side():
+    res = {'processes': {'auto_first_s': 1.31, 'auto_s': 1.14, 'newton_s': 4.01,
+                         'ratio': 4.01 / 1.14}}
+    (line,) = peer._process_lines(res)
+    assert line == ('  whole processes: modal_spring_sim --auto 1.14 s of CPU (1.31 s solving its '
+                    "modes), Newton's script 4.01 s: 3.5x cheaper (goal 3x met)")
+    assert peer._process_lines({'processes': {}}) == [] == peer._process_lines({})
+
+
+@needs_newton
+@pytest.mark.slow
+def test_auto_and_newton_are_costed_as_the_processes_users_run():
+    """Half a second of the resonance sheet: both scripts run, their CPU time measured."""
+    found = peer.process_figures('sheet_32x32_resonance', 0.5, 6.25e-4)
+    assert found['auto_first_s'] > 0.3 and found['auto_s'] > 0.3 and found['newton_s'] > 0.3
+    assert found['ratio'] == pytest.approx(found['newton_s'] / found['auto_s'])

@@ -1,8 +1,12 @@
 """The promise benchmark: one random scene planned, checked independently, summarised, drawn."""
 from __future__ import annotations
 
+import sys
+
 from modal_spring_ros.bench.accuracy import promise
 from modal_spring_ros.bench.accuracy import promise_demanding
+from modal_spring_ros.bench.costs import cli_runs
+from modal_spring_ros.runs.sample_cache import CACHE_ENV
 import numpy as np
 import pytest
 
@@ -105,3 +109,15 @@ def test_the_demanding_suite_runs_the_seeds_a_user_lists(monkeypatch):
     promise_demanding.run(False, lambda msg: None, [1, 5])
     promise_demanding.run(True, lambda msg: None)
     assert measured == [[1, 5], list(range(promise_demanding.QUICK_SEEDS))]
+
+
+def test_a_process_is_costed_by_its_cpu_time_and_a_failed_one_is_said(tmp_path):
+    """A process spinning for a while costs that much CPU; one that fails names itself."""
+    env = cli_runs.process_env(tmp_path)
+    assert env['OPENBLAS_NUM_THREADS'] == '1' and str(tmp_path) in env[CACHE_ENV]
+    spin = [sys.executable, '-c', 'import time\nt = time.process_time()\n'
+            'while time.process_time() - t < 0.3: pass']
+    assert 0.3 <= cli_runs.cpu_seconds(spin, env) < 3.0
+    failing = [sys.executable, '-c', 'import sys; print("nope", file=sys.stderr); sys.exit(3)']
+    with pytest.raises(RuntimeError, match='exited with 3: nope'):
+        cli_runs.cpu_seconds(failing, env)

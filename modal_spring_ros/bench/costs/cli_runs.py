@@ -28,21 +28,37 @@ COMMAND = (sys.executable, '-m', 'modal_spring_ros.cli.modal_spring_sim')
 TIMEOUT_S = 1800.0
 
 
-def cli_cpu_seconds(args: list[str], env: dict[str, str]) -> float:
+def process_env(folder: Path) -> dict[str, str]:
     """
-    Return the CPU seconds ``modal_spring_sim args`` took as a process (raises where it failed).
+    Return the environment a measured process runs in: one BLAS thread, a cache in ``folder``.
+
+    A cache of its own: nothing another run left is read.
+    """
+    env = dict(os.environ, OPENBLAS_NUM_THREADS='1', OMP_NUM_THREADS='1', MKL_NUM_THREADS='1')
+    env[CACHE_ENV] = str(Path(folder) / 'cache')
+    return env
+
+
+def cpu_seconds(command: list[str], env: dict[str, str]) -> float:
+    """
+    Return the CPU seconds ``command`` took as a process (raises where it failed).
 
     Read from the children's resource usage before and after: the process is waited for, so its
     own time and its children's are there.
     """
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    done = subprocess.run([*COMMAND, *args], env=env, stdout=subprocess.DEVNULL,
-                          stderr=subprocess.PIPE, text=True, timeout=TIMEOUT_S)
+    done = subprocess.run(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                          text=True, timeout=TIMEOUT_S)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode != 0:
-        raise RuntimeError(f'modal_spring_sim {" ".join(args)} exited with {done.returncode}: '
+        raise RuntimeError(f'{" ".join(command[2:])} exited with {done.returncode}: '
                            f'{done.stderr.strip()[-300:]}')
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def cli_cpu_seconds(args: list[str], env: dict[str, str]) -> float:
+    """Return the CPU seconds ``modal_spring_sim args`` took as a process (:func:`cpu_seconds`)."""
+    return cpu_seconds([*COMMAND, *args], env)
 
 
 def process_costs(scene: Scene, tolerance: float, duration_s: float) -> tuple[float, float]:
@@ -54,9 +70,7 @@ def process_costs(scene: Scene, tolerance: float, duration_s: float) -> tuple[fl
     with tempfile.TemporaryDirectory(prefix='cli_runs_') as folder:
         path = Path(folder) / f'{scene.name}.yaml'
         path.write_text(scene_to_yaml(scene))
-        env = dict(os.environ, OPENBLAS_NUM_THREADS='1', OMP_NUM_THREADS='1',
-                   MKL_NUM_THREADS='1')
-        env[CACHE_ENV] = str(Path(folder) / 'cache')
+        env = process_env(Path(folder))
         common = ['--scene', str(path), '--duration', repr(float(duration_s)), '--quiet']
         auto = cli_cpu_seconds([*common, '--auto', '--tolerance', repr(float(tolerance))], env)
         full = cli_cpu_seconds([*common, '--method', 'full'], env)

@@ -18,18 +18,25 @@ process with one BLAS thread:
   explicit step's phase error grows over a long run).
 
 The figure: the cheapest Newton run within the tolerance, and the cheapest of the project's runs
-at equal or better error (its error at most that Newton run's), as a ratio of CPU time. Where
-Newton is not installed its rows are skipped with a note. Results: ``peer.json``, ``peer.csv``
-and ``peer.png`` (error against cost).
+at equal or better error (its error at most that Newton run's), as a ratio of CPU time. And what
+users pay, whole processes (:func:`process_figures`): ``modal_spring_sim --auto`` over the run
+(its first run, which solves for its modes, and its second, which reads them from its cache)
+against Newton's cheapest run as a script (:mod:`~modal_spring_ros.bench.peers.newton_process`,
+Warp's kernels from its cache, as the in-process runs left it). Where Newton is not installed
+its rows are skipped with a note. Results: ``peer.json``, ``peer.csv`` and ``peer.png`` (error
+against cost).
 """
 from __future__ import annotations
 
 import math
 from pathlib import Path
+import sys
+import tempfile
 from typing import Callable
 
 from modal_spring_ros.bench.accuracy.promise import converged_reference, cpu_per_second, write_csv
 from modal_spring_ros.bench.charts import subplots
+from modal_spring_ros.bench.costs.cli_runs import cli_cpu_seconds, cpu_seconds, process_env
 from modal_spring_ros.bench.peers import newton_peer
 from modal_spring_ros.core.auto.measured_error import on_samples, trajectory, trajectory_error
 from modal_spring_ros.core.config import SimulationConfig
@@ -110,9 +117,33 @@ def measure(scene_name: str, duration: float | None, progress: Callable[[str], N
     if not refused:
         rows += peer_rows(scene, reference, samples, full.stability_limit(), duration,
                           progress)
+    found = figure(rows)
+    processes = {}
+    if found:
+        progress(f'{scene_name}: modal_spring_sim --auto and Newton as whole processes')
+        processes = process_figures(scene_name, duration, found['peer_run']['dt'])
     return {'scene': scene_name, 'particles': scene.n_particles, 'duration_s': duration,
             'tolerance': TOLERANCE, 'peer': '' if refused else 'newton', 'peer_note': refused,
-            'rows': rows, 'figure': figure(rows)}
+            'rows': rows, 'figure': found, 'processes': processes}
+
+
+def process_figures(scene_name: str, duration: float, newton_dt: float) -> dict:
+    """
+    Return what ``--auto`` and Newton's run at ``newton_dt`` cost as whole processes, CPU s.
+
+    ``modal_spring_sim --auto`` twice with a cache of its own (``auto_first_s``: its modes
+    solved; ``auto_s``: read from the cache, as a user's next run), then Newton's script
+    (``newton_s``); ``ratio``: Newton's against the second ``--auto``.
+    """
+    with tempfile.TemporaryDirectory(prefix='peer_') as folder:
+        env = process_env(Path(folder))
+        auto = ['--scene', scene_name, '--auto', '--tolerance', repr(TOLERANCE), '--duration',
+                repr(float(duration)), '--quiet']
+        first, again = cli_cpu_seconds(auto, env), cli_cpu_seconds(auto, env)
+        newton = cpu_seconds([sys.executable, '-m', 'modal_spring_ros.bench.peers.newton_process',
+                              scene_name, '--duration', repr(float(duration)), '--dt',
+                              repr(float(newton_dt))], env)
+    return {'auto_first_s': first, 'auto_s': again, 'newton_s': newton, 'ratio': newton / again}
 
 
 def figure(rows: list[dict]) -> dict:
@@ -158,7 +189,19 @@ def table(results: dict, extra: Callable[[dict], list[str]] = lambda res: [],
                          f"{r['cpu_per_s']:>9.4f}")
         lines += extra(res)
         lines.append(_figure_line(res, verdict or _against_goal))
+        lines += _process_lines(res)
     return '\n'.join(lines)
+
+
+def _process_lines(res: dict) -> list[str]:
+    """Say what ``--auto`` and Newton cost as whole processes (none where not measured)."""
+    p = res.get('processes') or {}
+    if not p:
+        return []
+    return [f"  whole processes: modal_spring_sim --auto {p['auto_s']:.2f} s of CPU "
+            f"({p['auto_first_s']:.2f} s solving its modes), Newton's script "
+            f"{p['newton_s']:.2f} s: {p['ratio']:.1f}x cheaper (goal {GOAL:g}x "
+            f"{'met' if p['ratio'] >= GOAL else 'not met'})"]
 
 
 def _figure_line(res: dict, verdict: Callable[[dict], str] | None = None) -> str:
