@@ -170,11 +170,12 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     # driven slowly enough for them): the longest stable step the full run is predicted to
     # meet the tolerance at over the run, within the pilot's margin (a scene with colliders is
     # checked over the whole window instead: a linear prediction sees no touch) (a step the
-    # user gave is the longest)
+    # user gave is the longest); only a budgeted run takes the full run unmeasured
     predicted = (predicted_step(model, basis, 'explicit', full_dt, horizon_s,
                                 PILOT_MARGIN * config.tolerance,
                                 None if config.dt else longest.dt)
-                 if predicts(model, basis) and model.scene.contact is None else None)
+                 if budget.bounded and predicts(model, basis) and model.scene.contact is None
+                 else None)
     choice = (choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
               if not why else None)
     if measured and why:
