@@ -51,7 +51,7 @@ def cpu_seconds(command: list[str], env: dict[str, str]) -> float:
                           text=True, timeout=TIMEOUT_S)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode != 0:
-        raise RuntimeError(f'{" ".join(command[2:])} exited with {done.returncode}: '
+        raise RuntimeError(f'{" ".join(command)} exited with {done.returncode}: '
                            f'{done.stderr.strip()[-300:]}')
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
