@@ -196,17 +196,18 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     run they would have run, and less where its default step is needlessly short.
 
     That step is checked by step doubling (against its run at half the step) over as much of the
-    window's start as the budget affords, at least ``MIN_CHECK_SAMPLES`` of its ``samples``. With a
-    prediction, the check is of the prediction: where the start is within
-    :data:`~.step_error.AGREEMENT` times the error predicted over that start (or within ``margin *
-    tolerance``), the prediction holds where it was measured and the step is the answer, its error
-    the one predicted over the run (with what the start measured beyond the modes a large scene's
-    prediction has, grown over the run: :meth:`~.step_error.StepPrediction.confirmed`), said so (a
-    start's transient is often beyond the tolerance of the whole run: judged against it, random
-    scenes whose default step met the tolerance had their step searched over the whole window, at
-    up to ten times the run's cost). A start can miss an error that grows later, which the
-    prediction sees: where it puts the default step beyond the tolerance itself, the step run is
-    the longest predicted within the margin, checked the same way.
+    window's start as the budget affords, at least ``MIN_CHECK_SAMPLES`` of its ``samples``.
+    With a prediction, the check is of the prediction: where the start is within
+    :data:`~.step_error.AGREEMENT` times the error predicted over that start (or within
+    ``margin * tolerance``), the prediction holds where it was measured and the step is the
+    answer, its error the one predicted over the run (with what the start measured beyond the
+    modes a large scene's prediction has, grown over the run:
+    :meth:`~.step_error.StepPrediction.confirmed`), said so (a start's transient is often beyond
+    the tolerance of the whole run: judged against it, random scenes whose default step met the
+    tolerance had their step searched over the whole window, at up to ten times the run's cost).
+    A start can miss an error that grows later, which the prediction sees: where it puts the
+    default step beyond the tolerance itself, the step run is the longest predicted within the
+    margin, checked the same way.
 
     Without a prediction, or where the start disproves it, the step is the answer where that
     start is within ``margin * tolerance``, its error reported over the start it was measured on
