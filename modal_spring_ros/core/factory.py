@@ -16,7 +16,7 @@ from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.pilot import Pilot, PILOT_MARGIN, SAMPLES as PILOT_SAMPLES
 from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PlanSettings
-from modal_spring_ros.core.auto.step_error import predicted_step, predicts
+from modal_spring_ros.core.auto.step_error import predicted_step, predicting_hz, predicts
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis, Progress
 from modal_spring_ros.core.bases.basis_choice import choose_basis
 from modal_spring_ros.core.bases.mode_selection import (choose_modes, choose_refresh, choose_step,
@@ -166,16 +166,21 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
         if not basis.dense:
             budget.spend(modes_work(model, basis.modes_solved - charged[0]))
             charged[0] = basis.modes_solved
-    # the modes the basis has anyway (every mode of a small scene, the lowest of a large one
-    # driven slowly enough for them): the longest stable step the full run is predicted to
-    # meet the tolerance at over the run, within the pilot's margin (a scene with colliders is
-    # checked over the whole window instead: a linear prediction sees no touch) (a step the
-    # user gave is the longest); only a budgeted run takes the full run unmeasured
+    # every mode of a small scene, the lowest of a large one driven slowly enough for them
+    # (more of them where its drive is faster, as the budget affords): the longest stable step
+    # the full run is predicted to meet the tolerance at over the run, within the pilot's
+    # margin (a scene with colliders is checked over the whole window instead: a linear
+    # prediction sees no touch) (a step the user gave is the longest); only a budgeted run
+    # takes the full run unmeasured
+    predicting = budget.bounded and model.scene.contact is None
+    if predicting and not predicts(model, basis):
+        basis.ensure_frequency(predicting_hz(model), limit,
+                               lambda solved: budget.affords(modes_work(model, solved)))
+        charge_modes()
     predicted = (predicted_step(model, basis, 'explicit', full_dt, horizon_s,
                                 PILOT_MARGIN * config.tolerance,
                                 None if config.dt else longest.dt)
-                 if budget.bounded and predicts(model, basis) and model.scene.contact is None
-                 else None)
+                 if predicting and predicts(model, basis) else None)
     choice = (choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
               if not why else None)
     if measured and why:

@@ -6,7 +6,7 @@ import math
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error,
                                                        WINDOW_ALLOWANCE, worst_window)
-from modal_spring_ros.core.auto.step_error import (AGREEMENT, predicted_step,
+from modal_spring_ros.core.auto.step_error import (AGREEMENT, drift_growth, predicted_step,
                                                    predicted_step_error, predicts,
                                                    scheme_frequencies)
 from modal_spring_ros.core.bases.basis import ModalBasis
@@ -154,6 +154,24 @@ def test_a_default_step_well_within_the_tolerance_is_lengthened_up_to_the_longes
     assert predicted_step(model, basis, 'explicit', default, DURATION_S, 0.003).step == default
 
 
+@pytest.mark.parametrize('decay', [0.0, 0.3, 1.0, 4.0])
+def test_a_drifts_growth_is_the_ratio_of_its_rms_over_the_run_and_over_the_start(decay):
+    """
+    ``t exp(-decay t)``'s RMS over 6 s against over 0.5 s, by quadrature; undamped: 12.
+
+    A drift that has died out soon after the start would have a smaller RMS over the run than
+    over the start: the start's share is kept, not shrunk.
+    """
+    def rms(horizon: float) -> float:
+        t = np.linspace(0.0, horizon, 200_001)
+        return math.sqrt(np.trapezoid((t * np.exp(-decay * t)) ** 2, t) / horizon)
+    ratio = rms(6.0) / rms(0.5)
+    assert drift_growth(6.0, 0.5, decay) == pytest.approx(max(1.0, ratio), rel=1e-6)
+    assert (ratio < 1.0) == (decay == 4.0)
+    if decay == 0.0:
+        assert drift_growth(6.0, 0.5, decay) == pytest.approx(12.0)
+
+
 def test_a_large_scene_is_predicted_from_its_lowest_modes_where_the_rest_follow_the_drive():
     """
     ``sheet_32x32_resonance``: 1,984 free DOF (beyond the dense limit), shaken at its first mode.
@@ -178,10 +196,15 @@ def test_a_large_scene_is_predicted_from_its_lowest_modes_where_the_rest_follow_
     assert 0.0 < expected and 0.0 < run < allowed
     # a start the lowest modes explain: the run's error is theirs
     assert prediction.confirmed(AGREEMENT * expected, dt, start, allowed) == run
-    # beyond it, the left-out modes' share grows over the run
+    # beyond it, the left-out modes' share grows over the run, as a drift decaying at the
+    # sheet's mass-proportional rate (alpha / 2) at most: less than in proportion to time
+    decay = prediction.predictor.slowest_decay
+    assert decay == pytest.approx(0.5 * model.scene.damping.rayleigh_alpha)
     beyond = 2e-4
+    grown = drift_growth(horizon, start, decay)
+    assert 1.0 < grown < horizon / start
     assert prediction.confirmed(AGREEMENT * expected + beyond, dt, start, allowed) == (
-        pytest.approx(run + beyond * horizon / start))
+        pytest.approx(run + beyond * grown))
     assert math.isnan(prediction.confirmed(AGREEMENT * expected + allowed / 5.0, dt, start,
                                            allowed))
     # a start beyond what is allowed and what the prediction explains disproves it

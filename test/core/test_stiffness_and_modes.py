@@ -86,6 +86,27 @@ def test_large_scene_never_goes_dense_and_gets_only_the_modes_asked_for():
     assert basis.frequencies_hz[0] == pytest.approx(4.59, rel=0.01)
 
 
+def test_modes_up_to_a_frequency_are_solved_for_only_as_far_as_affordable():
+    """``ensure_frequency``'s ``affords``: asked before each solve with how many it solves for."""
+    model = MassSpringModel(load_scene('sheet_32x32'))
+    basis = ModalBasis(model, initial_modes=8)
+    top = float(basis.frequencies_hz[-1])
+    asked = []
+
+    def refuses(solved: int) -> bool:
+        asked.append(solved)
+        return False
+    assert not basis.ensure_frequency(3.0 * top, 200, refuses)
+    assert basis.count == 8 and asked == [basis.to_solve(24)] == [24]
+    # affordable: solved for until the highest mode passes the frequency, and no further
+    assert basis.ensure_frequency(2.5 * top, 200, lambda solved: solved <= 64)
+    assert basis.frequencies_hz[-1] > 2.5 * top and basis.count <= 64
+    grown = basis.count
+    # a solve beyond what is afforded stops it where it stands
+    assert not basis.ensure_frequency(10.0 * top, 200, lambda solved: solved <= grown)
+    assert basis.count == grown and basis.frequencies_hz[-1] <= 10.0 * top
+
+
 def _tie_broken_the_other_way(lowest):
     """Wrap ``ShiftInvertModes.lowest``: a mode with a tied largest pair comes back negated."""
     def wrapped(self, count):

@@ -36,6 +36,7 @@ from modal_spring_ros.core.motion.frame_loads import FrameLoads
 from modal_spring_ros.core.threads import stepping_threads
 import numpy as np
 import scipy.linalg
+import scipy.special
 
 #: Instants the modes are stepped at over the run, at most (the loads are sampled there).
 MAX_INSTANTS = 1500
@@ -59,15 +60,17 @@ QUASI_STATIC = 4.0
 AGREEMENT = 1.5
 
 
+def predicting_hz(model: MassSpringModel) -> float:
+    """Return how high a scene's lowest modes must reach to predict its full run's step, Hz."""
+    drive = model.motion.frequencies_hz
+    return QUASI_STATIC * (float(drive.max()) if drive.size else 0.0)
+
+
 def predicts(model: MassSpringModel, basis: ModalBasis) -> bool:
     """Tell whether ``basis``'s modes can predict a full run's step error (``QUASI_STATIC``)."""
     if basis.complete:
         return True
-    if not basis.count:
-        return False
-    drive = model.motion.frequencies_hz
-    fastest = float(drive.max()) if drive.size else 0.0
-    return QUASI_STATIC * fastest <= float(basis.frequencies_hz[-1])
+    return bool(basis.count) and predicting_hz(model) <= float(basis.frequencies_hz[-1])
 
 
 def scheme_frequencies(name: str, omega: np.ndarray, damping: np.ndarray, dt: float
@@ -152,6 +155,13 @@ class StepErrorPredictor:
                          if model.scene.damping is not None else np.zeros_like(self._omega))
         self.complete, self.count, self.horizon_s = bool(basis.complete), basis.count, horizon_s
         self.highest_hz = float(basis.frequencies_hz[-1]) if basis.count else 0.0
+        #: the slowest decay rate (1/s) an error beyond the modes can have: the modes' own, and
+        #: the scene's Rayleigh terms' beyond the highest (a ratio is not counted there: where
+        #: the scene is too large for every mode, the modes beyond have a fitted term)
+        damping = model.scene.damping
+        beyond = (damping.rayleigh_alpha + damping.rayleigh_beta * self._omega[-1] ** 2
+                  if damping is not None and basis.count else 0.0)
+        self.slowest_decay = 0.5 * float(min(self._damping.min(initial=math.inf), beyond))
         # the displacement's Euclidean norm from the modal coordinates: ||Phi q|| = ||R q||
         # with R^T R = Phi^T Phi (the modes are mass-normalised, not orthonormal), so a run is
         # kept as (instants, modes), whatever the scene's size
@@ -229,6 +239,26 @@ def predicted_step_error(model: MassSpringModel, basis: ModalBasis, name: str, d
     return StepErrorPredictor(model, basis, name, horizon_s).error(dt)
 
 
+def drift_growth(horizon_s: float, start_s: float, decay: float) -> float:
+    """
+    Return how much more a drift's relative L2 error is over ``horizon_s`` than over ``start_s``.
+
+    A transient of decay rate ``decay`` (1/s) stepped with a period error drifts in phase in
+    proportion to time: its error at ``t`` is ``t exp(-decay t)`` (times its amplitude and the
+    frequency's error), and over a run its RMS, ``sqrt(int_0^T t^2 exp(-2 decay t) dt / T)``. The
+    ratio of the two runs' RMS: ``horizon_s / start_s`` undamped, less where the transient
+    decays (the reference's own norm taken as steady), and never below 1 (a start's share is
+    not taken to shrink over the run).
+    """
+    def rms(t: float) -> float:
+        a = 2.0 * decay * t
+        if a < 1e-6:
+            return t / math.sqrt(3.0)
+        # int_0^t tau^2 exp(-a tau / t) dtau = 2 t^3 P(3, a) / a^3 (the regularised gamma)
+        return t * math.sqrt(2.0 * scipy.special.gammainc(3.0, a) / a ** 3)
+    return max(1.0, rms(horizon_s) / rms(start_s)) if start_s > 0.0 else math.inf
+
+
 @dataclasses.dataclass(frozen=True)
 class StepPrediction:
     """The longest step predicted within a tolerance, its predicted error, and its predictor."""
@@ -255,9 +285,10 @@ class StepPrediction:
         or within ``AGREEMENT`` times what the prediction puts there (a start's transient can be
         beyond the run's tolerance where the prediction sees it too). With modes left out (a
         scene beyond the dense limit), what the start measured beyond ``AGREEMENT`` times the
-        prediction is theirs, and it is taken to grow in proportion to time over the run (a
-        phase drift's growth, the most a period error gives): the run's error is the modes'
-        prediction plus that, confirmed only within ``allowed``.
+        prediction is theirs, and it is taken to grow as a phase drift of a transient decaying
+        no faster than the slowest the scene damps (:func:`drift_growth`; in proportion to time
+        undamped, the most a period error gives): the run's error is the modes' prediction plus
+        that, confirmed only within ``allowed``.
         """
         if self.predictor is None:
             return math.nan
@@ -267,7 +298,8 @@ class StepPrediction:
         error = self.predictor.error(dt)
         if self.predictor.complete:
             return error
-        grown = max(0.0, measured - AGREEMENT * expected) * self.predictor.horizon_s / over_s
+        grown = max(0.0, measured - AGREEMENT * expected) * drift_growth(
+            self.predictor.horizon_s, over_s, self.predictor.slowest_decay)
         return error + grown if error + grown <= allowed else math.nan
 
     def describe(self) -> str:

@@ -124,13 +124,21 @@ class ModalBasis:
             return 0
         return max(count, min(2 * self.count, self.n_dof - 2))
 
-    def ensure_frequency(self, max_hz: float, max_modes: int) -> bool:
-        """Make every mode up to ``max_hz`` available (at most ``max_modes``)."""
+    def ensure_frequency(self, max_hz: float, max_modes: int,
+                         affords: Callable[[int], bool] | None = None) -> bool:
+        """
+        Make every mode up to ``max_hz`` available (at most ``max_modes``).
+
+        ``affords`` (given how many modes the next solve solves for) may stop it before a solve:
+        the modes stay what they were, and the caller reads how far they reach.
+        """
         changed = False
         while (not self.complete and self.frequencies_hz[-1] <= max_hz
                and self.count < min(max_modes, self.n_dof - 2)):
-            changed |= self.ensure_count(min(max(2 * self.count, self.count + 16), max_modes,
-                                             self.n_dof - 2))
+            count = min(max(2 * self.count, self.count + 16), max_modes, self.n_dof - 2)
+            if affords is not None and not affords(self.to_solve(count)):
+                break
+            changed |= self.ensure_count(count)
         return changed
 
     def solve_stiffness(self, rhs: np.ndarray) -> np.ndarray:
