@@ -28,6 +28,7 @@ import importlib
 import os
 import signal
 import sys
+from typing import Any, Callable
 
 #: Exit status of a run ended by Ctrl-C before it started (128 + SIGINT), as a shell reports it.
 EXIT_INTERRUPTED = 130
@@ -79,6 +80,8 @@ def run_module(name: str) -> int:
     faulthandler.enable(all_threads=True)
     interrupts = _remember_interrupts()
     try:
+        hook = sys.unraisablehook
+        sys.unraisablehook = functools.partial(_unless_interrupt, hook)
         try:
             module = importlib.import_module(name)
         except ModuleNotFoundError as exc:
@@ -86,6 +89,8 @@ def run_module(name: str) -> int:
             print(f'{script}: needs {exc.name}, which is not installed: '
                   f'{install_hint(exc.name or "")}', file=sys.stderr)
             return EXIT_MISSING
+        finally:
+            sys.unraisablehook = hook
         if interrupts:                  # pressed during the imports, and swallowed there
             return EXIT_INTERRUPTED
         return module.main()
@@ -95,6 +100,18 @@ def run_module(name: str) -> int:
         if _interrupted(exc):
             return EXIT_INTERRUPTED
         raise
+
+
+def _unless_interrupt(report: Callable[[Any], None], unraisable: Any) -> None:
+    """
+    Report an exception Python could not raise, unless it is an interrupt.
+
+    A Ctrl-C that lands in a callback of the import system (its module locks' weak references)
+    cannot propagate: Python reports it as "Exception ignored", with a traceback. During the
+    imports every interrupt is remembered and answered by the exit status, so it is not reported.
+    """
+    if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+        report(unraisable)
 
 
 def _remember_interrupts() -> list[int]:

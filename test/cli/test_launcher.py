@@ -5,7 +5,9 @@ import os
 import shlex
 import subprocess
 import sys
+import types
 
+from modal_spring_ros.cli import launcher
 from modal_spring_ros.cli.launcher import EXIT_INTERRUPTED
 
 SWALLOWING = """
@@ -66,3 +68,21 @@ def test_a_crash_in_native_code_prints_where_each_thread_was(tmp_path):
     assert done.returncode == -11, (done.returncode, done.stderr)
     assert 'Fatal Python error: Segmentation fault' in done.stderr
     assert 'crashing.py", line 6 in main' in done.stderr, done.stderr
+
+
+def test_an_interrupt_python_could_not_raise_during_the_imports_is_not_reported(monkeypatch):
+    """
+    A Ctrl-C landing in the import system's lock callbacks is "Exception ignored" to Python.
+
+    During the imports it is remembered and answered by the exit status: not reported with a
+    traceback; any other unraisable exception still is, and the hook is Python's again after.
+    """
+    reported = []
+    with_hook = launcher._unless_interrupt
+    for exc in (KeyboardInterrupt(), ValueError('kept')):
+        with_hook(reported.append, types.SimpleNamespace(exc_value=exc))
+    assert [type(u.exc_value) for u in reported] == [ValueError]
+    before = sys.unraisablehook
+    monkeypatch.setattr(launcher.signal, 'signal', lambda *args: None)
+    assert launcher.run_module('modal_spring_ros.cli.no_such_module') == launcher.EXIT_MISSING
+    assert sys.unraisablehook is before
