@@ -151,14 +151,14 @@ class StepErrorPredictor:
     def __init__(self, model: MassSpringModel, basis: ModalBasis, name: str, horizon_s: float):
         self.name = name
         self._omega = basis.omega
-        self._damping = (model.scene.damping.modal_coefficients(self._omega)
-                         if model.scene.damping is not None else np.zeros_like(self._omega))
+        damping = model.scene.damping
+        self._damping = (damping.modal_coefficients(self._omega)
+                         if damping is not None else np.zeros_like(self._omega))
         self.complete, self.count, self.horizon_s = bool(basis.complete), basis.count, horizon_s
         self.highest_hz = float(basis.frequencies_hz[-1]) if basis.count else 0.0
         #: the slowest decay rate (1/s) an error beyond the modes can have: the modes' own, and
         #: the scene's Rayleigh terms' beyond the highest (a ratio is not counted there: where
         #: the scene is too large for every mode, the modes beyond have a fitted term)
-        damping = model.scene.damping
         beyond = (damping.rayleigh_alpha + damping.rayleigh_beta * self._omega[-1] ** 2
                   if damping is not None and basis.count else 0.0)
         self.slowest_decay = 0.5 * float(min(self._damping.min(initial=math.inf), beyond))
