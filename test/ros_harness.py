@@ -92,16 +92,26 @@ def assert_resimulates_exactly(capture, again, changes: int) -> int:
     return count
 
 
+#: lines shown before a native fault's report
+FAULT_CONTEXT_LINES = 6
+
+
 def stderr_excerpt(err: str, size: int = 2000) -> str:
     """
     Return what a failure message should show of a process's ``err``: its end, or its fault.
 
     A crash in native code prints the fault and every thread's stack (faulthandler) followed by
-    a long list of extension modules; the list would fill the end, so the fault is shown.
+    a long list of extension modules; the list would fill the end, so the fault is shown, with
+    the lines just before it (what the native code printed as it failed: a C++ exception's
+    ``terminate called after throwing ...``, a middleware's error).
     """
     start = err.find('Fatal Python error')
     if start < 0:
         return err[-size:]
+    start = err.rfind('\n', 0, start)
+    for _ in range(FAULT_CONTEXT_LINES):
+        start = err.rfind('\n', 0, max(start, 0))
+    start = max(start + 1, 0)
     end = err.find('Extension modules', start)
     return err[start:end if end >= 0 else None][:4 * size]
 
