@@ -63,7 +63,7 @@ def pytest_collection_modifyitems(config, items):
     With ``-n 2 --dist loadgroup`` (the README's test command) every test that runs nodes over
     DDS is in one group, run in turn by one worker, as a serial run would: their timings and
     their one DDS domain are never shared with another test's nodes, while the other worker runs
-    the tests without DDS beside them.
+    the tests without DDS beside them (xdist hands out the largest unit, the group, first).
 
     ``pytest`` alone runs everything (as CI and ``colcon test`` do); ``-m "not ros"`` is the
     fast loop; ``-m "not ros" --runslow`` adds the slow ones, ``-m slow`` runs only them.

@@ -14,7 +14,7 @@ from modal_spring_ros.bags.messages.pointcloud import xyz
 from modal_spring_ros.bags.messages.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.process.pooled_executor import PooledExecutor
-from modal_spring_ros.ros.process.stop_signals import spin_until_stopped, StopSignals
+from modal_spring_ros.ros.process.stop_signals import end_ros, spin_until_stopped, StopSignals
 from modal_spring_ros.ros.tools.resimulate import resimulate
 from modal_spring_ros.scenes.resources import executable
 import numpy as np
@@ -210,6 +210,7 @@ class Client:
         self._clients: dict = {}
         self._clients_lock = threading.Lock()
         self._stop = threading.Event()
+        self._closed = False
         self._thread = threading.Thread(target=self._spin, name=f'{name}_spin', daemon=True)
         self._thread.start()
 
@@ -279,14 +280,17 @@ class Client:
                 name=n, value=v)).value for n, v in zip(names, res.values)]
 
     def close(self) -> None:
-        """Stop and join the spin thread, then destroy the node and the context."""
+        """Stop and join the spin thread, then destroy the node and the context (once)."""
+        if self._closed:
+            return
+        self._closed = True
         self._stop.set()
         self._thread.join(timeout=10.0)
         if self._thread.is_alive():
             raise RuntimeError("the client's spin thread did not stop within 10 s")
         self.executor.shutdown(timeout_sec=0.0)
         self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        end_ros(self.context)
         if self.error is not None:
             raise RuntimeError(f"the client's executor failed: {self.error!r}")
 
@@ -415,4 +419,4 @@ def node_in_process(namespace: str, parameters: list[Parameter] | None = None):
         thread.join(10.0)
         node.stop()
         node.destroy_node()
-        rclpy.try_shutdown(context=context)
+        end_ros(context)

@@ -24,6 +24,7 @@ import time
 from geometry_msgs.msg import PoseStamped
 from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args, stop_child
 from modal_spring_ros.core.motion.clamp_follower import DEFAULT_FOLLOW_HZ
+from modal_spring_ros.ros.process.stop_signals import end_ros
 from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -115,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
         pass
     finally:
         node.destroy_node()
-        rclpy.try_shutdown()
+        end_ros()
         stop_child(node_process)
     return 0
 

@@ -21,7 +21,8 @@ from modal_spring_ros.ros.parameters import PARAMETERS
 from modal_spring_ros.ros.process.pooled_executor import PooledExecutor
 from modal_spring_ros.ros.process.shared_memory import (POINT_BYTES, prefer_large_shared_memory,
                                                         scene_argument)
-from modal_spring_ros.ros.process.stop_signals import init_ros, spin_until_stopped, StopSignals
+from modal_spring_ros.ros.process.stop_signals import (end_ros, init_ros, spin_until_stopped,
+                                                       StopSignals)
 from modal_spring_ros.ros.stream.publication_mode import prefer_asynchronous_publication
 from modal_spring_ros.scenes.files.declared_size import declared_particles
 from modal_spring_ros.scenes.resources import share_directory
@@ -109,7 +110,7 @@ def main(args: list[str] | None = None) -> int:
         if node is not None:
             node.stop()
             node.destroy_node()
-        rclpy.try_shutdown()
+        end_ros()
     return 0
 
 

@@ -17,6 +17,7 @@ from modal_spring_ros.bags.files.writer import (BagError, BagWriter, check_new_b
                                                 DEFAULT_CHUNK_SECONDS, DEFAULT_CHUNK_SIZE)
 from modal_spring_ros.cli.common import fail, script_parser, split_ros_args
 from modal_spring_ros.core.model.scene import SceneError
+from modal_spring_ros.ros.process.stop_signals import end_ros
 from modal_spring_ros.ros.tools.recorder import DEFAULT_TOPICS, Recorder, snapshot_parameters
 from modal_spring_ros.scenes.resources import load_scene
 import rclpy
@@ -95,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
             except BagError as exc:
                 error = error or str(exc)
         node.destroy_node()
-        rclpy.try_shutdown()
+        end_ros()
     if error:
         fail(PROG, f'{error} (the chunks written before stay readable)')
     return 0

@@ -17,7 +17,7 @@ import subprocess
 import sys
 
 from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args, stop_child
-from modal_spring_ros.ros.process.stop_signals import spin_until_stopped
+from modal_spring_ros.ros.process.stop_signals import end_ros, spin_until_stopped
 from modal_spring_ros.ros.tools.live_view import (DEFAULT_MAX_RATE_HZ, DEFAULT_PORT, foxglove,
                                                   LiveView, SDK_MISSING)
 from modal_spring_ros.scenes.resources import executable
@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
             view.stop()
         if node is not None:
             node.destroy_node()
-        rclpy.try_shutdown()
+        end_ros()
         stop_child(node_process)
     return 0
 

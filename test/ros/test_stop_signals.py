@@ -15,10 +15,12 @@ import time
 
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.process.pooled_executor import PooledExecutor
-from modal_spring_ros.ros.process.stop_signals import spin_until_stopped, STOP_SIGNALS, StopSignals
+from modal_spring_ros.ros.process.stop_signals import (end_ros, spin_until_stopped, STOP_SIGNALS,
+                                                       StopSignals)
 import pytest
 import rclpy
 from rclpy.context import Context
+from rclpy.exceptions import InvalidHandle
 from ros_harness import DOMAIN_ID, wait_for
 
 #: the threads a streaming node runs beside its executor
@@ -80,4 +82,23 @@ def test_a_signal_while_streaming_ends_the_spin_and_leaves_ros_up_until_the_node
     finally:
         node.stop()
         node.destroy_node()
-        rclpy.try_shutdown(context=context)
+        end_ros(context)
+
+
+def test_ending_ros_shuts_the_context_down_and_destroys_it_the_default_one_made_anew():
+    """
+    A process's participant goes at ``end_ros``, not among what the interpreter's exit collects.
+
+    The context is shut down and destroyed (the middleware's participant with it); the default
+    context is replaced, so ``rclpy.init`` works again in the process.
+    """
+    for default in (True, False):
+        context = rclpy.get_default_context() if default else Context()
+        rclpy.init(context=context, domain_id=DOMAIN_ID)
+        node = rclpy.create_node('end_ros', context=context)
+        assert context.ok() and node.count_publishers('/rosout') >= 0
+        node.destroy_node()
+        end_ros(None if default else context)
+        with pytest.raises(InvalidHandle):      # destroyed: not even asked whether it is up
+            context.ok()
+        assert rclpy.get_default_context() is not context and not rclpy.ok()

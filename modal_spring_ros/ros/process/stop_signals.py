@@ -18,6 +18,7 @@ import threading
 
 from modal_spring_ros.ros.process.pooled_executor import DRAIN_TIMEOUT_S
 import rclpy
+from rclpy.context import Context
 from rclpy.executors import Executor
 from rclpy.signals import SignalHandlerOptions
 
@@ -56,6 +57,21 @@ class StopSignals:
 def init_ros(args: list[str] | None) -> None:
     """``rclpy.init`` without rclpy's signal handlers (the caller's :class:`StopSignals`)."""
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+
+
+def end_ros(context: Context | None = None) -> None:
+    """
+    Shut ROS down (if still up) and destroy its context: the middleware's participant with it.
+
+    What a process does last, once its nodes are destroyed. The participant goes now, in order,
+    while the interpreter is whole, and not among the objects the interpreter's exit collects
+    (in no set order, with the middleware's threads still running: a process aborted once there,
+    at its exit, after a clean stop). ``context``: the default context when None (a later
+    ``rclpy.init`` in the process makes a new one, as after ``rclpy.try_shutdown``).
+    """
+    ended = context or rclpy.get_default_context()
+    rclpy.try_shutdown(context=context)
+    ended.destroy()
 
 
 def spin_until_stopped(executor: Executor, stop: StopSignals | None = None) -> None:

@@ -14,6 +14,7 @@ from modal_spring_ros.bags.files.writer import BagError
 from modal_spring_ros.bags.messages.message_types import message_class, TypeRefused
 from modal_spring_ros.bags.messages.qos import playback_profile, profiles_from_yaml
 from modal_spring_ros.ros.process.shared_memory import cloud_transport, prefer_large_shared_memory
+from modal_spring_ros.ros.process.stop_signals import end_ros
 from modal_spring_ros.ros.stream.publication_mode import prefer_asynchronous_publication
 from modal_spring_ros.scenes.resources import share_directory
 import rclpy
@@ -112,7 +113,7 @@ def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool
         return count
     finally:
         node.destroy_node()
-        rclpy.try_shutdown()
+        end_ros()
 
 
 def _awaited(bag: BagReader, publishers: dict, topic: str) -> list:
