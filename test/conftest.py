@@ -65,7 +65,7 @@ def pytest_collection_modifyitems(config, items):
     their one DDS domain are never shared with another test's nodes, while the other worker runs
     the tests without DDS beside them (xdist hands out the largest unit, the group, first).
 
-    ``pytest`` alone runs everything (as CI and ``colcon test`` do); ``-m "not ros"`` is the
+    Without ``-m`` every test runs (CI, on both cores; ``colcon test``); ``-m "not ros"`` is the
     fast loop; ``-m "not ros" --runslow`` adds the slow ones, ``-m slow`` runs only them.
     """
     for item in items:
