@@ -253,7 +253,7 @@ def _not_worth_planning(model: MassSpringModel, budget: PlanningBudget, basis: M
     if not budget.affords(setup):
         parts = 'its modes, their derivatives' + (', a spring sample' if sampled else '')
         return (f'making a plan ({parts}: about {setup / 1e6:.3g} s of CPU, modelled) would '
-                f'cost more than the planning budget of {budget.limit_us / 1e6:.3g} s')
+                f'cost more than {budget.describe_left()}')
     budget.spend(setup)
     return ''
 

@@ -282,6 +282,16 @@ def test_the_budget_widens_where_a_plan_would_save_much_and_only_once():
     assert not unbounded.bounded
 
 
+def test_a_refusal_names_what_is_left_of_the_budget_once_some_was_spent():
+    """A plan refused for what is left says so: not a cost below the budget it names alone."""
+    budget = PlanningBudget(limit_us=3.6e6, full_us=20e6)
+    assert budget.describe_left() == "the planning budget of 3.6 s (18% of the full run's)"
+    budget.spend(0.4e6)
+    assert not budget.affords(3.3e6)
+    assert budget.describe_left() == ('the 3.2 s left of the planning budget of 3.6 s '
+                                      "(18% of the full run's)")
+
+
 @pytest.mark.slow
 def test_a_long_run_on_a_large_sheet_plans_a_modal_run_within_a_widened_budget(tmp_path):
     """

@@ -111,6 +111,19 @@ class PlanningBudget:
         """Count ``sim`` stepped over ``seconds`` of simulated time."""
         self.spend(work_per_second(sim) * seconds)
 
+    def describe_left(self) -> str:
+        """
+        Say what planning may still spend, and of what budget (a refusal's "beyond ...").
+
+        :meth:`affords` counts what was spent: a refusal names what was left, not only the
+        budget (a plan refused at 3.2 s against a budget of 3.6 s is refused for what is left).
+        """
+        whole = (f'the planning budget of {self.limit_us / 1e6:.3g} s '
+                 f"({self.limit_us / self.full_us:.0%} of the full run's)")
+        if self.spent_us <= 0.0:
+            return whole
+        return f'the {self.remaining_us / 1e6:.3g} s left of {whole}'
+
     def describe(self) -> str:
         """Say what planning spent of what budget ('' where it has none)."""
         if not self.bounded:
@@ -171,8 +184,7 @@ def worth_measuring(budget: PlanningBudget, full: Simulation, plan: Simulation,
     budget.widen(saving)
     if not budget.affords(floor):
         return (f'measuring a plan would cost at least {floor / 1e6:.3g} s of CPU (modelled), '
-                f'beyond the planning budget of {budget.limit_us / 1e6:.3g} s '
-                f"({budget.limit_us / budget.full_us:.0%} of the full run's)")
+                f'beyond {budget.describe_left()}')
     if floor >= saving:
         return (f'measuring a plan would cost {floor / 1e6:.3g} s of CPU (modelled), more than '
                 f'it could save ({max(saving, 0.0) / 1e6:.3g} s)')
