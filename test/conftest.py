@@ -32,6 +32,10 @@ ROS_TESTS = Path(__file__).parent / 'ros'
 DDS_GROUP = 'dds'
 
 
+#: how much the tests without DDS yield to the group's on a shared machine (nice increment)
+BESIDE_DDS_NICENESS = 5
+
+
 def pytest_addoption(parser):
     parser.addoption('--runslow', action='store_true',
                      help='run the tests marked slow even when -m does not name them')
@@ -77,6 +81,20 @@ def pytest_collection_modifyitems(config, items):
     if slow:
         config.hook.pytest_deselected(items=slow)
         items[:] = [item for item in items if item.get_closest_marker('slow') is None]
+
+
+def pytest_runtest_setup(item):
+    """
+    On a worker of ``-n 2``, a test without DDS yields the CPU to the DDS group beside it.
+
+    The node tests judge rates and lags of real processes (a stream's frames, a clamp following
+    TF), with bounds set for the suite run one test at a time beside two busy processes. The
+    heavy numerical tests beside them take what those leave (niceness ``BESIDE_DDS_NICENESS``,
+    inherited by what they start; raised once, it stays for the worker's later tests).
+    """
+    if (os.environ.get('PYTEST_XDIST_WORKER') and not _uses_dds(item)
+            and os.nice(0) < BESIDE_DDS_NICENESS):
+        os.nice(BESIDE_DDS_NICENESS - os.nice(0))
 
 
 @pytest.fixture(scope='session')
