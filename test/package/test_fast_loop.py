@@ -19,7 +19,7 @@ import pytest
 
 def _collected(*args: str) -> dict[str, set[str]]:
     """
-    Return the test ids pytest collects with ``args``, each with its marks (``marker_listing``).
+    Return the test ids pytest collects with ``args``, each with its ``ros``/``slow`` markers.
 
     Without the options of the pytest running this test: ``colcon test`` passes its own
     (``-q``, ``--junit-xml``) in ``PYTEST_ADDOPTS``.
@@ -48,22 +48,6 @@ def test_a_marker_expression_without_slow_leaves_the_slow_tests_out():
     fast = set(_collected('-m', 'not ros'))
     assert slow and ros and slow < set(everything)
     assert fast == set(everything) - ros - slow
-
-
-@pytest.mark.slow
-def test_the_tests_over_dds_are_one_group_run_in_turn_by_one_worker():
-    """
-    ``-n 2 --dist loadgroup`` (the README's test command) never runs two DDS tests at once.
-
-    Every test marked ``ros`` or in ``test/ros`` is in pytest-xdist's ``dds`` group, and no
-    other test is (those run on the other worker).
-    """
-    everything = _collected()
-    grouped = {t for t, marks in everything.items() if f'group:{conftest.DDS_GROUP}' in marks}
-    over_dds = {t for t, marks in everything.items()
-                if 'ros' in marks or t.startswith('test/ros/')}
-    assert over_dds and grouped == over_dds
-    assert len(grouped) < len(everything)
 
 
 @pytest.mark.parametrize('expression, runslow, left_out', [
