@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import shutil
 import signal
 import sys
@@ -25,6 +26,12 @@ if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+#: the folder of the node's tests (all over DDS, or on the node's threads)
+ROS_TESTS = Path(__file__).parent / 'ros'
+#: pytest-xdist's group of the tests that run nodes over DDS
+DDS_GROUP = 'dds'
+
+
 def pytest_addoption(parser):
     parser.addoption('--runslow', action='store_true',
                      help='run the tests marked slow even when -m does not name them')
@@ -43,13 +50,27 @@ def pytest_report_header(config):
     return None
 
 
+def _uses_dds(item) -> bool:
+    """Tell whether a test runs nodes over DDS (marked ``ros``, or in ``test/ros``)."""
+    return item.get_closest_marker('ros') is not None or ROS_TESTS in item.path.parents
+
+
+@pytest.hookimpl(tryfirst=True)     # before pytest-xdist names the groups in the test ids
 def pytest_collection_modifyitems(config, items):
     """
-    Leave the tests marked ``slow`` out when ``-m`` is given and does not name them.
+    Keep the DDS tests on one worker, and leave the ``slow`` ones out where ``-m`` says so.
 
-    ``pytest`` alone runs everything (as CI and ``colcon test`` do); ``-m "not ros"`` is the
+    With ``-n 2 --dist loadgroup`` (the README's test command) every test that runs nodes over
+    DDS is in one group, run in turn by one worker, as a serial run would: their timings and
+    their one DDS domain are never shared with another test's nodes, while the other worker runs
+    the tests without DDS beside them (xdist hands out the largest unit, the group, first).
+
+    Without ``-m`` every test runs (CI, on both cores; ``colcon test``); ``-m "not ros"`` is the
     fast loop; ``-m "not ros" --runslow`` adds the slow ones, ``-m slow`` runs only them.
     """
+    for item in items:
+        if _uses_dds(item):
+            item.add_marker(pytest.mark.xdist_group(DDS_GROUP))
     if not _leaves_slow_out(config):
         return
     slow = [item for item in items if item.get_closest_marker('slow') is not None]

@@ -27,7 +27,7 @@ def readme_commands() -> list[str]:
 def test_the_readme_starts_with_two_commands_and_ci_runs_the_second():
     node, tests = readme_commands()
     assert node == '.ci/bootstrap && .venv/bin/modal_spring_node'
-    assert tests == '.ci/bootstrap test && .venv/bin/python -m pytest -q'
+    assert tests == '.ci/bootstrap test && .venv/bin/python -m pytest -q -n 2 --dist loadgroup'
     run = (REPO / '.ci' / 'run').read_text().splitlines()
     assert tests in run
 
