@@ -14,7 +14,8 @@ import re
 
 from modal_spring_ros.core.auto import pilot, sibling_check
 from modal_spring_ros.core.auto.budget import (modes_work, PLANNING_SHARE, PlanningBudget,
-                                               setup_work)
+                                               REFERENCE_RUNS, setup_work, unplanned_full)
+from modal_spring_ros.core.auto.full_candidate import by_step_doubling
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.auto.plan import PlanSettings
@@ -387,3 +388,61 @@ def data_bounds(data: dict) -> tuple[np.ndarray, np.ndarray]:
     """Return a scene definition's lowest and highest particle coordinates at rest."""
     positions = scene_from_dict(data).rest_positions
     return positions.min(axis=0), positions.max(axis=0)
+
+
+class _Disproved:
+    """A prediction of ``step`` (longer than the default) that every start disproves."""
+
+    predictor = object()
+
+    def __init__(self, step: float):
+        self.step = step
+
+    def error_at(self, dt: float) -> float:
+        return 0.0
+
+    def start_error(self, dt: float, over_s: float) -> float:
+        return 0.0
+
+    def confirmed(self, measured: float, dt: float, over_s: float, allowed: float) -> float:
+        return math.nan
+
+    def describe(self) -> str:
+        return ''
+
+
+def test_a_longer_step_its_start_misses_gives_way_to_the_default_step_without_stepping_again():
+    """
+    A disproved longer step is measured as it is; the default step's error is its start's scaled.
+
+    sheet_10x10 over 0.5 s, a prediction of 0.9 of the stability limit that its start disproves,
+    the tolerance set so that that step's start (against its run at half the step) misses the
+    margin and the same scaled by the square of the steps' ratio meets it: the default step is
+    run, nothing stepped beyond the first check (the budget charged for it alone; before, the
+    longer step was halved below the default and the default checked again, up to four times
+    the work), and the default step is within the tolerance of the converged full run.
+    """
+    scene = load_scene('sheet_10x10')
+    base = build_simulation(scene, SimulationConfig(method='full'))
+    window_s, samples = 0.5, 25
+    sample_s = window_s / samples
+
+    def full(longest_dt: float, sample_s_: float):
+        return on_samples(base, sample_s_, min(0.9 * base.stability_limit(), longest_dt))
+
+    longer = full(math.inf, sample_s)
+    default = full(0.5 * base.stability_limit(), sample_s)
+    assert longer.dt > 1.5 * default.dt
+    _, longer_error = by_step_doubling(full, sample_s, samples, window_s, 0.0, 0.0,
+                                       first_dt=longer.dt)
+    # the longer step misses the margin; scaled to the default step, it meets it
+    tolerance = 0.6 * longer_error / pilot.PILOT_MARGIN
+    budget = PlanningBudget()
+    sim, report = unplanned_full(full, budget, default.dt, window_s, window_s, tolerance,
+                                 pilot.PILOT_MARGIN, samples, 'why',
+                                 _Disproved(longer.dt))
+    assert sim.dt == pytest.approx(default.dt)
+    assert 'scaled by the square of the steps' in report.reason, report.reason
+    assert report.error == pytest.approx(longer_error * (default.dt / longer.dt) ** 2)
+    assert budget.spent_us == pytest.approx(REFERENCE_RUNS * work_per_second(longer) * window_s)
+    assert error_against_converged(scene, sim, window_s) <= tolerance

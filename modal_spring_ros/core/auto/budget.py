@@ -23,7 +23,7 @@ import dataclasses
 import math
 from typing import Callable
 
-from modal_spring_ros.core.auto.full_candidate import BY_ITSELF, by_step_doubling
+from modal_spring_ros.core.auto.full_candidate import BY_ITSELF, by_step_doubling, STEP_ORDER
 from modal_spring_ros.core.auto.plan import PilotReport
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK
 from modal_spring_ros.core.auto.step_error import StepPrediction
@@ -224,8 +224,12 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     Without a prediction, or where the start disproves it, the step is the answer where that
     start is within ``margin * tolerance``, its error reported over the start it was measured on
     (a drift fitted to a fraction of the slowest period extrapolates the start's transient, not
-    a drift). Where it is not, the run misses the tolerance, so it is no baseline to stay near:
-    the step is halved by step doubling over the whole window, its error extrapolated over
+    a drift). A step longer than the default that misses is not halved (its half is shorter than
+    the default): the default step is run, its error the longer step's scaled by the square of
+    the steps' ratio (the integrator's order) where that is within the margin and the scene has
+    no colliders, with nothing stepped again, else measured by its own step doubling. Where the
+    step run then misses, the run misses the tolerance, so it is no baseline to stay near: the
+    step is halved by step doubling over the whole window, its error extrapolated over
     ``horizon_s``, whatever that costs (on random scenes the full run needed a tenth to a
     fortieth of its stability limit to meet 1 % over 3 s). A scene with colliders is checked
     over the whole window: its touches come when they come (a start checked a random scene's
@@ -282,12 +286,26 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
         reason += (f'; the prediction missed over the first {checked_s:.2g} s ({error:.2%} '
                    f'measured, {expected:.2%} predicted): the step was measured instead')
     over_s = horizon_s if count == samples else checked_s
-    sim, error = doubling(count, over_s, margin * tolerance, math.inf, step)
-    if sim.dt < checked.dt * (1.0 - 1e-9) and step > default_dt:
-        # a start's transient can miss where the run would not: the default step, checked so
-        reason += ('; the longer step missed over the start: the default step was checked')
+    allowed = margin * tolerance
+    # a step longer than the default is measured as it is, never halved: its half is below
+    # the default step, which a user would have run in any case
+    sim, error = doubling(count, over_s, allowed, 0.0 if step > default_dt else math.inf, step)
+    if error > allowed and step > default_dt:
+        # a start's transient can miss where the run would not: the default step, its error
+        # the longer step's scaled by the step error's order (nothing stepped again) where
+        # that is within the margin, else checked by its own step doubling
         checked = full(default_dt, sample_s)
-        sim, error = doubling(count, over_s, margin * tolerance, math.inf, default_dt)
+        scaled = error * (checked.dt / sim.dt) ** STEP_ORDER
+        reason += (f'; the longer step missed over the start ({error:.2%} against its run at '
+                   'half the step): the default step')
+        # (not where colliders are: a touch is no smooth motion whose error scales so)
+        if scaled <= allowed and checked.model.scene.contact is None:
+            reason += (", its error that one scaled by the square of the steps' ratio "
+                       f'({scaled:.2%})')
+            sim, error = checked, scaled
+        else:
+            reason += ' was checked'
+            sim, error = doubling(count, over_s, allowed, math.inf, default_dt)
     if sim.dt < checked.dt * (1.0 - 1e-9) and count < samples:
         reason += (f'; the step missed the tolerance over the first {checked_s:.2g} s: the step '
                    'needed was found over the whole window, beyond the budget')
