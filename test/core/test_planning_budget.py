@@ -391,12 +391,24 @@ def data_bounds(data: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _Disproved:
-    """A prediction of ``step`` (longer than the default) that every start disproves."""
+    """
+    A prediction of ``step`` (longer than the default) that every start disproves.
+
+    ``growth``: how much more a start's error is over the run, where it leaves modes out (1:
+    it predicts every mode).
+    """
 
     predictor = object()
 
-    def __init__(self, step: float):
-        self.step = step
+    def __init__(self, step: float, growth: float = 1.0):
+        self.step, self.growth = step, growth
+        self.leaves_modes_out = growth > 1.0
+
+    def run_error(self, measured: float, dt: float, over_s: float) -> float:
+        return measured * self.growth
+
+    def start_growth(self, over_s: float) -> float:
+        return self.growth
 
     def error_at(self, dt: float) -> float:
         return 0.0
@@ -446,3 +458,42 @@ def test_a_longer_step_its_start_misses_gives_way_to_the_default_step_without_st
     assert report.error == pytest.approx(longer_error * (default.dt / longer.dt) ** 2)
     assert budget.spent_us == pytest.approx(REFERENCE_RUNS * work_per_second(longer) * window_s)
     assert error_against_converged(scene, sim, window_s) <= tolerance
+
+
+def test_a_start_measured_alone_stands_for_the_run_grown_where_the_prediction_left_modes_out():
+    """
+    A start measured alone stands for the run only as the prediction would grow it.
+
+    sheet_10x10 over 2 s, its check covering the first 0.5 s (the budget's), a prediction of a
+    longer step that its start disproves and that left modes out (its start's error three times
+    more over the run): the longer step's start meets the margin, but not once grown, so the
+    default step is run (its error the longer step's scaled, nothing stepped again); the error
+    printed is over the run, and the default step is within it against the converged full run.
+    """
+    scene = load_scene('sheet_10x10')
+    base = build_simulation(scene, SimulationConfig(method='full'))
+    horizon_s, samples, growth = 2.0, 100, 3.0
+    sample_s = horizon_s / samples
+    check = 25                      # the first 0.5 s
+
+    def full(longest_dt: float, sample_s_: float):
+        return on_samples(base, sample_s_, min(0.9 * base.stability_limit(), longest_dt))
+
+    longer = full(math.inf, sample_s)
+    default = full(0.5 * base.stability_limit(), sample_s)
+    _, longer_error = by_step_doubling(full, sample_s, check, check * sample_s, 0.0, 0.0,
+                                       first_dt=longer.dt)
+    # the longer step's start within the margin, but not once grown over the run
+    tolerance = 1.5 * longer_error / pilot.PILOT_MARGIN
+    budget = PlanningBudget(limit_us=REFERENCE_RUNS * work_per_second(longer) * check * sample_s,
+                            full_us=math.inf)
+    sim, report = unplanned_full(full, budget, default.dt, horizon_s, horizon_s, tolerance,
+                                 pilot.PILOT_MARGIN, samples, 'why',
+                                 _Disproved(longer.dt, growth))
+    assert sim.dt == pytest.approx(default.dt), report.reason
+    assert report.window_s == pytest.approx(check * sample_s)
+    assert report.horizon_s == pytest.approx(horizon_s)
+    assert report.error == pytest.approx(growth * report.window_error)
+    assert 'grown 3 times' in report.reason
+    assert budget.spent_us == pytest.approx(budget.limit_us)    # the first check alone
+    assert error_against_converged(scene, sim, horizon_s) <= report.error <= tolerance

@@ -222,18 +222,22 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     margin, checked the same way.
 
     Without a prediction, or where the start disproves it, the step is the answer where that
-    start is within ``margin * tolerance``, its error reported over the start it was measured on
-    (a drift fitted to a fraction of the slowest period extrapolates the start's transient, not
-    a drift). A step longer than the default that misses is not halved (its half is shorter than
-    the default): the default step is run, its error the longer step's scaled by the square of
-    the steps' ratio (the integrator's order) where that is within the margin and the scene has
-    no colliders, with nothing stepped again, else measured by its own step doubling. Where the
-    step run then misses, the run misses the tolerance, so it is no baseline to stay near: the
-    step is halved by step doubling over the whole window, its error extrapolated over
-    ``horizon_s``, whatever that costs (on random scenes the full run needed a tenth to a
-    fortieth of its stability limit to meet 1 % over 3 s). A scene with colliders is checked
-    over the whole window: its touches come when they come (a start checked a random scene's
-    default step at 0.05 % where it missed 0.3 % by 2.6 times once the object reached a sphere).
+    start is within ``margin * tolerance``, its error reported over the start it was measured
+    on (a drift fitted to a fraction of the slowest period extrapolates the start's transient,
+    not a drift); where the prediction left modes out (a scene beyond the dense limit), the
+    run's error is the modes' prediction plus what the start measured beyond it, grown over the
+    run (:meth:`~.step_error.StepPrediction.run_error`): the modes left out, rung by the
+    drive's start, drift over the run as a start alone cannot show. A step longer than the
+    default that misses is not halved (its half is shorter than the default): the default step
+    is run, its error the longer step's scaled by the square of the steps' ratio (the
+    integrator's order) where that is within the margin and the scene has no colliders, with
+    nothing stepped again, else measured by its own step doubling. Where the step run then
+    misses, the run misses the tolerance, so it is no baseline to stay near: the step is halved
+    by step doubling over the whole window, its error extrapolated over ``horizon_s``, whatever
+    that costs (on random scenes the full run needed a tenth to a fortieth of its stability
+    limit to meet 1 % over 3 s). A scene with colliders is checked over the whole window: its
+    touches come when they come (a start checked a random scene's default step at 0.05 % where
+    it missed 0.3 % by 2.6 times once the object reached a sphere).
     """
     sample_s = window_s / samples
     step = default_dt
@@ -259,6 +263,7 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
         reason += ('; the scene has colliders, and a start sees none of the touches to come: '
                    'the step was checked over the whole window, beyond the budget')
     checked_s = count * sample_s
+    grown: StepPrediction | None = None     # where a start alone is grown over the run
     stepped: dict = {}         # every run's samples, once: a second look steps nothing again
 
     def doubling(samples_: int, over_s: float, allowed: float, work_per_s: float,
@@ -285,12 +290,22 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
             return sim, report
         reason += (f'; the prediction missed over the first {checked_s:.2g} s ({error:.2%} '
                    f'measured, {expected:.2%} predicted): the step was measured instead')
+        if count < samples and prediction.leaves_modes_out:
+            # a start measured alone, where the prediction left modes out: the run's error is
+            # the modes' prediction plus what the start measured beyond it, grown over the run
+            grown = prediction
     over_s = horizon_s if count == samples else checked_s
     allowed = margin * tolerance
+
+    def over_run(start_error: float, dt: float) -> float:
+        return grown.run_error(start_error, dt, checked_s) if grown else start_error
+
     # a step longer than the default is measured as it is, never halved: its half is below
-    # the default step, which a user would have run in any case
-    sim, error = doubling(count, over_s, allowed, 0.0 if step > default_dt else math.inf, step)
-    if error > allowed and step > default_dt:
+    # the default step, which a user would have run in any case (nor where the start's error
+    # is grown over the run: the halving judges the start's alone)
+    halving = 0.0 if step > default_dt or grown else math.inf
+    sim, error = doubling(count, over_s, allowed, halving, step)
+    if over_run(error, sim.dt) > allowed and step > default_dt:
         # a start's transient can miss where the run would not: the default step, its error
         # the longer step's scaled by the step error's order (nothing stepped again) where
         # that is within the margin, else checked by its own step doubling
@@ -299,21 +314,29 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
         reason += (f'; the longer step missed over the start ({error:.2%} against its run at '
                    'half the step): the default step')
         # (not where colliders are: a touch is no smooth motion whose error scales so)
-        if scaled <= allowed and checked.model.scene.contact is None:
+        if over_run(scaled, checked.dt) <= allowed and checked.model.scene.contact is None:
             reason += (", its error that one scaled by the square of the steps' ratio "
                        f'({scaled:.2%})')
             sim, error = checked, scaled
         else:
             reason += ' was checked'
-            sim, error = doubling(count, over_s, allowed, math.inf, default_dt)
-    if sim.dt < checked.dt * (1.0 - 1e-9) and count < samples:
+            sim, error = doubling(count, over_s, allowed, 0.0 if grown else math.inf,
+                                  default_dt)
+    missed = sim.dt < checked.dt * (1.0 - 1e-9) or over_run(error, sim.dt) > allowed
+    if missed and count < samples:
         reason += (f'; the step missed the tolerance over the first {checked_s:.2g} s: the step '
                    'needed was found over the whole window, beyond the budget')
-        sim, error = doubling(samples, horizon_s, margin * tolerance, math.inf, sim.dt)
-        checked_s, over_s = window_s, horizon_s
+        sim, error = doubling(samples, horizon_s, allowed, math.inf, sim.dt)
+        checked_s, over_s, grown = window_s, horizon_s, None
+    run_error = over_run(error, sim.dt)
+    if grown:
+        reason += (f"; over the {horizon_s:.3g} s run, the modes' prediction and what the start "
+                   f'measured beyond it, grown {grown.start_growth(checked_s):.2g} times')
+        over_s = horizon_s
     if prediction is not None:
         reason += (f'; {prediction.error_at(sim.dt):.2%} predicted over the {horizon_s:.3g} s '
                    'run (the modes stepped with their period error)')
-    report = PilotReport(error, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0, reason=reason,
-                         horizon_s=over_s, window_error=error, tolerance=tolerance)
+    report = PilotReport(run_error, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0,
+                         reason=reason, horizon_s=over_s, window_error=error,
+                         tolerance=tolerance)
     return sim, report

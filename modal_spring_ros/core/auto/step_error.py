@@ -298,9 +298,37 @@ class StepPrediction:
         error = self.predictor.error(dt)
         if self.predictor.complete:
             return error
-        grown = max(0.0, measured - AGREEMENT * expected) * drift_growth(
-            self.predictor.horizon_s, over_s, self.predictor.slowest_decay)
+        grown = max(0.0, measured - AGREEMENT * expected) * self.start_growth(over_s)
         return error + grown if error + grown <= allowed else math.nan
+
+    @property
+    def leaves_modes_out(self) -> bool:
+        """Tell whether the prediction steps only the lowest modes (beyond the dense limit)."""
+        return self.predictor is not None and not self.predictor.complete
+
+    def start_growth(self, over_s: float) -> float:
+        """
+        Return how much a start's error beyond the modes predicted grows over the run.
+
+        1 where every mode is predicted; else the start's first ``over_s`` taken to drift as a
+        transient decaying no faster than the slowest the scene damps (:func:`drift_growth`).
+        """
+        if not self.leaves_modes_out:
+            return 1.0
+        return drift_growth(self.predictor.horizon_s, over_s, self.predictor.slowest_decay)
+
+    def run_error(self, measured: float, dt: float, over_s: float) -> float:
+        """
+        Return the run's error at ``dt`` from what its first ``over_s`` measured, unconfirmed.
+
+        Where the prediction leaves modes out: the modes' error over the run plus what the
+        start measured beyond theirs there, grown over the run (:meth:`start_growth`), as
+        :meth:`confirmed` counts it without its allowance for agreement. Else the start's.
+        """
+        if not self.leaves_modes_out:
+            return measured
+        excess = max(0.0, measured - self.start_error(dt, over_s))
+        return self.predictor.error(dt) + excess * self.start_growth(over_s)
 
     def describe(self) -> str:
         """Say what the prediction steps: every mode, or the lowest the scene has ('' for none)."""
