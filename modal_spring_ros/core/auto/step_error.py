@@ -295,11 +295,10 @@ class StepPrediction:
         expected = self.start_error(dt, over_s)
         if measured > max(allowed, AGREEMENT * expected):
             return math.nan
-        error = self.predictor.error(dt)
         if self.predictor.complete:
-            return error
-        grown = max(0.0, measured - AGREEMENT * expected) * self.start_growth(over_s)
-        return error + grown if error + grown <= allowed else math.nan
+            return self.predictor.error(dt)
+        error = self.run_error(measured, dt, over_s, AGREEMENT)
+        return error if error <= allowed else math.nan
 
     @property
     def leaves_modes_out(self) -> bool:
@@ -317,17 +316,19 @@ class StepPrediction:
             return 1.0
         return drift_growth(self.predictor.horizon_s, over_s, self.predictor.slowest_decay)
 
-    def run_error(self, measured: float, dt: float, over_s: float) -> float:
+    def run_error(self, measured: float, dt: float, over_s: float,
+                  agreement: float = 1.0) -> float:
         """
-        Return the run's error at ``dt`` from what its first ``over_s`` measured, unconfirmed.
+        Return the run's error at ``dt`` from what its first ``over_s`` measured.
 
         Where the prediction leaves modes out: the modes' error over the run plus what the
-        start measured beyond theirs there, grown over the run (:meth:`start_growth`), as
-        :meth:`confirmed` counts it without its allowance for agreement. Else the start's.
+        start measured beyond ``agreement`` times theirs there, grown over the run
+        (:meth:`start_growth`; :meth:`confirmed` allows ``AGREEMENT``, a start measured alone
+        none). Else the start's.
         """
         if not self.leaves_modes_out:
             return measured
-        excess = max(0.0, measured - self.start_error(dt, over_s))
+        excess = max(0.0, measured - agreement * self.start_error(dt, over_s))
         return self.predictor.error(dt) + excess * self.start_growth(over_s)
 
     def describe(self) -> str:
