@@ -390,6 +390,23 @@ def data_bounds(data: dict) -> tuple[np.ndarray, np.ndarray]:
     return positions.min(axis=0), positions.max(axis=0)
 
 
+def _sheet_full_runs(sample_s: float):
+    """
+    sheet_10x10's full runs as ``unplanned_full`` builds them, and two on ``sample_s``.
+
+    Return the scene, ``full(longest_dt, sample_s)``, the run at 0.9 of the stability limit
+    (the longer step) and at half of it (the default step).
+    """
+    scene = load_scene('sheet_10x10')
+    base = build_simulation(scene, SimulationConfig(method='full'))
+
+    def full(longest_dt: float, sample_s_: float):
+        return on_samples(base, sample_s_, min(0.9 * base.stability_limit(), longest_dt))
+
+    return (scene, full, full(math.inf, sample_s),
+            full(0.5 * base.stability_limit(), sample_s))
+
+
 class _Disproved:
     """
     A prediction of ``step`` (longer than the default) that every start disproves.
@@ -434,16 +451,9 @@ def test_a_longer_step_its_start_misses_gives_way_to_the_default_step_without_st
     longer step was halved below the default and the default checked again, up to four times
     the work), and the default step is within the tolerance of the converged full run.
     """
-    scene = load_scene('sheet_10x10')
-    base = build_simulation(scene, SimulationConfig(method='full'))
     window_s, samples = 0.5, 25
     sample_s = window_s / samples
-
-    def full(longest_dt: float, sample_s_: float):
-        return on_samples(base, sample_s_, min(0.9 * base.stability_limit(), longest_dt))
-
-    longer = full(math.inf, sample_s)
-    default = full(0.5 * base.stability_limit(), sample_s)
+    scene, full, longer, default = _sheet_full_runs(sample_s)
     assert longer.dt > 1.5 * default.dt
     _, longer_error = by_step_doubling(full, sample_s, samples, window_s, 0.0, 0.0,
                                        first_dt=longer.dt)
@@ -470,17 +480,10 @@ def test_a_start_measured_alone_stands_for_the_run_grown_where_the_prediction_le
     default step is run (its error the longer step's scaled, nothing stepped again); the error
     printed is over the run, and the default step is within it against the converged full run.
     """
-    scene = load_scene('sheet_10x10')
-    base = build_simulation(scene, SimulationConfig(method='full'))
     horizon_s, samples, growth = 2.0, 100, 3.0
     sample_s = horizon_s / samples
     check = 25                      # the first 0.5 s
-
-    def full(longest_dt: float, sample_s_: float):
-        return on_samples(base, sample_s_, min(0.9 * base.stability_limit(), longest_dt))
-
-    longer = full(math.inf, sample_s)
-    default = full(0.5 * base.stability_limit(), sample_s)
+    scene, full, longer, default = _sheet_full_runs(sample_s)
     _, longer_error = by_step_doubling(full, sample_s, check, check * sample_s, 0.0, 0.0,
                                        first_dt=longer.dt)
     # the longer step's start within the margin, but not once grown over the run
