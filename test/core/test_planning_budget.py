@@ -19,7 +19,7 @@ from modal_spring_ros.core.auto.full_candidate import by_step_doubling
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.auto.plan import PlanSettings
-from modal_spring_ros.core.auto.step_error import AGREEMENT, predicts, StepErrorPredictor
+from modal_spring_ros.core.auto.step_error import predicts, StepErrorPredictor
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis
 from modal_spring_ros.core.config import ConfigError, SimulationConfig
@@ -191,8 +191,8 @@ def test_a_large_scene_driven_faster_than_its_lowest_modes_solves_for_more_to_pr
 
     Its 32 lowest modes end at 66 Hz, less than four times the drive: they cannot predict the
     full run's step. Solving for more (within the budget) until they reach 80 Hz does: the
-    longer step is taken, within 1 % of the converged full run, its printed error agreeing with
-    what it measures.
+    longer step is taken, within 1 % of the converged full run, its printed error never below
+    what it measures (at most twice it).
     """
     spec = scene_to_dict(load_scene('sheet_32x32'))
     spec['anchor_motion'] = [{'axis': 'x', 'amplitude': 0.001, 'frequency_hz': 20.0,
@@ -210,7 +210,9 @@ def test_a_large_scene_driven_faster_than_its_lowest_modes_solves_for_more_to_pr
     assert sim.dt >= 1.5 * default.dt
     measured = error_against_converged(scene, sim, 6.0)
     assert measured <= TOLERANCE
-    assert measured / AGREEMENT <= report.error <= AGREEMENT * measured
+    # all the start measured beyond the modes' prediction is counted and grown as a bound:
+    # the printed error is never below what the run gets, nor far above it
+    assert measured <= report.error <= 2.0 * measured
     # planning the same run within a tenth of it cannot afford those modes: the default step
     sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
                                                    horizon_s=6.0))

@@ -284,11 +284,12 @@ class StepPrediction:
         The start (its first ``over_s``) confirms the prediction where it is within ``allowed``
         or within ``AGREEMENT`` times what the prediction puts there (a start's transient can be
         beyond the run's tolerance where the prediction sees it too). With modes left out (a
-        scene beyond the dense limit), what the start measured beyond ``AGREEMENT`` times the
-        prediction is theirs, and it is taken to grow as a phase drift of a transient decaying
-        no faster than the slowest the scene damps (:func:`drift_growth`; in proportion to time
-        undamped, the most a period error gives): the run's error is the modes' prediction plus
-        that, confirmed only within ``allowed``.
+        scene beyond the dense limit), what the start measured beyond the prediction is theirs,
+        and it is taken to grow as a phase drift of a transient decaying no faster than the
+        slowest the scene damps (:func:`drift_growth`; in proportion to time undamped, the most
+        a period error gives): the run's error is the modes' prediction plus that
+        (:meth:`run_error`), confirmed only within ``allowed``. ``AGREEMENT`` decides only
+        whether the start agrees, never how much of it is left uncounted.
         """
         if self.predictor is None:
             return math.nan
@@ -297,7 +298,7 @@ class StepPrediction:
             return math.nan
         if self.predictor.complete:
             return self.predictor.error(dt)
-        error = self.run_error(measured, dt, over_s, AGREEMENT)
+        error = self.run_error(measured, dt, over_s)
         return error if error <= allowed else math.nan
 
     @property
@@ -316,19 +317,17 @@ class StepPrediction:
             return 1.0
         return drift_growth(self.predictor.horizon_s, over_s, self.predictor.slowest_decay)
 
-    def run_error(self, measured: float, dt: float, over_s: float,
-                  agreement: float = 1.0) -> float:
+    def run_error(self, measured: float, dt: float, over_s: float) -> float:
         """
         Return the run's error at ``dt`` from what its first ``over_s`` measured.
 
         Where the prediction leaves modes out: the modes' error over the run plus what the
-        start measured beyond ``agreement`` times theirs there, grown over the run
-        (:meth:`start_growth`; :meth:`confirmed` allows ``AGREEMENT``, a start measured alone
-        none). Else the start's.
+        start measured beyond theirs there, grown over the run (:meth:`start_growth`). Else
+        the start's.
         """
         if not self.leaves_modes_out:
             return measured
-        excess = max(0.0, measured - agreement * self.start_error(dt, over_s))
+        excess = max(0.0, measured - self.start_error(dt, over_s))
         return self.predictor.error(dt) + excess * self.start_growth(over_s)
 
     def describe(self) -> str:
