@@ -19,7 +19,7 @@ from modal_spring_ros.core.auto.full_candidate import by_step_doubling
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.auto.plan import PlanSettings
-from modal_spring_ros.core.auto.step_error import predicts, StepErrorPredictor
+from modal_spring_ros.core.auto.step_error import NONLINEAR, predicts, StepErrorPredictor
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis
 from modal_spring_ros.core.config import ConfigError, SimulationConfig
@@ -132,7 +132,7 @@ def test_a_default_step_that_misses_takes_the_step_predicted_and_checks_its_star
     assert sim.method == 'full' and report.predicted
     assert 'the default step is predicted beyond the tolerance' in report.reason
     assert 'the longest step predicted within it' in report.reason
-    assert 'found over the whole window' not in report.reason
+    assert 'sought over the whole window' not in report.reason
     assert 'predicted over a 3 s run' in report.describe()
     assert sim.dt < 0.1 * sim.stability_limit()
     measured = error_against_converged(scene, sim, 3.0)
@@ -158,7 +158,7 @@ def test_a_prediction_its_start_disproves_is_not_trusted(monkeypatch):
     report = sim.pilot
     assert sim.method == 'full' and not report.predicted
     assert 'the prediction missed over the first' in report.reason, report.reason
-    assert 'found over the whole window' in report.reason
+    assert 'sought over the whole window' in report.reason
     assert error_against_converged(scene, sim, 3.0) <= TOLERANCE
 
 
@@ -414,13 +414,14 @@ class _Disproved:
     A prediction of ``step`` (longer than the default) that every start disproves.
 
     ``growth``: how much more a start's error is over the run, where it leaves modes out (1:
-    it predicts every mode).
+    it predicts every mode); ``start``: the error it puts over a start (disproved by a start
+    measured beyond it, which moves beyond the modes where it is ``NONLINEAR`` times it).
     """
 
     predictor = object()
 
-    def __init__(self, step: float, growth: float = 1.0):
-        self.step, self.growth = step, growth
+    def __init__(self, step: float, start: float, growth: float = 1.0):
+        self.step, self.start, self.growth = step, start, growth
         self.leaves_modes_out = growth > 1.0
 
     def run_error(self, measured: float, dt: float, over_s: float) -> float:
@@ -433,7 +434,7 @@ class _Disproved:
         return 0.0
 
     def start_error(self, dt: float, over_s: float) -> float:
-        return 0.0
+        return self.start
 
     def confirmed(self, measured: float, dt: float, over_s: float, allowed: float) -> float:
         return math.nan
@@ -464,12 +465,22 @@ def test_a_longer_step_its_start_misses_gives_way_to_the_default_step_without_st
     budget = PlanningBudget()
     sim, report = unplanned_full(full, budget, default.dt, window_s, window_s, tolerance,
                                  pilot.PILOT_MARGIN, samples, 'why',
-                                 _Disproved(longer.dt))
+                                 _Disproved(longer.dt, longer_error / 3.0))
     assert sim.dt == pytest.approx(default.dt)
     assert 'scaled by the square of the steps' in report.reason, report.reason
     assert report.error == pytest.approx(longer_error * (default.dt / longer.dt) ** 2)
     assert budget.spent_us == pytest.approx(REFERENCE_RUNS * work_per_second(longer) * window_s)
     assert error_against_converged(scene, sim, window_s) <= tolerance
+    # a start far beyond what the modes predict is no smooth motion: its error is not scaled,
+    # the default step is measured by its own step doubling (and here meets the margin)
+    budget = PlanningBudget()
+    sim, report = unplanned_full(full, budget, default.dt, window_s, window_s, tolerance,
+                                 pilot.PILOT_MARGIN, samples, 'why',
+                                 _Disproved(longer.dt, longer_error / NONLINEAR))
+    assert sim.dt == pytest.approx(default.dt)
+    assert 'the default step was checked' in report.reason, report.reason
+    assert budget.spent_us > REFERENCE_RUNS * work_per_second(longer) * window_s
+    assert report.error <= pilot.PILOT_MARGIN * tolerance
 
 
 def test_a_start_measured_alone_stands_for_the_run_grown_where_the_prediction_left_modes_out():
@@ -494,7 +505,7 @@ def test_a_start_measured_alone_stands_for_the_run_grown_where_the_prediction_le
                             full_us=math.inf)
     sim, report = unplanned_full(full, budget, default.dt, horizon_s, horizon_s, tolerance,
                                  pilot.PILOT_MARGIN, samples, 'why',
-                                 _Disproved(longer.dt, growth))
+                                 _Disproved(longer.dt, longer_error / 3.0, growth))
     assert sim.dt == pytest.approx(default.dt), report.reason
     assert report.window_s == pytest.approx(check * sample_s)
     assert report.horizon_s == pytest.approx(horizon_s)

@@ -26,7 +26,7 @@ from typing import Callable
 from modal_spring_ros.core.auto.full_candidate import BY_ITSELF, by_step_doubling, STEP_ORDER
 from modal_spring_ros.core.auto.plan import PilotReport
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK
-from modal_spring_ros.core.auto.step_error import StepPrediction
+from modal_spring_ros.core.auto.step_error import NONLINEAR, StepPrediction
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.simulations import Simulation
 
@@ -50,6 +50,14 @@ SETUP_US = {'modes': 1.35, 'derivatives': 140.0, 'training': 200.0}
 MIN_CHECK_SAMPLES = 2
 #: The full reference over a window costs its run at a step and at half of it: three runs' worth.
 REFERENCE_RUNS = 3.0
+#: Why a run whose error does not shrink as its step is halved has none measured.
+UNCONVERGED = ('its runs do not converge as the step is halved: the motion amplifies its '
+               "differences (buckling, large strain, chaos), so no step's error over the run "
+               "can be promised; the default step, as '--method full' runs it")
+#: Why a run whose start moved far beyond its modes' prediction has no error measured.
+BEYOND_MODES = ('its start moved far beyond what its modes predict, and says nothing of the '
+                'rest of the run, which would cost more to check than to run; the default step, '
+                "as '--method full' runs it")
 
 
 @dataclasses.dataclass
@@ -238,6 +246,15 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     limit to meet 1 % over 3 s). A scene with colliders is checked over the whole window: its
     touches come when they come (a start checked a random scene's default step at 0.05 % where
     it missed 0.3 % by 2.6 times once the object reached a sphere).
+
+    Some runs have no error to promise. A start that moved ``NONLINEAR`` times beyond what the
+    modes predict (a soft skin crumpling: 1.72 % measured where 0.01 % was predicted) is no
+    smooth motion: no step's error is scaled from another's there, and where such a start
+    passes its check it says nothing of the rest of the run (whose finer runs may part by
+    30 %): the default step is run, its error not measured, said why (``BEYOND_MODES``). Where
+    halving the step stops shrinking its error (:func:`~.full_candidate.by_step_doubling`
+    stalls), the run converges in no step: the default step, its error not measured
+    (``UNCONVERGED``), planning bounded (it once halved without end).
     """
     sample_s = window_s / samples
     step = default_dt
@@ -264,6 +281,7 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
                    'the step was checked over the whole window, beyond the budget')
     checked_s = count * sample_s
     grown: StepPrediction | None = None     # where a start alone is grown over the run
+    beyond = False             # the start far beyond the modes' prediction: nothing scaled
     stepped: dict = {}         # every run's samples, once: a second look steps nothing again
 
     def doubling(samples_: int, over_s: float, allowed: float, work_per_s: float,
@@ -290,6 +308,7 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
             return sim, report
         reason += (f'; the prediction missed over the first {checked_s:.2g} s ({error:.2%} '
                    f'measured, {expected:.2%} predicted): the step was measured instead')
+        beyond = error >= NONLINEAR * expected
         if count < samples and prediction.leaves_modes_out:
             # a start measured alone, where the prediction left modes out: the run's error is
             # the modes' prediction plus what the start measured beyond it, grown over the run
@@ -313,8 +332,9 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
         scaled = error * (checked.dt / sim.dt) ** STEP_ORDER
         reason += (f'; the longer step missed over the start ({error:.2%} against its run at '
                    'half the step): the default step')
-        # (not where colliders are: a touch is no smooth motion whose error scales so)
-        if over_run(scaled, checked.dt) <= allowed and checked.model.scene.contact is None:
+        # (not where colliders are, nor far beyond the modes: no smooth motion scales so)
+        if (over_run(scaled, checked.dt) <= allowed and checked.model.scene.contact is None
+                and not beyond):
             reason += (", its error that one scaled by the square of the steps' ratio "
                        f'({scaled:.2%})')
             sim, error = checked, scaled
@@ -322,12 +342,24 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
             reason += ' was checked'
             sim, error = doubling(count, over_s, allowed, 0.0 if grown else math.inf,
                                   default_dt)
+
+    def unmeasured(why: str) -> tuple[Simulation, PilotReport]:
+        # the run a user would have run, its error not measured, said why
+        return full(default_dt, sample_s), PilotReport(
+            math.nan, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0, reason=reason,
+            horizon_s=horizon_s, window_error=error if math.isfinite(error) else math.nan,
+            tolerance=tolerance, unmeasured=why)
+
     missed = sim.dt < checked.dt * (1.0 - 1e-9) or over_run(error, sim.dt) > allowed
+    if beyond and not missed and count < samples:
+        return unmeasured(BEYOND_MODES)
     if missed and count < samples:
         reason += (f'; the step missed the tolerance over the first {checked_s:.2g} s: the step '
-                   'needed was found over the whole window, beyond the budget')
+                   'needed was sought over the whole window, beyond the budget')
         sim, error = doubling(samples, horizon_s, allowed, math.inf, sim.dt)
         checked_s, over_s, grown = window_s, horizon_s, None
+    if math.isinf(error):       # halving brings nothing, or a run diverged
+        return unmeasured(UNCONVERGED)
     run_error = over_run(error, sim.dt)
     if grown:
         reason += (f"; over the {horizon_s:.3g} s run, the modes' prediction and what the start "

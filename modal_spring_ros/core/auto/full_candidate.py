@@ -28,6 +28,11 @@ import numpy as np
 STEP_ORDER = 2
 #: What a full run measured by step doubling is said to be measured against.
 BY_ITSELF = 'its own run at half the step'
+#: A halving that leaves more than this share of the step doubling's estimate has not
+#: converged (a second-order scheme's leaves a quarter, a first-order one's a half).
+STALLED = 0.75
+#: Halvings in a row that stall before a run is taken not to converge in its step.
+STALLS = 2
 
 
 def against_reference(full: Callable[[float, float], Simulation],
@@ -62,11 +67,16 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
     the run at half the step, over ``horizon_s`` as :func:`horizon_error` extrapolates it) is
     over the budget and the runs' modelled work (us per simulated second, summed) stays within
     ``work_per_s``. Where it never meets the budget, the finest run measured is returned with
-    its estimate, which then says so. ``stepped``: the runs' samples kept between calls (by
-    step and count), so that a second look at the same start steps nothing again.
+    its estimate, which then says so. Where ``STALLS`` halvings in a row each leave more than
+    ``STALLED`` of the estimate, the run does not converge in its step (a motion that
+    amplifies its differences: halving costs twice as much and brings nothing): the first run
+    is returned, its error infinite, as where a run diverges. ``stepped``: the runs' samples
+    kept between calls (by step and count), so that a second look at the same start steps
+    nothing again.
     """
     share = 1.0 / (1.0 - 0.5 ** STEP_ORDER)       # the coarse run's error / the difference
     stepped = {} if stepped is None else stepped
+    stalls, before = 0, math.inf
 
     def run(sim: Simulation) -> np.ndarray | None:
         key = (sim.dt, sample_s, samples)
@@ -74,7 +84,7 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
             stepped[key] = trajectory(sim, sample_s, samples)
         return stepped[key]
 
-    coarse = full(first_dt, sample_s)
+    first = coarse = full(first_dt, sample_s)
     coarse_run = run(coarse)
     spent = work_per_second(coarse)
     while True:
@@ -86,4 +96,7 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
         error = horizon_error(coarse_run, fine_run, sample_s, horizon_s) * share
         if error <= budget or spent > work_per_s:
             return coarse, error
-        coarse, coarse_run = fine, fine_run
+        stalls = stalls + 1 if error > STALLED * before else 0
+        if stalls >= STALLS:
+            return first, math.inf
+        coarse, coarse_run, before = fine, fine_run, error

@@ -47,6 +47,7 @@ class PilotReport:
     tolerance: float = math.nan     # what the plan was to meet
     planning: str = ''              # what planning spent of its budget
     predicted: bool = False         # error predicted over the horizon, checked over the window
+    unmeasured: str = ''            # why the error is not measured, where it is not finite
 
     def _over(self) -> str:
         """Say how the error was found: measured over the window, extrapolated beyond."""
@@ -67,6 +68,13 @@ class PilotReport:
         return dataclasses.replace(self, window_s=checked.window_s, horizon_s=checked.horizon_s,
                                    window_error=checked.window_error, predicted=checked.predicted)
 
+    def _unmeasured(self) -> str:
+        """Say why the error is not measured (it is not finite)."""
+        if self.unmeasured:
+            return self.unmeasured
+        return ('its runs did not converge as its step was halved' if math.isinf(self.error)
+                else 'no check within the planning budget')
+
     def describe(self) -> str:
         spent = f'; {self.planning}' if self.planning else ''
         if self.method == 'full':
@@ -74,7 +82,7 @@ class PilotReport:
                       f'at any step the pilot could afford' if self.error > self.tolerance
                       else '')
             error = (f'error {self.error:.2%} {self._over()}' if math.isfinite(self.error)
-                     else 'its step error not measured (no check within the planning budget)')
+                     else f'its step error not measured ({self._unmeasured()})')
             first = (f'; the modal plan as first made: {self.planned_error:.2%}'
                      if math.isfinite(self.planned_error) else '')
             return f'full run chosen ({self.reason}): {error}{first}{beyond}{spent}'

@@ -58,6 +58,10 @@ QUASI_STATIC = 4.0
 #: A start measured within this many times its predicted error agrees with the prediction (over
 #: starts of random scenes the prediction was 0.8-1.2 times the measured error).
 AGREEMENT = 1.5
+#: A start off its prediction by more than this many times moves beyond the modes' linear
+#: motion (large strain, buckling): it never confirms the prediction, and no step's error is
+#: scaled from another's there.
+NONLINEAR = 10.0
 
 
 def predicting_hz(model: MassSpringModel) -> float:
@@ -283,7 +287,9 @@ class StepPrediction:
 
         The start (its first ``over_s``) confirms the prediction where it is within ``allowed``
         or within ``AGREEMENT`` times what the prediction puts there (a start's transient can be
-        beyond the run's tolerance where the prediction sees it too). With modes left out (a
+        beyond the run's tolerance where the prediction sees it too), and never where it is
+        ``NONLINEAR`` times that or more (a motion beyond the modes: what they predict says
+        nothing of it). With modes left out (a
         scene beyond the dense limit), what the start measured beyond the prediction is theirs,
         and it is taken to grow as a phase drift of a transient decaying no faster than the
         slowest the scene damps (:func:`drift_growth`; in proportion to time undamped, the most
@@ -294,7 +300,7 @@ class StepPrediction:
         if self.predictor is None:
             return math.nan
         expected = self.start_error(dt, over_s)
-        if measured > max(allowed, AGREEMENT * expected):
+        if measured > max(allowed, AGREEMENT * expected) or measured >= NONLINEAR * expected:
             return math.nan
         if self.predictor.complete:
             return self.predictor.error(dt)
