@@ -19,7 +19,8 @@ from modal_spring_ros.core.auto.full_candidate import by_step_doubling
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.auto.plan import PlanSettings
-from modal_spring_ros.core.auto.step_error import NONLINEAR, predicts, StepErrorPredictor
+from modal_spring_ros.core.auto.step_error import (NONLINEAR, predicts, StepErrorPredictor,
+                                                   StepPrediction)
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis
 from modal_spring_ros.core.config import ConfigError, SimulationConfig
@@ -419,6 +420,7 @@ class _Disproved:
     """
 
     predictor = object()
+    beyond = StepPrediction.beyond
 
     def __init__(self, step: float, start: float, growth: float = 1.0):
         self.step, self.start, self.growth = step, start, growth
@@ -476,7 +478,7 @@ def test_a_longer_step_its_start_misses_gives_way_to_the_default_step_without_st
     budget = PlanningBudget()
     sim, report = unplanned_full(full, budget, default.dt, window_s, window_s, tolerance,
                                  pilot.PILOT_MARGIN, samples, 'why',
-                                 _Disproved(longer.dt, longer_error / NONLINEAR))
+                                 _Disproved(longer.dt, longer_error / (2.0 * NONLINEAR)))
     assert sim.dt == pytest.approx(default.dt)
     assert 'the default step was checked' in report.reason, report.reason
     assert budget.spent_us > REFERENCE_RUNS * work_per_second(longer) * window_s

@@ -26,7 +26,7 @@ from typing import Callable
 from modal_spring_ros.core.auto.full_candidate import BY_ITSELF, by_step_doubling, STEP_ORDER
 from modal_spring_ros.core.auto.plan import PilotReport
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK
-from modal_spring_ros.core.auto.step_error import NONLINEAR, StepPrediction
+from modal_spring_ros.core.auto.step_error import StepPrediction
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.simulations import Simulation
 
@@ -247,11 +247,12 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     touches come when they come (a start checked a random scene's default step at 0.05 % where
     it missed 0.3 % by 2.6 times once the object reached a sphere).
 
-    Some runs have no error to promise. A start that moved ``NONLINEAR`` times beyond what the
-    modes predict (a soft skin crumpling: 1.72 % measured where 0.01 % was predicted) is no
-    smooth motion: no step's error is scaled from another's there, and where such a start
-    passes its check it says nothing of the rest of the run (whose finer runs may part by
-    30 %): the default step is run, its error not measured, said why (``BEYOND_MODES``). Where
+    Some runs have no error to promise. A start that moved far beyond what the modes predict
+    (:meth:`~.step_error.StepPrediction.beyond`; a soft skin crumpling: 1.72 % measured where
+    0.01 % was predicted) is no smooth motion: no step's error is scaled from another's there,
+    and where such a start passes its check it says nothing of the rest of the run (whose
+    finer runs may part by 30 %): the default step is run, its error not measured, said why
+    (``BEYOND_MODES``). Where
     halving the step stops shrinking its error (:func:`~.full_candidate.by_step_doubling`
     stalls), the run converges in no step: the default step, its error not measured
     (``UNCONVERGED``), planning bounded (it once halved without end).
@@ -308,7 +309,7 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
             return sim, report
         reason += (f'; the prediction missed over the first {checked_s:.2g} s ({error:.2%} '
                    f'measured, {expected:.2%} predicted): the step was measured instead')
-        beyond = error >= NONLINEAR * expected
+        beyond = prediction.beyond(error, sim.dt, checked_s, margin * tolerance)
         if count < samples and prediction.leaves_modes_out:
             # a start measured alone, where the prediction left modes out: the run's error is
             # the modes' prediction plus what the start measured beyond it, grown over the run

@@ -287,25 +287,34 @@ class StepPrediction:
 
         The start (its first ``over_s``) confirms the prediction where it is within ``allowed``
         or within ``AGREEMENT`` times what the prediction puts there (a start's transient can be
-        beyond the run's tolerance where the prediction sees it too), and never where it is
-        ``NONLINEAR`` times that or more (a motion beyond the modes: what they predict says
-        nothing of it). With modes left out (a
-        scene beyond the dense limit), what the start measured beyond the prediction is theirs,
-        and it is taken to grow as a phase drift of a transient decaying no faster than the
-        slowest the scene damps (:func:`drift_growth`; in proportion to time undamped, the most
-        a period error gives): the run's error is the modes' prediction plus that
-        (:meth:`run_error`), confirmed only within ``allowed``. ``AGREEMENT`` decides only
+        beyond the run's tolerance where the prediction sees it too), and never where it moved
+        beyond the modes (:meth:`beyond`: what they predict says nothing of it). With modes
+        left out (a scene beyond the dense limit), what the start measured beyond the
+        prediction is theirs, and it is taken to grow as a phase drift of a transient decaying
+        no faster than the slowest the scene damps (:func:`drift_growth`; in proportion to time
+        undamped, the most a period error gives): the run's error is the modes' prediction plus
+        that (:meth:`run_error`), confirmed only within ``allowed``. ``AGREEMENT`` decides only
         whether the start agrees, never how much of it is left uncounted.
         """
         if self.predictor is None:
             return math.nan
         expected = self.start_error(dt, over_s)
-        if measured > max(allowed, AGREEMENT * expected) or measured >= NONLINEAR * expected:
+        if (measured > max(allowed, AGREEMENT * expected)
+                or self.beyond(measured, dt, over_s, allowed)):
             return math.nan
         if self.predictor.complete:
             return self.predictor.error(dt)
         error = self.run_error(measured, dt, over_s)
         return error if error <= allowed else math.nan
+
+    def beyond(self, measured: float, dt: float, over_s: float, allowed: float) -> bool:
+        """
+        Tell whether a start that measured ``measured`` moved beyond what the modes predict.
+
+        ``NONLINEAR`` times the error predicted over the start (its first ``over_s``) or more,
+        and more than a tenth of what is ``allowed`` (below it, any start is smooth enough).
+        """
+        return measured > max(NONLINEAR * self.start_error(dt, over_s), 0.1 * allowed)
 
     @property
     def leaves_modes_out(self) -> bool:
