@@ -166,6 +166,10 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
         if not basis.dense:
             budget.spend(modes_work(model, basis.modes_solved - charged[0]))
             charged[0] = basis.modes_solved
+
+    def affords_modes(solved: int) -> bool:   # each solve judged by what is left after the last
+        charge_modes()
+        return budget.affords(modes_work(model, solved))
     # every mode of a small scene, the lowest of a large one driven slowly enough for them
     # (more of them where its drive is faster, as the budget affords): the longest stable step
     # the full run is predicted to meet the tolerance at over the run, within the pilot's
@@ -174,15 +178,20 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     # takes the full run unmeasured
     predicting = budget.bounded and model.scene.contact is None
     if predicting and not predicts(model, basis):
-        basis.ensure_frequency(predicting_hz(model), limit,
-                               lambda solved: budget.affords(modes_work(model, solved)))
+        basis.ensure_frequency(predicting_hz(model), limit, affords_modes)
         charge_modes()
     predicted = (predicted_step(model, basis, 'explicit', full_dt, horizon_s,
                                 PILOT_MARGIN * config.tolerance,
                                 None if config.dt else longest.dt)
                  if predicting and predicts(model, basis) else None)
-    choice = (choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
-              if not why else None)
+    choice = None
+    if not why:
+        # a large scene's band solves for its modes as the budget affords (each solve charged)
+        choice = choose_modes(model, basis, config.band, config.tolerance, max_modes=limit,
+                              affords=affords_modes if measured and not basis.dense else None)
+        if choice is None:
+            why = (f'the modes its band needs (beyond the {basis.count} solved for) would '
+                   f'cost more than {budget.describe_left()}')
     if measured and why:
         # a plan's set-up would cost more than it could save: the full run, before any plan
         window = min(pilot_window(model, basis.frequencies_hz[:1]), horizon_s)

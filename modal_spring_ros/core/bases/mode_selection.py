@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Callable
 
 from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, ModalBasis
 from modal_spring_ros.core.bases.basis_choice import BasisChoice
@@ -136,11 +137,14 @@ class TruncationEstimator:
 
 def choose_modes(model: MassSpringModel, basis: ModalBasis, band: FilterBand = FilterBand(),
                  tolerance: float = DEFAULT_TOLERANCE, margin: float = DEFAULT_MARGIN,
-                 max_modes: int = DEFAULT_MAX_MODES) -> ModeChoice:
+                 max_modes: int = DEFAULT_MAX_MODES,
+                 affords: Callable[[int], bool] | None = None) -> ModeChoice | None:
     """
     Return the fewest lowest modes (within ``band``) meeting ``tolerance`` for every load.
 
-    Computes modes only as far as needed (in growing batches on large scenes).
+    Computes modes only as far as needed (in growing batches on large scenes). ``affords``
+    (given how many modes the next solve solves for) may refuse a solve: None is returned then
+    (the modes needed cost more than the caller will pay).
     """
     if not 0.0 < tolerance < 1.0:
         raise ValueError(f'modal.tolerance ({tolerance}) must be between 0 and 1')
@@ -163,7 +167,10 @@ def choose_modes(model: MassSpringModel, basis: ModalBasis, band: FilterBand = F
             if not kept.size:
                 raise ValueError(f'filter band {band.describe()} keeps no mode')
             return _choice(estimator, basis, kept, estimator.errors(basis, kept), f_exc)
-        basis.ensure_count(min(max(2 * basis.count, 16), limit))
+        count = min(max(2 * basis.count, 16), limit)
+        if affords is not None and not affords(basis.to_solve(count)):
+            return None
+        basis.ensure_count(count)
 
 
 def _choice(estimator, basis, modes, errors, f_exc) -> ModeChoice:
