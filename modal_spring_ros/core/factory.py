@@ -16,7 +16,8 @@ from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.pilot import Pilot, PILOT_MARGIN, SAMPLES as PILOT_SAMPLES
 from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PlanSettings
-from modal_spring_ros.core.auto.step_error import predicted_step, predicting_hz, predicts
+from modal_spring_ros.core.auto.step_error import (predicted_step, predicting_hz, predicts,
+                                                   StepPrediction)
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis, Progress
 from modal_spring_ros.core.bases.basis_choice import choose_basis
 from modal_spring_ros.core.bases.mode_selection import (choose_modes, choose_refresh, choose_step,
@@ -177,13 +178,15 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     # prediction sees no touch) (a step the user gave is the longest); only a budgeted run
     # takes the full run unmeasured
     predicting = budget.bounded and model.scene.contact is None
-    if predicting and not predicts(model, basis):
-        basis.ensure_frequency(predicting_hz(model), limit, affords_modes)
-        charge_modes()
-    predicted = (predicted_step(model, basis, 'explicit', full_dt, horizon_s,
-                                PILOT_MARGIN * config.tolerance,
-                                None if config.dt else longest.dt)
-                 if predicting and predicts(model, basis) else None)
+
+    def predict() -> StepPrediction | None:
+        if predicting and not predicts(model, basis):
+            basis.ensure_frequency(predicting_hz(model), limit, affords_modes)
+            charge_modes()
+        return (predicted_step(model, basis, 'explicit', full_dt, horizon_s,
+                               PILOT_MARGIN * config.tolerance, None if config.dt else longest.dt)
+                if predicting and predicts(model, basis) else None)
+    predicted = predict()
     choice = None
     if not why:
         # a large scene's band solves for its modes as the budget affords (each solve charged)
@@ -192,6 +195,10 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
         if choice is None:
             why = (f'the modes its band needs (beyond the {basis.count} solved for) would '
                    f'cost more than {budget.describe_left()}')
+            # no plan is made: the set-up counted for it beyond its modes (their derivatives,
+            # a sample) is not spent, and may pay for the modes that predict the full run's step
+            budget.release(setup_work(model, sampled, 0))
+            predicted = predicted or predict()
     if measured and why:
         # a plan's set-up would cost more than it could save: the full run, before any plan
         window = min(pilot_window(model, basis.frequencies_hz[:1]), horizon_s)

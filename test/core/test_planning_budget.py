@@ -345,7 +345,10 @@ def test_the_modes_a_band_needs_are_solved_for_only_as_the_budget_affords(tmp_pa
     more: they were solved for (256, priced 0.76 s) whatever the budget (0.31 s) had left, the
     plan measured, and planning spent 2.6 times its budget before the full run was taken (the
     process 1.25 times ``--method full``'s). Each solve is now judged by what is left after the
-    last: none is made beyond it, and the full run is taken within the budget, saying why.
+    last: none is made beyond it, and the full run is taken within the budget, saying why. The
+    set-up counted for the plan beyond its modes, never made, pays for the modes that predict
+    the full run's step instead (solved for in one, as many as reach four times the drive):
+    the longer step, its start checked.
     """
     scene = demanding_scene(11, tmp_path)
     sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=0.01,
@@ -353,9 +356,14 @@ def test_the_modes_a_band_needs_are_solved_for_only_as_the_budget_affords(tmp_pa
     assert sim.method == 'full'
     assert 'the modes its band needs (beyond the 32 solved for) would cost more than' in (
         sim.pilot.reason), sim.pilot.reason
-    assert sim.basis.modes_solved == 32
     spent, limit = (float(x) for x in re.findall(r'([\d.]+) s', sim.pilot.planning)[:2])
     assert spent <= limit
+    # the prediction's modes: one solve beyond the first 32, reaching four times the drive
+    drive = float(MassSpringModel(scene).motion.frequencies_hz.max())
+    assert sim.basis.modes_solved == 32 + sim.basis.count
+    assert sim.basis.frequencies_hz[-1] >= 4.0 * drive
+    default = build_simulation(scene, SimulationConfig(method='full'))
+    assert sim.pilot.predicted and sim.dt >= 1.5 * default.dt, sim.pilot.reason
 
 
 def test_solving_for_more_modes_is_priced_and_refused_beyond_the_budget():

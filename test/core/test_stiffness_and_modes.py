@@ -107,6 +107,28 @@ def test_modes_up_to_a_frequency_are_solved_for_only_as_far_as_affordable():
     assert basis.count == grown and basis.frequencies_hz[-1] <= 10.0 * top
 
 
+@pytest.mark.parametrize('name', ['sheet_32x32', 'sheet_100x100'])
+def test_the_modes_reaching_a_frequency_are_estimated_from_how_their_count_grew(name):
+    """
+    ``reaching``: the count of the lowest modes up to a frequency, from the 32 there are.
+
+    On a sheet the count grows about as the square of the frequency: the estimate (a quarter
+    more) covers the modes really up to twice the highest, without twice as many again, and
+    ``ensure_frequency`` reaches there in one solve (doubling took two: 64, then 128).
+    """
+    model = MassSpringModel(load_scene(name))
+    basis = ModalBasis(model, initial_modes=32)
+    target = 2.0 * float(basis.frequencies_hz[-1])
+    estimate = basis.reaching(target)
+    richer = ModalBasis(model, initial_modes=min(4 * estimate, model.n_free_dof - 2))
+    needed = int(np.searchsorted(richer.frequencies_hz, target, side='right')) + 1
+    assert needed <= estimate <= 1.5 * needed
+    solved = basis.modes_solved
+    assert basis.ensure_frequency(target, 1000)
+    assert basis.modes_solved == solved + estimate and basis.frequencies_hz[-1] > target
+    assert ModalBasis(model, initial_modes=8).reaching(target) == 0     # too few to tell
+
+
 def _tie_broken_the_other_way(lowest):
     """Wrap ``ShiftInvertModes.lowest``: a mode with a tied largest pair comes back negated."""
     def wrapped(self, count):

@@ -115,6 +115,10 @@ class PlanningBudget:
         """Count ``work_us`` of planning (modelled us) as spent."""
         self.spent_us += work_us
 
+    def release(self, work_us: float) -> None:
+        """Give back ``work_us`` counted for work that was never done (a plan never made)."""
+        self.spent_us -= work_us
+
     def charge(self, sim: Simulation, seconds: float) -> None:
         """Count ``sim`` stepped over ``seconds`` of simulated time."""
         self.spend(work_per_second(sim) * seconds)

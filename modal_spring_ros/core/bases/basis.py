@@ -130,16 +130,34 @@ class ModalBasis:
         Make every mode up to ``max_hz`` available (at most ``max_modes``).
 
         ``affords`` (given how many modes the next solve solves for) may stop it before a solve:
-        the modes stay what they were, and the caller reads how far they reach.
+        the modes stay what they were, and the caller reads how far they reach. Each solve is
+        for twice the modes, or for as many as :meth:`reaching` estimates where that is more
+        (a solve is made afresh: reaching in one saves the ones between).
         """
         changed = False
         while (not self.complete and self.frequencies_hz[-1] <= max_hz
                and self.count < min(max_modes, self.n_dof - 2)):
-            count = min(max(2 * self.count, self.count + 16), max_modes, self.n_dof - 2)
+            count = min(max(2 * self.count, self.count + 16, self.reaching(max_hz)), max_modes,
+                        self.n_dof - 2)
             if affords is not None and not affords(self.to_solve(count)):
                 break
             changed |= self.ensure_count(count)
         return changed
+
+    def reaching(self, max_hz: float) -> int:
+        """
+        Estimate how many of the lowest modes reach ``max_hz``, a quarter more for safety.
+
+        From how the count grew with frequency over the upper half of the modes there are (a
+        power law: as the square of the frequency on a sheet or shell, the cube in a volume);
+        0 where there are too few to tell.
+        """
+        half = self.count // 2
+        f = self.frequencies_hz
+        if half < 8 or not 0.0 < f[half - 1] < f[-1]:
+            return 0
+        power = np.log(self.count / half) / np.log(f[-1] / f[half - 1])
+        return int(np.ceil(1.25 * self.count * (max_hz / f[-1]) ** power))
 
     def solve_stiffness(self, rhs: np.ndarray) -> np.ndarray:
         """
