@@ -86,14 +86,11 @@ def test_step_doubling_stops_where_halving_brings_nothing(skin):
     (it once halved without end).
     """
     full = build_simulation(skin, SimulationConfig(method='full'))
-
-    def at(dt: float, sample_s: float):
-        return on_samples(full, sample_s, dt)
     samples = int(round(RUN_S / SAMPLE_S))
     seen: list[float] = []
 
     def stepped_at(dt: float, sample_s: float):
-        sim = at(dt, sample_s)
+        sim = on_samples(full, sample_s, dt)
         seen.append(sim.dt)
         return sim
     sim, error = by_step_doubling(stepped_at, SAMPLE_S, samples, RUN_S, 0.003, math.inf,
