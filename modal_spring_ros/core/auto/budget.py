@@ -51,13 +51,13 @@ MIN_CHECK_SAMPLES = 2
 #: The full reference over a window costs its run at a step and at half of it: three runs' worth.
 REFERENCE_RUNS = 3.0
 #: Why a run whose error does not shrink as its step is halved has none measured.
+_DEFAULT_STEP = "the default step, as '--method full' runs it"
 UNCONVERGED = ('its runs do not converge as the step is halved: the motion amplifies its '
                "differences (buckling, large strain, chaos), so no step's error over the run "
-               "can be promised; the default step, as '--method full' runs it")
+               f'can be promised; {_DEFAULT_STEP}')
 #: Why a run whose start moved far beyond its modes' prediction has no error measured.
 BEYOND_MODES = ('its start moved far beyond what its modes predict, and says nothing of the '
-                'rest of the run, which would cost more to check than to run; the default step, '
-                "as '--method full' runs it")
+                f'rest of the run, which would cost more to check than to run; {_DEFAULT_STEP}')
 
 
 @dataclasses.dataclass
@@ -256,10 +256,10 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     0.01 % was predicted) is no smooth motion: no step's error is scaled from another's there,
     and where such a start passes its check it says nothing of the rest of the run (whose
     finer runs may part by 30 %): the default step is run, its error not measured, said why
-    (``BEYOND_MODES``). Where
-    halving the step stops shrinking its error (:func:`~.full_candidate.by_step_doubling`
-    stalls), the run converges in no step: the default step, its error not measured
-    (``UNCONVERGED``), planning bounded (it once halved without end).
+    (``BEYOND_MODES``). Where halving the step stops shrinking its error
+    (:func:`~.full_candidate.by_step_doubling` stalls), the run converges in no step: the
+    default step, its error not measured (``UNCONVERGED``), planning bounded (it once halved
+    without end).
     """
     sample_s = window_s / samples
     step = default_dt

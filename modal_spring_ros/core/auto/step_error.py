@@ -58,7 +58,7 @@ QUASI_STATIC = 4.0
 #: A start measured within this many times its predicted error agrees with the prediction (over
 #: starts of random scenes the prediction was 0.8-1.2 times the measured error).
 AGREEMENT = 1.5
-#: A start off its prediction by more than this many times moves beyond the modes' linear
+#: A start off its prediction by more than this many times moved beyond the modes' linear
 #: motion (large strain, buckling): it never confirms the prediction, and no step's error is
 #: scaled from another's there.
 NONLINEAR = 10.0
@@ -311,8 +311,9 @@ class StepPrediction:
         """
         Tell whether a start that measured ``measured`` moved beyond what the modes predict.
 
-        ``NONLINEAR`` times the error predicted over the start (its first ``over_s``) or more,
-        and more than a tenth of what is ``allowed`` (below it, any start is smooth enough).
+        More than ``NONLINEAR`` times the error predicted over the start (its first
+        ``over_s``), and more than a tenth of what is ``allowed`` (below it, any start is
+        smooth enough).
         """
         return measured > max(NONLINEAR * self.start_error(dt, over_s), 0.1 * allowed)
 
