@@ -169,7 +169,7 @@ def test_a_richer_plan_as_reference_is_checked_against_the_full_run_over_the_win
     against the full run over the window's start, it measures 1.3 %, and the full run is
     chosen, within the tolerance.
     """
-    monkeypatch.setattr(pilot, 'REFERENCE_WORK', 1e5)
+    monkeypatch.setattr(pilot, 'REFERENCE_WORK', 1.35e5)   # the start affordable, not the whole
     scene = load_scene('sheet_10x10_swing')
     sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
                                                    max_modes=4))

@@ -6,19 +6,26 @@ with what), by its constants, and by what refreshed forces really evaluated.
 """
 from __future__ import annotations
 
+import dataclasses
+
 from modal_spring_ros.core.auto import work_model
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
+from modal_spring_ros.core.integrators import AverageAcceleration
+from modal_spring_ros.core.model.scene import Damping
+from modal_spring_ros.core.simulations.full import DampingEntries, RATIO_MODES
 from modal_spring_ros.scenes.resources import load_scene
+from modal_spring_ros.scenes.sized import sized_scene
 import pytest
 
 
-def _modal(scene, modes: int, refresh: int = 1, dt: float = 1e-3):
+def _modal(scene, modes: int, refresh: int = 1, dt: float = 1e-3, integrator='explicit'):
     return build_simulation(scene, SimulationConfig(
         method='modal', basis='rest', band=FilterBand('lowpass', 0, modes, by='index'),
-        forces='refreshed' if refresh > 1 else 'exact', force_refresh=refresh, dt=dt))
+        forces='refreshed' if refresh > 1 else 'exact', force_refresh=refresh, dt=dt,
+        integrator=integrator))
 
 
 def test_the_model_grows_with_what_a_step_does():
@@ -30,7 +37,8 @@ def test_the_model_grows_with_what_a_step_does():
         2.0 * work_per_second(few))
     full = build_simulation(scene, SimulationConfig(method='full', dt=1e-3))
     expected = (work_model.STEP_US['full'] + work_model.SPRING_US['full'] * scene.n_springs
-                + work_model.DOF_US * full.model.n_free_dof) / 1e-3
+                + work_model.DOF_US * full.model.n_free_dof
+                + work_model.DENSE_US * full.model.n_free_dof ** 2) / 1e-3   # its modal ratio
     assert work_per_second(full) == pytest.approx(expected)
 
 
@@ -47,3 +55,58 @@ def test_refreshed_forces_cost_what_they_evaluated():
     # every evaluation it made is paid for: the model moves between its two bounds
     fixed = work_per_second(refreshed)
     assert work_per_second(_modal(scene, 20, refresh=8)) <= fixed <= work_per_second(exact)
+
+
+def _full_sheet(side: int, damping: Damping):
+    scene = dataclasses.replace(sized_scene('sheet', side), damping=damping)
+    return build_simulation(scene, SimulationConfig(method='full'))
+
+
+def test_a_full_run_pays_for_its_damping_as_its_step_multiplies_it():
+    """A modal ratio or a ``beta K`` term costs a full step more than mass-proportional damping."""
+    mass = _full_sheet(18, Damping(rayleigh_alpha=1.2))
+    assert mass.damping_entries == DampingEntries()
+    # 612 free DOF: every mode, and one n x n matrix multiplied each step
+    every = _full_sheet(18, Damping(ratio=0.02))
+    n = every.model.n_free_dof
+    assert every.basis.complete and every.damping_entries == DampingEntries(dense=n * n)
+    every.step()
+    assert every._ops._explicit_b.shape == (n, n)
+    assert work_per_second(every) == pytest.approx(
+        work_per_second(mass.with_dt(every.dt)) + work_model.DENSE_US * n * n / every.dt)
+    # 1,104 free DOF: the lowest modes' four products and a mass-proportional term beyond
+    lowest = _full_sheet(24, Damping(ratio=0.02))
+    n = lowest.model.n_free_dof
+    assert not lowest.basis.complete
+    assert lowest.damping_entries == DampingEntries(low_rank=4 * n * RATIO_MODES)
+    # a stiffness-proportional term: a product with K and a solve with the factor, per step
+    stiff = _full_sheet(18, Damping(rayleigh_alpha=1.2, rayleigh_beta=1e-5))
+    k = stiff.model.stiffness_free
+    assert stiff.damping_entries == DampingEntries(stiffness=k.nnz)
+    ratio_stiff = _full_sheet(24, Damping(ratio=0.02, rayleigh_beta=1e-5))
+    assert ratio_stiff.damping_entries == DampingEntries(
+        low_rank=4 * n * RATIO_MODES, stiffness=ratio_stiff.model.stiffness_free.nnz)
+    assert (work_per_second(mass) < work_per_second(stiff.with_dt(mass.dt))
+            and work_per_second(mass) < work_per_second(every.with_dt(mass.dt)))
+
+
+def test_an_implicit_step_pays_for_each_force_evaluation_of_its_iteration():
+    """Average acceleration iterates: priced at its guess, then at the evaluations it made."""
+    scene = load_scene('sheet_32x32')
+    explicit, average = _modal(scene, 30), _modal(scene, 30, integrator='average')
+    fixed = work_model.STEP_US['modal'] + work_model.COORDINATE_US * explicit.coordinates
+
+    def evaluation_share(sim) -> float:   # per step, over an explicit step's
+        return (work_per_second(sim) * 1e-3 - fixed) / (work_per_second(explicit) * 1e-3 - fixed)
+    assert explicit.evaluations_per_step == 1.0
+    assert evaluation_share(average) == pytest.approx(AverageAcceleration.evaluations_per_step)
+    made = 0
+    for _ in range(60):
+        average.step()
+        made += average.last_iterations
+    assert made > 60 and average.evaluations_per_step == made / 60
+    assert evaluation_share(average) == pytest.approx(made / 60)
+    explicit.step(60)
+    assert explicit.evaluations_per_step == 1.0
+    average.reset()
+    assert average.evaluations_per_step == AverageAcceleration.evaluations_per_step

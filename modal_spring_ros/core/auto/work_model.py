@@ -28,6 +28,14 @@ TURNING_STEP_US = {'full': 56.0, 'modal': 38.0}
 SPRING_US = {'full': 0.025, 'modal': 0.037}
 DOF_US = 0.0
 COORDINATE_US, TURNING_PAIR_US, EVALUATION_US, PROJECTION_US = 0.106, 0.0046, 3.8, 0.00009
+#: A full step's damping beyond a diagonal one, per entry it multiplies (its
+#: :class:`~modal_spring_ros.core.simulations.full.DampingEntries`), fitted to explicit full runs
+#: of sheets and blocks of 180 to 9,660 free DOF (single-threaded BLAS), each against the same
+#: scene with mass-proportional damping: a modal ratio over every mode (its n x n matrix:
+#: 0.00033-0.00036 us an entry), over the lowest modes (0.00019-0.00028 us an entry of their
+#: four products), and a ``beta K`` term (its product and its factor's solve: 0.0046-0.0061 us
+#: per stored entry of ``K``). Unpriced, these made such a full run cost 1.1-5.2 times its model.
+DENSE_US, LOW_RANK_US, STIFFNESS_US = 0.00034, 0.00026, 0.0057
 
 
 def work_per_second(sim: Simulation) -> float:
@@ -39,23 +47,31 @@ def work_per_second(sim: Simulation) -> float:
     the springs so far (a strain bound or a restart evaluates more often than every
     ``force_refresh`` steps; the pilot has stepped every plan it compares), ``1 / force_refresh``
     before the first step. A sampled plan is taken to evaluate about four springs per
-    coordinate (its sample is trained only once the plan is chosen).
+    coordinate (its sample is trained only once the plan is chosen). An implicit step pays for
+    each force evaluation of its iteration (:attr:`Simulation.evaluations_per_step`: counted
+    once stepped, as the pilot has; the integrator's guess before). A full run's damping is
+    priced as its explicit step multiplies it (``DENSE_US``; auto's full runs are explicit).
     """
     model = sim.model
     springs = model.scene.n_springs
     kind = 'full' if sim.method == 'full' else 'modal'
     fixed = STEP_US[kind] + (TURNING_STEP_US[kind] if model.rotates else 0.0)
+    evaluations = sim.evaluations_per_step
     if kind == 'full':
-        return (fixed + SPRING_US['full'] * springs + DOF_US * model.n_free_dof) / sim.dt
+        damping = sim.damping_entries
+        return (fixed + SPRING_US['full'] * springs * evaluations + DOF_US * model.n_free_dof
+                + DENSE_US * damping.dense + LOW_RANK_US * damping.low_rank
+                + STIFFNESS_US * damping.stiffness) / sim.dt
     coords = sim.coordinates
     fixed += COORDINATE_US * coords + (TURNING_PAIR_US * coords * coords if model.rotates
                                        else 0.0)
     if sim.forces.model == 'sampled':
         evaluated = float(min(springs, 4 * coords))
-        per_step = (fixed + EVALUATION_US + SPRING_US['modal'] * evaluated
-                    + PROJECTION_US * evaluated * 2 * model.dimension * coords)
+        per_step = fixed + evaluations * (
+            EVALUATION_US + SPRING_US['modal'] * evaluated
+            + PROJECTION_US * evaluated * 2 * model.dimension * coords)
     else:
         evaluation = (EVALUATION_US + SPRING_US['modal'] * springs
                       + PROJECTION_US * model.n_free_dof * coords)
-        per_step = fixed + sim.evaluated_share * evaluation
+        per_step = fixed + evaluations * sim.evaluated_share * evaluation
     return per_step / sim.dt

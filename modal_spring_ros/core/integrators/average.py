@@ -27,6 +27,8 @@ MAX_ITERATIONS = 25
 
 class AverageAcceleration(Integrator):
     name = 'average'
+    #: measured: 4 on sheet_32x32 at steps of 0.2 and 1 ms, 5 at 4 ms (its iterations)
+    evaluations_per_step = 4.0
 
     @classmethod
     def stable_step(cls, omega_max: float) -> float:

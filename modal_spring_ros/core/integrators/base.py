@@ -60,6 +60,9 @@ class Integrator(abc.ABC):
 
     #: registry name
     name: ClassVar[str]
+    #: force evaluations a step is taken to make before any is counted (what the work model
+    #: prices a run not yet stepped at)
+    evaluations_per_step: ClassVar[float] = 1.0
 
     @classmethod
     @abc.abstractmethod

@@ -113,6 +113,7 @@ class Simulation(LoadHolder, abc.ABC):
         self.damping = model.scene.damping if damping is None else damping
         self.strain_limit = float(strain_limit)
         self.time, self.steps, self._t0, self.last_iterations = 0.0, 0, 0.0, 1
+        self._evaluations = 0     # force evaluations of the steps counted in ``steps``
         self.diverged: DivergenceError | None = None
         self.loads, self.frame_poses = {}, {}
 
@@ -125,6 +126,18 @@ class Simulation(LoadHolder, abc.ABC):
     #: what the run is watched against while it runs (:class:`~modal_spring_ros.core.auto.
     #: run_watch.WatchReference`), on a modal run the automatic choice chose; None otherwise
     watch_reference = None
+
+    @property
+    def evaluations_per_step(self) -> float:
+        """
+        Return the force evaluations a step has made so far (an implicit step iterates).
+
+        Before the first step (or after a reset), what the integrator is taken to make
+        (:attr:`~modal_spring_ros.core.integrators.base.Integrator.evaluations_per_step`).
+        """
+        if not self.steps:
+            return float(self._integrator.evaluations_per_step)
+        return self._evaluations / self.steps
 
     @property
     def band(self) -> FilterBand:
@@ -273,7 +286,7 @@ class Simulation(LoadHolder, abc.ABC):
         if self.time or self.steps:
             self.model.restart_clamp()
         self.time = self._t0 = 0.0
-        self.steps = 0
+        self.steps = self._evaluations = 0
         self.diverged = None
         placed = self.loads.get(ContactLoad.name)     # colliders stay where they were put
         self.loads = {k: v.placed_as(placed) for k, v in self._scene_loads().items()}
@@ -315,7 +328,7 @@ class Simulation(LoadHolder, abc.ABC):
 
     def take_over(self, other: 'Simulation') -> None:
         """Continue from another simulation's physical state and time (a settings change)."""
-        self._t0, self.steps, self.time = other.time, 0, other.time
+        self._t0, self.steps, self.time, self._evaluations = other.time, 0, other.time, 0
         self.loads = {**other.loads, **self._scene_loads(other.loads.get(ContactLoad.name))}
         self.frame_poses = other.frame_poses
         self.set_state(other.displacement(), other.velocity())
@@ -388,6 +401,7 @@ class Simulation(LoadHolder, abc.ABC):
 
     def _commit(self) -> None:
         self.steps += 1
+        self._evaluations += self.last_iterations
         self.time = self._t0 + self.steps * self.dt
         self.diverged = None
         if any(load.keeps_state for load in self.loads.values()):

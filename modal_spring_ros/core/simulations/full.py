@@ -6,6 +6,8 @@ what modal runs are compared with. With every mode kept, the two agree to round-
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces.exact import ExactForces
@@ -24,6 +26,21 @@ import scipy.sparse as sp
 #: Lowest modes a full run of a scene too large for every mode damps exactly by its modal
 #: ratio; beyond them the ratio's mass-proportional match at the highest of them takes over.
 RATIO_MODES = 32
+
+
+class DampingEntries(NamedTuple):
+    """
+    Entries an explicit full step multiplies for its damping, beyond the springs' forces.
+
+    ``dense``: of the n x n matrix of a modal ratio over every mode; ``low_rank``: of the
+    products with the lowest modes' ``n x k`` shapes (a ratio on a scene too large for every
+    mode); ``stiffness``: stored entries of ``K``, once per product with ``beta K`` and solve
+    with the factor of ``M + dt/2 C`` (a stiffness-proportional term).
+    """
+
+    dense: int = 0
+    low_rank: int = 0
+    stiffness: int = 0
 
 
 class PhysicalOperators:
@@ -77,6 +94,16 @@ class PhysicalOperators:
         self._alpha = alpha
         self._explicit = None
         self._average = None
+
+    def explicit_entries(self) -> DampingEntries:
+        """Return what an explicit step multiplies for its damping (:class:`DampingEntries`)."""
+        n = self.m.size
+        if self._modal is not None:   # B (dt/2 f + M v): one n x n product
+            return DampingEntries(dense=n * n)
+        # U^T v and U (D ...) in the damping, two more in the Woodbury solve
+        low = 4 * n * self._low[1].size if self._low is not None else 0
+        # C v and a solve with the factor of M + dt/2 C (not diagonal where C has beta K)
+        return DampingEntries(low_rank=low, stiffness=0 if self._mass_only else self.k.nnz)
 
     def _modal_solve(self, rhs, diag):
         phi = self._modal[0]
@@ -186,6 +213,11 @@ class FullSimulation(Simulation):
     @property
     def coordinates(self) -> int:
         return self.model.n_free_dof
+
+    @property
+    def damping_entries(self) -> DampingEntries:
+        """What an explicit step multiplies for its damping (what the work model prices)."""
+        return self._ops.explicit_entries()
 
     def describe_band(self) -> str:
         return 'full'
