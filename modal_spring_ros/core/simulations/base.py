@@ -132,12 +132,10 @@ class Simulation(LoadHolder, abc.ABC):
         """
         Return the force evaluations a step has made so far (an implicit step iterates).
 
-        Before the first step (or after a reset), what the integrator is taken to make
-        (:attr:`~modal_spring_ros.core.integrators.base.Integrator.evaluations_per_step`).
+        Before the first step (or after a reset), what the integrator is taken to make.
         """
-        if not self.steps:
-            return float(self._integrator.evaluations_per_step)
-        return self._evaluations / self.steps
+        return (self._evaluations / self.steps if self.steps
+                else float(self._integrator.evaluations_per_step))
 
     @property
     def band(self) -> FilterBand:
@@ -160,13 +158,7 @@ class Simulation(LoadHolder, abc.ABC):
 
     @property
     def mode_choice(self):
-        """
-        Return the automatic mode choice that set this run's modes, or None.
-
-        The automatic mode choice (a
-        :class:`~modal_spring_ros.core.bases.mode_selection.ModeChoice`) that set this run's
-        modes, or None.
-        """
+        """Return the automatic mode choice (a ``ModeChoice``) of this run's modes, or None."""
         return None
 
     @property
@@ -216,9 +208,8 @@ class Simulation(LoadHolder, abc.ABC):
         """
         Check ``band`` and do the slow part of switching to it ahead.
 
-        Check ``band`` and do the slow part of switching to it ahead (computing the modes it needs,
-        building operators), from any thread, while the run goes on. Changes no state of the run;
-        :meth:`set_band` then finds the work done.
+        (computing the modes it needs, building operators), from any thread, while the run goes
+        on. Changes no state of the run; :meth:`set_band` then finds the work done.
 
         :raises BandError: the band keeps no mode.
         :raises UnstableStepError: its highest mode is unstable at this ``dt`` (explicit), named
