@@ -54,6 +54,28 @@ def test_out_of_work_it_returns_the_coarser_run_with_its_estimate(sheet):
     assert achieved == pytest.approx(estimate, rel=0.05)
 
 
+def test_a_halving_beyond_its_work_is_not_run(sheet, monkeypatch):
+    """The first pair always runs; a finer run only where the work stays within its bound."""
+    full, _ = sheet
+    calls = []
+
+    def counted(*args, **kwargs):
+        calls.append(args[0].dt)
+        return trajectory(*args, **kwargs)
+    monkeypatch.setattr(full_candidate, 'trajectory', counted)
+    first = full(math.inf, SAMPLE_S)
+    pair = work_per_second(first) + work_per_second(full(first.dt / 2.0, SAMPLE_S))
+    # the pair and one halving afforded, not the next (its run would pass the bound)
+    within = pair + work_per_second(full(first.dt / 4.0, SAMPLE_S)) * 1.5
+    sim, estimate = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES, 1e-12, within)
+    assert calls == pytest.approx([first.dt, first.dt / 2.0, first.dt / 4.0], rel=1e-6)
+    # the finest pair's coarser run, with its estimate (beyond the budget: it says so)
+    assert sim.dt == pytest.approx(first.dt / 2.0) and estimate > 1e-12
+    calls.clear()
+    sim, estimate = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES, 1e-12, 0.0)
+    assert len(calls) == 2 and sim.dt == pytest.approx(first.dt)     # the pair: no bound
+
+
 def test_a_second_look_at_the_same_start_steps_only_what_it_has_not(sheet, monkeypatch):
     """The runs' samples kept between looks: the start's pair once, then only finer runs."""
     full, _ = sheet

@@ -46,6 +46,10 @@ SMALL_RUN_US = 1e6
 #: sample's training 200 us per spring at 0.3 %): per free DOF and mode solved; per free DOF;
 #: per spring (each plan of other coordinates trains its own).
 SETUP_US = {'modes': 1.35, 'derivatives': 140.0, 'training': 200.0}
+#: What a search for the step over the whole window may spend whatever its run costs (us,
+#: modelled): a small scene whose default step misses may need a tenth to a fortieth of it
+#: (random scene 0 over 3 s: 13 s of runs for the step that meets 1 %, its run 0.12 s).
+SEARCH_FLOOR_US = 3e7
 #: A step-doubling check of the full run covers at least this many samples.
 MIN_CHECK_SAMPLES = 2
 #: The full reference over a window costs its run at a step and at half of it: three runs' worth.
@@ -55,6 +59,9 @@ _DEFAULT_STEP = "the default step, as '--method full' runs it"
 UNCONVERGED = ('its runs do not converge as the step is halved: the motion amplifies its '
                "differences (buckling, large strain, chaos), so no step's error over the run "
                f'can be promised; {_DEFAULT_STEP}')
+#: Why a run whose step the whole window's search did not find has no error measured.
+NOT_FOUND = ('halving its step over the whole window found none within the tolerance at what '
+             f'the run itself costs; {_DEFAULT_STEP}')
 #: Why a run whose start moved far beyond its modes' prediction has no error measured.
 BEYOND_MODES = ('its start moved far beyond what its modes predict, and says nothing of the '
                 f'rest of the run, which would cost more to check than to run; {_DEFAULT_STEP}')
@@ -259,7 +266,10 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     (``BEYOND_MODES``). Where halving the step stops shrinking its error
     (:func:`~.full_candidate.by_step_doubling` stalls), the run converges in no step: the
     default step, its error not measured (``UNCONVERGED``), planning bounded (it once halved
-    without end).
+    without end). The whole window's search costs at most what the run does at its default step
+    (or ``SEARCH_FLOOR_US``): where it finds no step within that, the default step, its error
+    not measured (``NOT_FOUND``; a soft mesh turned 90 degrees once searched it for over 8
+    minutes, the run at the default step costing 33 s, its halved runs still 49 % apart).
     """
     sample_s = window_s / samples
     step = default_dt
@@ -361,8 +371,14 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     if missed and count < samples:
         reason += (f'; the step missed the tolerance over the first {checked_s:.2g} s: the step '
                    'needed was sought over the whole window, beyond the budget')
-        sim, error = doubling(samples, horizon_s, allowed, math.inf, sim.dt)
+        # at most what the run costs at its default step, or ``SEARCH_FLOOR_US``
+        run_us = max(horizon_s * work_per_second(full(default_dt, sample_s)), SEARCH_FLOOR_US)
+        sim, error = doubling(samples, horizon_s, allowed, run_us / window_s, sim.dt)
         checked_s, over_s, grown = window_s, horizon_s, None
+        if allowed < error < math.inf:
+            reason += (f', and not found at what the run itself costs ({error:.2%} at '
+                       f'{sim.dt:.3g} s)')
+            return unmeasured(NOT_FOUND)
     if math.isinf(error):       # halving brings nothing, or a run diverged
         return unmeasured(UNCONVERGED)
     run_error = over_run(error, sim.dt)

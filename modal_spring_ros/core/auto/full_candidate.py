@@ -63,16 +63,16 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
     Return the full run at the longest step its own step doubling puts within ``budget``.
 
     From the longest stable step (or ``first_dt``), halved while the estimate (four thirds of
-    the difference to
-    the run at half the step, over ``horizon_s`` as :func:`horizon_error` extrapolates it) is
-    over the budget and the runs' modelled work (us per simulated second, summed) stays within
-    ``work_per_s``. Where it never meets the budget, the finest run measured is returned with
-    its estimate, which then says so. Where ``STALLS`` halvings in a row each leave more than
-    ``STALLED`` of the estimate, the run does not converge in its step (a motion that
-    amplifies its differences: halving costs twice as much and brings nothing): the first run
-    is returned, its error infinite, as where a run diverges. ``stepped``: the runs' samples
-    kept between calls (by step and count), so that a second look at the same start steps
-    nothing again.
+    the difference to the run at half the step, over ``horizon_s`` as :func:`horizon_error`
+    extrapolates it) is over the budget and the runs' modelled work (us per simulated second,
+    summed) stays within ``work_per_s``: the first pair is always run, a finer run only where
+    it keeps within it. Where it never meets the budget, the finest pair's coarser run is
+    returned with its estimate, which then says so. Where ``STALLS`` halvings in a row each
+    leave more than ``STALLED`` of the estimate, the run does not converge in its step (a
+    motion that amplifies its differences: halving costs twice as much and brings nothing):
+    the first run is returned, its error infinite, as where a run diverges. ``stepped``: the
+    runs' samples kept between calls (by step and count), so that a second look at the same
+    start steps nothing again.
     """
     share = 1.0 / (1.0 - 0.5 ** STEP_ORDER)       # the coarse run's error / the difference
     stepped = {} if stepped is None else stepped
@@ -87,9 +87,12 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
     first = coarse = full(first_dt, sample_s)
     coarse_run = run(coarse)
     spent = work_per_second(coarse)
+    last = None     # the last pair's coarser run and its estimate
     while True:
         fine = full(coarse.dt / 2.0, sample_s)
         spent += work_per_second(fine)
+        if last is not None and spent > work_per_s:
+            return last
         fine_run = run(fine)
         if fine_run is None:
             return coarse, math.inf
@@ -99,4 +102,5 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
         stalls = stalls + 1 if error > STALLED * before else 0
         if stalls >= STALLS:
             return first, math.inf
+        last = (coarse, error)
         coarse, coarse_run, before = fine, fine_run, error
