@@ -216,7 +216,7 @@ class FullSimulation(Simulation):
 
     @property
     def damping_entries(self) -> DampingEntries:
-        """What an explicit step multiplies for its damping (what the work model prices)."""
+        """Return what an explicit step multiplies for its damping (the work model prices it)."""
         return self._ops.explicit_entries()
 
     def describe_band(self) -> str:
