@@ -178,7 +178,7 @@ def test_a_search_over_the_whole_window_costs_at_most_what_the_run_does(monkeypa
     finer run costs twice the last, and its halved runs still parted by 49 %. Here random
     scene 0 over 3 s with its prediction made blind (its step needs a fortieth of the
     stability limit, 13 s of runs to find), the search allowed 2 s: the default step is run,
-    its error not measured, said why, and the search's runs stay within what it was allowed.
+    its error not measured, said why, and the search is bounded by what it was allowed.
     """
     monkeypatch.setattr(StepErrorPredictor, '_run', lambda self, dt: self._exact)
     monkeypatch.setattr(budget_module, 'SEARCH_FLOOR_US', 2e6)

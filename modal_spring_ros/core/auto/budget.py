@@ -54,8 +54,9 @@ SEARCH_FLOOR_US = 3e7
 MIN_CHECK_SAMPLES = 2
 #: The full reference over a window costs its run at a step and at half of it: three runs' worth.
 REFERENCE_RUNS = 3.0
-#: Why a run whose error does not shrink as its step is halved has none measured.
+#: What a run whose error is not measured takes, in each reason's words.
 _DEFAULT_STEP = "the default step, as '--method full' runs it"
+#: Why a run whose error does not shrink as its step is halved has none measured.
 UNCONVERGED = ('its runs do not converge as the step is halved: the motion amplifies its '
                "differences (buckling, large strain, chaos), so no step's error over the run "
                f'can be promised; {_DEFAULT_STEP}')
