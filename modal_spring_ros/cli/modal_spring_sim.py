@@ -123,6 +123,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def watched_line(window: WatchedWindow, now) -> str:
     """Say what one watched window measured, and what the run does about it."""
+    if window.amplifying:
+        return f'WARN: watched: {window.describe()}'
     if window.within:
         return f'watched: {window.describe()}'
     return (f'WARN: watched: {window.describe()}, beyond the tolerance '

@@ -16,6 +16,7 @@ from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.pilot import Pilot, PILOT_MARGIN, SAMPLES as PILOT_SAMPLES
 from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PlanSettings
+from modal_spring_ros.core.auto.run_watch import twin_reference
 from modal_spring_ros.core.auto.step_error import (predicted_step, predicting_hz, predicts,
                                                    StepPrediction)
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis, Progress
@@ -205,6 +206,7 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
         sim, report = unplanned_full(full, budget, full_dt, window, horizon_s, config.tolerance,
                                      PILOT_MARGIN, PILOT_SAMPLES, why, predicted)
         sim.pilot = dataclasses.replace(report, planning=budget.describe())
+        sim.watch_reference = twin_reference(sim, config.tolerance)
         return sim
     if choice is None:
         choice = choose_modes(model, basis, config.band, config.tolerance, max_modes=limit)
@@ -245,8 +247,8 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     sim, report = pilot.run(plan)
     planning = False
     sim.pilot = report
-    if report.method == 'modal':
-        sim.watch_reference = pilot.watch_reference(sim)
+    sim.watch_reference = (pilot.watch_reference(sim) if report.method == 'modal'
+                           else twin_reference(sim, config.tolerance))
     return sim
 
 

@@ -6,7 +6,9 @@ import sys
 
 from helpers import HIDE_ROS, variant
 from modal_spring_ros.cli.common import parse_mode_range, progress_bar, progress_lines, run_main
-from modal_spring_ros.cli.modal_spring_sim import main
+from modal_spring_ros.cli.modal_spring_sim import main, watched_line
+from modal_spring_ros.core.auto.amplification import UNBOUNDED
+from modal_spring_ros.core.auto.run_watch import WatchedWindow
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
@@ -323,3 +325,13 @@ def test_running_out_of_memory_is_one_line_and_exit_2(capsys):
     assert capsys.readouterr().err == ('modal_spring_sim: error: not enough memory: Unable to '
                                        'allocate 22.4 GiB for an array with shape '
                                        '(3000000, 1000)\n')
+
+
+def test_an_amplifying_window_is_a_warning_that_keeps_the_run():
+    calm = WatchedWindow(2.0, 0.25, 0.002, 0.01, 'the full run', growth=0.1)
+    wild = WatchedWindow(2.0, 0.25, 0.002, 0.01, 'the full run', growth=9.0)
+    assert not calm.amplifying and watched_line(calm, None).startswith('watched: 0.20% ')
+    assert wild.amplifying and wild.within           # its error met: not fallen back
+    line = watched_line(wild, None)
+    assert line.startswith('WARN: watched: 0.20% ') and 'e-fold every 0.11 s' in line
+    assert line.endswith(UNBOUNDED)

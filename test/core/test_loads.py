@@ -10,10 +10,10 @@ from __future__ import annotations
 import math
 
 from helpers import oscillator
-from modal_spring_ros.core.auto.run_watch import _State
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.loads.pull import make_pull
+from modal_spring_ros.core.simulations import RunState
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -56,7 +56,7 @@ def test_the_run_holds_its_loads_by_name_and_a_reset_clears_them():
     sim.step(10)
     other.take_over(sim)
     assert other.loads == sim.loads and other.loads is not sim.loads
-    assert _State.of(sim).loads == sim.loads
+    assert RunState.of(sim).loads == sim.loads
     sim.set_load('wind', None)
     assert set(sim.loads) == {'pull'} and set(other.loads) == {'wind', 'pull'}
     sim.reset()

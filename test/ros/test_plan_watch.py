@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from modal_spring_ros.core.auto import amplification
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.filter_band import FilterBand
@@ -93,3 +94,16 @@ def test_a_watch_that_fails_is_said_and_the_run_goes_on(plan):
     step_watched(watch, sim, 1.5)
     assert sim.time >= 1.5 and watch.report()['watch_beyond'] == (
         "the automatic plan is no longer watched: RuntimeError('no reference today')")
+
+
+def test_a_motion_that_amplifies_its_differences_is_a_warning_not_a_fallback(plan, monkeypatch):
+    """Any growth counts as amplifying here: the window is reported, the run goes on."""
+    monkeypatch.setattr(amplification, 'AMPLIFYING_PER_S', -math.inf)
+    fallen = []
+    watch = PlanWatch(lambda window, settings: fallen.append((window, settings)))
+    sim = run_of(plan)
+    step_watched(watch, sim, 2.5)
+    report = watch.report()
+    assert not fallen and report['watch_beyond'].startswith('automatic plan: watched ')
+    assert report['watch_beyond'].endswith(amplification.UNBOUNDED)
+    assert report['watched'].startswith('2 windows: last ')

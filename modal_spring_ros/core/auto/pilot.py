@@ -209,7 +209,7 @@ class Pilot:
         work = work_per_second(sim)
         return WatchReference(reference, fallback, settings, against.split(' and ')[0],
                               sample_s, samples, self._shared(sim), self.tolerance, work,
-                              work + work_per_second(reference()))
+                              2.0 * work + work_per_second(reference()))
 
     # -- internals -----------------------------------------------------------------------------
     def _unplanned(self, reason: str) -> tuple[Simulation, PilotReport]:

@@ -16,11 +16,13 @@ from modal_spring_ros.core.simulations.base import (check_step, DEFAULT_STRAIN_L
 from modal_spring_ros.core.simulations.full import FullSimulation
 from modal_spring_ros.core.simulations.modal import ModalSimulation
 from modal_spring_ros.core.simulations.modal_settings import ModalSettings
+from modal_spring_ros.core.simulations.run_state import RunState
 
 #: method name -> class
 METHODS: dict[str, type[Simulation]] = {
     cls.method: cls for cls in (ModalSimulation, FullSimulation)}
 
 __all__ = ['DEFAULT_MAX_MODES', 'DEFAULT_STRAIN_LIMIT', 'METHODS', 'MIN_DT_S',
-           'DivergenceError', 'FullSimulation', 'ModalSettings', 'ModalSimulation', 'Simulation',
-           'SimulationStatus', 'UnstableStepError', 'check_step', 'stable_step_limit']
+           'DivergenceError', 'FullSimulation', 'ModalSettings', 'ModalSimulation', 'RunState',
+           'Simulation', 'SimulationStatus', 'UnstableStepError', 'check_step',
+           'stable_step_limit']

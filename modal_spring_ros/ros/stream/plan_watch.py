@@ -6,7 +6,9 @@ state. The node steps its shadow runs between two frames, on the simulation thre
 the run's model and basis, and no other thread steps), until the next frame is due, so a frame
 is never late for them. A window beyond the tolerance is handed to ``on_beyond``: the node falls
 back by setting its own parameters (so that they, the parameter events and a capture say what
-runs), and ``/diagnostics`` says so with a WARN for ``BEYOND_REPORT_S``.
+runs), and ``/diagnostics`` says so with a WARN for ``BEYOND_REPORT_S``. A window where the
+motion amplified its differences (its error is not bounded, whatever runs) is a WARN as long,
+and the run goes on.
 
 A run is watched while it is the automatic plan the pilot measured: a band changed by hand on it
 is no longer that plan (it is not watched again until a new plan is made), a reset or a
@@ -96,7 +98,11 @@ class PlanWatch:
             self._beyond = (f'the automatic plan is no longer watched: {exc!r}',
                             time.monotonic())
             return
-        if window is None or window.within:
+        if window is None:
+            return
+        if window.amplifying:          # reported, not fallen back: no other run would hold it
+            self._beyond = (f'automatic plan: watched {window.describe()}', time.monotonic())
+        if window.within:
             return
         settings = dict(sim.watch_reference.fallback_settings)
         self._beyond = (beyond_message(window, settings), time.monotonic())
