@@ -17,7 +17,7 @@ import math
 from helpers import write_obj
 from modal_spring_ros.core.auto.amplification import (AMPLIFYING_PER_S, describe_rate,
                                                       FLOOR_M, Growth, perturbed, RELATIVE,
-                                                      UNBOUNDED)
+                                                      start_growth, UNBOUNDED)
 from modal_spring_ros.core.auto.run_watch import (TWIN_SAMPLES, TWIN_WINDOW_S, watch_of,
                                                   WatchedWindow)
 from modal_spring_ros.core.config import SimulationConfig
@@ -126,3 +126,11 @@ def test_a_full_run_watched_by_its_twin_never_falls_back(tmp_path):
                                 'hair (none yet)')
     diverged = WatchedWindow(1.0, TWIN_WINDOW_S, math.inf, 0.01, '', growth=math.inf)
     assert diverged.within and diverged.amplifying
+
+
+def test_a_start_that_amplifies_nothing_is_said_so_from_rest(tmp_path):
+    """Planning's twin from rest: the soft ring's chaos begins after its first quarter second."""
+    for stiffness in (8e4, 8e5):
+        full = build_simulation(ring(tmp_path, stiffness), SimulationConfig(method='full'))
+        rate = start_growth(lambda: full.with_dt(full.dt))
+        assert math.isfinite(rate) and rate < 0.25 * AMPLIFYING_PER_S

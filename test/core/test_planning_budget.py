@@ -13,13 +13,12 @@ import math
 import re
 
 from modal_spring_ros.core.auto import budget as budget_module, pilot, sibling_check
-from modal_spring_ros.core.auto.budget import (modes_work, NOT_FOUND, PLANNING_SHARE,
-                                               PlanningBudget, REFERENCE_RUNS, setup_work,
-                                               unplanned_full)
+from modal_spring_ros.core.auto.budget import (modes_work, PLANNING_SHARE, PlanningBudget,
+                                               REFERENCE_RUNS, setup_work, unplanned_full)
 from modal_spring_ros.core.auto.full_candidate import by_step_doubling
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
-from modal_spring_ros.core.auto.plan import PlanSettings
+from modal_spring_ros.core.auto.plan import NOT_FOUND, PlanSettings
 from modal_spring_ros.core.auto.step_error import (NONLINEAR, predicts, StepErrorPredictor,
                                                    StepPrediction)
 from modal_spring_ros.core.auto.work_model import work_per_second

@@ -6,9 +6,10 @@ under gravity and a sideways shake: its full runs at a step and at half of it pa
 every half second after the first, however short the step (a motion that amplifies its
 differences). Its start moves a hundred times beyond what its modes predict. Planned for 10 s,
 the step doubling that looked for a step meeting 0.3 % halved without end (over five minutes of
-CPU for a run of 0.08 s); it now stops where halving the step stops shrinking its error, and the
-run takes the default step with its error said to be unmeasured, as it does where a start that
-far beyond the modes passed its check (a start says nothing of such a run's rest).
+CPU for a run of 0.08 s); it stops where halving the step stops shrinking its error, and is not
+made where a twin of the start moved by a hair parts from it exponentially; the run takes the
+default step with its error said to be unmeasured, as it does where a start that far beyond the
+modes passed its check (a start says nothing of such a run's rest).
 """
 from __future__ import annotations
 
@@ -16,9 +17,10 @@ import math
 import re
 
 from helpers import write_obj
-from modal_spring_ros.core.auto.budget import BEYOND_MODES, UNCONVERGED
+from modal_spring_ros.core.auto.amplification import AMPLIFYING_PER_S
 from modal_spring_ros.core.auto.full_candidate import by_step_doubling, STALLED, STEP_ORDER
 from modal_spring_ros.core.auto.measured_error import on_samples, trajectory, trajectory_error
+from modal_spring_ros.core.auto.plan import AMPLIFYING, BEYOND_MODES
 from modal_spring_ros.core.auto.step_error import NONLINEAR
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.config import SimulationConfig
@@ -105,19 +107,25 @@ def test_auto_says_the_error_is_not_measured_and_takes_the_default_step(skin):
     """
     ``--auto`` prints no error for the skin, and takes the default step.
 
-    Planned at 0.3 %: the start misses, the step sought over the whole run converges in none:
-    the default step (``--method full``'s), its error not measured, said why, planning a few
-    full runs (not without end). At 1 % and 3 %: the start passes its check, but moved a
-    hundred times beyond what the modes predict: no error printed from it (it printed 0.62 %
-    and 1.72 % for a run whose finer runs part by 30 %), the default step taken.
+    Planned at 0.3 %: the start misses, and a twin of it moved by a hair parts from it
+    exponentially: no step is sought (over the whole run, none converges), the default step
+    (``--method full``'s) is taken, its error not measured, said why, planning a third of the
+    full run (it once halved without end, then took sixteen runs' worth to stop). At 1 % and
+    3 %: the start passes its check, but moved a hundred times beyond what the modes predict:
+    no error printed from it (it printed 0.62 % and 1.72 % for a run whose finer runs part by
+    30 %), the default step taken.
     """
     default = build_simulation(skin, SimulationConfig(method='full'))
     full_run_s = work_per_second(default) * RUN_S / 1e6
     sim, spent = planned(skin, 0.003)
     assert sim.method == 'full' and 0.9 * default.dt <= sim.dt <= default.dt
-    assert math.isnan(sim.pilot.error) and sim.pilot.unmeasured == UNCONVERGED
-    assert 'its step error not measured (its runs do not converge' in sim.pilot.describe()
-    assert spent <= 16.0 * full_run_s
+    assert math.isnan(sim.pilot.error) and sim.pilot.unmeasured == AMPLIFYING
+    assert 'its step error not measured (its motion amplifies its differences from its ' \
+        'start' in sim.pilot.describe()
+    rate = 1.0 / float(re.search(r"a hair's difference grew e-fold every ([0-9.]+) s",
+                                 sim.pilot.reason).group(1))
+    assert rate >= AMPLIFYING_PER_S
+    assert spent <= 0.5 * full_run_s
     for tolerance in (0.01, 0.03):
         sim, spent = planned(skin, tolerance)
         assert sim.method == 'full' and 0.9 * default.dt <= sim.dt <= default.dt

@@ -9,18 +9,24 @@ shows) prints an error it will not keep. A start that agrees with its modes says
 
 :class:`Growth` measures it where the run is: a twin of the run, from the run's state with a
 displacement perturbed by ``RELATIVE`` of its size, is stepped beside a copy of the run over one
-window, and the distance between the two (free-DOF displacement, at each sample) is compared
-between the window's first and last quarters. A motion that converges keeps or damps the
+window's first ``WINDOW_S`` (a hair's difference that grows stops growing once it is as large
+as the motion: measured over longer, a chaotic motion's growth would be hidden by its
+saturation), and the distance between the two (free-DOF displacement, at each sample) is
+compared between the span's first and last quarters. A motion that converges keeps or damps the
 distance (at most 0.6 e-folds per second measured on the random, resonant and stiff scenes of
 the benches); a chaotic one multiplies it (6-15 e-folds per second on a soft ring turned +-60
 degrees, 44-48 on a soft mesh turned 90 degrees). Beyond ``AMPLIFYING_PER_S`` the motion is said
-to amplify its differences: its error is not bounded by the tolerance.
+to amplify its differences: its error is not bounded by the tolerance. The run watch
+(:mod:`~modal_spring_ros.core.auto.run_watch`) steps a twin in each window; planning steps one
+from rest (:func:`start_growth`) before it would search the whole window for a step no motion
+that amplifies from its start has.
 """
 from __future__ import annotations
 
 import math
+from typing import Callable
 
-from modal_spring_ros.core.simulations.run_state import RunState
+from modal_spring_ros.core.simulations import DivergenceError, RunState, Simulation
 import numpy as np
 
 #: The twin's displacement perturbation, relative to the run's rms displacement.
@@ -32,6 +38,11 @@ FLOOR_M = 1e-6
 AMPLIFYING_PER_S = 2.0
 #: The perturbation's direction is drawn from this seed: the same run gives the same twin.
 SEED = 0
+#: The span a twin is stepped over, s, on at least ``MIN_SAMPLES`` samples.
+WINDOW_S = 0.25
+MIN_SAMPLES = 4
+#: Samples of a twin stepped by :func:`start_growth`.
+SAMPLES = 16
 #: What an amplifying motion means for a run's error.
 UNBOUNDED = ('the motion amplifies its differences (chaotic): no run keeps within the tolerance '
              'of another for long, and the error printed for this one is not bounded')
@@ -79,6 +90,36 @@ class Growth:
         if last == 0.0:
             return -math.inf
         return math.log(last / first) / ((d.size - quarter) * self.sample_s)
+
+
+def twin_samples(sample_s: float, samples: int) -> int:
+    """Return how many of a window's ``samples`` (``sample_s`` apart) its twin is stepped over."""
+    return min(samples, max(MIN_SAMPLES, math.ceil(WINDOW_S / sample_s - 1e-9)))
+
+
+def start_growth(make: Callable[[], Simulation]) -> float:
+    """
+    Return how fast a hair's difference grows over a run's first ``WINDOW_S`` from rest.
+
+    ``make()`` builds the run at rest; it is stepped twice, once from a perturbed rest. nan
+    where the run itself diverged.
+    """
+    run, twin = make(), make()
+    twin.take_over(perturbed(RunState.of(run)))
+    per = max(1, int(round(WINDOW_S / SAMPLES / run.dt)))
+    growth = Growth(per * run.dt)
+    for _ in range(SAMPLES):
+        try:
+            run.step(per)
+        except DivergenceError:
+            return math.nan
+        try:
+            twin.step(per)
+        except DivergenceError:
+            growth.diverged = True
+            break
+        growth.add(run.displacement(), twin.displacement())
+    return growth.rate()
 
 
 def amplifies(rate: float) -> bool:

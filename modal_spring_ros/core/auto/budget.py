@@ -23,8 +23,11 @@ import dataclasses
 import math
 from typing import Callable
 
+from modal_spring_ros.core.auto.amplification import (amplifies, describe_rate, start_growth,
+                                                      WINDOW_S as TWIN_S)
 from modal_spring_ros.core.auto.full_candidate import BY_ITSELF, by_step_doubling, STEP_ORDER
-from modal_spring_ros.core.auto.plan import PilotReport
+from modal_spring_ros.core.auto.plan import (AMPLIFYING, BEYOND_MODES, NOT_FOUND, PilotReport,
+                                             UNCONVERGED)
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK
 from modal_spring_ros.core.auto.step_error import StepPrediction
 from modal_spring_ros.core.auto.work_model import work_per_second
@@ -54,18 +57,6 @@ SEARCH_FLOOR_US = 3e7
 MIN_CHECK_SAMPLES = 2
 #: The full reference over a window costs its run at a step and at half of it: three runs' worth.
 REFERENCE_RUNS = 3.0
-#: What a run whose error is not measured takes, in each reason's words.
-_DEFAULT_STEP = "the default step, as '--method full' runs it"
-#: Why a run whose error does not shrink as its step is halved has none measured.
-UNCONVERGED = ('its runs do not converge as the step is halved: the motion amplifies its '
-               "differences (buckling, large strain, chaos), so no step's error over the run "
-               f'can be promised; {_DEFAULT_STEP}')
-#: Why a run whose step the whole window's search did not find has no error measured.
-NOT_FOUND = ('halving its step over the whole window found none within the tolerance at what '
-             f'the run itself costs; {_DEFAULT_STEP}')
-#: Why a run whose start moved far beyond its modes' prediction has no error measured.
-BEYOND_MODES = ('its start moved far beyond what its modes predict, and says nothing of the '
-                f'rest of the run, which would cost more to check than to run; {_DEFAULT_STEP}')
 
 
 @dataclasses.dataclass
@@ -270,7 +261,9 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     without end). The whole window's search costs at most what the run does at its default step
     (or ``SEARCH_FLOOR_US``): where it finds no step within that, the default step, its error
     not measured (``NOT_FOUND``; a soft mesh turned 90 degrees once searched it for over 8
-    minutes, the run at the default step costing 33 s, its halved runs still 49 % apart).
+    minutes, the run at the default step costing 33 s, its halved runs still 49 % apart). Nor
+    is it made where a twin of the start moved by a hair parts from it exponentially
+    (:mod:`~.amplification`; that mesh: e-fold every 0.013 s): ``AMPLIFYING``.
     """
     sample_s = window_s / samples
     step = default_dt
@@ -370,8 +363,13 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     if beyond and not missed and count < samples:
         return unmeasured(BEYOND_MODES)
     if missed and count < samples:
-        reason += (f'; the step missed the tolerance over the first {checked_s:.2g} s: the step '
-                   'needed was sought over the whole window, beyond the budget')
+        growth = start_growth(lambda: full(sim.dt, sample_s))    # a twin moved by a hair
+        budget.charge(sim, 2.0 * TWIN_S)
+        reason += f'; the step missed the tolerance over the first {checked_s:.2g} s'
+        if amplifies(growth):     # no step converges: none is sought
+            reason += f', and {describe_rate(growth)} over the first {TWIN_S:g} s'
+            return unmeasured(AMPLIFYING)
+        reason += ': the step needed was sought over the whole window, beyond the budget'
         # at most what the run costs at its default step, or ``SEARCH_FLOOR_US``
         run_us = max(horizon_s * work_per_second(full(default_dt, sample_s)), SEARCH_FLOOR_US)
         sim, error = doubling(samples, horizon_s, allowed, run_us / window_s, sim.dt)

@@ -2,12 +2,30 @@
 An automatic plan (what it sets) and what its pilot run measured about it.
 
 :class:`PlanSettings` is what :mod:`~modal_spring_ros.core.auto.pilot` refines;
-:class:`PilotReport` is what it found, printed in the summary and on ``/diagnostics``.
+:class:`PilotReport` is what it found, printed in the summary and on ``/diagnostics``, and
+where a full run's error is not measured, why (``UNCONVERGED``, ``NOT_FOUND``, ``AMPLIFYING``,
+``BEYOND_MODES``).
 """
 from __future__ import annotations
 
 import dataclasses
 import math
+
+#: What a run whose error is not measured takes, in each reason's words.
+_DEFAULT_STEP = "the default step, as '--method full' runs it"
+#: Why a run whose error does not shrink as its step is halved has none measured.
+UNCONVERGED = ('its runs do not converge as the step is halved: the motion amplifies its '
+               "differences (buckling, large strain, chaos), so no step's error over the run "
+               f'can be promised; {_DEFAULT_STEP}')
+#: Why a run whose step the whole window's search did not find has no error measured.
+NOT_FOUND = ('halving its step over the whole window found none within the tolerance at what '
+             f'the run itself costs; {_DEFAULT_STEP}')
+#: Why a run whose start amplifies a hair's difference has no error measured.
+AMPLIFYING = ('its motion amplifies its differences from its start (chaotic): no step keeps '
+              f'within the tolerance of another for long; {_DEFAULT_STEP}')
+#: Why a run whose start moved far beyond its modes' prediction has no error measured.
+BEYOND_MODES = ('its start moved far beyond what its modes predict, and says nothing of the '
+                f'rest of the run, which would cost more to check than to run; {_DEFAULT_STEP}')
 
 
 @dataclasses.dataclass(frozen=True)

@@ -38,7 +38,9 @@ import time
 from typing import Callable, Mapping
 
 from modal_spring_ros.core.auto.amplification import (amplifies, describe_rate, Growth,
-                                                      perturbed, UNBOUNDED)
+                                                      perturbed, SAMPLES as TWIN_SAMPLES,
+                                                      twin_samples, UNBOUNDED,
+                                                      WINDOW_S as TWIN_WINDOW_S)
 from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.model.model import MassSpringModel
@@ -51,10 +53,8 @@ DEFAULT_INTERVAL_S = 10.0
 #: Watching at the default interval costs at most this share of the run's own (modelled) work:
 #: the interval is lengthened where the shadow runs cost more than that over it.
 WORK_SHARE = 0.25
-#: A full run the pilot chose is watched by its twin alone over ``TWIN_WINDOW_S`` on
-#: ``TWIN_SAMPLES`` samples, in a run where its two shadows cost at most ``TWIN_SHARE`` of it.
-TWIN_WINDOW_S = 0.25
-TWIN_SAMPLES = 16
+#: A full run the pilot chose is watched by its twin alone (over ``TWIN_WINDOW_S`` on
+#: ``TWIN_SAMPLES`` samples) in a run where its two shadows cost at most this share of it.
 TWIN_SHARE = 0.1
 
 
@@ -159,7 +159,7 @@ class WatchedWindow:
 
     @property
     def within(self) -> bool:
-        """Tell whether the plan met its tolerance (a window unmeasured or of the twin alone has)."""
+        """Tell whether the plan met its tolerance (unmeasured and twin-only windows have)."""
         return not self.against or not self.measured or self.error <= self.tolerance
 
     def describe(self) -> str:
@@ -181,7 +181,8 @@ class _Shadow:
     The plan's copy, the reference and the plan's twin, from one state, stepped sample by sample.
 
     ``runs``: the plan's copy, the reference (where the watch has one) and the twin, built once
-    per watch and taken over to each window's state (the twin's perturbed by a hair).
+    per watch and taken over to each window's state (the twin's perturbed by a hair; stepped
+    over the window's first ``TWIN_WINDOW_S`` only).
     """
 
     def __init__(self, plan: Simulation, runs: list[Simulation], reference: WatchReference):
@@ -194,6 +195,7 @@ class _Shadow:
         runs[-1].take_over(perturbed(state))
         self._per = [max(1, int(round(reference.sample_s / run.dt))) for run in self._runs]
         self._growth = Growth(self._per[0] * runs[0].dt)
+        self._twin_samples = twin_samples(reference.sample_s, reference.samples)
         self._done = 0
         self._difference = self._motion = 0.0
         self.result: WatchedWindow | None = None
@@ -213,7 +215,7 @@ class _Shadow:
                     return self._finish(math.nan)
                 self._difference += float(np.sum((plan - truth) ** 2))
                 self._motion += float(truth @ truth)
-            if not self._growth.diverged:
+            if self._done < self._twin_samples and not self._growth.diverged:
                 try:
                     self._growth.add(plan, self._sample(len(self._runs) - 1))
                 except DivergenceError:
