@@ -16,8 +16,11 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.integrators import AverageAcceleration
 from modal_spring_ros.core.model.scene import Damping
 from modal_spring_ros.core.simulations.full import DampingEntries, RATIO_MODES
+from modal_spring_ros.scenes.files.writing import scene_to_dict
 from modal_spring_ros.scenes.resources import load_scene
+from modal_spring_ros.scenes.schema import scene_from_dict
 from modal_spring_ros.scenes.sized import sized_scene
+import numpy as np
 import pytest
 
 
@@ -88,6 +91,29 @@ def test_a_full_run_pays_for_its_damping_as_its_step_multiplies_it():
         low_rank=4 * n * RATIO_MODES, stiffness=ratio_stiff.model.stiffness_free.nnz)
     assert (work_per_second(mass) < work_per_second(stiff.with_dt(mass.dt))
             and work_per_second(mass) < work_per_second(every.with_dt(mass.dt)))
+
+
+def _turning_sheet(side: int):
+    spec = scene_to_dict(dataclasses.replace(sized_scene('sheet', side),
+                                             damping=Damping(ratio=0.02)))
+    spec['anchor_motion'] = [{'rotation': 'y', 'amplitude_deg': 30.0, 'frequency_hz': 0.5,
+                              'pivot': [0.0, 0.0, 0.0]}]
+    return build_simulation(scene_from_dict(spec), SimulationConfig(method='full'))
+
+
+def test_a_turning_clamp_s_full_run_pays_for_damping_its_frame_s_velocity_too():
+    """A turning clamp's world frame damps its own velocity too: one more product with C."""
+    turning = _turning_sheet(18)
+    n = turning.model.n_free_dof
+    assert turning.model.rotates and turning.damping_entries == DampingEntries(dense=2 * n * n)
+    # C v in one product with C = M Phi diag(c) Phi^T M, as the modes damp it
+    ops, v = turning._ops, np.random.default_rng(0).standard_normal(n)
+    phi, c, _ = ops._modal
+    assert np.allclose(ops.damp(v), ops.m * (phi @ (c * (phi.T @ (ops.m * v)))))
+    assert ops._damping_matrix.shape == (n, n)
+    lowest = _turning_sheet(24)
+    assert lowest.damping_entries == DampingEntries(
+        low_rank=6 * lowest.model.n_free_dof * RATIO_MODES)
 
 
 def test_an_implicit_step_pays_for_each_force_evaluation_of_its_iteration():

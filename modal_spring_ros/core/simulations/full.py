@@ -76,6 +76,7 @@ class PhysicalOperators:
             cm = damping.modal_coefficients(basis.omega)
             self._modal = (phi, cm, basis.omega)
             self._explicit_b = None          # made at the first explicit step
+            self._damping_matrix = None      # made at the first product with C
             return
         if damping.ratio != 0.0:
             if basis is None:
@@ -95,15 +96,22 @@ class PhysicalOperators:
         self._explicit = None
         self._average = None
 
-    def explicit_entries(self) -> DampingEntries:
-        """Return what an explicit step multiplies for its damping (:class:`DampingEntries`)."""
+    def explicit_entries(self, turning: bool = False) -> DampingEntries:
+        """
+        Return what an explicit step multiplies for its damping (:class:`DampingEntries`).
+
+        ``turning``: the run steps in the world frame of a turning clamp, and damps its frame's
+        velocity too (one more product with ``C`` a step).
+        """
         n = self.m.size
-        if self._modal is not None:   # B (dt/2 f + M v): one n x n product
-            return DampingEntries(dense=n * n)
+        if self._modal is not None:   # B (dt/2 f + M v): one n x n product; C v: one more
+            return DampingEntries(dense=n * n * (2 if turning else 1))
         # U^T v and U (D ...) in the damping, two more in the Woodbury solve
-        low = 4 * n * self._low[1].size if self._low is not None else 0
+        k = self._low[1].size if self._low is not None else 0
         # C v and a solve with the factor of M + dt/2 C (not diagonal where C has beta K)
-        return DampingEntries(low_rank=low, stiffness=0 if self._mass_only else self.k.nnz)
+        stiffness = 0 if self._mass_only else self.k.nnz
+        return DampingEntries(low_rank=(6 if turning else 4) * n * k,
+                              stiffness=stiffness * (2 if turning else 1))
 
     def _modal_solve(self, rhs, diag):
         phi = self._modal[0]
@@ -111,8 +119,11 @@ class PhysicalOperators:
 
     def damp(self, v):
         if self._modal is not None:
-            phi, cm, _ = self._modal
-            return self.m * (phi @ (cm * (phi.T @ (self.m * v))))
+            if self._damping_matrix is None:     # C = M Phi diag(c) Phi^T M: one product
+                phi, cm, _ = self._modal
+                self._damping_matrix = (self.m[:, None] * phi * cm[None, :]) @ (
+                    phi.T * self.m[None, :])
+            return self._damping_matrix @ v
         out = self._c @ v if self._c is not None else 0.0
         if self._low is not None:
             u, d = self._low
@@ -217,7 +228,7 @@ class FullSimulation(Simulation):
     @property
     def damping_entries(self) -> DampingEntries:
         """Return what an explicit step multiplies for its damping (the work model prices it)."""
-        return self._ops.explicit_entries()
+        return self._ops.explicit_entries(turning=self._world is not None)
 
     def describe_band(self) -> str:
         return 'full'
