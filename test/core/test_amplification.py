@@ -17,7 +17,7 @@ import math
 from helpers import write_obj
 from modal_spring_ros.core.auto.amplification import (AMPLIFYING_PER_S, describe_rate,
                                                       FLOOR_M, Growth, perturbed, RELATIVE,
-                                                      start_growth, UNBOUNDED)
+                                                      start_growth, twin_samples, UNBOUNDED)
 from modal_spring_ros.core.auto.run_watch import (TWIN_SAMPLES, TWIN_WINDOW_S, watch_of,
                                                   WatchedWindow)
 from modal_spring_ros.core.config import SimulationConfig
@@ -93,6 +93,10 @@ def test_the_growth_rate_is_the_distance_s_exponent():
     assert math.isnan(short.rate())          # fewer than a sample per quarter: not measured
     short.diverged = True
     assert short.rate() == math.inf and 'diverged' in describe_rate(short.rate())
+    # a window's twin is stepped over its first quarter second, on four samples at least
+    assert twin_samples(0.025, 120) == 10 and twin_samples(0.1, 30) == 4
+    assert twin_samples(TWIN_WINDOW_S / TWIN_SAMPLES, TWIN_SAMPLES) == TWIN_SAMPLES
+    assert twin_samples(0.1, 3) == 3
 
 
 def test_the_twin_starts_a_hair_from_the_run_and_the_same_for_the_same_run():
