@@ -106,11 +106,13 @@ def test_a_turning_clamp_s_full_run_pays_for_damping_its_frame_s_velocity_too():
     turning = _turning_sheet(18)
     n = turning.model.n_free_dof
     assert turning.model.rotates and turning.damping_entries == DampingEntries(dense=2 * n * n)
-    # C v in one product with C = M Phi diag(c) Phi^T M, as the modes damp it
+    # C v as the modes damp it: in one product with C = M Phi diag(c) Phi^T M once that pays
     ops, v = turning._ops, np.random.default_rng(0).standard_normal(n)
     phi, c, _ = ops._modal
-    assert np.allclose(ops.damp(v), ops.m * (phi @ (c * (phi.T @ (ops.m * v)))))
-    assert ops._damping_matrix.shape == (n, n)
+    exact = ops.m * (phi @ (c * (phi.T @ (ops.m * v))))
+    turning.step(n)
+    assert ops._damping_matrix.shape == (n, n) and np.allclose(ops.damp(v), exact)
+    assert _full_sheet(18, Damping(ratio=0.02))._ops._damping_matrix is None   # set once
     lowest = _turning_sheet(24)
     assert lowest.damping_entries == DampingEntries(
         low_rank=6 * lowest.model.n_free_dof * RATIO_MODES)

@@ -76,7 +76,8 @@ class PhysicalOperators:
             cm = damping.modal_coefficients(basis.omega)
             self._modal = (phi, cm, basis.omega)
             self._explicit_b = None          # made at the first explicit step
-            self._damping_matrix = None      # made at the first product with C
+            self._damping_matrix = None      # made once it pays (``damp``)
+            self._damped = 0                 # products with C made without it
             return
         if damping.ratio != 0.0:
             if basis is None:
@@ -119,8 +120,14 @@ class PhysicalOperators:
 
     def damp(self, v):
         if self._modal is not None:
-            if self._damping_matrix is None:     # C = M Phi diag(c) Phi^T M: one product
+            if self._damping_matrix is None:
+                # C = M Phi diag(c) Phi^T M, one product where the shapes take two: made once it
+                # pays (making it costs about n of the products it halves), as a turning
+                # clamp's run damps its frame's velocity every step; a state set once never does
                 phi, cm, _ = self._modal
+                self._damped += 1
+                if self._damped < self.m.size:
+                    return self.m * (phi @ (cm * (phi.T @ (self.m * v))))
                 self._damping_matrix = (self.m[:, None] * phi * cm[None, :]) @ (
                     phi.T * self.m[None, :])
             return self._damping_matrix @ v
