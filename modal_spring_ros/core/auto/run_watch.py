@@ -97,8 +97,8 @@ def twin_reference(sim: Simulation, tolerance: float) -> 'WatchReference':
     fallback would take: the watch measures only whether the motion amplifies its differences.
     """
     work = work_per_second(sim)
-    return WatchReference(None, lambda: sim.with_dt(sim.dt), {}, '', TWIN_WINDOW_S / TWIN_SAMPLES,
-                          TWIN_SAMPLES, 1.0, tolerance, work, 2.0 * work)
+    return WatchReference(None, None, {}, '', TWIN_WINDOW_S / TWIN_SAMPLES, TWIN_SAMPLES, 1.0,
+                          tolerance, work, 2.0 * work)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -107,8 +107,8 @@ class WatchReference:
     What a plan is watched against, as its pilot measured it.
 
     ``reference()`` builds the reference run at rest, on the sample grid (None: the plan is
-    watched by its twin alone, :func:`twin_reference`); ``fallback()`` what the run falls
-    back to, and ``fallback_settings`` the same as the
+    watched by its twin alone, :func:`twin_reference`, and has no fallback); ``fallback()``
+    what the run falls back to, and ``fallback_settings`` the same as the
     :class:`~modal_spring_ros.core.config.SimulationConfig` fields that rebuild it (a node
     falls back by setting its parameters, so that they say what runs); ``shared`` the
     Richardson factor of a richer plan's step (1 against the full run); ``plan_work`` and
@@ -116,7 +116,7 @@ class WatchReference:
     """
 
     reference: Callable[[], Simulation] | None
-    fallback: Callable[[], Simulation]
+    fallback: Callable[[], Simulation] | None
     fallback_settings: Mapping[str, object]
     against: str
     sample_s: float
