@@ -427,3 +427,20 @@ def test_colliders_added_at_run_time_are_touched_moved_and_removed():
     assert sim.positions()[2, 2] < 0.01
     sim.reset()
     assert sim.loads.get('added_colliders') is None and sim.remove_collider(None) == 0
+
+
+@pytest.mark.parametrize('config', [SimulationConfig(method='full'), SimulationConfig()],
+                         ids=['full', 'modal'])
+def test_each_step_finds_its_colliders_distances_once(config, monkeypatch):
+    # the step's forces and its end are taken at the same points (the same time to the last
+    # bit): the distances found for the forces serve the stick points too
+    sim = table_sheet(config)
+    calls = []
+    measure = Plane.distance
+    monkeypatch.setattr(Plane, 'distance', lambda self, x: calls.append(1) or measure(self, x))
+    steps, touched = round(0.2 / sim.dt), 0
+    for _ in range(8):                                # 1.6 s: the table touched from 0.6 s
+        sim.step(steps)
+        touched = max(touched, sim.loads[ContactLoad.name].touching)
+    assert touched >= 5
+    assert len(calls) == 8 * steps

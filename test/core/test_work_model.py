@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import dataclasses
 
+from helpers import variant
+
 from modal_spring_ros.core.auto import work_model
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.config import SimulationConfig
@@ -138,3 +140,30 @@ def test_an_implicit_step_pays_for_each_force_evaluation_of_its_iteration():
     assert explicit.evaluations_per_step == 1.0
     average.reset()
     assert average.evaluations_per_step == AverageAcceleration.evaluations_per_step
+
+
+def _on_a_table(colliders: int):
+    """sheet_10x10 over a table, with ``colliders`` spheres well away from it beside."""
+    spheres = [{'shape': 'sphere', 'center': [5.0 + i, 0.0, 0.0], 'radius': 0.1}
+               for i in range(colliders - 1)]
+    return variant('sheet_10x10', contact={'friction': 0.3, 'colliders': [
+        {'shape': 'plane', 'point': [0, 0, -0.915], 'normal': [0, 0, 1]}, *spheres]})
+
+
+def test_a_step_pays_for_its_contact_per_collider_and_per_particle_each_measures():
+    bare = load_scene('sheet_10x10')
+    full = build_simulation(bare, SimulationConfig(method='full', dt=1e-3))
+    free = full.model.free_particles.size
+    for colliders in (1, 3):
+        touching = build_simulation(_on_a_table(colliders),
+                                    SimulationConfig(method='full', dt=1e-3))
+        expected = (work_model.CONTACT_US + work_model.CONTACT_PARTICLE_US * free
+                    + colliders * (work_model.COLLIDER_US + work_model.COLLIDER_PARTICLE_US
+                                   * free))
+        assert (work_per_second(touching) - work_per_second(full)) * 1e-3 == pytest.approx(
+            expected)
+    # a modal step also takes the positions from its coordinates and projects the touches
+    modal, bare_modal = _modal(_on_a_table(1), 5), _modal(bare, 5)
+    extra = (work_per_second(modal) - work_per_second(bare_modal)) * 1e-3
+    assert extra == pytest.approx(work_model.contact_work(modal.model, 'full')
+                                  + work_model.MODAL_CONTACT_US)

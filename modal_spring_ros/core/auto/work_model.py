@@ -36,6 +36,15 @@ COORDINATE_US, TURNING_PAIR_US, EVALUATION_US, PROJECTION_US = 0.106, 0.0046, 3.
 #: four products), and a ``beta K`` term (its product and its factor's solve: 0.0046-0.0061 us
 #: per stored entry of ``K``). Unpriced, these made such a full run cost 1.1-5.2 times its model.
 DENSE_US, LOW_RANK_US, STIFFNESS_US = 0.00034, 0.00026, 0.0057
+#: A step's contact with the scene's colliders (:mod:`~modal_spring_ros.core.loads.contact`),
+#: fitted to explicit runs of a volume of 162 and 671 free particles on a floor with 0 to 4
+#: colliders (single-threaded BLAS): a fixed cost and its share per free particle, then per
+#: collider and per collider and free particle (each measures every particle's distance); a
+#: modal step also takes the particles' positions from its coordinates and projects the touches'
+#: forces on its shapes. Unpriced, contact made a full run of a box on a floor cost 4.5 times
+#: its model (the step's fixed cost of 25 us against the contact's 130-190 us).
+CONTACT_US, CONTACT_PARTICLE_US, COLLIDER_US, COLLIDER_PARTICLE_US = 90.0, 0.035, 32.0, 0.083
+MODAL_CONTACT_US = 60.0
 
 
 def work_per_second(sim: Simulation) -> float:
@@ -50,12 +59,14 @@ def work_per_second(sim: Simulation) -> float:
     coordinate (its sample is trained only once the plan is chosen). An implicit step pays for
     each force evaluation of its iteration (:attr:`Simulation.evaluations_per_step`: counted
     once stepped, as the pilot has; the integrator's guess before). A full run's damping is
-    priced as its explicit step multiplies it (``DENSE_US``; auto's full runs are explicit).
+    priced as its explicit step multiplies it (``DENSE_US``; auto's full runs are explicit), and
+    a step's contact with the scene's colliders (:func:`contact_work`).
     """
     model = sim.model
     springs = model.scene.n_springs
     kind = 'full' if sim.method == 'full' else 'modal'
-    fixed = STEP_US[kind] + (TURNING_STEP_US[kind] if model.rotates else 0.0)
+    fixed = (STEP_US[kind] + (TURNING_STEP_US[kind] if model.rotates else 0.0)
+             + contact_work(model, kind))
     evaluations = sim.evaluations_per_step
     if kind == 'full':
         damping = sim.damping_entries
@@ -75,3 +86,15 @@ def work_per_second(sim: Simulation) -> float:
                       + PROJECTION_US * model.n_free_dof * coords)
         per_step = fixed + evaluations * sim.evaluated_share * evaluation
     return per_step / sim.dt
+
+
+def contact_work(model, kind: str) -> float:
+    """Return what a step's contact with the scene's colliders costs, us (``CONTACT_US``)."""
+    contact = model.scene.contact
+    if contact is None:
+        return 0.0
+    free = model.free_particles.size
+    colliders = len(contact.colliders)
+    return (CONTACT_US + CONTACT_PARTICLE_US * free
+            + colliders * (COLLIDER_US + COLLIDER_PARTICLE_US * free)
+            + (MODAL_CONTACT_US if kind == 'modal' else 0.0))

@@ -21,8 +21,9 @@ def applied_loads(model, loads: Mapping[str, Load],
     Return (free-DOF indices, forces) of every active load at ``t``, or None.
 
     ``displacement(dofs)`` gives the displacement of those free DOFs (in the frame the method
-    steps in); the forces are in the clamp's frame, or the world's with ``in_world`` (a method
-    stepping world coordinates). An index may appear twice: add with ``np.add.at`` or a product.
+    steps in; ``dofs`` None: every free DOF, in order); the forces are in the clamp's frame,
+    or the world's with ``in_world`` (a method stepping world coordinates). An index may appear
+    twice: add with ``np.add.at`` or a product.
     """
     active = [load for load in loads.values() if load.active(t)]
     if not active:
@@ -50,6 +51,11 @@ def stepped_loads(model, loads: Mapping[str, Load],
             for name, load in loads.items()}
 
 
+def of_vector(u: np.ndarray) -> Callable[[np.ndarray | None], np.ndarray]:
+    """Return the ``displacement(dofs)`` of a vector of every free DOF's displacement ``u``."""
+    return lambda dofs: u if dofs is None else u[dofs]
+
+
 def _world_positions(model, displacement: Callable[[np.ndarray], np.ndarray], t: float,
                      in_world: bool):
     """Return ``world_positions(slots)`` of the free particles at ``t``, and the clamp's frame."""
@@ -57,8 +63,11 @@ def _world_positions(model, displacement: Callable[[np.ndarray], np.ndarray], t:
     d = model.dimension
     free = model.free_particles
 
-    def world_positions(slots: np.ndarray) -> np.ndarray:
-        dofs = (slots[:, None] * d + np.arange(d)).ravel()
-        x = model.rest[free[slots]] + displacement(dofs).reshape(-1, d)
+    def world_positions(slots: np.ndarray | None = None) -> np.ndarray:
+        if slots is None:      # every free particle: no gather (a modal run's one product)
+            x = model.rest[free] + displacement(None).reshape(-1, d)
+        else:
+            dofs = (slots[:, None] * d + np.arange(d)).ravel()
+            x = model.rest[free[slots]] + displacement(dofs).reshape(-1, d)
         return x if frame is None else frame.carry(x)
     return world_positions, frame

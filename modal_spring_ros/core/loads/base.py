@@ -16,8 +16,9 @@ from typing import Callable, ClassVar
 import numpy as np
 
 #: ``world_positions(slots)``: the (k, d) world positions of the free particles at those slots
-#: (their positions among the free particles), on the scene's axes
-WorldPositions = Callable[[np.ndarray], np.ndarray]
+#: (their positions among the free particles), on the scene's axes; ``world_positions()``: of
+#: every free particle, in order
+WorldPositions = Callable[..., np.ndarray]
 
 
 class Load(abc.ABC):

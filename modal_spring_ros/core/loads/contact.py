@@ -163,7 +163,7 @@ class ContactLoad(Load):
     def _points(self, model, world_positions: WorldPositions) -> tuple[np.ndarray, np.ndarray]:
         """Return every free particle's world position in 3D, and their slots."""
         slots = np.arange(model.free_particles.size)
-        return free_points(model, world_positions, slots), slots
+        return free_points(model, world_positions), slots
 
     def _at(self, c: int, idx: np.ndarray, x: np.ndarray, depth: np.ndarray,
             normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -267,9 +267,12 @@ def _rate(omega_dt: float, most: float) -> float:
                          math.sqrt(max(STEP_SHARE ** 2 - omega_dt ** 2, 0.0))))
 
 
-def free_points(model, world_positions, slots: np.ndarray) -> np.ndarray:
-    """Return the world positions in 3D of the free particles at ``slots``."""
-    points = model.scene.rest_positions[model.free_particles[slots]].astype(float)
+def free_points(model, world_positions, slots: np.ndarray | None = None) -> np.ndarray:
+    """Return the world positions in 3D of the free particles at ``slots`` (None: all)."""
+    if model.dimension == 3:
+        return world_positions(slots)
+    free = model.free_particles if slots is None else model.free_particles[slots]
+    points = model.scene.rest_positions[free].astype(float)
     points[:, list(model.axes)] = world_positions(slots)
     return points
 

@@ -24,7 +24,7 @@ from modal_spring_ros.core.forces.exact import EXACT_REPORT
 from modal_spring_ros.core.integrators import Integrator, stable_step
 from modal_spring_ros.core.integrators import integrator as make_integrator
 from modal_spring_ros.core.integrators import NonConvergence, Operators
-from modal_spring_ros.core.loads.applied import applied_loads, stepped_loads
+from modal_spring_ros.core.loads.applied import applied_loads, of_vector, stepped_loads
 from modal_spring_ros.core.loads.contact import contact_load, ContactLoad
 from modal_spring_ros.core.loads.holder import LoadHolder
 from modal_spring_ros.core.model.model import MassSpringModel
@@ -368,18 +368,18 @@ class Simulation(LoadHolder, abc.ABC):
             u1, v1, a1, self.last_iterations = self._integrator.step(u, v, a, self.dt, force,
                                                                      ops)
         except NonConvergence as exc:
-            self.diverged = DivergenceError(str(exc), self.time + self.dt, self.steps + 1)
+            self.diverged = DivergenceError(str(exc), self._ending, self.steps + 1)
             raise self.diverged from None
         self._checked(a1)
         return u1, v1, a1
 
-    def _checked(self, a1: np.ndarray) -> None:
-        """
-        Divergence checks of a step.
+    @property
+    def _ending(self) -> float:
+        """The time the step under way ends at, as :meth:`_commit` sets it (to the last bit)."""
+        return self._t0 + (self.steps + 1) * self.dt
 
-        ``u1`` and ``v1`` derive from the (finite) last state and ``a1``, so a finite ``a1``
-        (squared norm, which also catches overflow) is enough.
-        """
+    def _checked(self, a1: np.ndarray) -> None:
+        """Check a step for divergence (a finite ``a1``: ``u1``, ``v1`` derive from it)."""
         reason = None
         if not math.isfinite(float(a1 @ a1)):
             reason = 'non-finite state'
@@ -387,14 +387,14 @@ class Simulation(LoadHolder, abc.ABC):
             reason = (f'spring strain {self._last_max_strain:.3g} exceeds the limit '
                       f'{self.strain_limit:g}')
         if reason is not None:
-            self.diverged = DivergenceError(reason, self.time + self.dt, self.steps + 1)
+            self.diverged = DivergenceError(reason, self._ending, self.steps + 1)
             raise self.diverged
 
     def _commit(self) -> None:
+        self.time = self._ending
         self.steps += 1
         self._evaluations += self.last_iterations
-        self.time = self._t0 + self.steps * self.dt
         self.diverged = None
         if any(load.keeps_state for load in self.loads.values()):
             u = self.displacement()
-            self.loads = stepped_loads(self.model, self.loads, lambda dofs: u[dofs], self.time)
+            self.loads = stepped_loads(self.model, self.loads, of_vector(u), self.time)

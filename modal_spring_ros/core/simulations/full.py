@@ -12,6 +12,7 @@ from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces.exact import ExactForces
 from modal_spring_ros.core.integrators.base import ROUNDOFF_SHARE
+from modal_spring_ros.core.loads.applied import of_vector
 from modal_spring_ros.core.model.definite_factor import factor_definite
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
@@ -290,7 +291,7 @@ class FullSimulation(Simulation):
         return self._forces.last_max_strain
 
     def _force(self, u: np.ndarray) -> np.ndarray:
-        t = self.time + self.dt
+        t = self._ending
         force = (self._world.force(u, t) if self._world is not None else self._forces(u, t))
         return self._loaded(force, u, t)
 
@@ -298,12 +299,12 @@ class FullSimulation(Simulation):
         """Add the loads' forces at ``u``, ``t`` to ``force`` (in place; returned)."""
         if self.loads:
             # world coordinates (a turning clamp stepped in the world): the loads' own forces
-            loaded = self._applied(lambda dofs: u[dofs], t, in_world=self._world is not None)
+            loaded = self._applied(of_vector(u), t, in_world=self._world is not None)
             if loaded is not None:
                 np.add.at(force, loaded[0], loaded[1])
         return force
 
     def _step_once(self) -> None:
-        ops = self._ops if self._world is None else self._world.at(self.time + self.dt)
+        ops = self._ops if self._world is None else self._world.at(self._ending)
         self._u, self._v, self._a = self._advance(self._u, self._v, self._a, self._force, ops)
         self._commit()

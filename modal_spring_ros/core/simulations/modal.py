@@ -357,7 +357,7 @@ class ModalSimulation(Simulation):
         # The Coriolis load depends on the velocity: like damping in the explicit step, it is
         # taken at the predicted velocity v + dt/2 a.
         v = self._v + (0.5 * self.dt) * self._a if self._frame is not None else self._v
-        force = self._driven_force(q, v, self.time + self.dt)
+        force = self._driven_force(q, v, self._ending)
         if self._is_fading:
             # An entering mode takes on its load (all but its own linear restoring force)
             # along its envelope, so it eases into place instead of dropping from rest.
@@ -377,7 +377,8 @@ class ModalSimulation(Simulation):
         force = self._forces(q, t)
         driven = None
         if self.loads:
-            loaded = self._applied(lambda dofs: self._phi[dofs] @ q, t)
+            loaded = self._applied(
+                lambda dofs: self._phi @ q if dofs is None else self._phi[dofs] @ q, t)
             if loaded is not None:
                 driven = loaded[1] @ self._phi[loaded[0]]
         if self._frame is not None:
