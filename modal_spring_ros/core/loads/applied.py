@@ -56,6 +56,11 @@ def of_vector(u: np.ndarray) -> Callable[[np.ndarray | None], np.ndarray]:
     return lambda dofs: u if dofs is None else u[dofs]
 
 
+def of_shapes(phi: np.ndarray, q: np.ndarray) -> Callable[[np.ndarray | None], np.ndarray]:
+    """Return the ``displacement(dofs)`` of coordinates ``q`` on shapes ``phi`` (rows: DOFs)."""
+    return lambda dofs: phi @ q if dofs is None else phi[dofs] @ q
+
+
 def _world_positions(model, displacement: Callable[[np.ndarray], np.ndarray], t: float,
                      in_world: bool):
     """Return ``world_positions(slots)`` of the free particles at ``t``, and the clamp's frame."""

@@ -375,7 +375,7 @@ class Simulation(LoadHolder, abc.ABC):
 
     @property
     def _ending(self) -> float:
-        """The time the step under way ends at, as :meth:`_commit` sets it (to the last bit)."""
+        """Return the time the step under way ends at, as :meth:`_commit` sets it (to the bit)."""
         return self._t0 + (self.steps + 1) * self.dt
 
     def _checked(self, a1: np.ndarray) -> None:

@@ -34,6 +34,7 @@ from modal_spring_ros.core.bases.basis import ModalBasis, Progress
 from modal_spring_ros.core.bases.derivatives import AddedCoordinates
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.forces import force_model
+from modal_spring_ros.core.loads.applied import of_shapes
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations.base import check_step, Simulation, stable_step_limit
 from modal_spring_ros.core.simulations.coordinates import (ActiveSet, ADDED_ID,
@@ -376,11 +377,9 @@ class ModalSimulation(Simulation):
         """
         force = self._forces(q, t)
         driven = None
-        if self.loads:
-            loaded = self._applied(
-                lambda dofs: self._phi @ q if dofs is None else self._phi[dofs] @ q, t)
-            if loaded is not None:
-                driven = loaded[1] @ self._phi[loaded[0]]
+        loaded = self._applied(of_shapes(self._phi, q), t) if self.loads else None
+        if loaded is not None:
+            driven = loaded[1] @ self._phi[loaded[0]]
         if self._frame is not None:
             coupling = self._frame.coupling(q, v, t)
             driven = coupling if driven is None else driven + coupling
