@@ -89,12 +89,14 @@ def main(argv: list[str] | None = None) -> int:
             bag = RunBagWriter(args.bag, sim.model.scene, config, dt=sim.dt,
                                frame_every=args.frame_every, duration=duration)
         start = time.perf_counter()
-        watch = watch_of(sim, config.watch_s, run_s=duration)
+        ahead = head_start(sim, duration, keeps_frames=bool(args.output or args.bag))
+        run_s = duration - ahead
+        watch = watch_of(sim, config.watch_s, run_s=duration, from_s=ahead)
         # simulated seconds done, with the time left (a bar once the run has taken a second)
         shown = progress_bar(PROG, duration, 's', 'simulated', quiet=args.quiet)
         try:
-            run = record(sim, duration, frame_every=args.frame_every,
-                         on_progress=lambda fraction: shown(fraction * duration),
+            run = record(sim, run_s, frame_every=args.frame_every,
+                         on_progress=lambda fraction: shown(ahead + fraction * run_s),
                          on_frame=bag.frame if bag else None, watch=watch,
                          on_watch=None if args.quiet else
                          lambda window, now: print(f'[{PROG}] {watched_line(window, now)}',
@@ -110,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
         wall = time.perf_counter() - start
         sim = run.simulation
         steps = max(sim.steps, 1)
-        print(summary(sim, run.diverged, wall / steps, wall, watch))
+        print(summary(sim, run.diverged, wall / steps, wall, watch, ahead))
         if args.output:
             write_output(args.output, '--output', lambda: run.save_npz(args.output))
             print(f'wrote {args.output} ({run.t.size} frames)')
@@ -132,8 +134,24 @@ def watched_line(window: WatchedWindow, now) -> str:
             f'(dt {now.dt:.3g} s) from t = {window.start_s:.4g} s')
 
 
+def head_start(sim, duration: float, keeps_frames: bool) -> float:
+    """
+    Go on from where the pilot's own run of ``sim`` ended, where nothing before is kept.
+
+    The automatic choice stepped the run it chose over its check (the full run at that very
+    step, from rest): a run that keeps no frame before its last (no ``--output``, no ``--bag``)
+    takes that state (:attr:`~modal_spring_ros.core.auto.plan.PilotReport.head_start`) rather
+    than stepping the same steps again. Return the simulated seconds it starts at (0: none).
+    """
+    head = sim.pilot.head_start if sim.pilot is not None else None
+    if keeps_frames or head is None or head.time > duration + 0.5 * sim.dt:
+        return 0.0
+    sim.take_over(head)
+    return sim.time
+
+
 def summary(sim, diverged: str, seconds_per_step: float, wall: float,
-            watch: RunWatch | None = None) -> str:
+            watch: RunWatch | None = None, ahead_s: float = 0.0) -> str:
     scene = sim.model.scene
     lines = [f'scene      {scene.name}: {scene.n_particles} particles, {scene.n_springs} '
              f'springs, {sim.model.n_free_dof} free DOF']
@@ -165,9 +183,11 @@ def summary(sim, diverged: str, seconds_per_step: float, wall: float,
         lines.append(f'watched    {watch.describe()}'
                      + (f'; beyond {watch.last.tolerance:.2%}: fell back to the {sim.method} '
                         f'run' if fell else ''))
+    ahead = (f" (from t = {ahead_s:.4g} s, where the pilot's run of it ended: not stepped "
+             'again)' if ahead_s > 0.0 else '')
     lines.append(f'stepping   {sim.integrator} Newmark, dt {sim.dt:g} s '
                  f'(explicit limit {sim.stability_limit():.4g} s), {sim.steps} steps, '
-                 f't = {sim.time:.4g} s')
+                 f't = {sim.time:.4g} s{ahead}')
     lines.append(f'speed      {seconds_per_step * 1e6:.1f} us per step, {wall:.2f} s wall, '
                  f'real-time factor {sim.time / max(wall, 1e-12):.1f}')
     lines.append(f'strain     {sim.max_strain():.3%} largest spring strain')

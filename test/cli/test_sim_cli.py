@@ -6,10 +6,12 @@ import sys
 
 from helpers import HIDE_ROS, variant
 from modal_spring_ros.cli.common import parse_mode_range, progress_bar, progress_lines, run_main
-from modal_spring_ros.cli.modal_spring_sim import main, watched_line
+from modal_spring_ros.cli.modal_spring_sim import head_start, main, watched_line
 from modal_spring_ros.core.auto.amplification import UNBOUNDED
 from modal_spring_ros.core.auto.run_watch import WatchedWindow
 from modal_spring_ros.core.bases.basis import ModalBasis
+from modal_spring_ros.core.config import SimulationConfig
+from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import FullSimulation
@@ -335,3 +337,38 @@ def test_an_amplifying_window_is_a_warning_that_keeps_the_run():
     line = watched_line(wild, None)
     assert line.startswith('WARN: watched: 0.20% ') and 'e-fold every 0.11 s' in line
     assert line.endswith(UNBOUNDED)
+
+
+def _on_a_table(path) -> str:
+    """sheet_10x10 pressed onto a table by its clamp, written to ``path`` (a scene file)."""
+    sheet = variant('sheet_10x10', anchor_motion=[
+        {'axis': 'z', 'amplitude': 0.025, 'frequency_hz': 1.0, 'ramp_s': 0.2}], contact={
+            'friction': 0.3,
+            'colliders': [{'shape': 'plane', 'point': [0, 0, -0.915], 'normal': [0, 0, 1]}]})
+    path.write_text(scene_to_yaml(sheet))
+    return str(path)
+
+
+def test_a_run_keeping_no_frame_goes_on_from_where_the_pilot_s_run_of_it_ended(tmp_path, capsys):
+    # a scene with colliders has the chosen step checked over the pilot's whole window: the
+    # run at that step was stepped from rest that far, and is not stepped again
+    scene = _on_a_table(tmp_path / 'table.yaml')
+    args = ['--scene', scene, '--auto', '--duration', '1.5', '--quiet']
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "where the pilot's run of it ended: not stepped again" in out, out
+    assert main(args + ['--output', str(tmp_path / 'kept.npz')]) == 0
+    kept = capsys.readouterr().out
+    assert 'not stepped again' not in kept             # its frames from t = 0 are kept
+    # where it goes on from is where stepping from rest gets to
+    sim = build_simulation(load_scene(scene), SimulationConfig(auto=True, horizon_s=1.5))
+    assert head_start(sim, 1.5, keeps_frames=True) == 0.0 and sim.time == 0.0
+    ahead = head_start(sim, 1.5, keeps_frames=False)
+    assert 0.0 < ahead <= 1.5
+    again = sim.with_dt(sim.dt)
+    again.step(round(ahead / sim.dt))
+    size = np.abs(again.displacement()).max()
+    assert np.abs(sim.displacement() - again.displacement()).max() <= 1e-9 * size
+    ended = record(sim, 1.5 - ahead, keep_frames=False)
+    stepped = np.load(tmp_path / 'kept.npz')['positions'][-1]
+    assert np.abs(ended.positions[-1] - stepped).max() <= 1e-9 * np.abs(stepped).max()

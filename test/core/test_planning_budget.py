@@ -451,6 +451,15 @@ def test_a_scene_with_colliders_has_its_default_step_checked_over_the_whole_wind
     found = converged_trajectory(lambda dt: on_samples(full, sample_s, dt),
                                  0.2 * full.stability_limit(), sample_s, samples, 3e-4)
     assert found is not None
+    # the pilot stepped the very run it chose over the whole run: it is kept as a head start,
+    # the state stepping that run from rest reaches
+    head = sim.pilot.head_start
+    assert head is not None and head.time == pytest.approx(3.0)
+    again = sim.with_dt(sim.dt)
+    again.step(round(head.time / sim.dt))
+    assert again.time == pytest.approx(head.time)
+    size = np.abs(head.displacement()).max()
+    assert np.abs(again.displacement() - head.displacement()).max() <= 1e-9 * size
     error = trajectory_error(trajectory(sim, sample_s, samples), found[0])
     assert error <= 0.003
     assert sim.pilot.error == pytest.approx(error, rel=0.5)

@@ -25,7 +25,8 @@ from typing import Callable
 
 from modal_spring_ros.core.auto.amplification import (amplifies, describe_rate, start_growth,
                                                       WINDOW_S as TWIN_S)
-from modal_spring_ros.core.auto.full_candidate import BY_ITSELF, by_step_doubling, STEP_ORDER
+from modal_spring_ros.core.auto.full_candidate import (BY_ITSELF, by_step_doubling,
+                                                       head_start, STEP_ORDER)
 from modal_spring_ros.core.auto.plan import (AMPLIFYING, BEYOND_MODES, NOT_FOUND, PilotReport,
                                              UNCONVERGED)
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK
@@ -311,10 +312,10 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
             told = prediction.describe()
             reason += (f'; {told}' if told else '') + (
                 f'; {expected:.2%} predicted over the first {checked_s:.2g} s')
-            report = PilotReport(predicted, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0,
-                                 reason=reason, horizon_s=horizon_s, window_error=error,
-                                 tolerance=tolerance, predicted=True)
-            return sim, report
+            return sim, PilotReport(predicted, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0,
+                                    reason=reason, horizon_s=horizon_s, window_error=error,
+                                    tolerance=tolerance, predicted=True,
+                                    head_start=head_start(stepped, sim))
         reason += (f'; the prediction missed over the first {checked_s:.2g} s ({error:.2%} '
                    f'measured, {expected:.2%} predicted): the step was measured instead')
         beyond = prediction.beyond(error, sim.dt, checked_s, margin * tolerance)
@@ -354,10 +355,11 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
 
     def unmeasured(why: str) -> tuple[Simulation, PilotReport]:
         # the run a user would have run, its error not measured, said why
-        return full(default_dt, sample_s), PilotReport(
+        run = full(default_dt, sample_s)
+        return run, PilotReport(
             math.nan, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0, reason=reason,
             horizon_s=horizon_s, window_error=error if math.isfinite(error) else math.nan,
-            tolerance=tolerance, unmeasured=why)
+            tolerance=tolerance, unmeasured=why, head_start=head_start(stepped, run))
 
     missed = sim.dt < checked.dt * (1.0 - 1e-9) or over_run(error, sim.dt) > allowed
     if beyond and not missed and count < samples:
@@ -388,7 +390,6 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     if prediction is not None:
         reason += (f'; {prediction.error_at(sim.dt):.2%} predicted over the {horizon_s:.3g} s '
                    'run (the modes stepped with their period error)')
-    report = PilotReport(run_error, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0,
-                         reason=reason, horizon_s=over_s, window_error=error,
-                         tolerance=tolerance)
-    return sim, report
+    return sim, PilotReport(run_error, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0,
+                            reason=reason, horizon_s=over_s, window_error=error,
+                            tolerance=tolerance, head_start=head_start(stepped, sim))

@@ -17,11 +17,11 @@ Two ways to measure it, by what the pilot can trust:
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Callable, NamedTuple
 
 from modal_spring_ros.core.auto.measured_error import horizon_error, trajectory
 from modal_spring_ros.core.auto.work_model import work_per_second
-from modal_spring_ros.core.simulations import Simulation
+from modal_spring_ros.core.simulations import RunState, Simulation
 import numpy as np
 
 #: Order of the schemes' step error.
@@ -55,6 +55,13 @@ def against_reference(full: Callable[[float, float], Simulation],
         step = sim.dt * min(0.8, max(0.5, reach))
 
 
+class SteppedRun(NamedTuple):
+    """A run :func:`by_step_doubling` stepped from rest: its samples, and its state after them."""
+
+    samples: np.ndarray | None       # None: it diverged
+    end: RunState | None
+
+
 def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float,
                      samples: int, horizon_s: float, budget: float, work_per_s: float,
                      first_dt: float = math.inf, stepped: dict | None = None
@@ -71,8 +78,9 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
     leave more than ``STALLED`` of the estimate, the run does not converge in its step (a
     motion that amplifies its differences: halving costs twice as much and brings nothing):
     the first run is returned, its error infinite, as where a run diverges. ``stepped``: the
-    runs' samples kept between calls (by step and count), so that a second look at the same
-    start steps nothing again.
+    runs kept between calls (:class:`SteppedRun`, by step, sample interval and count), so that a
+    second look at the same start steps nothing again (and a run can go on from where one
+    ended: :func:`head_start`).
     """
     share = 1.0 / (1.0 - 0.5 ** STEP_ORDER)       # the coarse run's error / the difference
     stepped = {} if stepped is None else stepped
@@ -81,8 +89,10 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
     def run(sim: Simulation) -> np.ndarray | None:
         key = (sim.dt, sample_s, samples)
         if key not in stepped:
-            stepped[key] = trajectory(sim, sample_s, samples)
-        return stepped[key]
+            ended: list[RunState] = []
+            found = trajectory(sim, sample_s, samples, ended=ended.append)
+            stepped[key] = SteppedRun(found, ended[0] if ended else None)
+        return stepped[key].samples
 
     first = coarse = full(first_dt, sample_s)
     coarse_run = run(coarse)
@@ -104,3 +114,14 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
             return first, math.inf
         last = (coarse, error)
         coarse, coarse_run, before = fine, fine_run, error
+
+
+def head_start(stepped: dict, sim: Simulation) -> RunState | None:
+    """
+    Return the furthest state a run at ``sim``'s step reached in ``stepped``, or None.
+
+    ``stepped``: :func:`by_step_doubling`'s runs, each from rest: a run of the same settings
+    and step goes on from there as though it had stepped that far (the same steps).
+    """
+    ends = [run.end for (dt, _, _), run in stepped.items() if dt == sim.dt and run.end is not None]
+    return max(ends, key=lambda state: state.time, default=None)

@@ -14,7 +14,7 @@ import math
 from typing import Callable
 
 from modal_spring_ros.core.auto.work_model import work_per_second
-from modal_spring_ros.core.simulations import DivergenceError, Simulation
+from modal_spring_ros.core.simulations import DivergenceError, RunState, Simulation
 import numpy as np
 
 #: Blocks of the window's second half the drift model is fitted to.
@@ -38,13 +38,15 @@ def on_samples(sim: Simulation, sample_s: float, longest_dt: float | None = None
 
 
 def trajectory(sim: Simulation, sample_s: float, samples: int,
-               give_up: Callable[[np.ndarray], bool] | None = None) -> np.ndarray | None:
+               give_up: Callable[[np.ndarray], bool] | None = None,
+               ended: Callable[[RunState], None] | None = None) -> np.ndarray | None:
     """
     Return the displacement every ``sample_s`` from rest, or None where the run diverges.
 
     ``give_up(so_far)`` is asked every ``GIVE_UP_CHECKS``-th of the run with the samples so
     far; where it says yes the run stops there and those samples are returned (fewer than
-    ``samples``: see :func:`error_at_least`).
+    ``samples``: see :func:`error_at_least`). ``ended(state)`` is given the run's state after
+    its last sample, where it took them all (a run can go on from there: a head start).
     """
     per = max(1, int(round(sample_s / sim.dt)))
     if abs(per * sim.dt - sample_s) > 1e-6 * sample_s:
@@ -60,6 +62,8 @@ def trajectory(sim: Simulation, sample_s: float, samples: int,
             if give_up is not None and (k + 1) % check == 0 and k + 1 < samples:
                 if np.isfinite(out[:k + 1]).all() and give_up(out[:k + 1]):
                     return out[:k + 1]
+        if ended is not None and np.isfinite(out).all():
+            ended(RunState.of(sim))
     except DivergenceError:
         return None
     finally:

@@ -11,6 +11,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from modal_spring_ros.core.simulations.run_state import RunState
+
 #: What a run whose error is not measured takes, in each reason's words.
 _DEFAULT_STEP = "the default step, as '--method full' runs it"
 #: Why a run whose error does not shrink as its step is halved has none measured.
@@ -66,6 +68,9 @@ class PilotReport:
     planning: str = ''              # what planning spent of its budget
     predicted: bool = False         # error predicted over the horizon, checked over the window
     unmeasured: str = ''            # why the error is not measured, where it is not finite
+    #: the chosen run's state where the pilot's own run of it ended (a run that records
+    #: nothing before may go on from there: :func:`~.full_candidate.head_start`)
+    head_start: RunState | None = dataclasses.field(default=None, compare=False, repr=False)
 
     def _over(self) -> str:
         """Say how the error was found: measured over the window, extrapolated beyond."""

@@ -64,13 +64,14 @@ def watchable(model: MassSpringModel) -> bool:
 
 
 def watch_of(sim: Simulation, interval_s: float | None, budget: float | None = None,
-             run_s: float | None = None) -> 'RunWatch | None':
+             run_s: float | None = None, from_s: float = 0.0) -> 'RunWatch | None':
     """
     Return a watch of ``sim`` (see :class:`RunWatch`), or None.
 
     ``interval_s`` None: every ``DEFAULT_INTERVAL_S``, or less often where watching would cost
     more than ``budget`` (by default ``WORK_SHARE`` of the plan's work). ``run_s``: the run's
-    length, where it has one (a run longer than the pilot's window is watched at least once).
+    length, where it has one (a run longer than the pilot's window is watched at least once),
+    watched from ``from_s`` on (a run that went on from where its pilot's run ended).
     None is returned for a run that is not an automatic plan, an interval of 0, or a clamp
     that follows poses. A run watched by its twin alone is not watched in a run of ``run_s``
     where one window would cost more than ``TWIN_SHARE`` of it.
@@ -82,11 +83,12 @@ def watch_of(sim: Simulation, interval_s: float | None, budget: float | None = N
             and reference.window_s * reference.shadow_work
             > TWIN_SHARE * reference.plan_work * run_s):
         run_s = None
+    left = None if run_s is None else run_s - from_s
     if interval_s is not None:
-        return RunWatch(reference, interval_s, run_s=run_s)
+        return RunWatch(reference, interval_s, run_s=left)
     if budget is None:
         budget = WORK_SHARE * reference.plan_work
-    return RunWatch(reference, DEFAULT_INTERVAL_S, budget, run_s)
+    return RunWatch(reference, DEFAULT_INTERVAL_S, budget, left)
 
 
 def twin_reference(sim: Simulation, tolerance: float) -> 'WatchReference':
