@@ -48,6 +48,20 @@ def variant(name: str, **changes):
     return scene_from_dict(data, source=f'{name} variant')
 
 
+def sheet_on_a_table(*colliders: dict):
+    """
+    Return sheet_10x10 pressed by its clamp onto a table 1.5 cm under its bottom row.
+
+    Its clamp moves up and down (2.5 cm at 1 Hz): the bottom row touches from 0.6 s;
+    ``colliders``: more colliders beside the table.
+    """
+    return variant('sheet_10x10', anchor_motion=[
+        {'axis': 'z', 'amplitude': 0.025, 'frequency_hz': 1.0, 'ramp_s': 0.2}], contact={
+            'friction': 0.3,
+            'colliders': [{'shape': 'plane', 'point': [0, 0, -0.915], 'normal': [0, 0, 1]},
+                          *colliders]})
+
+
 def hanging_sheet(count: int) -> dict:
     """Return ``sheet_316x316``'s definition with ``count`` x ``count`` particles (0.9 m, 1 kg)."""
     return {

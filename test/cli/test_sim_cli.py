@@ -4,7 +4,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from helpers import HIDE_ROS, variant
+from helpers import HIDE_ROS, sheet_on_a_table, variant
 from modal_spring_ros.cli.common import parse_mode_range, progress_bar, progress_lines, run_main
 from modal_spring_ros.cli.modal_spring_sim import head_start, main, watched_line
 from modal_spring_ros.core.auto.amplification import UNBOUNDED
@@ -339,21 +339,12 @@ def test_an_amplifying_window_is_a_warning_that_keeps_the_run():
     assert line.endswith(UNBOUNDED)
 
 
-def _on_a_table(path) -> str:
-    """sheet_10x10 pressed onto a table by its clamp, written to ``path`` (a scene file)."""
-    sheet = variant('sheet_10x10', anchor_motion=[
-        {'axis': 'z', 'amplitude': 0.025, 'frequency_hz': 1.0, 'ramp_s': 0.2}], contact={
-            'friction': 0.3,
-            'colliders': [{'shape': 'plane', 'point': [0, 0, -0.915], 'normal': [0, 0, 1]}]})
-    path.write_text(scene_to_yaml(sheet))
-    return str(path)
-
-
 def test_a_run_keeping_no_frame_goes_on_from_where_the_pilot_s_run_of_it_ended(tmp_path, capsys):
     # a scene with colliders has the chosen step checked over the pilot's whole window: the
     # run at that step was stepped from rest that far, and is not stepped again
-    scene = _on_a_table(tmp_path / 'table.yaml')
-    args = ['--scene', scene, '--auto', '--duration', '1.5', '--quiet']
+    scene = tmp_path / 'table.yaml'
+    scene.write_text(scene_to_yaml(sheet_on_a_table()))
+    args = ['--scene', str(scene), '--auto', '--duration', '1.5', '--quiet']
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "where the pilot's run of it ended: not stepped again" in out, out

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from helpers import variant
+from helpers import sheet_on_a_table, variant
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.config import SimulationConfig
@@ -184,11 +184,7 @@ def test_every_shape_gives_its_signed_distance_and_outward_normal():
 
 def table_sheet(method_config: SimulationConfig):
     """sheet_10x10 lowered onto a table 1.5 cm under its bottom row, pressed on by its clamp."""
-    sheet = variant('sheet_10x10', anchor_motion=[
-        {'axis': 'z', 'amplitude': 0.025, 'frequency_hz': 1.0, 'ramp_s': 0.2}], contact={
-            'friction': 0.3,
-            'colliders': [{'shape': 'plane', 'point': [0, 0, -0.915], 'normal': [0, 0, 1]}]})
-    return build_simulation(sheet, method_config)
+    return build_simulation(sheet_on_a_table(), method_config)
 
 
 def test_a_sheet_pressed_onto_a_table_is_the_same_in_the_full_and_an_all_mode_modal_run():

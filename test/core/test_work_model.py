@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from helpers import variant
+from helpers import sheet_on_a_table
 
 from modal_spring_ros.core.auto import work_model
 from modal_spring_ros.core.auto.work_model import work_per_second
@@ -143,11 +143,9 @@ def test_an_implicit_step_pays_for_each_force_evaluation_of_its_iteration():
 
 
 def _on_a_table(colliders: int):
-    """sheet_10x10 over a table, with ``colliders`` spheres well away from it beside."""
-    spheres = [{'shape': 'sphere', 'center': [5.0 + i, 0.0, 0.0], 'radius': 0.1}
-               for i in range(colliders - 1)]
-    return variant('sheet_10x10', contact={'friction': 0.3, 'colliders': [
-        {'shape': 'plane', 'point': [0, 0, -0.915], 'normal': [0, 0, 1]}, *spheres]})
+    """sheet_10x10 over a table, with ``colliders - 1`` spheres well away from it beside."""
+    return sheet_on_a_table(*({'shape': 'sphere', 'center': [5.0 + i, 0.0, 0.0], 'radius': 0.1}
+                              for i in range(colliders - 1)))
 
 
 def test_a_step_pays_for_its_contact_per_collider_and_per_particle_each_measures():
