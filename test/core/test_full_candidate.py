@@ -4,7 +4,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from modal_spring_ros.core.auto import full_candidate
+from modal_spring_ros.core.auto import measured_error
 from modal_spring_ros.core.auto.full_candidate import by_step_doubling
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
@@ -62,7 +62,7 @@ def test_a_halving_beyond_its_work_is_not_run(sheet, monkeypatch):
     def counted(*args, **kwargs):
         calls.append(args[0].dt)
         return trajectory(*args, **kwargs)
-    monkeypatch.setattr(full_candidate, 'trajectory', counted)
+    monkeypatch.setattr(measured_error, 'trajectory', counted)
     first = full(math.inf, SAMPLE_S)
     pair = work_per_second(first) + work_per_second(full(first.dt / 2.0, SAMPLE_S))
     # the pair and one halving afforded, not the next (its run would pass the bound)
@@ -88,7 +88,7 @@ def test_a_second_look_at_the_same_start_steps_only_what_it_has_not(sheet, monke
     def counted(*args, **kwargs):
         calls.append(args[0].dt)
         return trajectory(*args, **kwargs)
-    monkeypatch.setattr(full_candidate, 'trajectory', counted)
+    monkeypatch.setattr(measured_error, 'trajectory', counted)
     again = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES, math.inf, 0.0,
                              stepped=stepped)
     assert calls == [] and again[1] == first[1] and again[0].dt == first[0].dt

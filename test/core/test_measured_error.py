@@ -12,7 +12,7 @@ from modal_spring_ros.core.auto import measured_error
 from modal_spring_ros.core.auto import pilot
 from modal_spring_ros.core.auto.measured_error import (bounded_trajectory, error_at_least,
                                                        horizon_error, on_samples, trajectory,
-                                                       trajectory_error)
+                                                       trajectory_error, worst_window)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.filter_band import FilterBand
@@ -119,8 +119,9 @@ def test_abandoning_trials_part_way_changes_no_plan_and_steps_less():
     for give_up in (True, False):
         samples = []
 
-        def measured(sim, sample_s, reference, ceiling=math.inf):
-            run, bound = whole_runs(sim, sample_s, reference, ceiling if give_up else math.inf)
+        def measured(sim, sample_s, reference, ceiling=math.inf, kept=None):
+            run, bound = whole_runs(sim, sample_s, reference, ceiling if give_up else math.inf,
+                                    kept)
             samples.append(len(reference) if run is None else len(run))
             abandoned.extend([len(run) / len(reference)] if bound is not None else [])
             return run, bound
@@ -132,3 +133,23 @@ def test_abandoning_trials_part_way_changes_no_plan_and_steps_less():
     assert plans[0] == plans[1]
     assert len(abandoned) >= 1 and max(abandoned) < 1.0
     assert stepped[0] < stepped[1]
+
+
+def test_samples_further_apart_than_a_window_are_each_a_window_of_their_own():
+    """A prediction over a 1,000 s run samples every 0.5 s: each sample judged, none skipped."""
+    reference = np.ones((2000, 3))
+    run = reference.copy()
+    run[1234] *= 1.3                      # one moment 30 % off
+    assert worst_window(run, reference, 0.5) == pytest.approx(0.3)
+    assert worst_window(run, reference, 0.5) >= trajectory_error(run, reference)
+    assert worst_window(np.empty((0, 3)), np.empty((0, 3)), 0.5) == 0.0
+
+
+def test_a_run_of_a_thousand_seconds_is_planned_with_its_step_predicted_over_it():
+    """soft_block_3d over 1,000 s: its prediction samples every 0.5 s (it once stopped there)."""
+    sim = build_simulation(load_scene('soft_block_3d'),
+                           SimulationConfig(auto=True, tolerance=0.01, horizon_s=1000.0))
+    report = sim.pilot
+    assert report.predicted and report.error <= 0.01, report.describe()
+    # the default step (half the stability limit) is predicted to miss over 1,000 s
+    assert sim.dt < 0.5 * sim.stability_limit() and 'predicted beyond' in report.reason

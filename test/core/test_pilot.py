@@ -183,6 +183,27 @@ def test_a_richer_plan_as_reference_is_checked_against_the_full_run_over_the_win
     assert achieved <= TOLERANCE, (achieved, report.describe())
 
 
+def test_the_full_run_chosen_after_a_plan_was_measured_goes_on_from_the_pilot_s_run_of_it():
+    """
+    sheet_10x10_swing with at most 2 modes: no plan within 1 %, so the full run is chosen.
+
+    The pilot stepped that very run (its step, from rest) over its window while measuring it
+    against the converged reference: its state there is the run's head start, the state
+    stepping it from rest reaches, not a run to step again.
+    """
+    sim = build_simulation(load_scene('sheet_10x10_swing'),
+                           SimulationConfig(auto=True, tolerance=TOLERANCE, max_modes=2))
+    report = sim.pilot
+    assert report.method == 'full' and report.against == 'the full run', report.describe()
+    head = report.head_start
+    assert head is not None and head.time == pytest.approx(report.window_s, rel=0.01)
+    again = sim.with_dt(sim.dt)
+    again.step(round(head.time / sim.dt))
+    assert again.time == pytest.approx(head.time)
+    size = np.abs(head.displacement()).max()
+    assert size > 0 and np.abs(again.displacement() - head.displacement()).max() <= 1e-9 * size
+
+
 def _driven(hz: float, ratio: float) -> MassSpringModel:
     """sheet_10x10 (first mode 4.7357 Hz) shaken at ``hz``, with modal damping ``ratio``."""
     return MassSpringModel(variant(

@@ -17,9 +17,9 @@ Two ways to measure it, by what the pilot can trust:
 from __future__ import annotations
 
 import math
-from typing import Callable, NamedTuple
+from typing import Callable
 
-from modal_spring_ros.core.auto.measured_error import horizon_error, trajectory
+from modal_spring_ros.core.auto.measured_error import horizon_error, stepped_trajectory
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.simulations import RunState, Simulation
 import numpy as np
@@ -55,13 +55,6 @@ def against_reference(full: Callable[[float, float], Simulation],
         step = sim.dt * min(0.8, max(0.5, reach))
 
 
-class SteppedRun(NamedTuple):
-    """A run :func:`by_step_doubling` stepped from rest: its samples, and its state after them."""
-
-    samples: np.ndarray | None       # None: it diverged
-    end: RunState | None
-
-
 def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float,
                      samples: int, horizon_s: float, budget: float, work_per_s: float,
                      first_dt: float = math.inf, stepped: dict | None = None
@@ -78,7 +71,7 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
     leave more than ``STALLED`` of the estimate, the run does not converge in its step (a
     motion that amplifies its differences: halving costs twice as much and brings nothing):
     the first run is returned, its error infinite, as where a run diverges. ``stepped``: the
-    runs kept between calls (:class:`SteppedRun`, by step, sample interval and count), so that a
+    runs kept between calls (:func:`~.measured_error.stepped_trajectory`), so that a
     second look at the same start steps nothing again (and a run can go on from where one
     ended: :func:`head_start`).
     """
@@ -87,12 +80,7 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
     stalls, before = 0, math.inf
 
     def run(sim: Simulation) -> np.ndarray | None:
-        key = (sim.dt, sample_s, samples)
-        if key not in stepped:
-            ended: list[RunState] = []
-            found = trajectory(sim, sample_s, samples, ended=ended.append)
-            stepped[key] = SteppedRun(found, ended[0] if ended else None)
-        return stepped[key].samples
+        return stepped_trajectory(sim, sample_s, samples, stepped)
 
     first = coarse = full(first_dt, sample_s)
     coarse_run = run(coarse)

@@ -11,7 +11,7 @@ abandoned part-way by an exact lower bound (:func:`error_at_least`).
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Callable, NamedTuple
 
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.simulations import DivergenceError, RunState, Simulation
@@ -71,17 +71,48 @@ def trajectory(sim: Simulation, sample_s: float, samples: int,
     return out if np.isfinite(out).all() else None
 
 
+class SteppedRun(NamedTuple):
+    """A run stepped from rest over a whole window: its samples, and its state after them."""
+
+    samples: np.ndarray | None       # None: it diverged
+    end: RunState | None
+
+
+def stepped_trajectory(sim: Simulation, sample_s: float, samples: int, stepped: dict,
+                       give_up: Callable[[np.ndarray], bool] | None = None
+                       ) -> np.ndarray | None:
+    """
+    Return :func:`trajectory`, stepped once for all who ask: kept in ``stepped``.
+
+    ``stepped``: the runs of one set of settings (a pilot's full runs), each a
+    :class:`SteppedRun` by step, sample interval and count, so that a second look at the same
+    run steps nothing again and a run can go on from where one ended (a head start). A run
+    given up part-way (``give_up``) is returned, not kept.
+    """
+    key = (sim.dt, sample_s, samples)
+    if key not in stepped:
+        ended: list[RunState] = []
+        found = trajectory(sim, sample_s, samples, give_up, ended=ended.append)
+        if found is not None and len(found) < samples:
+            return found
+        stepped[key] = SteppedRun(found, ended[0] if ended else None)
+    return stepped[key].samples
+
+
 def bounded_trajectory(sim: Simulation, sample_s: float, reference: np.ndarray,
-                       ceiling: float = math.inf) -> tuple[np.ndarray | None, float | None]:
+                       ceiling: float = math.inf, stepped: dict | None = None
+                       ) -> tuple[np.ndarray | None, float | None]:
     """
     Return :func:`trajectory` over ``reference``'s samples, and None, or abandoned part-way.
 
     Abandoned where its error is certain to exceed ``ceiling`` (:func:`error_at_least`): the
-    samples stepped, and that bound.
+    samples stepped, and that bound. ``stepped``: kept there, or taken from it where it was
+    (:func:`stepped_trajectory`).
     """
-    run = trajectory(sim, sample_s, len(reference),
-                     (lambda start: error_at_least(start, reference) > ceiling)
-                     if math.isfinite(ceiling) else None)
+    give_up = ((lambda start: error_at_least(start, reference) > ceiling)
+               if math.isfinite(ceiling) else None)
+    run = (trajectory(sim, sample_s, len(reference), give_up) if stepped is None
+           else stepped_trajectory(sim, sample_s, len(reference), stepped, give_up))
     if run is not None and len(run) < len(reference):
         return run, error_at_least(run, reference)
     return run, None
@@ -119,11 +150,14 @@ def worst_window(run: np.ndarray | None, reference: np.ndarray, sample_s: float)
     The promise holds over the run within the tolerance and within ``WINDOW_ALLOWANCE`` times
     it in every such window: an error averaged over a run hides one that grows. The samples are
     split into windows of equal length, the nearest to ``PROMISE_WINDOW_S`` that fits the run
-    (a last window of a few samples would judge a moment, not a window).
+    (a last window of a few samples would judge a moment, not a window); samples further apart
+    than a window (a long run's prediction) are each a window of their own.
     """
     if run is None:
         return math.inf
-    count = max(1, int(round(len(reference) * sample_s / PROMISE_WINDOW_S)))
+    if len(reference) == 0:
+        return 0.0
+    count = min(len(reference), max(1, int(round(len(reference) * sample_s / PROMISE_WINDOW_S))))
     starts = [window[0] for window in np.array_split(np.arange(len(reference)), count)]
     # each window's squared sums at once (per sample, then per window)
     difference = np.add.reduceat(np.einsum('ij,ij->i', run - reference, run - reference), starts)
@@ -136,8 +170,8 @@ def worst_window(run: np.ndarray | None, reference: np.ndarray, sample_s: float)
 
 def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sample_s: float,
                          samples: int, accuracy: float, work_per_s: float = math.inf,
-                         charge: Callable[[Simulation], None] | None = None
-                         ) -> tuple[np.ndarray, float] | None:
+                         charge: Callable[[Simulation], None] | None = None,
+                         stepped: dict | None = None) -> tuple[np.ndarray, float] | None:
     """
     Return a run's trajectory converged in its step, and the finer step it was computed at.
 
@@ -147,9 +181,10 @@ def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sam
     that is within ``accuracy`` (relative), and the Richardson extrapolation of the last two is
     returned. None when it diverges, or when the modelled work of the runs so far passes
     ``work_per_s`` (us per simulated second, summed over the runs). ``charge(sim)`` is told of
-    each run before it is stepped (a planning budget counts it).
+    each run before it is stepped (a planning budget counts it). ``stepped``: its runs kept
+    there (:func:`stepped_trajectory`).
     """
-    spent, coarse = 0.0, None
+    spent, coarse, stepped = 0.0, None, {} if stepped is None else stepped
     while True:
         sim = run_at(step)
         spent += work_per_second(sim)
@@ -157,7 +192,7 @@ def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sam
             return None
         if charge is not None:
             charge(sim)
-        fine = trajectory(sim, sample_s, samples)
+        fine = stepped_trajectory(sim, sample_s, samples, stepped)
         if fine is None:
             return None
         if coarse is not None and trajectory_error(coarse, fine) / 3.0 <= accuracy:

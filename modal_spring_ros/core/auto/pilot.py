@@ -8,7 +8,7 @@ adaptive ODE solvers trust no step until a second estimate says it is good, the 
 
 1. **A pilot window** that excites what the scene excites (from rest under gravity, with its
    clamp drive): a few periods of the slowest kept mode and of the drive, or a resonance's
-   build-up (:mod:`~modal_spring_ros.core.auto.pilot_window`); never longer than the run.
+   build-up, never longer than the run (:mod:`~modal_spring_ros.core.auto.pilot_window`).
 2. **A reference** for it: the full run converged in its step (step doubling) where the band
    keeps everything and the budget affords it; otherwise the plan's richer sibling, an embedded
    pair (:mod:`~modal_spring_ros.core.auto.refinement`), its share of the plan's step error
@@ -18,16 +18,15 @@ adaptive ODE solvers trust no step until a second estimate says it is good, the 
    where the full run is a candidate (``ALONE``: the full run is taken).
 3. **The error**: relative L2 of the free-DOF displacement in the clamp's frame over the
    window's samples, extrapolated over the run by a drift model (:func:`horizon_error`).
-4. **Refinement** while it is above ``PILOT_MARGIN`` of the tolerance: each refinement left is
-   tried alone (abandoned part-way once certain to do worse than the plan), the lowest
-   (cheapest on a near tie) kept, for at most ``MAX_ROUNDS`` rounds; a plan well within it has
-   its step lengthened.
+4. **Refinement** while above ``PILOT_MARGIN`` of the tolerance: each refinement left tried
+   alone (abandoned once certain to do worse than the plan), the lowest (cheapest on a near tie)
+   kept, for at most ``MAX_ROUNDS`` rounds; a plan well within it has its step lengthened.
 5. **The full run is a candidate** (:mod:`~modal_spring_ros.core.auto.full_candidate`): the
-   cheaper of the two by a work model (no clock) that meets the tolerance is chosen.
-6. **A budget** (:mod:`~modal_spring_ros.core.auto.budget`): every run above is priced before
-   it is run, and a run of known length spends at most a share of its full run on them; where
-   the cheapest measurement does not fit, or would cost more than the plan could save, the
-   full run is the answer, at the step ``method full`` takes where that step is good.
+   cheaper of the two by a work model (no clock) that meets the tolerance is chosen; where it
+   is the full run, the run goes on from where the pilot's run of it ended (a head start).
+6. **A budget** (:mod:`~modal_spring_ros.core.auto.budget`): every run is priced before it is
+   run, a run of known length spending at most a share of its full run on them; where the
+   cheapest measurement does not fit or would cost more than the plan could save, the full run.
 
 Everything here is deterministic: no wall-clock time enters a decision.
 """
@@ -40,7 +39,7 @@ from typing import Callable
 from modal_spring_ros.core.auto.budget import (PlanningBudget, REFERENCE_RUNS, training_work,
                                                unplanned_full, worth_measuring)
 from modal_spring_ros.core.auto.full_candidate import (against_reference, BY_ITSELF,
-                                                       by_step_doubling)
+                                                       by_step_doubling, head_start)
 from modal_spring_ros.core.auto.measured_error import (bounded_trajectory, converged_trajectory,
                                                        horizon_error, on_samples, trajectory,
                                                        trajectory_error)
@@ -68,8 +67,7 @@ REFERENCE_WORK = 5e6
 REFERENCE_ACCURACY = 0.1
 #: A candidate within this factor of another's measured error counts as a tie (cheaper wins).
 TIE = 1.1
-#: Why the full run is taken where its start could not be afforded beside a richer plan: a plan
-#: measured against a sibling alone (a turned solid's plan 0.54 % from it, 6.2 % from the full).
+#: Why the full run is taken where its start could not be afforded beside a richer plan.
 ALONE = ('a richer plan alone is no reference (it shares what the modes cannot follow: a '
          "turned solid's plan was 0.54 % from it and 6.2 % from the full run), and the full "
          "run over the window's start was beyond the planning budget")
@@ -116,7 +114,8 @@ class Pilot:
         # the full run over the window's start checking a sibling (None: none); whether sought
         self._start, self._start_sought = None, False
         self._fallback: Simulation | None = None   # the full candidate, once measured
-        self._reference_dt = 0.0                   # the converged full reference's step
+        # the converged full reference's step; the full runs stepped over the window, once
+        self._reference_dt, self._stepped = 0.0, {}
 
     def run(self, plan: PlanSettings) -> tuple[Simulation, PilotReport]:
         """Return the simulation chosen and what the pilot measured."""
@@ -242,17 +241,17 @@ class Pilot:
         return on_samples(self.make(settings), self._sample_s)
 
     def _error(self, sim: Simulation, reference: np.ndarray, sample_s: float,
-               ceiling: float = math.inf) -> float:
+               ceiling: float = math.inf, stepped: dict | None = None) -> float:
         """
         Return ``sim``'s error over the horizon.
 
         Measured over the window, extrapolated beyond it, and against a sibling corrected for
         the share of the step error the sibling shares. A run whose error is certain to exceed
         ``ceiling`` part-way through its window is abandoned there (its bound returned, what
-        was stepped charged: :func:`~.measured_error.bounded_trajectory`).
+        was stepped charged: :func:`~.measured_error.bounded_trajectory`; kept in ``stepped``).
         """
         shared = self._shared(sim)
-        run, bound = bounded_trajectory(sim, sample_s, reference, ceiling / shared)
+        run, bound = bounded_trajectory(sim, sample_s, reference, ceiling / shared, stepped)
         self.budget.charge(sim, (len(reference) if run is None else len(run)) * sample_s)
         if bound is not None:
             self._measured[id(sim)] = (sim, bound * shared)
@@ -329,11 +328,12 @@ class Pilot:
 
     def _converged_full_run(self, sample_s: float, samples: int) -> np.ndarray | None:
         """Return the full run's converged trajectory, or None beyond ``REFERENCE_WORK``."""
-        step = self.full(math.inf, sample_s).dt
-        found = converged_trajectory(lambda dt: self.full(dt, sample_s), step, sample_s,
-                                     samples, REFERENCE_ACCURACY * self.tolerance,
+        found = converged_trajectory(lambda dt: self.full(dt, sample_s),
+                                     self.full(math.inf, sample_s).dt, sample_s, samples,
+                                     REFERENCE_ACCURACY * self.tolerance,
                                      self._afforded() / self.window_s,
-                                     lambda sim: self.budget.charge(sim, samples * sample_s))
+                                     lambda sim: self.budget.charge(sim, samples * sample_s),
+                                     self._stepped)
         if found is None:
             return None
         reference, self._reference_dt = found
@@ -361,7 +361,8 @@ class Pilot:
                   f'{error:.2%}' if error > self.tolerance else
                   f'cheaper: the plan needs {ratio:.2g} x its work')
         return full, dataclasses.replace(report, error=full_error, method='full', cost_ratio=1.0,
-                                         reason=reason, against=full_against
+                                         reason=reason, against=full_against,
+                                         head_start=head_start(self._stepped, full)
                                          ).as_checked(self._checked)
 
     def _full_candidate(self, against: str, error: float) -> tuple[Simulation, float, str]:
@@ -391,8 +392,9 @@ class Pilot:
             return full, report.error, report.against
         if against != 'the full run' and error > self.tolerance:
             full, full_error = by_step_doubling(self.full, sample_s, samples, self.horizon_s,
-                                                budget, REFERENCE_WORK / self.window_s)
+                                                budget, REFERENCE_WORK / self.window_s,
+                                                stepped=self._stepped)
             return full, full_error, BY_ITSELF
         shortest = self._reference_dt if against == 'the full run' else self._sibling[1]
-        return (*against_reference(self.full, lambda sim: self._error(sim, reference, sample_s),
-                                   sample_s, budget, shortest), against)
+        return (*against_reference(self.full, lambda sim: self._error(
+            sim, reference, sample_s, stepped=self._stepped), sample_s, budget, shortest), against)

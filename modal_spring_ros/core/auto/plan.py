@@ -89,7 +89,9 @@ class PilotReport:
         if checked is None:
             return self
         return dataclasses.replace(self, window_s=checked.window_s, horizon_s=checked.horizon_s,
-                                   window_error=checked.window_error, predicted=checked.predicted)
+                                   window_error=checked.window_error, predicted=checked.predicted,
+                                   head_start=(self.head_start if checked.head_start is None
+                                               else checked.head_start))
 
     def _unmeasured(self) -> str:
         """Say why the error is not measured (it is not finite)."""
