@@ -120,7 +120,7 @@ def test_the_modes_reaching_a_frequency_are_estimated_from_how_their_count_grew(
     basis = ModalBasis(model, initial_modes=32)
     target = 2.0 * float(basis.frequencies_hz[-1])
     estimate = basis.reaching(target)
-    richer = ModalBasis(model, initial_modes=min(4 * estimate, model.n_free_dof - 2))
+    richer = ModalBasis(model, initial_modes=min(2 * estimate, model.n_free_dof - 2))
     needed = int(np.searchsorted(richer.frequencies_hz, target, side='right')) + 1
     assert needed <= estimate <= 1.5 * needed
     solved = basis.modes_solved
