@@ -6,8 +6,11 @@ error against a converged full run is within the tolerance, or auto refuses with
 """
 from __future__ import annotations
 
+import math
+
 from helpers import variant
-from modal_spring_ros.core.auto import pilot, pilot_window
+from modal_spring_ros.core.auto import measured_error, pilot, pilot_window
+from modal_spring_ros.core.auto.budget import PlanningBudget
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.config import SimulationConfig
@@ -202,6 +205,34 @@ def test_the_full_run_chosen_after_a_plan_was_measured_goes_on_from_the_pilot_s_
     assert again.time == pytest.approx(head.time)
     size = np.abs(head.displacement()).max()
     assert size > 0 and np.abs(again.displacement() - head.displacement()).max() <= 1e-9 * size
+
+
+def test_a_full_run_the_pilot_stepped_already_is_neither_stepped_nor_charged_again():
+    """
+    The converged reference's first run is the full candidate's first run: kept, charged once.
+
+    Measured a second time (as the candidate, against the reference), nothing is stepped and
+    the planning budget counts nothing more.
+    """
+    scene = load_scene('sheet_10x10')
+    base = build_simulation(scene, SimulationConfig(method='full'))
+
+    def full(longest_dt: float, sample_s: float):
+        return on_samples(base, sample_s, min(0.9 * base.stability_limit(), longest_dt))
+    budget = PlanningBudget(1e12, 1e13)
+    measuring = pilot.Pilot(MassSpringModel(scene), TOLERANCE, None, full, lambda hz: None,
+                            np.array([5.0]), budget=budget)
+    reference = 1.01 * trajectory(full(math.inf, SAMPLE_S), SAMPLE_S, 50)
+    first = measuring._error(full(math.inf, SAMPLE_S), reference, SAMPLE_S,
+                             stepped=measuring._stepped)
+    once = budget.spent_us
+    stepped = []
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(measured_error, 'trajectory', lambda *a, **k: stepped.append(a[0]))
+        again = measuring._error(full(math.inf, SAMPLE_S), reference, SAMPLE_S,
+                                 stepped=measuring._stepped)
+    assert first > 0.0 and again == first and stepped == []
+    assert once > 0.0 and budget.spent_us == once
 
 
 def _driven(hz: float, ratio: float) -> MassSpringModel:

@@ -114,8 +114,7 @@ class Pilot:
         # the full run over the window's start checking a sibling (None: none); whether sought
         self._start, self._start_sought = None, False
         self._fallback: Simulation | None = None   # the full candidate, once measured
-        # the converged full reference's step; the full runs stepped over the window, once
-        self._reference_dt, self._stepped = 0.0, {}
+        self._reference_dt, self._stepped = 0.0, {}   # reference's step; full runs kept
 
     def run(self, plan: PlanSettings) -> tuple[Simulation, PilotReport]:
         """Return the simulation chosen and what the pilot measured."""
@@ -248,11 +247,12 @@ class Pilot:
         Measured over the window, extrapolated beyond it, and against a sibling corrected for
         the share of the step error the sibling shares. A run whose error is certain to exceed
         ``ceiling`` part-way through its window is abandoned there (its bound returned, what
-        was stepped charged: :func:`~.measured_error.bounded_trajectory`; kept in ``stepped``).
+        was stepped charged: :func:`~.measured_error.bounded_trajectory`; kept in ``stepped``,
+        charged once).
         """
-        shared = self._shared(sim)
+        shared, new = self._shared(sim), (sim.dt, sample_s, len(reference)) not in (stepped or {})
         run, bound = bounded_trajectory(sim, sample_s, reference, ceiling / shared, stepped)
-        self.budget.charge(sim, (len(reference) if run is None else len(run)) * sample_s)
+        self.budget.charge(sim, new * (len(reference) if run is None else len(run)) * sample_s)
         if bound is not None:
             self._measured[id(sim)] = (sim, bound * shared)
             return bound * shared
