@@ -10,7 +10,8 @@ import math
 
 from modal_spring_ros.core.auto import measured_error
 from modal_spring_ros.core.auto import pilot
-from modal_spring_ros.core.auto.measured_error import (bounded_trajectory, error_at_least,
+from modal_spring_ros.core.auto.measured_error import (bounded_trajectory,
+                                                       converged_trajectory, error_at_least,
                                                        horizon_error, on_samples, trajectory,
                                                        trajectory_error, worst_window)
 from modal_spring_ros.core.config import SimulationConfig
@@ -153,3 +154,19 @@ def test_a_run_of_a_thousand_seconds_is_planned_with_its_step_predicted_over_it(
     assert report.predicted and report.error <= 0.01, report.describe()
     # the default step (half the stability limit) is predicted to miss over 1,000 s
     assert sim.dt < 0.5 * sim.stability_limit() and 'predicted beyond' in report.reason
+
+
+def test_a_converged_run_asked_again_is_neither_stepped_nor_charged_again():
+    """The pilot asks for its reference again after a refinement: its runs are kept."""
+    full = build_simulation(load_scene('sheet_10x10'), SimulationConfig(method='full'))
+    sample_s = full.dt * 20
+    stepped, charged = {}, []
+
+    def converged():
+        return converged_trajectory(lambda dt: on_samples(full, sample_s, dt), full.dt,
+                                    sample_s, 50, 1e-4, charge=charged.append, stepped=stepped)
+    first = converged()
+    runs = len(charged)
+    again = converged()
+    assert runs >= 2 and len(charged) == runs and len(stepped) == runs
+    np.testing.assert_array_equal(first[0], again[0])

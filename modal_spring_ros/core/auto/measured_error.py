@@ -182,7 +182,7 @@ def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sam
     returned. None when it diverges, or when the modelled work of the runs so far passes
     ``work_per_s`` (us per simulated second, summed over the runs). ``charge(sim)`` is told of
     each run before it is stepped (a planning budget counts it). ``stepped``: its runs kept
-    there (:func:`stepped_trajectory`).
+    there (:func:`stepped_trajectory`), a run kept from before neither stepped nor charged.
     """
     spent, coarse, stepped = 0.0, None, {} if stepped is None else stepped
     while True:
@@ -190,7 +190,7 @@ def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sam
         spent += work_per_second(sim)
         if spent > work_per_s:
             return None
-        if charge is not None:
+        if charge is not None and (sim.dt, sample_s, samples) not in stepped:
             charge(sim)
         fine = stepped_trajectory(sim, sample_s, samples, stepped)
         if fine is None:
