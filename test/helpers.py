@@ -62,6 +62,20 @@ def sheet_on_a_table(*colliders: dict):
                           *colliders]})
 
 
+def head_start_gap(sim, head) -> float:
+    """
+    Return how far ``head`` is from ``sim``'s run stepped from rest to its time.
+
+    The largest difference in displacement, relative to the head's largest (1: nothing moved).
+    """
+    again = sim.with_dt(sim.dt)
+    again.step(round(head.time / sim.dt))
+    assert abs(again.time - head.time) <= 1e-9 * max(head.time, 1.0)
+    size = float(np.abs(head.displacement()).max())
+    gap = float(np.abs(again.displacement() - head.displacement()).max())
+    return gap / size if size > 0 else 1.0
+
+
 def hanging_sheet(count: int) -> dict:
     """Return ``sheet_316x316``'s definition with ``count`` x ``count`` particles (0.9 m, 1 kg)."""
     return {
