@@ -155,8 +155,15 @@ class NodeProcess:
         return ''.join(list(self._err))
 
     def wait(self, timeout: float) -> tuple[int, str, str]:
-        """Wait for the process to end; return its exit status, stdout and stderr."""
+        """
+        Wait for the process to end; return its exit status, stdout and stderr.
+
+        Whatever it leaves running in its process group (a node it started, were it to crash) is
+        killed: never left publishing into the next test's graph.
+        """
         self.proc.wait(timeout=timeout)
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(self.proc.pid, signal.SIGKILL)
         for reader in self._readers:
             reader.join(timeout=10.0)
         return self.proc.returncode, ''.join(self._out), ''.join(self._err)
@@ -179,9 +186,8 @@ class NodeProcess:
 
     def kill(self) -> tuple[str, str]:
         """SIGKILL to the whole process group; returns what the process printed."""
-        if self.proc.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(self.proc.pid, signal.SIGKILL)
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(self.proc.pid, signal.SIGKILL)
         with contextlib.suppress(subprocess.TimeoutExpired):
             return self.wait(10.0)[1:]
         return ''.join(self._out), ''.join(self._err)

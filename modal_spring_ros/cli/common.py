@@ -7,8 +7,6 @@ import dataclasses
 import os
 from pathlib import Path
 import re
-import signal
-import subprocess
 import sys
 import time
 from typing import Callable, Iterator, NoReturn
@@ -132,17 +130,6 @@ def write_output(path: str, option: str, write: Callable[[], None]) -> None:
             with contextlib.suppress(OSError):
                 os.remove(path)
         raise ValueError(f'{option} {path}: cannot write: {exc.strerror or exc}') from None
-
-
-def stop_child(process: subprocess.Popen | None, timeout: float = 15.0) -> None:
-    """End a child started alongside (``--start-node``) as Ctrl-C would; kill it if it hangs."""
-    if process is None:
-        return
-    process.send_signal(signal.SIGINT)
-    try:
-        process.wait(timeout)
-    except subprocess.TimeoutExpired:
-        process.kill()
 
 
 def fail(prog: str, message: str, status: int = EXIT_USAGE) -> NoReturn:

@@ -22,8 +22,9 @@ import sys
 import time
 
 from geometry_msgs.msg import PoseStamped
-from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args, stop_child
+from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args
 from modal_spring_ros.core.motion.clamp_follower import DEFAULT_FOLLOW_HZ
+from modal_spring_ros.ros.process.companion_node import start_companion, stop_companion
 from modal_spring_ros.ros.process.stop_signals import end_ros
 from modal_spring_ros.scenes.resources import executable
 import rclpy
@@ -87,7 +88,7 @@ def start_node(ros_args: list[str]) -> subprocess.Popen:
     command = [str(executable('modal_spring_node')), '--ros-args', '-p', 'anchor.source:=topic',
                '-p', f'anchor.follow_hz:={DEFAULT_FOLLOW_HZ}']
     extra = ros_args[1:] if ros_args else []
-    return subprocess.Popen(command + extra)
+    return start_companion(command + extra)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -117,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         node.destroy_node()
         end_ros()
-        stop_child(node_process)
+        stop_companion(node_process)
     return 0
 
 

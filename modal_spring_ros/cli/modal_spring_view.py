@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import argparse
 import math
-import subprocess
 import sys
 
-from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args, stop_child
+from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args
+from modal_spring_ros.ros.process.companion_node import start_companion, stop_companion
 from modal_spring_ros.ros.process.stop_signals import end_ros, spin_until_stopped
 from modal_spring_ros.ros.tools.live_view import (DEFAULT_MAX_RATE_HZ, DEFAULT_PORT, foxglove,
                                                   LiveView, SDK_MISSING)
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
                   file=sys.stderr)
             return EXIT_USAGE
         if args.start_node:
-            node_process = subprocess.Popen([str(executable('modal_spring_node')), *ros_args])
+            node_process = start_companion([str(executable('modal_spring_node')), *ros_args])
         print(f'[{PROG}] serving {node.resolve_topic_name("points")} and the rest on '
               f'ws://{args.host}:{view.port} (Foxglove: Open connection)', file=sys.stderr,
               flush=True)
@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
         if node is not None:
             node.destroy_node()
         end_ros()
-        stop_child(node_process)
+        stop_companion(node_process)
     return 0
 
 

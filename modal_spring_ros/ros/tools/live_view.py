@@ -32,8 +32,9 @@ from visualization_msgs.msg import Marker
 
 try:
     import foxglove
+    import foxglove._foxglove_py as foxglove_native     # its log forwarding, on and off
 except ImportError:     # the optional 'view' extra is not installed
-    foxglove = None
+    foxglove = foxglove_native = None
 try:
     from tf2_msgs.msg import TFMessage
 except ImportError:     # a venv without the generated tf2_msgs: no frames in the view
@@ -75,17 +76,16 @@ def ros_type_name(msg_type: type) -> str:
 
 
 def route_sdk_log() -> None:
-    """Send the SDK's log to stderr through Python's logging, floods folded (once a process)."""
+    """Send the SDK's log to stderr through Python's logging, floods folded."""
     sdk = logging.getLogger('foxglove')
-    if sdk.handlers:
-        return
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter('[%(levelname)s] [%(created).9f] [%(name)s]: '
-                                           '%(message)s'))
-    handler.addFilter(RepeatLimit())
-    sdk.addHandler(handler)
-    sdk.setLevel(logging.INFO)
-    sdk.propagate = False
+    if not sdk.handlers:        # not routed by a view this process ran before
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter('[%(levelname)s] [%(created).9f] [%(name)s]: '
+                                               '%(message)s'))
+        handler.addFilter(RepeatLimit())
+        sdk.addHandler(handler)
+        sdk.setLevel(logging.INFO)
+        sdk.propagate = False
     foxglove.set_log_level('INFO')
 
 
@@ -139,7 +139,14 @@ class LiveView:
         return forward
 
     def stop(self) -> None:
-        """Close the channels and stop the server."""
+        """
+        Close the channels and stop the server, the SDK's log no longer handed to Python.
+
+        The server's threads log while it stops (a client gone, the shutdown): handed to
+        Python's logging from those threads as this one stops them, that crashed the view at
+        exit (a segmentation fault in the logging handler's lock, seen once in many runs).
+        """
+        foxglove_native.disable_logging()
         for channel in self._channels:
             channel.close()
         self._server.stop()
