@@ -156,17 +156,18 @@ def test_a_prediction_its_start_disproves_is_not_trusted(monkeypatch):
     The prediction made blind (every step predicted exact, as for a scene with no load): the
     default step of random scene 0, 73 % off over 3 s at half its stability limit, would be
     lengthened. Its start, measured against its run at half the step, is beyond the pilot's
-    margin where the prediction says nothing: the step is found by measuring, within 1 %.
+    margin where the prediction says nothing: the step is found by measuring, within 1 % (here
+    over 1.5 s: 5.7 % off over its start).
     """
     monkeypatch.setattr(StepErrorPredictor, '_run', lambda self, dt: self._exact)
     scene = random_scene(0, max_particles=80)
     sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
-                                                   horizon_s=3.0))
+                                                   horizon_s=1.5))
     report = sim.pilot
     assert sim.method == 'full' and not report.predicted
     assert 'the prediction missed over the first' in report.reason, report.reason
     assert 'sought over the whole window' in report.reason
-    assert error_against_converged(scene, sim, 3.0) <= TOLERANCE
+    assert error_against_converged(scene, sim, 1.5) <= TOLERANCE
 
 
 def test_a_search_over_the_whole_window_costs_at_most_what_the_run_does(monkeypatch):
