@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-import multiprocessing as mp
 
 from modal_spring_ros.bench.costs.steps import _measure
 import pytest
@@ -11,8 +10,6 @@ import pytest
 @pytest.mark.parametrize('method, modes, refresh', [
     ('modal', 15, 1), ('modal', 15, 10), ('derivatives', 15, 1), ('full', None, 1)])
 def test_each_method_of_the_step_benchmark_is_built_and_stepped(method, modes, refresh):
-    out = mp.Queue()
-    _measure('sheet_10x10', method, modes, 5e-4, refresh, 2, 20, out)
-    row = out.get(timeout=60)
+    row = _measure('sheet_10x10', method, modes, 5e-4, refresh, 2, 20)
     assert math.isfinite(row['step_us']) and row['step_us'] > 0.0
     assert row['basis_s'] >= 0.0

@@ -29,6 +29,7 @@ import time
 from typing import Callable
 
 from modal_spring_ros.bench.charts import subplots
+from modal_spring_ros.bench.child_run import pooled
 from modal_spring_ros.bench.costs.cli_runs import process_costs
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error,
@@ -221,7 +222,7 @@ def in_workers(measure_job: Callable, jobs: list, suite: str,
     rows = []
     try:
         with mp.get_context('spawn').Pool(WORKERS) as pool:
-            for k, found in enumerate(pool.imap_unordered(measure_job, jobs)):
+            for k, found in enumerate(pooled(pool, measure_job, jobs, suite)):
                 rows.extend(found)
                 for row in found:
                     what = (f"refused ({row['refused'][:60]})" if row['refused'] else

@@ -13,9 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import multiprocessing as mp
 import resource
-import sys
 import time
 from typing import Callable
 
@@ -23,6 +21,7 @@ from modal_spring_ros.bench.accuracy.analysis import cheapest_reaching, pareto
 from modal_spring_ros.bench.accuracy.failure import failure, turning_clamp
 # the suite's outputs (the bench command calls each suite's run, table and write_outputs)
 from modal_spring_ros.bench.accuracy.tradeoff_report import table, write_outputs  # noqa: F401
+from modal_spring_ros.bench.child_run import in_child
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.bases.mode_selection import choose_modes, choose_refresh, choose_step
@@ -313,27 +312,15 @@ def step_costs(scenes: list[str], dropped: list[int], progress) -> dict:
     return {'fig7': fig7, 'fig8': fig8}
 
 
-def _case_in_child(case: Case, queue) -> None:
-    def progress(msg: str) -> None:
-        print(f'[modal_spring_bench] {msg}', file=sys.stderr, flush=True)
-    queue.put(run_case(case, progress))
-
-
-def run_case_isolated(case: Case) -> dict:
+def run_case_isolated(case: Case, progress: Callable[[str], None]) -> dict:
     """:func:`run_case` in its own process, so that its peak memory is the scene's own."""
-    ctx = mp.get_context('spawn')
-    queue = ctx.Queue()
-    child = ctx.Process(target=_case_in_child, args=(case, queue))
-    child.start()
-    result = queue.get()
-    child.join()
-    return result
+    return in_child(run_case, case, what=f'tradeoff {case.scene}', progress=progress)
 
 
 def run(quick: bool, progress: Callable[[str], None]) -> dict:
     cases = QUICK if quick else FULL
     result = {'quick': quick, 'sample_s': SAMPLE_S,
-              'cases': [run_case_isolated(c) for c in cases]}
+              'cases': [run_case_isolated(c, progress) for c in cases]}
     for case in result['cases']:
         rows = case['configs']
         case['pareto'] = [(r['method'], r['modes'], r['dt']) for r in pareto(rows)]

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import csv
 import math
-import multiprocessing as mp
 import os
 from pathlib import Path
 import resource
@@ -21,6 +20,7 @@ import time
 from typing import Callable
 
 from modal_spring_ros.bench.charts import finish_chart, subplots
+from modal_spring_ros.bench.child_run import in_child
 from modal_spring_ros.bench.costs.steps import frame_costs
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
@@ -110,26 +110,16 @@ def measure(kind: str, side: int, config: dict, batches: int = 0, batch_steps: i
     return result
 
 
-def _child(out: mp.Queue, *args) -> None:
-    try:
-        out.put(measure(*args))
-    except Exception as exc:  # reported, not raised: the parent names the case
-        out.put({'error': f'{type(exc).__name__}: {exc}'})
-
-
 def measure_in_child(kind: str, side: int, config: dict, batches: int = 0,
                      batch_steps: int = 20, cached_samples: bool = False) -> dict:
-    """:func:`measure` in a fresh process, so that its peak memory is the run's own."""
-    ctx = mp.get_context('spawn')
-    q: mp.Queue = ctx.Queue()
-    p = ctx.Process(target=_child, args=(q, kind, side, config, batches, batch_steps,
-                                         cached_samples))
-    p.start()
-    result = q.get()
-    p.join()
-    if 'error' in result:
-        raise RuntimeError(f'{kind} {side}: {result["error"]}')
-    return result
+    """
+    :func:`measure` in a fresh process, so that its peak memory is the run's own.
+
+    :raises ChildFailed: (a ``RuntimeError``) the measure raised, or its process ended without
+        an answer.
+    """
+    return in_child(measure, kind, side, config, batches, batch_steps, cached_samples,
+                    what=f'{kind} {side}')
 
 
 def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:

@@ -18,13 +18,13 @@ of each stage passed on:
 """
 from __future__ import annotations
 
-import multiprocessing as mp
 from pathlib import Path
 import resource
 import tempfile
 import time
 from typing import Callable
 
+from modal_spring_ros.bench.child_run import in_child
 from modal_spring_ros.bench.costs.steps import frame_costs, median_step_seconds
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
@@ -103,9 +103,8 @@ def write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray) -> Path:
     return path
 
 
-def _measure(kind: str, size: int, folder: str, batches: int, out: mp.Queue) -> None:
-    def progress(message: str) -> None:
-        out.put(('progress', message))
+def _measure(kind: str, size: int, folder: str, batches: int,
+             progress: Callable[[str], None]) -> dict:
     vertices, faces = cloth_mesh(size) if kind == 'cloth' else ellipsoid_mesh(size)
     write_obj(Path(folder) / f'{kind}.obj', vertices, faces)
     scene_file = Path(folder) / f'{kind}.yaml'
@@ -131,26 +130,17 @@ def _measure(kind: str, size: int, folder: str, batches: int, out: mp.Queue) -> 
         result[f'{name}_cpu_per_sim_s'] = step_s / sim.dt
     result.update(frame_costs(modal, batches))
     result['peak_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    out.put(('result', result))
+    return result
 
 
 def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:
-    ctx = mp.get_context('spawn')
     results = []
     cases = QUICK_CASES if quick else CASES
     with tempfile.TemporaryDirectory(prefix='modal_spring_bench_') as folder:
         for k, (label, kind, size) in enumerate(cases):
             progress(f'meshes {k + 1}/{len(cases)}: {label}')
-            queue: mp.Queue = ctx.Queue()
-            child = ctx.Process(target=_measure, args=(kind, size, folder, 3 if quick else 7,
-                                                       queue))
-            child.start()
-            while True:
-                what, value = queue.get()
-                if what == 'result':
-                    break
-                progress(f'  {value}')
-            child.join()
+            value = in_child(_measure, kind, size, folder, 3 if quick else 7,
+                             what=f'meshes: {label}', progress=lambda m: progress(f'  {m}'))
             value.update(label=label, kind=kind,
                          ready_s=value['load_s'] + value['precompute_s'],
                          saving=value['full_cpu_per_sim_s'] / value['modal_cpu_per_sim_s'])

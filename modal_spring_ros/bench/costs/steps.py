@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import array
 import concurrent.futures
-import multiprocessing as mp
 import resource
 import statistics
 import time
 from typing import Callable
 
 from modal_spring_ros.bags.messages.pointcloud import CloudBuffer, to_pointcloud2
+from modal_spring_ros.bench.child_run import in_child
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.factory import force_options
 from modal_spring_ros.core.filter_band import FilterBand
@@ -49,7 +49,7 @@ SLOW_SCENES = ('sheet_316x316',)
 
 
 def _measure(scene_name: str, method: str, modes: int | None, dt: float, refresh: int,
-             batches: int, batch_steps: int, out: mp.Queue) -> None:
+             batches: int, batch_steps: int) -> dict:
     model = MassSpringModel(load_scene(scene_name))
     start = time.perf_counter()
     if method in ('modal', 'derivatives', 'sampled'):
@@ -65,9 +65,8 @@ def _measure(scene_name: str, method: str, modes: int | None, dt: float, refresh
         sim = FullSimulation(model, dt=dt, basis=basis)
     step_s = median_step_seconds(sim, batches, batch_steps)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    out.put({'step_us': 1e6 * step_s, 'basis_s': basis_seconds,
-             'peak_mb': peak_mb, 'dt': dt,
-             **(frame_costs(sim, batches) if method != 'full' else {})})
+    return {'step_us': 1e6 * step_s, 'basis_s': basis_seconds, 'peak_mb': peak_mb, 'dt': dt,
+            **(frame_costs(sim, batches) if method != 'full' else {})}
 
 
 def median_step_seconds(sim, batches: int, batch_steps: int) -> float:
@@ -123,7 +122,6 @@ def copied_cloud(positions, rest, header: Header):
 
 
 def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:
-    ctx = mp.get_context('spawn')
     results = []
     cases = [c for c in CASES if not (quick and c[1] in SLOW_SCENES)]
     for k, (label, scene, method, modes, dt, refresh) in enumerate(cases):
@@ -131,12 +129,8 @@ def run(quick: bool, progress: Callable[[str], None]) -> list[dict]:
         small = scene == 'sheet_10x10'
         batches = 5 if quick else 15
         batch_steps = (400 if small else 20) if quick else (2000 if small else 100)
-        q: mp.Queue = ctx.Queue()
-        p = ctx.Process(target=_measure, args=(scene, method, modes, dt, refresh, batches,
-                                               batch_steps, q))
-        p.start()
-        res = q.get()
-        p.join()
+        res = in_child(_measure, scene, method, modes, dt, refresh, batches, batch_steps,
+                       what=f'steps: {label}')
         res.update(label=label, scene=scene, method=method, modes=modes)
         results.append(res)
     by = {r['label']: r for r in results}
