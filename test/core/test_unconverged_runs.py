@@ -17,6 +17,7 @@ import math
 import re
 
 from helpers import write_obj
+from modal_spring_ros.core.auto import budget as budget_module
 from modal_spring_ros.core.auto.amplification import AMPLIFYING_PER_S
 from modal_spring_ros.core.auto.full_candidate import by_step_doubling, STALLED, STEP_ORDER
 from modal_spring_ros.core.auto.measured_error import on_samples, trajectory, trajectory_error
@@ -136,3 +137,27 @@ def test_auto_says_the_error_is_not_measured_and_takes_the_default_step(skin):
             r'([0-9.]+)% predicted\)', sim.pilot.reason).groups())
         assert measured >= NONLINEAR * predicted
         assert spent <= 1.0 * full_run_s
+
+
+@pytest.mark.slow
+def test_the_twin_is_stepped_at_the_default_step_whatever_step_the_start_was_checked_at(
+        skin, monkeypatch):
+    """
+    The twin measures the motion, which is the same at any step that resolves it.
+
+    At 0.3 % the skin's start is checked down to half the default step before the twin is
+    stepped; stepped there, the twin cost twice what it does at the default step (landed on the
+    samples: a hair shorter).
+    """
+    steps = []
+    original = budget_module.start_growth
+
+    def recorded(make):
+        steps.append(make().dt)
+        return original(make)
+    monkeypatch.setattr(budget_module, 'start_growth', recorded)
+    default = build_simulation(skin, SimulationConfig(method='full'))
+    sim, _ = planned(skin, 0.003)
+    assert sim.pilot.unmeasured == AMPLIFYING
+    (step,) = steps
+    assert 0.9 * default.dt <= step <= default.dt

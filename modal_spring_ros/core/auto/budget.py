@@ -365,8 +365,11 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     if beyond and not missed and count < samples:
         return unmeasured(BEYOND_MODES)
     if missed and count < samples:
-        growth = start_growth(lambda: full(sim.dt, sample_s))    # a twin moved by a hair
-        budget.charge(sim, 2.0 * TWIN_S)
+        # a twin moved by a hair, at the default step: the motion's growth is the motion's, not
+        # the step's, and the halved step the check ended on cost twice as much for it
+        twin_of = full(default_dt, sample_s)
+        growth = start_growth(lambda: full(default_dt, sample_s))
+        budget.charge(twin_of, 2.0 * TWIN_S)
         reason += f'; the step missed the tolerance over the first {checked_s:.2g} s'
         if amplifies(growth):     # no step converges: none is sought
             reason += f', and {describe_rate(growth)} over the first {TWIN_S:g} s'
