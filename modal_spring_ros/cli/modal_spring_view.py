@@ -17,9 +17,10 @@ import sys
 
 from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args
 from modal_spring_ros.ros.process.companion_node import start_companion, stop_companion
-from modal_spring_ros.ros.process.stop_signals import end_ros, spin_until_stopped
+from modal_spring_ros.ros.process.stop_signals import (end_ros, init_ros, spin_until_stopped,
+                                                       StopSignals)
 from modal_spring_ros.ros.tools.live_view import (DEFAULT_MAX_RATE_HZ, DEFAULT_PORT, foxglove,
-                                                  LiveView, SDK_MISSING)
+                                                  LiveView, SDK_MISSING, ServeError)
 from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -61,7 +62,8 @@ def main(argv: list[str] | None = None) -> int:
     if problem:
         print(f'{PROG}: error: {problem}', file=sys.stderr)
         return EXIT_USAGE
-    rclpy.init(args=[sys.argv[0], *ros_args] if ros_args else None)
+    stop = StopSignals().install()      # Ctrl-C while it starts: out at once, no traceback
+    init_ros([sys.argv[0], *ros_args] if ros_args else None)
     node_process = None
     node = view = None
     try:
@@ -69,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
         node = rclpy.create_node('modal_spring_view', start_parameter_services=False)
         try:
             view = LiveView(node, args.host, args.port, args.max_rate_hz)
-        except RuntimeError as exc:      # the port is taken, the address is not this host's
+        except ServeError as exc:
             print(f'{PROG}: error: --host {args.host} --port {args.port}: {exc}',
                   file=sys.stderr)
             return EXIT_USAGE
@@ -79,7 +81,8 @@ def main(argv: list[str] | None = None) -> int:
               f'ws://{args.host}:{view.port} (Foxglove: Open connection)', file=sys.stderr,
               flush=True)
         executor.add_node(node)
-        spin_until_stopped(executor)
+        stop.interrupting = False       # serving: a signal ends the spin loop, then the view
+        spin_until_stopped(executor, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -10,8 +10,10 @@ from __future__ import annotations
 import json
 import socket
 import struct
+import sys
 import time
 
+from modal_spring_ros.cli.launcher import EXIT_INTERRUPTED
 from modal_spring_ros.cli.modal_spring_view import main
 import numpy as np
 import pytest
@@ -126,3 +128,66 @@ def test_a_client_flooding_the_view_with_unknown_channels_costs_a_few_log_lines(
     assert code == 0, stderr_excerpt(err)
     refused = [line for line in err.splitlines() if 'unknown channel' in line]
     assert len(refused) == 5 and 'counted, not shown' in refused[-1], refused
+
+
+#: the view run with Ctrl-C pressed as it subscribes (its server up, its channels half made),
+#: the interrupt landing in a call into rclpy's C++ (Python's own exception swallowed, as it is
+#: raised only once such a call returns)
+INTERRUPTED_WHILE_SUBSCRIBING = """
+import os, signal, sys, time
+from modal_spring_ros.cli import modal_spring_view
+from modal_spring_ros.ros.tools import live_view
+
+original = live_view.Forwarded
+
+
+def forwarded(*args, **kwargs):
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.01)
+    except KeyboardInterrupt:
+        pass
+    return original(*args, **kwargs)
+
+
+live_view.Forwarded = forwarded
+sys.exit(modal_spring_view.main(['--port', sys.argv[1]]))
+"""
+
+
+def test_ctrl_c_as_the_view_subscribes_ends_it_quietly():
+    """
+    Ctrl-C between the server's start and the subscriptions' end: no error, no traceback.
+
+    rclpy's own handler shut ROS down there, and the subscription that then failed was
+    reported as the port refused (exit 2). Now a signal only asks the view to stop: it
+    subscribes, serves and stops at once.
+    """
+    view = NodeProcess(argv=[sys.executable, '-c', INTERRUPTED_WHILE_SUBSCRIBING,
+                             str(free_port())])
+    code, _, err = view.wait(timeout=60.0)
+    assert code in (0, EXIT_INTERRUPTED), stderr_excerpt(err)
+    assert 'Traceback' not in err and 'error:' not in err, stderr_excerpt(err)
+
+
+@pytest.mark.parametrize('moment', ['rclpy', 'serving'])
+def test_ctrl_c_while_the_view_starts_or_serves_ends_it_quietly(moment):
+    """An interrupt while rclpy loads, or once the view serves: no error, no traceback."""
+    view = NodeProcess(argv=[console_script('modal_spring_view'), '--port', str(free_port())])
+    end = time.monotonic() + 60.0
+    reached = {'rclpy': lambda: '_rclpy_pybind11' in _maps(view.proc.pid),
+               'serving': lambda: 'serving' in view.stderr()}[moment]
+    while not reached():
+        assert time.monotonic() < end and view.proc.poll() is None, stderr_excerpt(view.stderr())
+        time.sleep(0.001)
+    code, _, err = view.interrupt(timeout=30.0)
+    assert code in (0, EXIT_INTERRUPTED), stderr_excerpt(err)
+    assert 'Traceback' not in err and 'error:' not in err, stderr_excerpt(err)
+
+
+def _maps(pid: int) -> str:
+    try:
+        with open(f'/proc/{pid}/maps') as maps:
+            return maps.read()
+    except OSError:
+        return ''

@@ -50,6 +50,10 @@ DEFAULT_PORT = 8765
 DEFAULT_MAX_RATE_HZ = 30.0
 
 
+class ServeError(RuntimeError):
+    """The server could not start on the address and port asked for."""
+
+
 @dataclasses.dataclass(frozen=True)
 class Forwarded:
     """One topic the view hands on: its name, type, QoS and whether it is rate-limited."""
@@ -94,6 +98,9 @@ class LiveView:
     Hands ``node``'s subscriptions on to a Foxglove WebSocket server on ``host:port``.
 
     Port 0 takes a free one (:attr:`port` says which). :meth:`stop` stops the server.
+
+    :raises ServeError: the server could not start there (the port taken, an address not this
+        machine's).
     """
 
     def __init__(self, node: Node, host: str = '127.0.0.1', port: int = DEFAULT_PORT,
@@ -102,8 +109,11 @@ class LiveView:
             raise RuntimeError(SDK_MISSING)
         route_sdk_log()
         self._context = foxglove.Context()      # this view's channels, to this server only
-        self._server = foxglove.start_server(name=node.get_fully_qualified_name(), host=host,
-                                             port=port, context=self._context)
+        try:
+            self._server = foxglove.start_server(name=node.get_fully_qualified_name(),
+                                                 host=host, port=port, context=self._context)
+        except RuntimeError as exc:     # the port is taken, the address is not this host's
+            raise ServeError(str(exc)) from None
         self.port = self._server.port
         self._gap = 1.0 / float(max_rate_hz)
         self._channels = []
