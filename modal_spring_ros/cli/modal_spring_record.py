@@ -9,7 +9,6 @@ See :mod:`modal_spring_ros.ros.tools.recorder` for what is stored and how.
 from __future__ import annotations
 
 import math
-import signal
 import sys
 import time
 
@@ -17,7 +16,7 @@ from modal_spring_ros.bags.files.writer import (BagError, BagWriter, check_new_b
                                                 DEFAULT_CHUNK_SECONDS, DEFAULT_CHUNK_SIZE)
 from modal_spring_ros.cli.common import fail, script_parser, split_ros_args
 from modal_spring_ros.core.model.scene import SceneError
-from modal_spring_ros.ros.process.stop_signals import end_ros
+from modal_spring_ros.ros.process.stop_signals import end_ros, init_ros, StopSignals
 from modal_spring_ros.ros.tools.recorder import DEFAULT_TOPICS, Recorder, snapshot_parameters
 from modal_spring_ros.scenes.resources import load_scene
 import rclpy
@@ -55,9 +54,16 @@ def main(argv: list[str] | None = None) -> int:
     except BagError as exc:
         fail(PROG, str(exc))
 
-    signal.signal(signal.SIGTERM, lambda *_: None)  # rclpy shuts down first, then this
-    rclpy.init(args=[PROG] + ros_args)
-    node = rclpy.create_node('modal_spring_recorder')
+    # Ctrl-C and SIGTERM ask the recorder to stop (interrupting it until it subscribes, never
+    # a write half done after); ROS stays up until it ends (never shut down under a
+    # subscription being made: that failed with a traceback)
+    stop = StopSignals().install()
+    init_ros([PROG] + ros_args)
+    try:
+        node = rclpy.create_node('modal_spring_recorder')
+    except BaseException:
+        end_ros()
+        raise
     target = node.resolve_topic_name(args.node) if not args.node.startswith('/') else args.node
     writer, error = None, ''
     try:
@@ -65,12 +71,14 @@ def main(argv: list[str] | None = None) -> int:
                            chunk_seconds=args.chunk_seconds, attachments=True)
         # Subscribe first, then take the parameters: a change in between is then both in the
         # snapshot and on /parameter_events (harmless), never in neither.
+        stop.interrupting = False
         Recorder(node, writer, args.topics, target)
-        params = snapshot_parameters(node, target, args.wait_for_node)
+        params = snapshot_parameters(node, target, args.wait_for_node, stop.requested.is_set)
         record, scene = {'source': PROG, 'node': target}, None
         if params is None:
-            node.get_logger().warning(f'node {target} did not answer: the bag will not hold '
-                                      'its scene and parameters (no --resimulate)')
+            if not stop.requested.is_set():     # (asked to stop while it waited: no warning)
+                node.get_logger().warning(f'node {target} did not answer: the bag will not '
+                                          'hold its scene and parameters (no --resimulate)')
         else:
             record['parameters'] = params
             try:
@@ -81,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
                                    + (' and its scene' if scene is not None else ''))
         writer.add_run_record(record, scene)
         end = None if args.duration is None else time.monotonic() + args.duration
-        while rclpy.ok() and (end is None or time.monotonic() < end):
+        while stop.running(node.context) and (end is None or time.monotonic() < end):
             rclpy.spin_once(node, timeout_sec=0.05)
             writer.flush_if_due()  # also when messages stop coming
     except (KeyboardInterrupt, ExternalShutdownException):

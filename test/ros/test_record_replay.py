@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 import signal
 import subprocess
+import sys
 import threading
 import time
 
@@ -141,6 +142,55 @@ def test_a_replay_stopped_as_it_starts_ends_cleanly(after_s):
     # played; never a traceback
     assert player.returncode in (0, 130) and 'Traceback' not in err, err
     assert out.startswith('played ') == (player.returncode == 0), out
+
+
+#: a tool run with Ctrl-C pressed as it makes its publishers or subscriptions, the interrupt
+#: landing in a call into rclpy's C++ (Python's own exception swallowed, as it is raised only
+#: once such a call returns); argv: the module, the function to hook, the command line
+INTERRUPTED_WHILE_SETTING_UP = """
+import importlib, os, signal, sys, time
+module = importlib.import_module(sys.argv[1])
+original = getattr(module, sys.argv[2])
+
+
+def hooked(*args, **kwargs):
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.01)
+    except KeyboardInterrupt:
+        pass
+    return original(*args, **kwargs)
+
+
+setattr(module, sys.argv[2], hooked)
+sys.exit(importlib.import_module(sys.argv[3]).main(sys.argv[4:]))
+"""
+
+
+@pytest.mark.parametrize('tool', ['replay', 'record'])
+def test_ctrl_c_as_a_tool_makes_its_publishers_or_subscriptions_ends_it_cleanly(tool, tmp_path):
+    """
+    Ctrl-C as the replay makes its publishers, or the recorder its subscriptions: a clean stop.
+
+    rclpy's own handler shut ROS down under the publisher or subscription being made: a
+    traceback. Now a signal asks the tool to stop: it stops at once, its bag closed.
+    """
+    if tool == 'replay':
+        argv = ['modal_spring_ros.ros.tools.player', 'playback_profile',
+                'modal_spring_ros.cli.modal_spring_replay', str(BAGS / 'sheet_10x10_lowpass_0_14'),
+                '--loop']
+    else:
+        argv = ['modal_spring_ros.cli.modal_spring_record', 'Recorder',
+                'modal_spring_ros.cli.modal_spring_record', '--output', str(tmp_path / 'bag'),
+                '--wait-for-node', '20', '--ros-args', '-r', '__ns:=/nobody']
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, '-c', INTERRUPTED_WHILE_SETTING_UP, *argv],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and 'Traceback' not in done.stderr, done.stderr[-3000:]
+    assert time.monotonic() - started < 15.0        # not the node's 20 s, not a loop forever
+    if tool == 'record':
+        assert done.stdout.startswith('wrote ') and 'did not answer' not in done.stderr
+        assert BagReader(tmp_path / 'bag').finalised
 
 
 def test_recorder_captures_the_live_node_and_its_bag_resimulates(tmp_path):

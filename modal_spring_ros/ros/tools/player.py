@@ -6,7 +6,6 @@ Raw CDR, recorded timing, recorded QoS (the player of ``modal_spring_replay``).
 from __future__ import annotations
 
 import contextlib
-import signal
 import time
 
 from modal_spring_ros.bags.files.reader import BagReader, POINTCLOUD2
@@ -14,7 +13,7 @@ from modal_spring_ros.bags.files.writer import BagError
 from modal_spring_ros.bags.messages.message_types import message_class, TypeRefused
 from modal_spring_ros.bags.messages.qos import playback_profile, profiles_from_yaml
 from modal_spring_ros.ros.process.shared_memory import cloud_transport, prefer_large_shared_memory
-from modal_spring_ros.ros.process.stop_signals import end_ros
+from modal_spring_ros.ros.process.stop_signals import end_ros, init_ros, StopSignals
 from modal_spring_ros.ros.stream.publication_mode import prefer_asynchronous_publication
 from modal_spring_ros.scenes.resources import share_directory
 import rclpy
@@ -52,19 +51,23 @@ def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool
         raise BagError(f'{bag.path}: no topic of an installed message type (types: '
                        f"{', '.join(sorted({bag.topics[t].type_name for t in topics}))})")
     bag.check(installed)  # every message decodes and no cloud is damaged, before playing
-    signal.signal(signal.SIGTERM, lambda *_: None)  # rclpy shuts down first, then this
+    # Ctrl-C and SIGTERM interrupt the one thread that plays; ROS stays up until it ends (never
+    # shut down under a publisher being made: that failed with a traceback)
+    stop = StopSignals().install()
     count = 0
     prefer_asynchronous_publication()  # a slow reader never holds the replay's clock
     # large clouds over Fast DDS's large shared-memory segment, as the node sends them
     largest = max((len(m.data) for m in _first_messages(bag, installed)), default=None)
     prefer_large_shared_memory(share_directory(), largest)
-    rclpy.init(args=ros_args)
+    init_ros(ros_args)
     try:
         node = rclpy.create_node('modal_spring_replay')
-    except Exception:
-        if rclpy.ok():
-            raise
-        return count        # stopped (Ctrl-C, SIGTERM) before it began: ROS is shut down
+    except KeyboardInterrupt:
+        end_ros()
+        return count        # stopped (Ctrl-C, SIGTERM) before it began
+    except BaseException:
+        end_ros()
+        raise
     transport = cloud_transport(largest or 0, get_rmw_implementation_identifier(),
                                 share_directory())
     if transport:
@@ -83,11 +86,11 @@ def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool
         if wait_for_subscribers is not None:
             awaited = _awaited(bag, publishers, wait_for_subscribers)
             end = time.monotonic() + WAIT_S
-            while (rclpy.ok() and time.monotonic() < end and
+            while (stop.running(node.context) and time.monotonic() < end and
                    any(p.get_subscription_count() == 0 for p in awaited)):
                 time.sleep(0.05)
             time.sleep(0.5)  # the subscribers' side of discovery completes too
-            if not rclpy.ok():
+            if not stop.running(node.context):
                 return count                        # stopped while it waited
         while True:
             start_wall = time.monotonic()
@@ -98,7 +101,7 @@ def play(bag: BagReader, topics: list[str] | None, rate: float = 1.0, loop: bool
                 delay = due - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)
-                if not rclpy.ok():
+                if not stop.running(node.context):
                     return count
                 publishers[m.topic].publish(m.data)
                 count += 1

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import struct
 import time
+from typing import Callable
 
 from modal_spring_ros.bags.files.sim_time import SIM_TIME_TOPIC
 from modal_spring_ros.bags.files.writer import BagWriter
@@ -32,6 +33,8 @@ DEFAULT_TOPICS = [POINTS_TOPIC, SIM_TIME_TOPIC, MESH_TOPIC, DIAGNOSTICS_TOPIC,
                   '/parameter_events', '/tf', '/tf_static']
 #: a parameter query unanswered this long is sent again, s
 ASK_AGAIN_S = 3.0
+#: How often a wait for the node asks whether the recorder was told to stop, s.
+STOP_CHECK_S = 0.1
 #: first field types whose stamp is the message's publish time
 _STAMPED_FIRST_FIELDS = ('std_msgs/Header header', 'builtin_interfaces/Time stamp')
 
@@ -108,25 +111,33 @@ def request_qos(offered):
     return qos
 
 
-def snapshot_parameters(node, target: str, timeout: float) -> dict | None:
-    """All parameters of node ``target`` (None when it does not answer within ``timeout``)."""
+def snapshot_parameters(node, target: str, timeout: float,
+                        stopped: Callable[[], bool] = lambda: False) -> dict | None:
+    """
+    All parameters of node ``target`` (None when it does not answer within ``timeout``).
+
+    ``stopped()`` true ends the wait within :data:`STOP_CHECK_S` (None: a recorder asked to
+    stop).
+    """
     list_client = node.create_client(ListParameters, f'{target}/list_parameters')
     get_client = node.create_client(GetParameters, f'{target}/get_parameters')
-    if not (list_client.wait_for_service(timeout_sec=timeout)
-            and get_client.wait_for_service(timeout_sec=timeout)):
-        return None
     end = time.monotonic() + timeout
-    listed = _ask(node, list_client, ListParameters.Request(), end)
+    for client in (list_client, get_client):
+        while not client.wait_for_service(timeout_sec=STOP_CHECK_S):
+            if stopped() or time.monotonic() >= end:
+                return None
+    end = time.monotonic() + timeout
+    listed = _ask(node, list_client, ListParameters.Request(), end, stopped)
     if listed is None:
         return None
     names = list(listed.result.names)
-    values = _ask(node, get_client, GetParameters.Request(names=names), end)
+    values = _ask(node, get_client, GetParameters.Request(names=names), end, stopped)
     if values is None:
         return None
     return {n: parameter_value_to_python(v) for n, v in zip(names, values.values)}
 
 
-def _ask(node, client, request, end: float):
+def _ask(node, client, request, end: float, stopped: Callable[[], bool]):
     """
     Return ``client``'s answer to ``request`` by monotonic time ``end``, or None.
 
@@ -134,10 +145,12 @@ def _ask(node, client, request, end: float):
     client's first answer can be lost when the server has not yet matched its response reader
     (Fast DDS waits 100 ms for that, which a busy machine can exceed).
     """
-    while time.monotonic() < end:
+    while time.monotonic() < end and not stopped():
         future = client.call_async(request)
-        rclpy.spin_until_future_complete(
-            node, future, timeout_sec=min(ASK_AGAIN_S, max(0.0, end - time.monotonic())))
+        asked = time.monotonic()
+        while (not future.done() and not stopped()
+               and time.monotonic() < min(end, asked + ASK_AGAIN_S)):
+            rclpy.spin_until_future_complete(node, future, timeout_sec=STOP_CHECK_S)
         if future.done():
             return future.result()
         client.remove_pending_request(future)
