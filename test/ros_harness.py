@@ -5,6 +5,7 @@ import contextlib
 import os
 import signal
 import subprocess
+import sys
 import threading
 import time
 
@@ -426,3 +427,39 @@ def node_in_process(namespace: str, parameters: list[Parameter] | None = None):
         node.stop()
         node.destroy_node()
         end_ros(context)
+
+
+#: a tool's main run with Ctrl-C pressed inside one of its calls, the interrupt landing in a
+#: call into rclpy's C++ (Python's own exception swallowed, as it is raised only once such a
+#: call returns); argv: the module, its function to hook, the tool's module, its command line
+_INTERRUPTED_INSIDE = """
+import importlib, os, signal, sys, time
+module = importlib.import_module(sys.argv[1])
+original = getattr(module, sys.argv[2])
+
+
+def hooked(*args, **kwargs):
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.01)
+    except KeyboardInterrupt:
+        pass
+    return original(*args, **kwargs)
+
+
+setattr(module, sys.argv[2], hooked)
+sys.exit(importlib.import_module(sys.argv[3]).main(sys.argv[4:]))
+"""
+
+
+def interrupted_inside(module: str, function: str, tool: str,
+                       *argv: str) -> subprocess.CompletedProcess:
+    """
+    Run ``tool``'s main on ``argv``, Ctrl-C pressed as it calls ``module.function``; its result.
+
+    The moment rclpy's own signal handler shut ROS down under a publisher or subscription
+    being made, deterministically: the signal arrives, and Python's exception for it is
+    swallowed as a call into C++ would delay it.
+    """
+    return subprocess.run([sys.executable, '-c', _INTERRUPTED_INSIDE, module, function, tool,
+                           *argv], capture_output=True, text=True, timeout=60)

@@ -25,7 +25,7 @@ from geometry_msgs.msg import PoseStamped
 from modal_spring_ros.cli.common import EXIT_USAGE, script_parser, split_ros_args
 from modal_spring_ros.core.motion.clamp_follower import DEFAULT_FOLLOW_HZ
 from modal_spring_ros.ros.process.companion_node import start_companion, stop_companion
-from modal_spring_ros.ros.process.stop_signals import end_ros
+from modal_spring_ros.ros.process.stop_signals import end_ros, init_ros, StopSignals
 from modal_spring_ros.scenes.resources import executable
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -98,15 +98,20 @@ def main(argv: list[str] | None = None) -> int:
     if problem:
         print(f'{PROG}: error: {problem}', file=sys.stderr)
         return EXIT_USAGE
-    node_process = start_node(ros_args) if args.start_node else None
-    rclpy.init(args=[sys.argv[0], *ros_args] if ros_args else None)
-    node = rclpy.create_node('modal_spring_gripper')
-    publisher = node.create_publisher(PoseStamped, TOPIC, 10)
-    print(f'[{PROG}] circling {args.radius:g} m at {args.frequency_hz:g} Hz, turning '
-          f'+-{args.turn_deg:g} degrees, on {publisher.topic_name}', file=sys.stderr)
-    start = time.monotonic()
+    # a signal asks it to stop; ROS stays up until it has (never shut down under a publish)
+    stop = StopSignals().install()
+    node_process = node = None
+    ros_up = False
     try:
-        while rclpy.ok():
+        node_process = start_node(ros_args) if args.start_node else None
+        init_ros([sys.argv[0], *ros_args] if ros_args else None)
+        ros_up = True
+        node = rclpy.create_node('modal_spring_gripper')
+        publisher = node.create_publisher(PoseStamped, TOPIC, 10)
+        print(f'[{PROG}] circling {args.radius:g} m at {args.frequency_hz:g} Hz, turning '
+              f'+-{args.turn_deg:g} degrees, on {publisher.topic_name}', file=sys.stderr)
+        start = time.monotonic()
+        while stop.running(node.context):
             t = time.monotonic() - start
             if args.duration and t > args.duration:
                 break
@@ -116,8 +121,10 @@ def main(argv: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        node.destroy_node()
-        end_ros()
+        if node is not None:
+            node.destroy_node()
+        if ros_up:
+            end_ros()
         stop_companion(node_process)
     return 0
 

@@ -9,7 +9,7 @@ from modal_spring_ros.bags.messages.pointcloud import xyz
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
-from ros_harness import Client, console_script, wait_for
+from ros_harness import Client, console_script, interrupted_inside, wait_for
 from sensor_msgs.msg import PointCloud2
 
 
@@ -46,3 +46,16 @@ def test_bad_options_are_refused_with_one_line():
     assert proc.returncode == 2
     assert proc.stderr.strip() == ('modal_spring_gripper: error: --rate-hz (0.0) must be '
                                    'above 0 and at most 1000')
+
+
+@pytest.mark.ros
+def test_ctrl_c_as_the_gripper_publishes_ends_it_cleanly():
+    """
+    A signal asks the gripper to stop: it stops at once, no traceback.
+
+    rclpy's own handler shut ROS down under the pose being published (a traceback).
+    """
+    done = interrupted_inside('modal_spring_ros.cli.modal_spring_gripper', 'gripper_pose',
+                              'modal_spring_ros.cli.modal_spring_gripper', '--duration', '30',
+                              '--ros-args', '-r', '__ns:=/stopped_gripper')
+    assert done.returncode == 0 and 'Traceback' not in done.stderr, done.stderr[-3000:]

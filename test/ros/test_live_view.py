@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import socket
 import struct
-import sys
 import time
 
 from modal_spring_ros.cli.launcher import EXIT_INTERRUPTED
@@ -18,7 +17,7 @@ from modal_spring_ros.cli.modal_spring_view import main
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message
-from ros_harness import console_script, NodeProcess, stderr_excerpt
+from ros_harness import console_script, interrupted_inside, NodeProcess, stderr_excerpt
 from sensor_msgs.msg import PointCloud2
 
 pytestmark = pytest.mark.ros
@@ -130,31 +129,6 @@ def test_a_client_flooding_the_view_with_unknown_channels_costs_a_few_log_lines(
     assert len(refused) == 5 and 'counted, not shown' in refused[-1], refused
 
 
-#: the view run with Ctrl-C pressed as it subscribes (its server up, its channels half made),
-#: the interrupt landing in a call into rclpy's C++ (Python's own exception swallowed, as it is
-#: raised only once such a call returns)
-INTERRUPTED_WHILE_SUBSCRIBING = """
-import os, signal, sys, time
-from modal_spring_ros.cli import modal_spring_view
-from modal_spring_ros.ros.tools import live_view
-
-original = live_view.Forwarded
-
-
-def forwarded(*args, **kwargs):
-    try:
-        os.kill(os.getpid(), signal.SIGINT)
-        time.sleep(0.01)
-    except KeyboardInterrupt:
-        pass
-    return original(*args, **kwargs)
-
-
-live_view.Forwarded = forwarded
-sys.exit(modal_spring_view.main(['--port', sys.argv[1]]))
-"""
-
-
 def test_ctrl_c_as_the_view_subscribes_ends_it_quietly():
     """
     Ctrl-C between the server's start and the subscriptions' end: no error, no traceback.
@@ -163,11 +137,12 @@ def test_ctrl_c_as_the_view_subscribes_ends_it_quietly():
     reported as the port refused (exit 2). Now a signal only asks the view to stop: it
     subscribes, serves and stops at once.
     """
-    view = NodeProcess(argv=[sys.executable, '-c', INTERRUPTED_WHILE_SUBSCRIBING,
-                             str(free_port())])
-    code, _, err = view.wait(timeout=60.0)
-    assert code in (0, EXIT_INTERRUPTED), stderr_excerpt(err)
-    assert 'Traceback' not in err and 'error:' not in err, stderr_excerpt(err)
+    done = interrupted_inside('modal_spring_ros.ros.tools.live_view', 'Forwarded',
+                              'modal_spring_ros.cli.modal_spring_view', '--port',
+                              str(free_port()))
+    assert done.returncode in (0, EXIT_INTERRUPTED), stderr_excerpt(done.stderr)
+    assert 'Traceback' not in done.stderr and 'error:' not in done.stderr, \
+        stderr_excerpt(done.stderr)
 
 
 @pytest.mark.parametrize('moment', ['rclpy', 'serving'])

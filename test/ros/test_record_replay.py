@@ -4,7 +4,6 @@ from __future__ import annotations
 from pathlib import Path
 import signal
 import subprocess
-import sys
 import threading
 import time
 
@@ -20,7 +19,8 @@ from modal_spring_ros.ros.tools.resimulate import frame_times, parameter_changes
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
-from ros_harness import Client, console_script, frames_since, NodeProcess, wait_for
+from ros_harness import (Client, console_script, frames_since, interrupted_inside, NodeProcess,
+                         wait_for)
 from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import Trigger
 
@@ -144,29 +144,6 @@ def test_a_replay_stopped_as_it_starts_ends_cleanly(after_s):
     assert out.startswith('played ') == (player.returncode == 0), out
 
 
-#: a tool run with Ctrl-C pressed as it makes its publishers or subscriptions, the interrupt
-#: landing in a call into rclpy's C++ (Python's own exception swallowed, as it is raised only
-#: once such a call returns); argv: the module, the function to hook, the command line
-INTERRUPTED_WHILE_SETTING_UP = """
-import importlib, os, signal, sys, time
-module = importlib.import_module(sys.argv[1])
-original = getattr(module, sys.argv[2])
-
-
-def hooked(*args, **kwargs):
-    try:
-        os.kill(os.getpid(), signal.SIGINT)
-        time.sleep(0.01)
-    except KeyboardInterrupt:
-        pass
-    return original(*args, **kwargs)
-
-
-setattr(module, sys.argv[2], hooked)
-sys.exit(importlib.import_module(sys.argv[3]).main(sys.argv[4:]))
-"""
-
-
 @pytest.mark.parametrize('tool', ['replay', 'record'])
 def test_ctrl_c_as_a_tool_makes_its_publishers_or_subscriptions_ends_it_cleanly(tool, tmp_path):
     """
@@ -184,8 +161,7 @@ def test_ctrl_c_as_a_tool_makes_its_publishers_or_subscriptions_ends_it_cleanly(
                 'modal_spring_ros.cli.modal_spring_record', '--output', str(tmp_path / 'bag'),
                 '--wait-for-node', '20', '--ros-args', '-r', '__ns:=/nobody']
     started = time.monotonic()
-    done = subprocess.run([sys.executable, '-c', INTERRUPTED_WHILE_SETTING_UP, *argv],
-                          capture_output=True, text=True, timeout=60)
+    done = interrupted_inside(*argv)
     assert done.returncode == 0 and 'Traceback' not in done.stderr, done.stderr[-3000:]
     assert time.monotonic() - started < 15.0        # not the node's 20 s, not a loop forever
     if tool == 'record':
