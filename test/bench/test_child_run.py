@@ -4,7 +4,6 @@ from __future__ import annotations
 import math
 import multiprocessing as mp
 import os
-import time
 
 from modal_spring_ros.bench.child_run import ChildFailed, in_child, pooled
 import pytest
@@ -32,16 +31,12 @@ def test_a_child_that_raises_is_named_with_its_exception():
 @pytest.mark.parametrize('end, said', [(os._exit, 'exit status 3'),
                                        (os.abort, 'killed by SIGABRT')])
 def test_a_child_that_dies_without_an_answer_is_an_error_not_a_wait(end, said):
-    start = time.monotonic()
     with pytest.raises(ChildFailed, match=f'ended without an answer \\({said}\\)'):
         in_child(end, *((3,) if end is os._exit else ()))
-    assert time.monotonic() - start < 60.0
 
 
 def test_a_pool_yields_each_answer_and_a_worker_s_death_is_an_error_not_a_wait():
     with mp.get_context('spawn').Pool(2) as pool:
         assert sorted(pooled(pool, math.sqrt, [4.0, 9.0, 16.0], 'roots')) == [2.0, 3.0, 4.0]
-        start = time.monotonic()
         with pytest.raises(ChildFailed, match='^exits: a worker process ended without an answer'):
             list(pooled(pool, os._exit, [3], 'exits'))
-        assert time.monotonic() - start < 60.0
