@@ -187,3 +187,27 @@ def _parsers(path: Path) -> list[int]:
         if mesh_files.PARSER.encode() in command and str(path).encode() in command:
             found.append(int(entry.name))
     return found
+
+
+def test_a_parse_beyond_its_cpu_time_is_refused_in_one_line(tmp_path, monkeypatch):
+    """
+    A parser sent into a loop (here: a parse allowed one second of CPU) ends there, refused.
+
+    A 360,000-vertex OBJ: its interpreter's start, trimesh's import and its parse take about
+    two seconds of CPU.
+    """
+    side = 600
+    u, v = np.meshgrid(np.linspace(0, 1, side), np.linspace(0, 1, side))
+    vertices = np.column_stack([u.ravel(), np.zeros(u.size), -v.ravel()])
+    k = np.arange(side * side).reshape(side, side)[:-1, :-1].ravel()
+    faces = np.concatenate([np.column_stack([k, k + 1, k + side]),
+                            np.column_stack([k + 1, k + side + 1, k + side])])
+    obj = tmp_path / 'slow.obj'
+    with open(obj, 'w') as fh:
+        np.savetxt(fh, vertices, fmt='v %.6f %.6f %.6f')
+        np.savetxt(fh, faces + 1, fmt='f %d %d %d')
+    monkeypatch.setattr(mesh_files, 'MIN_PARSE_CPU_S', 1.0)
+    monkeypatch.setattr(mesh_files, 'PARSE_CPU_S_PER_MIB', 0.0)
+    with pytest.raises(SceneError, match=r'slow\.obj: reading the mesh takes more than the 1 s '
+                                         r'of CPU it may take'):
+        read_mesh(obj)

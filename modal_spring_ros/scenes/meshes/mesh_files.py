@@ -12,12 +12,15 @@ Every problem is a :class:`~modal_spring_ros.core.model.scene.SceneError` naming
 parsers run in an interpreter of their own (:mod:`.mesh_parsing`) under an address-space limit
 (at least 1 GiB, or 16 times the file's size, within the memory available): a decompression
 bomb or a file that claims huge sizes fails there in one line instead of taking the machine,
-and Ctrl-C ends it at any point of the read.
+and Ctrl-C ends it at any point of the read. Its CPU time is bounded too (a minute, and two
+seconds more per MiB of the file): a file that sends a parser into a loop is refused, never
+waited for.
 """
 from __future__ import annotations
 
 import dataclasses
 import io
+import math
 import os
 from pathlib import Path
 import signal
@@ -42,6 +45,10 @@ MERGE_RTOL = 1e-9
 #: least this, or this many times the file's size, within what the machine has available
 MIN_PARSE_BYTES = 1 << 30
 PARSE_BYTES_PER_FILE_BYTE = 16
+#: the CPU time parsing a mesh may take, its interpreter's start included: at least this, s, and
+#: this much more per MiB of the file (a 600,000-vertex OBJ of 43 MiB takes 3 s in all)
+MIN_PARSE_CPU_S = 60.0
+PARSE_CPU_S_PER_MIB = 2.0
 #: the module a mesh is parsed in (its own interpreter), and its exit status for a refusal
 PARSER = 'modal_spring_ros.scenes.meshes.mesh_parsing'
 PARSE_REFUSED = 2
@@ -99,16 +106,18 @@ def read_mesh(path: Path) -> MeshData:
         raise SceneError(f'{path}: mesh file of {size / 2**20:.0f} MiB is larger than the '
                          f'{MAX_BYTES / 2**20:.0f} MiB read')
     budget = min(max(MIN_PARSE_BYTES, PARSE_BYTES_PER_FILE_BYTE * size), available_memory())
-    vertices, triangles, tetrahedra = _parse_in_child(path, budget)
+    cpu_s = MIN_PARSE_CPU_S + PARSE_CPU_S_PER_MIB * size / 2**20
+    vertices, triangles, tetrahedra = _parse_in_child(path, budget, cpu_s)
     return _merged(vertices, triangles, tetrahedra)
 
 
-def _parse_in_child(path: Path, budget: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _parse_in_child(path: Path, budget: int,
+                    cpu_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Run :func:`parse_mesh` in its own interpreter (:mod:`.mesh_parsing`); its arrays."""
     env = dict(os.environ, OPENBLAS_NUM_THREADS='1', OMP_NUM_THREADS='1')
     child = subprocess.Popen([sys.executable, '-m', PARSER, str(path), str(MAX_BYTES),
-                              str(budget)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                             env=env)
+                              str(budget), str(math.ceil(cpu_s))], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, env=env)
     try:
         out, err = child.communicate()
     finally:                          # Ctrl-C (or any error) here: the child goes too
@@ -118,6 +127,9 @@ def _parse_in_child(path: Path, budget: int) -> tuple[np.ndarray, np.ndarray, np
     said = err.decode(errors='replace').strip().splitlines()
     if child.returncode == PARSE_REFUSED and said:
         raise SceneError(said[-1])
+    if child.returncode == -signal.SIGXCPU:      # its CPU limit (RLIMIT_CPU) reached
+        raise SceneError(f'{path}: reading the mesh takes more than the {cpu_s:.0f} s of CPU it '
+                         'may take (a damaged or hostile file, or too large a mesh)')
     if child.returncode != 0:
         why = (f'killed by {signal.Signals(-child.returncode).name}' if child.returncode < 0
                else f'exit {child.returncode}: {said[-1] if said else "no message"}')

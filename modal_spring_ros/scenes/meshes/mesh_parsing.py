@@ -1,8 +1,9 @@
 """
-A mesh file parsed in an interpreter of its own, within a memory limit.
+A mesh file parsed in an interpreter of its own, within a memory limit and a CPU limit.
 
-``python -m modal_spring_ros.scenes.meshes.mesh_parsing PATH MAX_BYTES BUDGET`` limits its
-address space to what it maps now plus ``BUDGET`` bytes, parses ``PATH``
+``python -m modal_spring_ros.scenes.meshes.mesh_parsing PATH MAX_BYTES BUDGET CPU_S`` limits
+its address space to what it maps now plus ``BUDGET`` bytes and its CPU time to ``CPU_S``
+seconds (a file that sends a parser into a loop ends there), parses ``PATH``
 (:func:`~modal_spring_ros.scenes.meshes.mesh_files.parse_mesh`; the mesh and the files it
 refers to within ``MAX_BYTES``), and writes the arrays to stdout as an ``.npz`` archive. A
 refusal is one line on stderr and exit status 2; an allocation beyond the limit is such a
@@ -31,9 +32,18 @@ def limit_memory(budget: int) -> None:
                                             else min(cap, hard), hard))
 
 
+def limit_cpu(seconds: int) -> None:
+    """Let this process use at most ``seconds`` of CPU in all (then SIGXCPU ends it)."""
+    _, hard = resource.getrlimit(resource.RLIMIT_CPU)
+    if hard != resource.RLIM_INFINITY:
+        seconds = min(seconds, hard)
+    resource.setrlimit(resource.RLIMIT_CPU, (seconds, hard))
+
+
 def main(argv: list[str]) -> int:
-    path, max_bytes, budget = Path(argv[0]), int(argv[1]), int(argv[2])
+    path, max_bytes, budget, cpu_s = Path(argv[0]), int(argv[1]), int(argv[2]), int(argv[3])
     limit_memory(budget)
+    limit_cpu(cpu_s)
     try:
         vertices, triangles, tetrahedra = parse_mesh(path, max_bytes)
         out = io.BytesIO()
