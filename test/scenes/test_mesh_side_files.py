@@ -139,19 +139,23 @@ def test_a_decompression_bomb_is_refused_within_the_parse_s_memory(tmp_path, mon
         read_mesh(tmp_path / 'bomb.vtu')
 
 
-@pytest.mark.slow
-def test_ctrl_c_while_a_large_mesh_is_parsed_ends_the_run_and_its_parser(tmp_path):
-    """A 600,000-vertex OBJ takes seconds to parse; Ctrl-C to the group ends both at once."""
-    side = 775
+def grid_obj(path: Path, side: int) -> Path:
+    """Write a flat ``side`` x ``side`` grid of triangles as an OBJ (large, quick to write)."""
     u, v = np.meshgrid(np.linspace(0, 1, side), np.linspace(0, 1, side))
     vertices = np.column_stack([u.ravel(), np.zeros(u.size), -v.ravel()])
     k = np.arange(side * side).reshape(side, side)[:-1, :-1].ravel()
     faces = np.concatenate([np.column_stack([k, k + 1, k + side]),
                             np.column_stack([k + 1, k + side + 1, k + side])])
-    obj = tmp_path / 'big.obj'
-    with open(obj, 'w') as fh:
+    with open(path, 'w') as fh:
         np.savetxt(fh, vertices, fmt='v %.6f %.6f %.6f')
         np.savetxt(fh, faces + 1, fmt='f %d %d %d')
+    return path
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_a_large_mesh_is_parsed_ends_the_run_and_its_parser(tmp_path):
+    """A 600,000-vertex OBJ takes seconds to parse; Ctrl-C to the group ends both at once."""
+    obj = grid_obj(tmp_path / 'big.obj', 775)
     scene = tmp_path / 'scene.yaml'
     scene.write_text('dimension: 3\nmesh: {file: big.obj}\n'
                      'material: {density: 0.2, stiffness: 400.0}\nfixed: {indices: [0]}\n')
@@ -196,16 +200,7 @@ def test_a_parse_beyond_its_cpu_time_is_refused_in_one_line(tmp_path, monkeypatc
     A 360,000-vertex OBJ: its interpreter's start, trimesh's import and its parse take about
     two seconds of CPU.
     """
-    side = 600
-    u, v = np.meshgrid(np.linspace(0, 1, side), np.linspace(0, 1, side))
-    vertices = np.column_stack([u.ravel(), np.zeros(u.size), -v.ravel()])
-    k = np.arange(side * side).reshape(side, side)[:-1, :-1].ravel()
-    faces = np.concatenate([np.column_stack([k, k + 1, k + side]),
-                            np.column_stack([k + 1, k + side + 1, k + side])])
-    obj = tmp_path / 'slow.obj'
-    with open(obj, 'w') as fh:
-        np.savetxt(fh, vertices, fmt='v %.6f %.6f %.6f')
-        np.savetxt(fh, faces + 1, fmt='f %d %d %d')
+    obj = grid_obj(tmp_path / 'slow.obj', 600)
     monkeypatch.setattr(mesh_files, 'MIN_PARSE_CPU_S', 1.0)
     monkeypatch.setattr(mesh_files, 'PARSE_CPU_S_PER_MIB', 0.0)
     with pytest.raises(SceneError, match=r'slow\.obj: reading the mesh takes more than the 1 s '
