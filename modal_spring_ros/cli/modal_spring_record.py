@@ -1,7 +1,8 @@
 """
 ``modal_spring_record``: record topics into a rosbag2 MCAP bag, as ``ros2 bag record`` does.
 
-    modal_spring_record --output DIR [--topics points sim_time mesh /diagnostics /parameter_events]
+    modal_spring_record --output DIR [--topics points sim_time applied_parameter_events mesh
+                        /diagnostics /parameter_events /tf /tf_static]
                         [--node modal_spring] [--duration S]
 
 See :mod:`modal_spring_ros.ros.tools.recorder` for what is stored and how.

@@ -19,14 +19,13 @@ from __future__ import annotations
 import copy
 import time
 
+from modal_spring_ros.bags.files.applied_changes import parameter_event
 from modal_spring_ros.bags.files.writer import BagWriter
 from modal_spring_ros.bags.messages.pointcloud import CloudBuffer
 from modal_spring_ros.bags.messages.qos import profiles_to_yaml
 from modal_spring_ros.bags.messages.stamps import to_nanoseconds, to_time_msg
 from modal_spring_ros.core.config import SimulationConfig
 import numpy as np
-from rcl_interfaces.msg import ParameterEvent
-from rclpy.parameter import Parameter
 from rclpy.qos import QoSPresetProfiles, QoSProfile
 from std_msgs.msg import Header
 
@@ -89,11 +88,9 @@ class RunBagWriter:
         ``t`` is the event's stamp; the event is logged at wall time, like the frames of a node's
         capture.
         """
-        stamp = to_time_msg(t)
-        event = ParameterEvent(stamp=stamp, node=self.node, changed_parameters=[
-            Parameter(name, value=value).to_parameter_msg() for name, value in changed.items()])
+        event = parameter_event(t, self.node, changed)
         self.writer.write_message('/parameter_events', event, self._log_time(),
-                                  to_nanoseconds(stamp))
+                                  to_nanoseconds(event.stamp))
 
     def record_input(self, t: float, topic: str, message) -> None:
         """

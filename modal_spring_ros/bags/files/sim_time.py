@@ -21,9 +21,14 @@ SOURCE = 'modal_spring simulation'
 TYPE_NAME = 'sensor_msgs/msg/TimeReference'
 
 
+def beside_points(points_topic: str, name: str) -> str:
+    """Return the topic ``name`` beside a cloud topic (``/ns/points`` -> ``/ns/name``)."""
+    return points_topic.rsplit('/', 1)[0] + '/' + name
+
+
 def sim_time_topic(points_topic: str) -> str:
     """Return the ``sim_time`` topic beside a cloud topic (``/ns/points`` -> ``/ns/sim_time``)."""
-    return points_topic.rsplit('/', 1)[0] + '/' + SIM_TIME_TOPIC
+    return beside_points(points_topic, SIM_TIME_TOPIC)
 
 
 def simulation_times(bag: BagReader, points_topic: str) -> dict[int, float]:

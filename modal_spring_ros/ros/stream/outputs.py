@@ -14,6 +14,7 @@ import dataclasses
 from typing import Any, Callable, Protocol
 
 from diagnostic_msgs.msg import DiagnosticArray
+from modal_spring_ros.bags.files.applied_changes import APPLIED_TOPIC, parameter_event
 from modal_spring_ros.bags.files.capture import RunBagWriter
 from modal_spring_ros.bags.files.sim_time import SIM_TIME_TOPIC, SOURCE
 from modal_spring_ros.bags.files.writer import BagError
@@ -30,9 +31,10 @@ from modal_spring_ros.ros.stream.diagnostics import diagnostic_array, StreamRepo
 from modal_spring_ros.ros.stream.stream_time import stamps_in_simulation_time, StreamTime
 from modal_spring_ros.scenes.resources import share_directory
 import numpy as np
+from rcl_interfaces.msg import ParameterEvent
 from rclpy import get_rmw_implementation_identifier
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSPolicyKind, QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSPolicyKind, QoSPresetProfiles, QoSProfile
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2, TimeReference
@@ -90,6 +92,9 @@ class NodeOutputs:
                                            qos_overriding_options=overrides)
         # each frame's simulation time, whichever clock stamps it (bags/files/sim_time.py)
         self._sim_time = node.create_publisher(TimeReference, SIM_TIME_TOPIC, QUEUE_DEPTH)
+        # each change stamped with the simulation time it took effect at (applied_changes.py)
+        self._applied = node.create_publisher(ParameterEvent, APPLIED_TOPIC,
+                                              QoSPresetProfiles.PARAMETER_EVENTS.value)
         self._diagnostics = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC,
                                                   QUEUE_DEPTH)
         self._clock = None  # /clock only when publish_clock asks for it
@@ -180,7 +185,12 @@ class NodeOutputs:
             hardware_id=self._scene.name, stamp=self._node.get_clock().now().to_msg()))
 
     def changed(self, sim: Simulation, changed: dict) -> None:
-        if self._bag is not None and changed:
+        if not changed:
+            return
+        published = self._time.at(sim.time, sim.dt)   # as the next frame's (a reset moves it)
+        self._applied.publish(parameter_event(published, self._node.get_fully_qualified_name(),
+                                              changed))
+        if self._bag is not None:
             self._capture(lambda: self._bag.parameter_event(sim.time, changed))
 
     def received(self, sim: Simulation, recorded: list[tuple[str, Any]]) -> None:

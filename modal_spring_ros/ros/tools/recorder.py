@@ -9,7 +9,8 @@ once it appears, with a QoS that matches what its publishers offer (reliable and
 transient-local only when every publisher offers it), and the offered profiles are stored.
 To re-run the simulation later, the bag also keeps the simulated node's scene (its full
 definition) and its parameters at the start; every later change arrives on
-``/parameter_events``. Stops on SIGINT/SIGTERM or after ``--duration``; the bag is then
+``/parameter_events``, and on ``applied_parameter_events`` with the simulation time it took
+effect at. Stops on SIGINT/SIGTERM or after ``--duration``; the bag is then
 finalised. A recorder that is killed loses at most its last chunk.
 """
 from __future__ import annotations
@@ -18,6 +19,7 @@ import struct
 import time
 from typing import Callable
 
+from modal_spring_ros.bags.files.applied_changes import APPLIED_TOPIC
 from modal_spring_ros.bags.files.sim_time import SIM_TIME_TOPIC
 from modal_spring_ros.bags.files.writer import BagWriter
 from modal_spring_ros.bags.messages.message_definitions import msg_text
@@ -29,7 +31,7 @@ import rclpy
 from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-DEFAULT_TOPICS = [POINTS_TOPIC, SIM_TIME_TOPIC, MESH_TOPIC, DIAGNOSTICS_TOPIC,
+DEFAULT_TOPICS = [POINTS_TOPIC, SIM_TIME_TOPIC, APPLIED_TOPIC, MESH_TOPIC, DIAGNOSTICS_TOPIC,
                   '/parameter_events', '/tf', '/tf_static']
 #: a parameter query unanswered this long is sent again, s
 ASK_AGAIN_S = 3.0

@@ -6,19 +6,25 @@ frame spacing), and so does the node's own capture (``record.bag``: parameters a
 each change and each input it followed (poses, clicked points) stamped with the simulation
 time it took effect at): re-simulating either reproduces every frame to float32 round-off.
 A bag recorded over DDS by ``modal_spring_record`` holds the scene, the node's parameters at
-the start and every later change as received on ``/parameter_events``; those are applied
-before the first frame received after them, so the re-run follows the recording as closely as
-its stamps allow. Each frame's time is the node's published simulation time, which never goes
-back: simulation time plus ``clock.offset_s``, whose changes (a reset, or a divergence sent
-back to rest) are on ``/parameter_events`` too; each sends the re-run back to rest. It is the
-recorded ``sim_time`` of the frame's stamp (``bags/files/sim_time.py``), or, in a recording without
-it, the stamp itself where the node stamped with simulation time. The re-run's frames are
-stamped with simulation time.
+the start, every later change as received on ``/parameter_events``, and each change again on
+``applied_parameter_events`` stamped with the simulation time the node applied it at
+(``bags/files/applied_changes.py``). Each frame's time is the node's published simulation time,
+which never goes back: simulation time plus ``clock.offset_s``, whose changes (a reset, or a
+divergence sent back to rest) are on ``/parameter_events``, their value the published time the
+new run starts from. It is the recorded ``sim_time`` of the frame's stamp
+(``bags/files/sim_time.py``), or, in a recording without it, the stamp itself where the node
+stamped with simulation time. So each change is applied at the simulation time it took effect
+at, and each reset where the new run starts: the re-run reproduces the recorded frames to
+float32 round-off however late the graph delivered the events. A recording without
+``applied_parameter_events`` (made before the node published it, or without the topic) has its
+changes applied before the first frame received after them, as close as the delivery allows.
+The re-run's frames are stamped with simulation time.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
+from modal_spring_ros.bags.files.applied_changes import applied_changes
 from modal_spring_ros.bags.files.capture import POINTS_TOPIC, RunBagWriter
 from modal_spring_ros.bags.files.reader import BagReader
 from modal_spring_ros.bags.files.sim_time import sim_time_topic, simulation_times
@@ -166,15 +172,49 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
                           source='modal_spring_replay --resimulate')
     # a DDS recording's stamps: simulation time plus the node's offset (its capture's: none)
     offset = 0.0 if exact or values is None else float(values.get(CLOCK_OFFSET) or 0.0)
-    pending = sorted(changes + (recorded_inputs(bag) if values is not None else []),
-                     key=lambda event: event[0])
+    applied = None if exact or values is None else applied_changes(
+        bag, topic, rec.get('node', '/modal_spring'))
+    # placed in simulation time: the changes the node said it applied, and each reset at the
+    # published time its new run starts from (the offset's new value)
+    timed = [] if applied is None else sorted(
+        [(round(float(change[CLOCK_OFFSET]) * 1e9), True, change)
+         for _, _, change in changes if CLOCK_OFFSET in change]
+        + [(stamp, False, change) for stamp, change in applied],
+        key=lambda event: (event[0], not event[1]))     # a reset before a change at its time
+    # placed as received: every change of a recording without them, inputs and the capture's
+    logged = sorted((changes if applied is None else [])
+                    + (recorded_inputs(bag) if values is not None else []),
+                    key=lambda event: event[0])
+
+    def step_to(at: float) -> None:
+        nonlocal sim, watch
+        while sim.time < at - 0.5 * sim.dt:
+            if watch is not None:
+                sim, window = watch.before_step(sim, frame_s)
+                watch = watch if window is None or window.within else None
+            try:
+                sim.step()
+            except DivergenceError:
+                sim.reset()                    # as the node does
+
     try:
         for log_time, stamp in frames:
-            while pending and pending[0][0] <= log_time and values is not None:
-                _, event_stamp, change = pending.pop(0)
+            half_ns = 0.5e9 * sim.dt
+            # a change took effect before this frame when its time is a step or more before it
+            # (a frame at that very time was published before the change); a reset at it
+            while timed and (timed[0][0] <= stamp * 1e9 + half_ns if timed[0][1]
+                             else timed[0][0] < stamp * 1e9 - half_ns):
+                event_ns, reset, change = timed.pop(0)
+                if reset:
+                    sim.reset()
+                    offset = float(change[CLOCK_OFFSET])
+                else:
+                    step_to(event_ns * 1e-9 - offset)
+                sim, values = _apply(sim, values, change)
+            while logged and logged[0][0] <= log_time and values is not None:
+                _, event_stamp, change = logged.pop(0)
                 if exact:   # step to the simulation time the node applied it at
-                    while sim.time < event_stamp * 1e-9 - 0.5 * sim.dt:
-                        sim.step()
+                    step_to(event_stamp * 1e-9)
                 if isinstance(change, tuple):      # an input: (kind, message)
                     kind, message = change
                     kind.apply(sim, message, values)
@@ -186,14 +226,7 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
             at = stamp - offset
             if at < sim.time - 0.5 * sim.dt:      # the recording was reset (older bags)
                 sim.reset()
-            while sim.time < at - 0.5 * sim.dt:
-                if watch is not None:
-                    sim, window = watch.before_step(sim, frame_s)
-                    watch = watch if window is None or window.within else None
-                try:
-                    sim.step()
-                except DivergenceError:
-                    sim.reset()                    # as the node does
+            step_to(at)
             writer.frame(sim.time, sim.positions(), log_time_ns=log_time)
     finally:
         writer.close()
