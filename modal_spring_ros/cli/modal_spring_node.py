@@ -18,6 +18,7 @@ from modal_spring_ros.core.worker import WorkerError
 from modal_spring_ros.ros.managed_node import ManagedModalSpringNode
 from modal_spring_ros.ros.node import ModalSpringNode
 from modal_spring_ros.ros.parameters import PARAMETERS
+from modal_spring_ros.ros.process.interpreter_switching import switch_threads_often
 from modal_spring_ros.ros.process.pooled_executor import PooledExecutor
 from modal_spring_ros.ros.process.shared_memory import (POINT_BYTES, prefer_large_shared_memory,
                                                         scene_argument)
@@ -72,6 +73,7 @@ def main(args: list[str] | None = None) -> int:
     kind = ManagedModalSpringNode if own else ModalSpringNode
     stop = StopSignals().install()  # ROS is shut down last, once the node's threads are joined
     prefer_asynchronous_publication()  # a frame's sending never holds the stepping thread
+    switch_threads_often()    # a flood of inputs on another thread never starves the stream
     # large clouds fit Fast DDS's shared-memory segment
     scene = scene_argument(ros_args, PARAMETERS['scene'][0])
     particles = declared_particles(scene)

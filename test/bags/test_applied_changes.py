@@ -1,4 +1,4 @@
-"""The changes a node applied, read back from a recording in the simulation time they took effect."""
+"""The changes a node applied, read back in the simulation time they took effect at."""
 from __future__ import annotations
 
 from modal_spring_ros.bags.files.applied_changes import applied_changes, parameter_event
