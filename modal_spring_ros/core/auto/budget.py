@@ -20,6 +20,7 @@ length give the same choice on any machine and under any load.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Callable
 
@@ -367,16 +368,16 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     if missed and count < samples:
         # a twin moved by a hair, at the default step: the motion's growth is the motion's, not
         # the step's, and the halved step the check ended on cost twice as much for it
-        twin_of = full(default_dt, sample_s)
-        growth = start_growth(lambda: full(default_dt, sample_s))
-        budget.charge(twin_of, 2.0 * TWIN_S)
+        at_default = functools.partial(full, default_dt, sample_s)
+        growth = start_growth(at_default)
+        budget.charge(at_default(), 2.0 * TWIN_S)
         reason += f'; the step missed the tolerance over the first {checked_s:.2g} s'
         if amplifies(growth):     # no step converges: none is sought
             reason += f', and {describe_rate(growth)} over the first {TWIN_S:g} s'
             return unmeasured(AMPLIFYING)
         reason += ': the step needed was sought over the whole window, beyond the budget'
         # at most what the run costs at its default step, or ``SEARCH_FLOOR_US``
-        run_us = max(horizon_s * work_per_second(full(default_dt, sample_s)), SEARCH_FLOOR_US)
+        run_us = max(horizon_s * work_per_second(at_default()), SEARCH_FLOOR_US)
         sim, error = doubling(samples, horizon_s, allowed, run_us / window_s, sim.dt)
         checked_s, over_s, grown = window_s, horizon_s, None
         if allowed < error < math.inf:
