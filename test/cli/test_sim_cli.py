@@ -222,7 +222,7 @@ def test_without_ros_it_runs_and_says_what_a_bag_would_need(tmp_path):
     refused = sim('--duration', '0.05', '--bag', str(tmp_path / 'bag'))
     assert refused.returncode == 2
     assert refused.stderr.strip().splitlines()[-1] == (
-        'modal_spring_sim: error: --bag needs the ROS message packages (rclpy is not '
+        'modal_spring_sim: error: --bag needs the ROS message packages (rcl_interfaces is not '
         "installed): pip install '.[ros]' (ROS 2 Jazzy from PyPI wheels), or source a ROS 2 "
         'install')
     assert not (tmp_path / 'bag').exists()
