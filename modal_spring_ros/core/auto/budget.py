@@ -29,7 +29,7 @@ from modal_spring_ros.core.auto.amplification import (amplifies, describe_rate, 
 from modal_spring_ros.core.auto.full_candidate import (BY_ITSELF, by_step_doubling,
                                                        head_start, STEP_ORDER)
 from modal_spring_ros.core.auto.plan import (AMPLIFYING, BEYOND_MODES, NOT_FOUND, PilotReport,
-                                             UNCONVERGED)
+                                             TOUCHES_UNSEEN, UNCONVERGED)
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK
 from modal_spring_ros.core.auto.step_error import StepPrediction
 from modal_spring_ros.core.auto.work_model import work_per_second
@@ -248,9 +248,12 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     misses, the run misses the tolerance, so it is no baseline to stay near: the step is halved
     by step doubling over the whole window, its error extrapolated over ``horizon_s``, whatever
     that costs (on random scenes the full run needed a tenth to a fortieth of its stability
-    limit to meet 1 % over 3 s). A scene with colliders is checked over the whole window: its
-    touches come when they come (a start checked a random scene's default step at 0.05 % where
-    it missed 0.3 % by 2.6 times once the object reached a sphere).
+    limit to meet 1 % over 3 s). A scene with colliders is checked over the whole window where
+    the budget affords it: its touches come when they come (a start checked a random scene's
+    default step at 0.05 % where it missed 0.3 % by 2.6 times once the object reached a
+    sphere). Where it does not (a short run: checking it whole costs twice the run), a start
+    that misses has its step sought as above, and one that meets the tolerance says nothing of
+    the touches: the default step, its error not measured (``TOUCHES_UNSEEN``).
 
     Some runs have no error to promise. A start that moved far beyond what the modes predict
     (:meth:`~.step_error.StepPrediction.beyond`; a soft skin crumpling: 1.72 % measured where
@@ -285,11 +288,6 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     rate = work_per_second(checked)
     affordable = budget.remaining_us / (REFERENCE_RUNS * rate * sample_s) if rate > 0 else 0
     count = int(min(samples, max(MIN_CHECK_SAMPLES, affordable)))
-    if checked.model.scene.contact is not None and count < samples:
-        # a start sees none of the touches to come: a scene with colliders is checked whole
-        count = samples
-        reason += ('; the scene has colliders, and a start sees none of the touches to come: '
-                   'the step was checked over the whole window, beyond the budget')
     checked_s = count * sample_s
     grown: StepPrediction | None = None     # where a start alone is grown over the run
     beyond = False             # the start far beyond the modes' prediction: nothing scaled
@@ -363,8 +361,10 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
             tolerance=tolerance, unmeasured=why, head_start=head_start(stepped, run))
 
     missed = sim.dt < checked.dt * (1.0 - 1e-9) or over_run(error, sim.dt) > allowed
-    if beyond and not missed and count < samples:
-        return unmeasured(BEYOND_MODES)
+    if count < samples and not missed and (beyond or checked.model.scene.contact is not None):
+        # far beyond the modes, or a start that sees none of the touches to come: no measure
+        reason += f'; the start met the tolerance ({error:.2%} over the first {checked_s:.2g} s)'
+        return unmeasured(BEYOND_MODES if beyond else TOUCHES_UNSEEN)
     if missed and count < samples:
         # a twin moved by a hair, at the default step: the motion's growth is the motion's, not
         # the step's, and the halved step the check ended on cost twice as much for it

@@ -4,7 +4,7 @@ An automatic plan (what it sets) and what its pilot run measured about it.
 :class:`PlanSettings` is what :mod:`~modal_spring_ros.core.auto.pilot` refines;
 :class:`PilotReport` is what it found, printed in the summary and on ``/diagnostics``, and
 where a full run's error is not measured, why (``UNCONVERGED``, ``NOT_FOUND``, ``AMPLIFYING``,
-``BEYOND_MODES``).
+``BEYOND_MODES``, ``TOUCHES_UNSEEN``).
 """
 from __future__ import annotations
 
@@ -25,6 +25,11 @@ NOT_FOUND = ('halving its step over the whole window found none within the toler
 #: Why a run whose start amplifies a hair's difference has no error measured.
 AMPLIFYING = ('its motion amplifies its differences from its start (chaotic): no step keeps '
               f'within the tolerance of another for long; {_DEFAULT_STEP}')
+#: Why a run with colliders whose start alone the budget checked has no error measured.
+TOUCHES_UNSEEN = ('the scene has colliders and its start sees none of the touches to come, '
+                  'while checking the whole window (its run at half the step, twice the run) '
+                  "would cost more than the planning budget ('--planning-share none' checks "
+                  f'it); {_DEFAULT_STEP}')
 #: Why a run whose start moved far beyond its modes' prediction has no error measured.
 BEYOND_MODES = ('its start moved far beyond what its modes predict, and says nothing of the '
                 f'rest of the run, which would cost more to check than to run; {_DEFAULT_STEP}')
