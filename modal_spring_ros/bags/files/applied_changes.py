@@ -41,6 +41,12 @@ def parameter_event(t: float, node: str, changed: dict[str, Any]) -> ParameterEv
         Parameter(name, value=value).to_parameter_msg() for name, value in changed.items()])
 
 
+def event_values(event) -> dict[str, Any]:
+    """Return the {name: value} a ``ParameterEvent`` sets (new and changed; a decoded one too)."""
+    return {p.name: parameter_value_to_python(p.value)
+            for p in list(event.new_parameters) + list(event.changed_parameters)}
+
+
 def applied_changes(bag: BagReader, points_topic: str,
                     node: str) -> list[tuple[int, dict[str, Any]]] | None:
     """
@@ -62,8 +68,7 @@ def applied_changes(bag: BagReader, points_topic: str,
         event = bag.decode(m)
         if event.node != node:
             continue
-        values = {p.name: parameter_value_to_python(p.value)
-                  for p in list(event.new_parameters) + list(event.changed_parameters)}
+        values = event_values(event)
         if values:
             out.append((to_nanoseconds(event.stamp), values))
     return out

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from modal_spring_ros.bags.files.applied_changes import applied_changes
+from modal_spring_ros.bags.files.applied_changes import applied_changes, event_values
 from modal_spring_ros.bags.files.capture import POINTS_TOPIC, RunBagWriter
 from modal_spring_ros.bags.files.reader import BagReader
 from modal_spring_ros.bags.files.sim_time import sim_time_topic, simulation_times
@@ -42,7 +42,6 @@ from modal_spring_ros.ros.stream.stream_time import stamps_in_simulation_time
 from modal_spring_ros.ros.tools.installed_messages import installed_message
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.fields.limits import available_memory
-from rclpy.parameter import parameter_value_to_python
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import PointCloud2
 
@@ -60,8 +59,7 @@ def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, int, dict]]:
         event = installed_message(bag, m)
         if event.node != node:
             continue
-        values = {p.name: parameter_value_to_python(p.value)
-                  for p in list(event.new_parameters) + list(event.changed_parameters)}
+        values = event_values(event)
         if values:
             out.append((m.log_time_ns, event.stamp.sec * 1_000_000_000 + event.stamp.nanosec,
                         values))
