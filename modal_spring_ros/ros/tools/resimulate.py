@@ -61,8 +61,7 @@ def parameter_changes(bag: BagReader, node: str) -> list[tuple[int, int, dict]]:
             continue
         values = event_values(event)
         if values:
-            out.append((m.log_time_ns, event.stamp.sec * 1_000_000_000 + event.stamp.nanosec,
-                        values))
+            out.append((m.log_time_ns, to_nanoseconds(event.stamp), values))
     return out
 
 
@@ -90,8 +89,7 @@ def recorded_inputs(bag: BagReader, kinds: tuple[InputKind, ...] = INPUTS
         if point is not None and by_topic[m.topic].recorded_point_topic is not None:
             message = WrenchAt(message, point)
         point = None
-        out.append((m.log_time_ns, stamp.sec * 1_000_000_000 + stamp.nanosec,
-                    (by_topic[m.topic], message)))
+        out.append((m.log_time_ns, to_nanoseconds(stamp), (by_topic[m.topic], message)))
     return out
 
 
