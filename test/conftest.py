@@ -12,8 +12,10 @@ import threading
 from helpers import variant
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.model.model import MassSpringModel
+from modal_spring_ros.core.threads import blas_threads
 from modal_spring_ros.scenes.resources import load_scene
 import pytest
+from threadpoolctl import threadpool_limits
 
 # Spring samples are cached per run of the suite, never in the user's cache folder (the
 # node's processes inherit it).
@@ -91,6 +93,14 @@ def sheet_undamped_still():
 def sheet_10x10():
     model = MassSpringModel(load_scene('sheet_10x10'))
     return model, ModalBasis(model)
+
+
+@pytest.fixture
+def two_blas_threads():
+    """Set the library at two threads (its default on a 2-core machine), whatever the machine."""
+    with threadpool_limits(2, user_api='blas'):
+        assert blas_threads() == 2
+        yield
 
 
 def pytest_sessionfinish(session, exitstatus):

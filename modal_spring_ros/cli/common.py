@@ -20,6 +20,7 @@ from modal_spring_ros.core.integrators import INTEGRATORS
 from modal_spring_ros.core.model.scene import SceneError
 from modal_spring_ros.core.simulations import DEFAULT_MAX_MODES, METHODS
 from modal_spring_ros.core.simulations.coordinates import BASES
+from modal_spring_ros.core.threads import process_threads
 from modal_spring_ros.scenes.resources import DEFAULT_SCENE
 from tqdm import tqdm
 
@@ -295,9 +296,15 @@ def share_or_none(text: str) -> float | None:
 
 
 def run_main(prog: str, body: Callable[[], int]) -> int:
-    """Run a command body, turning known errors into one clear line and exit status 2."""
+    """
+    Run a command body, turning known errors into one clear line and exit status 2.
+
+    On one BLAS thread unless the environment names a count (:func:`~modal_spring_ros.core.
+    threads.process_threads`: a user pays the CPU of a run's one-off work too).
+    """
     try:
-        return body()
+        with process_threads():
+            return body()
     except (SceneError, BandError, ValueError) as exc:
         fail(prog, str(exc))
     except MemoryError as exc:   # numpy names the array it could not allocate

@@ -54,6 +54,7 @@ from modal_spring_ros.bench.costs import stream
 from modal_spring_ros.bench.peers import contact_drop
 from modal_spring_ros.bench.peers import peer
 from modal_spring_ros.cli.common import fail, progress_lines, script_parser
+from modal_spring_ros.core.threads import process_threads
 
 PROG = 'modal_spring_bench'
 #: suite name -> module with run(quick, progress), table(results), write_outputs(...)
@@ -114,16 +115,17 @@ def main(argv: list[str] | None = None) -> int:
     # terminates its workers), where it would leave them running
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
 
-    for name in suites:
-        module = SUITES[name]
-        results = (module.run(args.quick, progress, args.case) if args.case is not None
-                   else module.run(args.quick, progress, seeds) if seeds is not None
-                   else module.run(args.quick, progress))
-        print(f'== {name} ==')
-        print(module.table(results))
-        if out is not None:
-            (out / f'{name}.json').write_text(json.dumps(results, indent=1, default=float))
-            module.write_outputs(results, out, progress)
+    with process_threads():     # one BLAS thread, as the processes it measures
+        for name in suites:
+            module = SUITES[name]
+            results = (module.run(args.quick, progress, args.case) if args.case is not None
+                       else module.run(args.quick, progress, seeds) if seeds is not None
+                       else module.run(args.quick, progress))
+            print(f'== {name} ==')
+            print(module.table(results))
+            if out is not None:
+                (out / f'{name}.json').write_text(json.dumps(results, indent=1, default=float))
+                module.write_outputs(results, out, progress)
     return 0
 
 

@@ -18,8 +18,16 @@ run does not use. A node shares its machine with a robot, so everything that run
 per frame (the step, the forces, the positions of a frame, and the spring sample's training,
 which is many small products) runs on one thread, and so does the node's worker process (its
 mode computation gained 0-25 % of wall time on two threads for 30-75 % more CPU,
-:mod:`~modal_spring_ros.core.worker`). One-off work in a process of its own (the mode
-computation of ``modal_spring_sim``) keeps the library's default.
+:mod:`~modal_spring_ros.core.worker`).
+
+A user pays a run's CPU, so the console scripts run their one-off work (a scene's modes, their
+derivatives, planning) on one thread too, for the whole process (:func:`process_threads`),
+unless their environment names a count (``OPENBLAS_NUM_THREADS`` and the like: a user who wants
+the wall time of more cores asks for them so). Measured whole processes of ``modal_spring_sim``
+on the 2-core machine, the library's default of two threads against one (medians of 3): the
+cloth swung into a sphere over 5 s, 12 % more CPU and 4 % more wall time under ``--auto`` (its
+modes, derivatives and planning); a 14^3 block's 256 modes (7,644 DOF) and 0.5 s of its modal
+run, 1.5 times the CPU for 13 % less wall time.
 
 The limit is process-wide (it is the library's setting): :func:`stepping_threads` counts its
 holders, so the simulation thread, a training in another thread and a benchmark may nest and
@@ -31,13 +39,16 @@ does not arise there.)
 from __future__ import annotations
 
 import contextlib
+import os
 import threading
-from typing import Iterator
+from typing import Iterator, Mapping
 
 from threadpoolctl import ThreadpoolController
 
 #: BLAS threads for per-step and per-frame work
 STEP_THREADS = 1
+#: The environment variables that set the BLAS library's threads (OpenBLAS, OpenMP, MKL)
+THREAD_VARIABLES = ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS')
 
 _lock = threading.Lock()
 _holders = 0
@@ -63,6 +74,26 @@ def stepping_threads() -> Iterator[None]:
             if _holders == 0:
                 _limit.restore_original_limits()
                 _limit = None
+
+
+def threads_set_by(env: Mapping[str, str]) -> str | None:
+    """Return the variable of ``env`` that sets the BLAS library's threads (None: none does)."""
+    return next((name for name in THREAD_VARIABLES if env.get(name, '').strip()), None)
+
+
+@contextlib.contextmanager
+def process_threads(env: Mapping[str, str] | None = None) -> Iterator[None]:
+    """
+    Run a console script's body with BLAS on :data:`STEP_THREADS` thread(s), process-wide.
+
+    Unless ``env`` (the process's environment by default) sets the count: the library then
+    keeps the user's (per-step work still runs on one, :func:`stepping_threads`).
+    """
+    if threads_set_by(os.environ if env is None else env):
+        yield
+        return
+    with stepping_threads():
+        yield
 
 
 def blas_threads() -> int:

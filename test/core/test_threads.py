@@ -7,18 +7,9 @@ from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.forces import ForceOptions
 from modal_spring_ros.core.forces import sampling
 from modal_spring_ros.core.simulations import FullSimulation, ModalSettings, ModalSimulation
-from modal_spring_ros.core.threads import blas_threads, STEP_THREADS, stepping_threads
+from modal_spring_ros.core.threads import (blas_threads, process_threads, STEP_THREADS,
+                                           stepping_threads)
 import numpy as np
-import pytest
-from threadpoolctl import threadpool_limits
-
-
-@pytest.fixture
-def two_blas_threads():
-    """Set the library at two threads (its default on a 2-core machine), whatever the machine."""
-    with threadpool_limits(2, user_api='blas'):
-        assert blas_threads() == 2
-        yield
 
 
 def test_holders_nest_and_overlap_and_the_setting_comes_back_after_the_last(two_blas_threads):
@@ -71,4 +62,18 @@ def test_steps_of_every_simulation_and_the_spring_training_run_on_one_thread(
                     ModalSettings(dt=2e-4, basis_kind='rest',
                                   forces=ForceOptions('sampled', tolerance=0.05)))
     assert len(seen) > 6 and set(seen) == {1}
+    assert blas_threads() == 2
+
+
+def test_the_process_limit_is_the_stepping_one_so_steps_inside_it_nest(two_blas_threads):
+    with process_threads({}):
+        assert blas_threads() == 1
+        with stepping_threads():
+            assert blas_threads() == 1
+        assert blas_threads() == 1              # a run's loop leaving keeps the script's
+    with process_threads({'OMP_NUM_THREADS': '2'}):
+        assert blas_threads() == 2
+        with stepping_threads():
+            assert blas_threads() == 1          # steps on one, whatever the user set
+        assert blas_threads() == 2
     assert blas_threads() == 2
