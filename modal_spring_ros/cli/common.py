@@ -303,7 +303,7 @@ def run_main(prog: str, body: Callable[[], int]) -> int:
     threads.process_threads`: a user pays the CPU of a run's one-off work too).
     """
     try:
-        with process_threads():
+        with process_threads(os.environ):
             return body()
     except (SceneError, BandError, ValueError) as exc:
         fail(prog, str(exc))

@@ -36,6 +36,7 @@ node's memory over the storm, with a PNG chart). Results are printed as tables a
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 import signal
 import sys
@@ -115,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     # terminates its workers), where it would leave them running
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
 
-    with process_threads():     # one BLAS thread, as the processes it measures
+    with process_threads(os.environ):     # one BLAS thread, as the processes it measures
         for name in suites:
             module = SUITES[name]
             results = (module.run(args.quick, progress, args.case) if args.case is not None

@@ -24,7 +24,7 @@ except ImportError as missing:    # pip install without the ros extra: runs, but
     RunBagWriter = None
     BAGS_MISSING = (f'--bag needs the ROS message packages ({missing.name} is not installed): '
                     f'{install_hint(missing.name or "")}')
-from modal_spring_ros.core.auto.run_watch import RunWatch, watch_of, WatchedWindow
+from modal_spring_ros.core.auto.watch.run_watch import RunWatch, watch_of, WatchedWindow
 from modal_spring_ros.core.config import MAX_HORIZON_S
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.response_chart import draw_response

@@ -44,7 +44,7 @@ MAX_FOLLOW_HZ = 100.0
 #: Longest run the automatic choice promises its tolerance over, s (a day).
 MAX_HORIZON_S = 86_400.0
 #: Simulated seconds between two watched windows of an automatic plan, by default (0: not
-#: watched; :mod:`~modal_spring_ros.core.auto.run_watch`).
+#: watched; :mod:`~modal_spring_ros.core.auto.watch.run_watch`).
 DEFAULT_WATCH_S = 10.0
 
 

@@ -16,9 +16,9 @@ from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.pilot import Pilot, PILOT_MARGIN, SAMPLES as PILOT_SAMPLES
 from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PlanSettings
-from modal_spring_ros.core.auto.run_watch import twin_reference
 from modal_spring_ros.core.auto.step_error import (predicted_step, predicting_hz, predicts,
                                                    StepPrediction)
+from modal_spring_ros.core.auto.watch.run_watch import twin_reference
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis, Progress
 from modal_spring_ros.core.bases.basis_choice import choose_basis
 from modal_spring_ros.core.bases.mode_selection import (choose_modes, choose_refresh, choose_step,

@@ -39,7 +39,6 @@ does not arise there.)
 from __future__ import annotations
 
 import contextlib
-import os
 import threading
 from typing import Iterator, Mapping
 
@@ -82,14 +81,14 @@ def threads_set_by(env: Mapping[str, str]) -> str | None:
 
 
 @contextlib.contextmanager
-def process_threads(env: Mapping[str, str] | None = None) -> Iterator[None]:
+def process_threads(env: Mapping[str, str]) -> Iterator[None]:
     """
     Run a console script's body with BLAS on :data:`STEP_THREADS` thread(s), process-wide.
 
-    Unless ``env`` (the process's environment by default) sets the count: the library then
-    keeps the user's (per-step work still runs on one, :func:`stepping_threads`).
+    Unless ``env`` (the script's environment) sets the count: the library then keeps the
+    user's (per-step work still runs on one, :func:`stepping_threads`).
     """
-    if threads_set_by(os.environ if env is None else env):
+    if threads_set_by(env):
         yield
         return
     with stepping_threads():

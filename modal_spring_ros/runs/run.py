@@ -17,7 +17,7 @@ from pathlib import Path
 import time
 from typing import Callable
 
-from modal_spring_ros.core.auto.run_watch import RunWatch, WatchedWindow
+from modal_spring_ros.core.auto.watch.run_watch import RunWatch, WatchedWindow
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.simulations import DivergenceError, Simulation
 from modal_spring_ros.core.threads import stepping_threads
@@ -77,9 +77,9 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
     stream it to a bag). ``on_progress(fraction done)`` is called at whole percents, at most once
     per ``progress_interval_s`` of wall time.
 
-    With ``watch`` (:mod:`~modal_spring_ros.core.auto.run_watch`), the plan's error is measured
-    again from the run's state every watch interval; ``on_watch(window, simulation)`` sees each
-    window and the simulation that goes on (the fallback, where the window was beyond the
+    With ``watch`` (:mod:`~modal_spring_ros.core.auto.watch.run_watch`), the plan's error is
+    measured again from the run's state every watch interval; ``on_watch(window, simulation)``
+    sees each window and the simulation that goes on (the fallback, where the window was beyond the
     tolerance: the run continues as it from the window's start, at a step that divides the frame
     interval). The run's :attr:`Run.simulation` is the one it ended on.
 
@@ -130,6 +130,10 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
             if now - last_report >= progress_interval_s:
                 on_progress(min(1.0, (sim.time - start) / (end - start)))
                 last_report = now
+    if watch is not None and not diverged:       # a twin's window that ends with the run
+        window = watch.after_run(sim)
+        if window is not None and on_watch:
+            on_watch(window, sim)
     if not (keep_frames or on_frame):            # no frame was made but the last
         frames, times = [sim.positions()], [sim.time]
     freqs = sim.basis.frequencies_hz if sim.basis is not None else np.empty(0)

@@ -7,8 +7,8 @@ import sys
 from helpers import HIDE_ROS, sheet_on_a_table, variant
 from modal_spring_ros.cli.common import parse_mode_range, progress_bar, progress_lines, run_main
 from modal_spring_ros.cli.modal_spring_sim import head_start, main, watched_line
-from modal_spring_ros.core.auto.amplification import UNBOUNDED
-from modal_spring_ros.core.auto.run_watch import WatchedWindow
+from modal_spring_ros.core.auto.watch.amplification import UNBOUNDED
+from modal_spring_ros.core.auto.watch.run_watch import WatchedWindow
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation

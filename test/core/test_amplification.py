@@ -12,14 +12,16 @@ distance does not grow.
 """
 from __future__ import annotations
 
+import collections
 import math
 
 from helpers import write_obj
-from modal_spring_ros.core.auto.amplification import (AMPLIFYING_PER_S, describe_rate,
-                                                      FLOOR_M, Growth, perturbed, RELATIVE,
-                                                      start_growth, twin_samples, UNBOUNDED)
-from modal_spring_ros.core.auto.run_watch import (TWIN_SAMPLES, TWIN_WINDOW_S, watch_of,
-                                                  WatchedWindow)
+from modal_spring_ros.core.auto.watch.amplification import (AMPLIFYING_PER_S, describe_rate,
+                                                            FLOOR_M, Growth, perturbed,
+                                                            RELATIVE, start_growth,
+                                                            twin_samples, UNBOUNDED)
+from modal_spring_ros.core.auto.watch.run_watch import (RunWatch, TWIN_SAMPLES, TWIN_WINDOW_S,
+                                                        watch_of, WatchedWindow)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.simulations import RunState
@@ -116,7 +118,7 @@ def test_a_short_run_is_not_watched_by_its_twin_where_a_window_costs_more_than_i
         tmp_path):
     config = SimulationConfig(auto=True, tolerance=0.01, horizon_s=RUN_S)
     sim = build_simulation(ring(tmp_path, 8e5), config)
-    # the twin and the run's copy cost twice the run over a window: 0.5 s of a 5 s run is 10 %
+    # the twin stepped beside the run costs it one window: 0.25 s of a 5 s run is 5 %
     assert watch_of(sim, 1.0, run_s=4.9).first_s == 1.0           # not forced into the run
     assert watch_of(sim, 20.0, run_s=5.1).first_s == pytest.approx(5.1 - TWIN_WINDOW_S)
 
@@ -138,3 +140,61 @@ def test_a_start_that_amplifies_nothing_is_said_so_from_rest(tmp_path):
         full = build_simulation(ring(tmp_path, stiffness), SimulationConfig(method='full'))
         rate = start_growth(lambda: full.with_dt(full.dt))
         assert math.isfinite(rate) and rate < 0.25 * AMPLIFYING_PER_S
+
+
+def test_a_twin_stepped_beside_the_run_measures_what_a_copy_and_the_twin_measure(tmp_path):
+    """The run is its own copy: the same growth, for the twin's steps alone."""
+    config = SimulationConfig(auto=True, tolerance=0.01, horizon_s=RUN_S)
+    sim = build_simulation(ring(tmp_path, 8e4), config)
+    assert sim.watch_reference.reference is None       # the full run, watched by its twin
+    copy = sim.with_dt(sim.dt)
+    stepped = collections.Counter()
+    step = type(sim).step
+
+    def counted(self, n=1):
+        stepped[id(self)] += n
+        return step(self, n)
+    beside, windows = watch_of(sim, 1.0), []
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(type(sim), 'step', counted)
+        record(sim, 1.5, frame_every=50, watch=beside,
+               on_watch=lambda w, now: windows.append(w))
+    assert len(windows) == 1 and windows[0].start_s == pytest.approx(1.0, abs=sim.dt)
+    window_steps = TWIN_WINDOW_S / sim.dt
+    shadows = {key: n for key, n in stepped.items() if key != id(sim)}
+    # one shadow, the twin, over the window (its copy was a second)
+    assert len(shadows) == 1 and list(shadows.values())[0] == pytest.approx(window_steps, rel=0.05)
+    # the same window stepped as shadows (the node's way): the run's copy and the twin
+    shadowed = RunWatch(sim.watch_reference, 1.0)
+    assert shadowed.advance(copy) is None           # the first window's start set
+    copy.step(int(round(1.0 / sim.dt)))
+    window = shadowed.advance(copy)                 # stepped whole: no deadline
+    assert window is not None and window.start_s == pytest.approx(windows[0].start_s)
+    assert window.growth == pytest.approx(windows[0].growth, rel=1e-6, abs=1e-6)
+    assert windows[0].growth >= AMPLIFYING_PER_S      # the soft ring tumbles from its first s
+
+
+def test_a_twin_window_ends_with_the_run_and_a_reset_drops_the_one_under_way(tmp_path):
+    config = SimulationConfig(auto=True, tolerance=0.01, horizon_s=RUN_S)
+    sim = build_simulation(ring(tmp_path, 8e5), config)
+    run_s = 5.0
+    watch, windows = watch_of(sim, None, run_s=run_s), []
+    assert watch.first_s == pytest.approx(run_s - TWIN_WINDOW_S)
+    record(sim.with_dt(sim.dt), run_s, frame_every=100, watch=watch,
+           on_watch=lambda w, now: windows.append(w))
+    # the last window's last sample is the run's last step
+    assert len(windows) == 1 and watch.last is windows[0] and not watch.busy
+    assert windows[0].start_s == pytest.approx(run_s - TWIN_WINDOW_S, abs=sim.dt)
+    assert windows[0].window_s == pytest.approx(TWIN_WINDOW_S, rel=0.1)
+    assert windows[0].growth < 0.25 * AMPLIFYING_PER_S
+    # a reset under way: the window is dropped, and the run watched again as from a start
+    reset = watch_of(sim, 0.5)
+    run = sim.with_dt(sim.dt)
+    for _ in range(int(round(0.6 / run.dt))):
+        reset.before_step(run)
+        run.step()
+    assert reset.busy
+    run.reset()
+    assert reset.before_step(run) == (run, None) and not reset.busy
+    run.step(int(round(0.5 / run.dt)))
+    assert reset.before_step(run)[1] is None and reset.busy        # due again 0.5 s on

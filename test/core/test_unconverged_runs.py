@@ -18,11 +18,11 @@ import re
 
 from helpers import write_obj
 from modal_spring_ros.core.auto import budget as budget_module
-from modal_spring_ros.core.auto.amplification import AMPLIFYING_PER_S
 from modal_spring_ros.core.auto.full_candidate import by_step_doubling, STALLED, STEP_ORDER
 from modal_spring_ros.core.auto.measured_error import on_samples, trajectory, trajectory_error
 from modal_spring_ros.core.auto.plan import AMPLIFYING, BEYOND_MODES
 from modal_spring_ros.core.auto.step_error import NONLINEAR
+from modal_spring_ros.core.auto.watch.amplification import AMPLIFYING_PER_S
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation

@@ -24,14 +24,14 @@ import functools
 import math
 from typing import Callable
 
-from modal_spring_ros.core.auto.amplification import (amplifies, describe_rate, start_growth,
-                                                      WINDOW_S as TWIN_S)
 from modal_spring_ros.core.auto.full_candidate import (BY_ITSELF, by_step_doubling,
                                                        head_start, STEP_ORDER)
 from modal_spring_ros.core.auto.plan import (AMPLIFYING, BEYOND_MODES, NOT_FOUND, PilotReport,
                                              TOUCHES_UNSEEN, UNCONVERGED)
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK
 from modal_spring_ros.core.auto.step_error import StepPrediction
+from modal_spring_ros.core.auto.watch.amplification import (amplifies, describe_rate,
+                                                            start_growth, WINDOW_S as TWIN_S)
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.simulations import Simulation
 
@@ -268,7 +268,7 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     not measured (``NOT_FOUND``; a soft mesh turned 90 degrees once searched it for over 8
     minutes, the run at the default step costing 33 s, its halved runs still 49 % apart). Nor
     is it made where a twin of the start moved by a hair parts from it exponentially
-    (:mod:`~.amplification`; that mesh: e-fold every 0.013 s): ``AMPLIFYING``.
+    (:mod:`~.watch.amplification`; that mesh: e-fold every 0.013 s): ``AMPLIFYING``.
     """
     sample_s = window_s / samples
     step = default_dt

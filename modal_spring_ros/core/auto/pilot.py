@@ -47,9 +47,9 @@ from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PilotReport, PlanSettings
 from modal_spring_ros.core.auto.refinement import (lengthened, refinements, richer,
                                                    shared_step_error, still_richer)
-from modal_spring_ros.core.auto.run_watch import WatchReference
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK, full_run_start
 from modal_spring_ros.core.auto.step_error import StepPrediction
+from modal_spring_ros.core.auto.watch.windows import WatchReference
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.simulations import Simulation
@@ -193,10 +193,11 @@ class Pilot:
         """
         Return what the chosen modal ``sim`` is watched against while it runs.
 
-        (:mod:`~modal_spring_ros.core.auto.run_watch`): the pilot's reference (the converged full
-        run, or the richer plan with its Richardson share) on its samples; it falls back to the
-        full candidate measured, or where the band keeps no full run to the richer plan (as
-        settings: the whole band on its basis and forces, at a step within stability).
+        (:mod:`~modal_spring_ros.core.auto.watch.run_watch`): the pilot's reference (the
+        converged full run, or the richer plan with its Richardson share) on its samples; it
+        falls back to the full candidate measured, or where the band keeps no full run to the
+        richer plan (as settings: the whole band on its basis and forces, at a step within
+        stability).
         """
         sample_s, samples, _, against = self._sampling
         richer, dt, full = (self._sibling or (None, 0.0))[0], self._reference_dt, self._fallback

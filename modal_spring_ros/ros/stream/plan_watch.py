@@ -1,7 +1,7 @@
 """
 The node's watch over an automatic plan, stepped in the simulation thread's idle time.
 
-:mod:`~modal_spring_ros.core.auto.run_watch` measures a plan's error again from the run's own
+:mod:`~modal_spring_ros.core.auto.watch.run_watch` measures a plan's error again from the run's own
 state. The node steps its shadow runs between two frames, on the simulation thread (they share
 the run's model and basis, and no other thread steps), until the next frame is due, so a frame
 is never late for them. A window beyond the tolerance is handed to ``on_beyond``: the node falls
@@ -20,7 +20,7 @@ import threading
 import time
 from typing import Callable, Mapping
 
-from modal_spring_ros.core.auto.run_watch import RunWatch, watch_of, WatchedWindow
+from modal_spring_ros.core.auto.watch.run_watch import RunWatch, watch_of, WatchedWindow
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.parameters import CONFIG_NAMES
 from rcl_interfaces.msg import SetParametersResult

@@ -30,7 +30,7 @@ from modal_spring_ros.bags.files.reader import BagReader
 from modal_spring_ros.bags.files.sim_time import sim_time_topic, simulation_times
 from modal_spring_ros.bags.files.writer import BagError
 from modal_spring_ros.bags.messages.stamps import to_nanoseconds, to_seconds
-from modal_spring_ros.core.auto.run_watch import watch_of
+from modal_spring_ros.core.auto.watch.run_watch import watch_of
 from modal_spring_ros.core.bases.derivatives import DEFAULT_DIRECTIONS
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild

@@ -15,13 +15,15 @@ at that moment, to what the pilot named for it (the full run at the longest step
 within the tolerance; the richer plan where the band keeps no full run), and says so.
 
 Each window also steps a third shadow: a twin of the plan from the same state perturbed by a
-hair (:mod:`~modal_spring_ros.core.auto.amplification`). Where the motion amplifies its
+hair (:mod:`~modal_spring_ros.core.auto.watch.amplification`). Where the motion amplifies its
 differences (a chaotic one: a soft solid turned far, a skin crumpling), no run keeps to another
 within the tolerance for long, the full run's included: the window says so
 (:attr:`WatchedWindow.amplifying`), the run is not fallen back (no other run would hold the
 tolerance either), and the error printed for it does not hold. Where the pilot chose the full
 run, the run is watched by its twin alone (:func:`twin_reference`), where that costs at most
-``TWIN_SHARE`` of the run.
+``TWIN_SHARE`` of the run: stepped beside the run itself where the caller steps the run one
+step at a time (:meth:`RunWatch.before_step`, :class:`~.amplification.TwinBeside`), the run
+being its own copy.
 
 The shadows step in slices (:meth:`RunWatch.advance` takes a wall-clock deadline), so that a
 caller that streams frames steps them in its idle time between two frames, on its own thread:
@@ -32,21 +34,20 @@ windows and the same fallback on any machine.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
-import time
-from typing import Callable, Mapping
+from typing import Callable
 
-from modal_spring_ros.core.auto.amplification import (amplifies, describe_rate, Growth,
-                                                      perturbed, SAMPLES as TWIN_SAMPLES,
-                                                      twin_samples, UNBOUNDED,
-                                                      WINDOW_S as TWIN_WINDOW_S)
 from modal_spring_ros.core.auto.measured_error import on_samples
+from modal_spring_ros.core.auto.watch.amplification import (MIN_SAMPLES as TWIN_MIN_SAMPLES,
+                                                            SAMPLES as TWIN_SAMPLES,
+                                                            twin_samples, TwinBeside,
+                                                            WINDOW_S as TWIN_WINDOW_S)
+from modal_spring_ros.core.auto.watch.shadows import Shadows
+from modal_spring_ros.core.auto.watch.windows import WatchedWindow, WatchReference
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.motion.anchor_motion import AnchorMotion
-from modal_spring_ros.core.simulations import DivergenceError, RunState, Simulation
-import numpy as np
+from modal_spring_ros.core.simulations import Simulation
 
 #: Simulated seconds between the starts of two watched windows, by default.
 DEFAULT_INTERVAL_S = 10.0
@@ -54,8 +55,9 @@ DEFAULT_INTERVAL_S = 10.0
 #: the interval is lengthened where the shadow runs cost more than that over it.
 WORK_SHARE = 0.25
 #: A full run the pilot chose is watched by its twin alone (over ``TWIN_WINDOW_S`` on
-#: ``TWIN_SAMPLES`` samples) in a run where its two shadows cost at most this share of it.
-TWIN_SHARE = 0.1
+#: ``TWIN_SAMPLES`` samples, stepped beside the run) in a run where it costs at most this share
+#: of it: runs of 5 s and more.
+TWIN_SHARE = 0.05
 
 
 def watchable(model: MassSpringModel) -> bool:
@@ -74,14 +76,14 @@ def watch_of(sim: Simulation, interval_s: float | None, budget: float | None = N
     watched from ``from_s`` on (a run that went on from where its pilot's run ended).
     None is returned for a run that is not an automatic plan, an interval of 0, or a clamp
     that follows poses. A run watched by its twin alone is not watched in a run of ``run_s``
-    where one window would cost more than ``TWIN_SHARE`` of it.
+    where one window would cost more than ``TWIN_SHARE`` of it (a run of given length is stepped
+    one step at a time: its twin beside it costs the twin alone).
     """
     reference = sim.watch_reference
     if reference is None or interval_s == 0.0 or not watchable(sim.model):
         return None
     if (reference.reference is None and run_s is not None
-            and reference.window_s * reference.shadow_work
-            > TWIN_SHARE * reference.plan_work * run_s):
+            and reference.window_s > TWIN_SHARE * run_s):
         run_s = None
     left = None if run_s is None else run_s - from_s
     if interval_s is not None:
@@ -101,150 +103,6 @@ def twin_reference(sim: Simulation, tolerance: float) -> 'WatchReference':
     work = work_per_second(sim)
     return WatchReference(None, None, {}, '', TWIN_WINDOW_S / TWIN_SAMPLES, TWIN_SAMPLES, 1.0,
                           tolerance, work, 2.0 * work)
-
-
-@dataclasses.dataclass(frozen=True)
-class WatchReference:
-    """
-    What a plan is watched against, as its pilot measured it.
-
-    ``reference()`` builds the reference run at rest, on the sample grid (None: the plan is
-    watched by its twin alone, :func:`twin_reference`, and has no fallback); ``fallback()``
-    what the run falls back to, and ``fallback_settings`` the same as the
-    :class:`~modal_spring_ros.core.config.SimulationConfig` fields that rebuild it (a node
-    falls back by setting its parameters, so that they say what runs); ``shared`` the
-    Richardson factor of a richer plan's step (1 against the full run); ``plan_work`` and
-    ``shadow_work`` the plan's and its shadows' modelled work, us per simulated second.
-    """
-
-    reference: Callable[[], Simulation] | None
-    fallback: Callable[[], Simulation] | None
-    fallback_settings: Mapping[str, object]
-    against: str
-    sample_s: float
-    samples: int
-    shared: float
-    tolerance: float
-    plan_work: float
-    shadow_work: float
-
-    @property
-    def window_s(self) -> float:
-        return self.samples * self.sample_s
-
-
-@dataclasses.dataclass(frozen=True)
-class WatchedWindow:
-    """
-    One watched window: the plan's error from the run's state at ``start_s`` on.
-
-    ``growth``: how fast a hair's difference grew over it, e-folds per second
-    (:mod:`~modal_spring_ros.core.auto.amplification`). ``against`` empty: a window of the twin
-    alone (no error measured).
-    """
-
-    start_s: float
-    window_s: float
-    error: float            # relative L2; inf: the plan diverged; nan: the reference did
-    tolerance: float
-    against: str
-    growth: float = math.nan
-
-    @property
-    def measured(self) -> bool:
-        return not math.isnan(self.error)
-
-    @property
-    def amplifying(self) -> bool:
-        """Tell whether the motion amplified its differences here: its error is not bounded."""
-        return amplifies(self.growth)
-
-    @property
-    def within(self) -> bool:
-        """Tell whether the plan met its tolerance (unmeasured and twin-only windows have)."""
-        return not self.against or not self.measured or self.error <= self.tolerance
-
-    def describe(self) -> str:
-        span = f'over {self.window_s:.3g} s from t = {self.start_s:.4g} s'
-        amplified = f': {UNBOUNDED}' if self.amplifying else ''
-        if not self.against:
-            return f'{describe_rate(self.growth)} {span}{amplified}'
-        span = f'{span} against {self.against}'
-        amplified = f'; {describe_rate(self.growth)}{amplified}' if self.amplifying else ''
-        if not self.measured:
-            return f'not measured {span}: the reference diverged{amplified}'
-        if math.isinf(self.error):
-            return f'the plan diverged {span}{amplified}'
-        return f'{self.error:.2%} {span}{amplified}'
-
-
-class _Shadow:
-    """
-    The plan's copy, the reference and the plan's twin, from one state, stepped sample by sample.
-
-    ``runs``: the plan's copy, the reference (where the watch has one) and the twin, built once
-    per watch and taken over to each window's state (the twin's perturbed by a hair; stepped
-    over the window's first ``TWIN_WINDOW_S`` only).
-    """
-
-    def __init__(self, plan: Simulation, runs: list[Simulation], reference: WatchReference):
-        state = RunState.of(plan)
-        self.start_s = state.time
-        self.reference = reference
-        self._runs = runs
-        for run in runs[:-1]:
-            run.take_over(state)
-        runs[-1].take_over(perturbed(state))
-        self._per = [max(1, int(round(reference.sample_s / run.dt))) for run in self._runs]
-        self._growth = Growth(self._per[0] * runs[0].dt)
-        self._twin_samples = twin_samples(reference.sample_s, reference.samples)
-        self._done = 0
-        self._difference = self._motion = 0.0
-        self.result: WatchedWindow | None = None
-
-    def advance(self, deadline: float) -> bool:
-        """Step whole samples until the window is done (True) or past ``deadline`` (monotonic)."""
-        ref = self.reference
-        while self.result is None:
-            try:
-                plan = self._sample(0)
-            except DivergenceError:
-                return self._finish(math.inf)
-            if ref.reference is not None:
-                try:
-                    truth = self._sample(1)
-                except DivergenceError:
-                    return self._finish(math.nan)
-                self._difference += float(np.sum((plan - truth) ** 2))
-                self._motion += float(truth @ truth)
-            if self._done < self._twin_samples and not self._growth.diverged:
-                try:
-                    self._growth.add(plan, self._sample(len(self._runs) - 1))
-                except DivergenceError:
-                    self._growth.diverged = True
-            self._done += 1
-            if self._done >= ref.samples:
-                error = (math.nan if ref.reference is None
-                         else math.sqrt(self._difference / self._motion) * ref.shared
-                         if self._motion > 0.0 else 0.0)
-                return self._finish(error)
-            if time.monotonic() >= deadline:
-                return False
-        return True
-
-    def _sample(self, which: int) -> np.ndarray:
-        run = self._runs[which]
-        run.step(self._per[which])
-        u = run.displacement()
-        if not np.isfinite(u).all():
-            raise DivergenceError('non-finite state', run.time, run.steps)
-        return u
-
-    def _finish(self, error: float) -> bool:
-        ref = self.reference
-        self.result = WatchedWindow(self.start_s, ref.window_s, error, ref.tolerance,
-                                    ref.against, self._growth.rate())
-        return True
 
 
 class RunWatch:
@@ -281,8 +139,9 @@ class RunWatch:
         if run_s is not None and run_s > reference.window_s * (1.0 + 1e-9):
             self.first_s = min(self.interval_s, run_s - reference.window_s)
         self._next: float | None = None   # when the next window starts (None: the first)
-        self._shadow: _Shadow | None = None
-        self._runs: list[Simulation] | None = None    # the plan's copy and the reference
+        self._shadow: Shadows | None = None
+        self._beside: TwinBeside | None = None         # a twin stepped beside the run itself
+        self._runs: list[Simulation] | None = None    # the shadows, kept from window to window
         self.windows = 0
         self.last: WatchedWindow | None = None
         self.worst: WatchedWindow | None = None
@@ -292,28 +151,24 @@ class RunWatch:
     @property
     def busy(self) -> bool:
         """Tell whether a window is being stepped."""
-        return self._shadow is not None
+        return self._shadow is not None or self._beside is not None
 
-    def advance(self, sim: Simulation, deadline: float = math.inf) -> WatchedWindow | None:
-        """
-        Start a window when one is due, step the one under way; return it once it is done.
+    def _due(self, sim: Simulation) -> bool:
+        """Tell whether a window starts now (the first one's start set on the first call)."""
+        if self._next is None:          # the pilot measured the first window from rest
+            self._next = sim.time + self.first_s
+        if sim.time + 0.5 * sim.dt < self._next:
+            return False
+        self._next = sim.time + self.interval_s
+        return True
 
-        ``deadline``: monotonic time at which to hand back (the window goes on at the next call).
-        """
-        if self._shadow is None:
-            if self._next is None:      # the pilot measured the first window from rest
-                self._next = sim.time + self.first_s
-            if sim.time + 0.5 * sim.dt < self._next:
-                return None
-            if self._runs is None or self._runs[0].method != sim.method:
-                make = self.reference.reference
-                self._runs = ([sim.with_dt(sim.dt)] + ([make()] if make is not None else [])
-                              + [sim.with_dt(sim.dt)])
-            self._shadow = _Shadow(sim, self._runs, self.reference)
-            self._next = sim.time + self.interval_s
-        if not self._shadow.advance(deadline):
-            return None
-        window, self._shadow = self._shadow.result, None
+    def _kept(self, sim: Simulation, make: Callable[[], list[Simulation]]) -> list[Simulation]:
+        """Return the shadows kept from the last window where they step as ``sim`` does."""
+        if self._runs is None or self._runs[0].method != sim.method:
+            self._runs = make()
+        return self._runs
+
+    def _finished(self, window: WatchedWindow) -> WatchedWindow:
         self.windows += 1
         self.last = window
         if window.measured and (self.worst is None or not window.error <= self.worst.error):
@@ -322,13 +177,78 @@ class RunWatch:
             self.amplifying = window
         return window
 
+    def advance(self, sim: Simulation, deadline: float = math.inf) -> WatchedWindow | None:
+        """
+        Start a window when one is due, step the one under way; return it once it is done.
+
+        ``deadline``: monotonic time at which to hand back (the window goes on at the next call).
+        """
+        if self._shadow is None:
+            if not self._due(sim):
+                return None
+            make = self.reference.reference
+            self._shadow = Shadows(sim, self._kept(sim, lambda: (
+                [sim.with_dt(sim.dt)] + ([make()] if make is not None else [])
+                + [sim.with_dt(sim.dt)])), self.reference)
+        if not self._shadow.advance(deadline):
+            return None
+        window, self._shadow = self._shadow.result, None
+        return self._finished(window)
+
+    def _step_beside(self, sim: Simulation, starts: bool = True) -> WatchedWindow | None:
+        """
+        Watch by a twin stepped beside ``sim`` itself, seen after each of its steps.
+
+        A window starts when one is due (``starts``); one whose run was rebuilt is dropped (the
+        next starts an interval after where it started), and one whose run was reset too (it
+        is watched again as from a start).
+        """
+        if self._beside is not None and not self._beside.follows(sim):
+            if sim.time < self._beside.start_s:
+                self._next = None
+            self._beside = None
+        if self._beside is None:
+            if not (starts and self._due(sim)):
+                return None
+            ref = self.reference
+            twin = self._kept(sim, lambda: [sim.with_dt(sim.dt)])[0]
+            self._beside = TwinBeside(sim, ref.sample_s,
+                                      twin_samples(ref.sample_s, ref.samples), twin)
+        if not self._beside.observe(sim):
+            return None
+        return self._end_beside()
+
+    def _end_beside(self) -> WatchedWindow:
+        beside, self._beside = self._beside, None
+        ref = self.reference
+        span = ref.window_s if beside.done else beside.span_s
+        return self._finished(WatchedWindow(beside.start_s, span, math.nan, ref.tolerance, '',
+                                            beside.growth.rate()))
+
+    def after_run(self, sim: Simulation) -> WatchedWindow | None:
+        """
+        End the window of a twin stepped beside ``sim`` with its run (None: none under way).
+
+        Its last sample is the run's last step: a window that started one window before the
+        run's end ends there, with the samples it took (``TWIN_MIN_SAMPLES`` at least).
+        """
+        if self._beside is None:
+            return None
+        window = self._step_beside(sim, starts=False)
+        if window is not None or self._beside is None:
+            return window
+        if self._beside.growth.samples < TWIN_MIN_SAMPLES:
+            self._beside = None
+            return None
+        return self._end_beside()
+
     def restart(self) -> None:
         """
         Drop the window under way and watch again as from a start (a reset, a band change).
 
         The plan's copy is made again from the run's state then.
         """
-        self._shadow = self._runs = self._next = None
+        self._shadow = self._beside = self._runs = self._next = None
 
     def before_step(self, sim: Simulation, sample_s: float | None = None
                     ) -> tuple[Simulation, WatchedWindow | None]:
@@ -336,8 +256,12 @@ class RunWatch:
         Advance the watch all the way before a step of ``sim`` (a run that is not streamed).
 
         Return the run that goes on (the fallback, from ``sim``'s state, where a window was
-        beyond the tolerance: see :meth:`fallback`) and the window finished, or None.
+        beyond the tolerance: see :meth:`fallback`) and the window finished, or None. A run
+        watched by its twin alone has it stepped beside the run (:meth:`after_run` ends the
+        window that ends with the run).
         """
+        if self.reference.reference is None:
+            return sim, self._step_beside(sim)
         window = self.advance(sim)
         if window is None or window.within:
             return sim, window

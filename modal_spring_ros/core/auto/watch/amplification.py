@@ -17,9 +17,11 @@ distance (at most 0.6 e-folds per second measured on the random, resonant and st
 the benches); a chaotic one multiplies it (6-15 e-folds per second on a soft ring turned +-60
 degrees, 44-48 on a soft mesh turned 90 degrees). Beyond ``AMPLIFYING_PER_S`` the motion is said
 to amplify its differences: its error is not bounded by the tolerance. The run watch
-(:mod:`~modal_spring_ros.core.auto.run_watch`) steps a twin in each window; planning steps one
-from rest (:func:`start_growth`) before it would search the whole window for a step no motion
-that amplifies from its start has.
+(:mod:`~.run_watch`) steps a twin in each window; planning steps one from rest
+(:func:`start_growth`) before it would search the whole window for a step no motion that
+amplifies from its start has. Where the run is stepped one step at a time by its caller
+(``modal_spring_sim``), the twin is stepped beside the run itself (:class:`TwinBeside`): the run
+is its own copy, and a window costs the twin alone.
 """
 from __future__ import annotations
 
@@ -69,6 +71,10 @@ class Growth:
         """Record one sample: the two free-DOF displacements."""
         self._distances.append(float(np.linalg.norm(run - twin)))
 
+    @property
+    def samples(self) -> int:
+        return len(self._distances)
+
     def rate(self) -> float:
         """
         Return the distance's growth rate, e-folds per second (nan: not measured).
@@ -95,6 +101,56 @@ class Growth:
 def twin_samples(sample_s: float, samples: int) -> int:
     """Return how many of a window's ``samples`` (``sample_s`` apart) its twin is stepped over."""
     return min(samples, max(MIN_SAMPLES, math.ceil(WINDOW_S / sample_s - 1e-9)))
+
+
+class TwinBeside:
+    """
+    A twin stepped beside the run itself, sample by sample: one shadow where a copy made two.
+
+    Made from ``run``'s state moved by a hair (in ``twin``, a run of the same method to take
+    over, where one is kept: else a copy of ``run``); :meth:`observe` sees the run after each of
+    its steps and, every ``sample_s`` of them, steps the twin to the same time and measures their
+    distance, over ``samples`` samples.
+    """
+
+    def __init__(self, run: Simulation, sample_s: float, samples: int,
+                 twin: Simulation | None = None):
+        state = RunState.of(run)
+        self.start_s = state.time
+        self.twin = twin if twin is not None else run.with_dt(run.dt)
+        self.twin.take_over(perturbed(state))
+        self._run, self._from = run, run.steps
+        self._per = max(1, int(round(sample_s / run.dt)))
+        self._samples = samples
+        self.growth = Growth(self._per * run.dt)
+
+    @property
+    def done(self) -> bool:
+        return self.growth.diverged or self.growth.samples >= self._samples
+
+    @property
+    def span_s(self) -> float:
+        """Return the simulated time the samples taken span, s."""
+        return self.growth.samples * self.growth.sample_s
+
+    def follows(self, run: Simulation) -> bool:
+        """Tell whether ``run`` is the run the twin is beside, no sample skipped (not reset)."""
+        return (run is self._run
+                and 0 <= run.steps - self._from <= self._per * (self.growth.samples + 1))
+
+    def observe(self, run: Simulation) -> bool:
+        """Take a sample where ``run`` has reached one; tell whether the window is done."""
+        if run.steps - self._from == self._per * (self.growth.samples + 1) and not self.done:
+            try:
+                self.twin.step(self._per)
+                twin = self.twin.displacement()
+                if not np.isfinite(twin).all():
+                    raise DivergenceError('non-finite state', self.twin.time, self.twin.steps)
+            except DivergenceError:
+                self.growth.diverged = True
+            else:
+                self.growth.add(run.displacement(), twin)
+        return self.done
 
 
 def start_growth(make: Callable[[], Simulation]) -> float:
