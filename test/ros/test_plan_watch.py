@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from modal_spring_ros.core.auto import amplification
+from modal_spring_ros.core.auto.watch import amplification
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.filter_band import FilterBand

@@ -193,11 +193,10 @@ class Pilot:
         """
         Return what the chosen modal ``sim`` is watched against while it runs.
 
-        (:mod:`~modal_spring_ros.core.auto.watch.run_watch`): the pilot's reference (the
-        converged full run, or the richer plan with its Richardson share) on its samples; it
-        falls back to the full candidate measured, or where the band keeps no full run to the
-        richer plan (as settings: the whole band on its basis and forces, at a step within
-        stability).
+        (:mod:`~.watch.run_watch`): the pilot's reference (the converged full run, or the
+        richer plan with its Richardson share) on its samples; it falls back to the full
+        candidate measured, or where the band keeps no full run to the richer plan (as
+        settings: the whole band on its basis and forces, at a step within stability).
         """
         sample_s, samples, _, against = self._sampling
         richer, dt, full = (self._sibling or (None, 0.0))[0], self._reference_dt, self._fallback
