@@ -9,10 +9,11 @@ from __future__ import annotations
 import math
 
 from helpers import max_step_motion, power_above, variant
+from modal_spring_ros.core.bases import derivatives
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.bases.derivatives import (added_coordinates, drive_gains,
-                                                     MAX_DRIVE_GAIN, static_load_vectors,
-                                                     tangent_derivative)
+                                                     MAX_DRIVE_GAIN, MAX_PAIR_MODES,
+                                                     static_load_vectors, tangent_derivative)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import rebuild
 from modal_spring_ros.core.filter_band import FilterBand
@@ -309,3 +310,34 @@ def test_runs_rebuilt_on_one_basis_compute_a_bands_derivatives_once():
                                                    forces='refreshed', dt=2e-4))
     assert sum('modal derivatives' in line for line in said) == 1, said
     assert first._bank is again._bank
+
+
+def test_bands_of_the_same_pair_modes_share_their_solves_and_get_the_same_coordinates(
+        monkeypatch):
+    """A plan and its richer sibling (more modes, more directions): one set of pair solves."""
+    model = MassSpringModel(load_scene('sheet_10x10_resonance'))
+    solved = []
+    pair_solutions = derivatives.pair_solutions
+
+    def counted(*args, **kwargs):
+        solved.append(args[2].shape[1])
+        return pair_solutions(*args, **kwargs)
+    monkeypatch.setattr(derivatives, 'pair_solutions', counted)
+    shared_basis, lines = ModalBasis(model), []
+    keep = np.arange(MAX_PAIR_MODES + 6)
+    plan = added_coordinates(shared_basis, keep[:MAX_PAIR_MODES + 2], 15, lines.append)
+    sibling = added_coordinates(shared_basis, keep, 30, lines.append)
+    assert solved == [MAX_PAIR_MODES] and len(shared_basis.pair_solves) == 1
+    assert 'kept from another band' in lines[1] and 'kept' not in lines[0]
+    # the same coordinates as solved afresh, to the last bit
+    for band, directions, got in ((keep[:MAX_PAIR_MODES + 2], 15, plan), (keep, 30, sibling)):
+        fresh = added_coordinates(ModalBasis(model), band, directions)
+        assert got.count == fresh.count and got.derivative_count == fresh.derivative_count
+        np.testing.assert_array_equal(got.vectors, fresh.vectors)
+        np.testing.assert_array_equal(got.omega, fresh.omega)
+    assert solved == [MAX_PAIR_MODES] * 3
+    # a basis whose pair modes changed (solved anew) solves them again
+    shared_basis.vectors = shared_basis.vectors.copy()
+    shared_basis.vectors[:, 0] *= -1.0
+    added_coordinates(shared_basis, keep, 30)
+    assert solved == [MAX_PAIR_MODES] * 4

@@ -90,6 +90,9 @@ class ModalBasis:
         #: the banks of added coordinates built on this basis, by derivative directions
         #: (:func:`~modal_spring_ros.core.simulations.coordinates.shared_bank`)
         self.banks: dict[int, object] = {}
+        #: the pair solves of modal derivatives, by their modes, shared by every bank
+        #: (:func:`~modal_spring_ros.core.bases.derivatives.added_coordinates`)
+        self.pair_solves: dict[bytes, object] = {}
         if self.dense:
             self._compute_dense()
         elif not self._read_stored(min(initial_modes, self.n_dof - 1)):

@@ -33,6 +33,11 @@ is that response's direction. A band's added coordinates are built once per band
    has an ``omega`` of its own, and the modal damping, the diagonal operators and both
    integrators carry over unchanged. The forces stay exact (eq. 20 in physical space).
 
+The pair solves (step 1 with its weights: the cost, a sparse solve per pair) depend on the pair
+modes alone, so two bands of the same lowest modes share them (a plan and its richer sibling:
+more modes, more directions): they are kept on the basis (:attr:`ModalBasis.pair_solves`)
+where they are solved in this process and take at most ``PAIR_SOLVES_BYTES``.
+
 The band keeps its meaning: the added coordinates move with what the kept modes drive (the
 springs' second-order response) and with the loads in the band, not with a load outside it (a
 base shaken at 8 Hz does not drive them in a low-pass below 8 Hz: their share of that load is
@@ -69,6 +74,18 @@ MAX_DRIVE_GAIN = 100.0
 DEPENDENT_RTOL = 1e-10
 #: A static response with less than this share of it outside the band's modes adds nothing.
 REMAINDER_RTOL = 1e-8
+#: The most a basis keeps of one set of pair solves (a 10k-particle sheet's 300 pairs: 48 MB).
+PAIR_SOLVES_BYTES = 64 * 2**20
+
+
+@dataclasses.dataclass(frozen=True)
+class PairSolves:
+    """The weighted solves of every pair of ``modes`` (``phi`` their shapes, as solved)."""
+
+    modes: np.ndarray
+    phi: np.ndarray
+    solved: np.ndarray      # (n_free_dof, pairs): weighted, before the band's projection
+    scale: float            # the largest mass norm among them
 
 
 @dataclasses.dataclass(frozen=True)
@@ -203,34 +220,81 @@ def added_coordinates(basis: ModalBasis, keep: np.ndarray,
         return AddedCoordinates(np.empty((basis.n_dof, 0)), np.empty(0), 0, 0.0,
                                 np.zeros(4, dtype=bool))
     pair_modes = keep[:MAX_PAIR_MODES]
+    pairs = pair_modes.size * (pair_modes.size + 1) // 2
+    solves = kept_pair_solves(basis, pair_modes)
     if progress is not None and pair_modes.size:
-        pairs = pair_modes.size * (pair_modes.size + 1) // 2
         progress(f'modal derivatives: {pairs} pairs of {pair_modes.size} modes'
-                 + (' in a worker process' if basis.worker and not basis.dense else ''))
+                 + (' (their solves kept from another band)' if solves is not None
+                    else ' in a worker process' if basis.worker and not basis.dense else ''))
+    in_process = basis.dense or basis.worker is None
+    if (solves is None and in_process and pair_modes.size
+            and basis.n_dof * pairs * 8 <= PAIR_SOLVES_BYTES):
+        phi = basis.vectors[:, pair_modes]
+        solves = PairSolves(pair_modes.copy(), phi.copy(), *pair_solutions(
+            basis.solve_stiffness, basis.model, phi, basis.omega[pair_modes]))
+        basis.pair_solves[pair_modes.tobytes()] = solves
     # the band's span: from 0 Hz when it keeps the lowest mode, else from its lowest mode
     f = basis.frequencies_hz
     span = (0.0 if keep[0] == 0 else float(f[keep[0]]), float(f[keep[-1]]))
     vectors, omega2, count = basis.call_with_solve(
         _compute, basis.model, basis.vectors[:, :int(keep.max()) + 1],
-        basis.vectors[:, pair_modes], basis.omega[pair_modes], span, directions)
+        basis.vectors[:, pair_modes], basis.omega[pair_modes], span, directions,
+        None if solves is None else (solves.solved, solves.scale))
     return AddedCoordinates(vectors, np.sqrt(np.maximum(omega2, 0.0)), count,
                             time.perf_counter() - start, loads_in_band(basis.model, *span))
 
 
+def kept_pair_solves(basis: ModalBasis, modes: np.ndarray) -> PairSolves | None:
+    """Return the pair solves of ``modes`` kept on ``basis``, where their shapes are unchanged."""
+    kept = basis.pair_solves.get(modes.tobytes())
+    if kept is None or not np.array_equal(kept.phi, basis.vectors[:, modes]):
+        return None
+    return kept
+
+
 def _compute(solve, model: MassSpringModel, below: np.ndarray, phi: np.ndarray,
-             omega: np.ndarray, span: tuple[float, float], directions: int
+             omega: np.ndarray, span: tuple[float, float], directions: int,
+             solved: tuple[np.ndarray, float] | None = None
              ) -> tuple[np.ndarray, np.ndarray, int]:
     """
     Return the added vectors.
 
     Their ``omega^2`` and how many are derivative directions, given ``solve(rhs) = K0^-1 rhs``, the
-    modes ``below`` to project out, and the pair modes.
+    modes ``below`` to project out, and the pair modes (their weighted solves where ``solved``
+    holds them, with their largest mass norm).
     """
     mass = model.mass_dof
 
     def project(x: np.ndarray) -> np.ndarray:
         return x - below @ (below.T @ (mass[:, None] * x))
 
+    if solved is None:
+        solved_all, scale = pair_solutions(solve, model, phi, omega, project)
+    else:       # projected in the chunks they were solved in: the same vectors either way
+        step = pair_chunk(model.dimension, model.scene.n_springs)
+        solved_all, scale = np.empty_like(solved[0]), solved[1]
+        for first in range(0, solved_all.shape[1], step):
+            solved_all[:, first:first + step] = project(
+                np.ascontiguousarray(solved[0][:, first:first + step]))
+    derivatives = _leading_directions(solved_all, mass, directions, REMAINDER_RTOL * scale) \
+        if solved_all.shape[1] else np.empty((model.n_free_dof, 0))
+    del solved_all
+    loads = static_load_vectors(model, *span)
+    static = _remainders(solve(loads) if loads.size else loads, mass, project)
+    vectors, omega2 = _orthonormal_diagonal(np.column_stack([derivatives, static]), mass,
+                                            model, project)
+    return vectors, omega2, min(derivatives.shape[1], vectors.shape[1])
+
+
+def pair_solutions(solve, model: MassSpringModel, phi: np.ndarray, omega: np.ndarray,
+                   project=None) -> tuple[np.ndarray, float]:
+    """
+    Return the weighted solves ``psi_ij`` of every pair of modes ``phi``, and their largest norm.
+
+    Each projected by ``project`` as its chunk is solved where given (no second array of them
+    all is held).
+    """
+    mass = model.mass_dof
     m = omega.size
     pairs = np.array([(i, j) for i in range(m) for j in range(i, m)],
                      dtype=np.int64).reshape(-1, 2)
@@ -250,16 +314,8 @@ def _compute(solve, model: MassSpringModel, below: np.ndarray, phi: np.ndarray,
         del per_spring
         solved = solve(rhs) * weights[first:first + step]
         scale = max(scale, float(np.sqrt(np.einsum('ij,i,ij->j', solved, mass, solved).max())))
-        solved_all[:, first:first + step] = project(solved)
-    del g
-    derivatives = _leading_directions(solved_all, mass, directions, REMAINDER_RTOL * scale) \
-        if pairs.size else np.empty((model.n_free_dof, 0))
-    del solved_all
-    loads = static_load_vectors(model, *span)
-    static = _remainders(solve(loads) if loads.size else loads, mass, project)
-    vectors, omega2 = _orthonormal_diagonal(np.column_stack([derivatives, static]), mass,
-                                            model, project)
-    return vectors, omega2, min(derivatives.shape[1], vectors.shape[1])
+        solved_all[:, first:first + step] = solved if project is None else project(solved)
+    return solved_all, scale
 
 
 def drive_gains(model: MassSpringModel, omega: np.ndarray) -> np.ndarray:
