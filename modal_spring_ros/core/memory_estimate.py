@@ -23,7 +23,7 @@ import dataclasses
 import math
 
 from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, DENSE_LIMIT, INITIAL_MODES
-from modal_spring_ros.core.bases.derivatives import MAX_PAIR_MODES
+from modal_spring_ros.core.bases.derivatives import MAX_PAIR_MODES, PAIR_SOLVES_BYTES
 from modal_spring_ros.core.model.scene import Scene, SceneError
 import numpy as np
 
@@ -55,7 +55,7 @@ FILL_BY_DIMENSION = ((1.0, 1.0, 20.7), (2.0, 1.155, 26.7), (3.0, 1.467, 8.43))
 MODES_VECTORS_PER_LANCZOS = 0.9
 MODES_VECTORS_PER_MODE = 1.5
 #: Vectors of n floats a derivative pair holds (its solved vector, its share of the Gram's
-#: blocks).
+#: blocks), beside its solve a basis keeps (up to ``PAIR_SOLVES_BYTES`` of them).
 DERIVATIVE_VECTORS_PER_PAIR = 0.7
 #: Vectors of n floats a stepped coordinate adds (the stepped shapes gathered from the basis;
 #: their transpose and float32 copy take the eigensolver's freed workspace).
@@ -127,7 +127,9 @@ def estimate(size: RunSize) -> MemoryEstimate:
         lanczos = min(n, max(2 * size.modes + 1, 20))
         modes = FLOAT * n * int(MODES_VECTORS_PER_LANCZOS * lanczos
                                 + MODES_VECTORS_PER_MODE * size.modes)
-    derivatives = FLOAT * (DERIVATIVE_VECTORS_PER_PAIR * n * size.pairs
+    # the pair solves a basis keeps for the bands that share them, where it keeps them
+    kept = n * size.pairs if FLOAT * n * size.pairs <= PAIR_SOLVES_BYTES else 0
+    derivatives = FLOAT * (DERIVATIVE_VECTORS_PER_PAIR * n * size.pairs + kept
                            + d * size.springs * size.pair_modes)
     sample = FLOAT * d * size.springs * SAMPLE_SPRING_VECTORS if size.sampled else 0
     run = FLOAT * n * RUN_VECTORS_PER_COORDINATE * size.stepped
