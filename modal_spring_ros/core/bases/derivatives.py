@@ -80,9 +80,8 @@ PAIR_SOLVES_BYTES = 64 * 2**20
 
 @dataclasses.dataclass(frozen=True)
 class PairSolves:
-    """The weighted solves of every pair of ``modes`` (``phi`` their shapes, as solved)."""
+    """The weighted solves of every pair of a set of modes (``phi``: their shapes, as solved)."""
 
-    modes: np.ndarray
     phi: np.ndarray
     solved: np.ndarray      # (n_free_dof, pairs): weighted, before the band's projection
     scale: float            # the largest mass norm among them
@@ -230,7 +229,7 @@ def added_coordinates(basis: ModalBasis, keep: np.ndarray,
     if (solves is None and in_process and pair_modes.size
             and basis.n_dof * pairs * 8 <= PAIR_SOLVES_BYTES):
         phi = basis.vectors[:, pair_modes]
-        solves = PairSolves(pair_modes.copy(), phi.copy(), *pair_solutions(
+        solves = PairSolves(phi.copy(), *pair_solutions(
             basis.solve_stiffness, basis.model, phi, basis.omega[pair_modes]))
         basis.pair_solves[pair_modes.tobytes()] = solves
     # the band's span: from 0 Hz when it keeps the lowest mode, else from its lowest mode
