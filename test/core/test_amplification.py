@@ -49,6 +49,13 @@ def ring(folder, stiffness: float):
         'simulation': {'duration': RUN_S}})
 
 
+@pytest.fixture(scope='module')
+def stiff_ring(tmp_path_factory):
+    """Return the ring ten times stiffer planned at 1 % for its run (the full run), unstepped."""
+    config = SimulationConfig(auto=True, tolerance=0.01, horizon_s=RUN_S)
+    return build_simulation(ring(tmp_path_factory.mktemp('ring'), 8e5), config)
+
+
 def watched(scene):
     """Plan ``scene`` at 1 % for its run, run it watched every second; return run and watch."""
     sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=0.01, horizon_s=RUN_S))
@@ -115,19 +122,16 @@ def test_the_twin_starts_a_hair_from_the_run_and_the_same_for_the_same_run():
 
 
 def test_a_short_run_is_not_watched_by_its_twin_where_a_window_costs_more_than_its_share(
-        tmp_path):
-    config = SimulationConfig(auto=True, tolerance=0.01, horizon_s=RUN_S)
-    sim = build_simulation(ring(tmp_path, 8e5), config)
+        stiff_ring):
+    sim = stiff_ring
     # the twin stepped beside the run costs it one window: 0.25 s of a 5 s run is 5 %
     assert watch_of(sim, 1.0, run_s=4.9).first_s == 1.0           # not forced into the run
     assert watch_of(sim, 20.0, run_s=5.1).first_s == pytest.approx(5.1 - TWIN_WINDOW_S)
 
 
-def test_a_full_run_watched_by_its_twin_never_falls_back(tmp_path):
+def test_a_full_run_watched_by_its_twin_never_falls_back(stiff_ring):
     """A window of the twin alone measures no error: even where its copy diverged, it is met."""
-    config = SimulationConfig(auto=True, tolerance=0.01, horizon_s=RUN_S)
-    sim = build_simulation(ring(tmp_path, 8e5), config)
-    watch = watch_of(sim, 1.0)
+    watch = watch_of(stiff_ring, 1.0)
     assert watch.describe() == ('every 1 s of the run: a 0.25 s window of its twin moved by a '
                                 'hair (none yet)')
     diverged = WatchedWindow(1.0, TWIN_WINDOW_S, math.inf, 0.01, '', growth=math.inf)
@@ -174,9 +178,8 @@ def test_a_twin_stepped_beside_the_run_measures_what_a_copy_and_the_twin_measure
     assert windows[0].growth >= AMPLIFYING_PER_S      # the soft ring tumbles from its first s
 
 
-def test_a_twin_window_ends_with_the_run_and_a_reset_drops_the_one_under_way(tmp_path):
-    config = SimulationConfig(auto=True, tolerance=0.01, horizon_s=RUN_S)
-    sim = build_simulation(ring(tmp_path, 8e5), config)
+def test_a_twin_window_ends_with_the_run_and_a_reset_drops_the_one_under_way(stiff_ring):
+    sim = stiff_ring
     run_s = 5.0
     watch, windows = watch_of(sim, None, run_s=run_s), []
     assert watch.first_s == pytest.approx(run_s - TWIN_WINDOW_S)
