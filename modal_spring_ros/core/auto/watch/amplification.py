@@ -107,17 +107,15 @@ class TwinBeside:
     """
     A twin stepped beside the run itself, sample by sample: one shadow where a copy made two.
 
-    Made from ``run``'s state moved by a hair (in ``twin``, a run of the same method to take
-    over, where one is kept: else a copy of ``run``); :meth:`observe` sees the run after each of
-    its steps and, every ``sample_s`` of them, steps the twin to the same time and measures their
-    distance, over ``samples`` samples.
+    Made from ``run``'s state moved by a hair (in ``twin``, a run of the same method, taken
+    over); :meth:`observe` sees the run after each of its steps and, every ``sample_s`` of
+    them, steps the twin to the same time and measures their distance, over ``samples`` samples.
     """
 
-    def __init__(self, run: Simulation, sample_s: float, samples: int,
-                 twin: Simulation | None = None):
+    def __init__(self, run: Simulation, sample_s: float, samples: int, twin: Simulation):
         state = RunState.of(run)
         self.start_s = state.time
-        self.twin = twin if twin is not None else run.with_dt(run.dt)
+        self.twin = twin
         self.twin.take_over(perturbed(state))
         self._run, self._from = run, run.steps
         self._per = max(1, int(round(sample_s / run.dt)))
@@ -142,15 +140,21 @@ class TwinBeside:
         """Take a sample where ``run`` has reached one; tell whether the window is done."""
         if run.steps - self._from == self._per * (self.growth.samples + 1) and not self.done:
             try:
-                self.twin.step(self._per)
-                twin = self.twin.displacement()
-                if not np.isfinite(twin).all():
-                    raise DivergenceError('non-finite state', self.twin.time, self.twin.steps)
+                twin = stepped_displacement(self.twin, self._per)
             except DivergenceError:
                 self.growth.diverged = True
             else:
                 self.growth.add(run.displacement(), twin)
         return self.done
+
+
+def stepped_displacement(run: Simulation, steps: int) -> np.ndarray:
+    """Step ``run`` by ``steps``; return its free-DOF displacement (a non-finite one diverged)."""
+    run.step(steps)
+    u = run.displacement()
+    if not np.isfinite(u).all():
+        raise DivergenceError('non-finite state', run.time, run.steps)
+    return u
 
 
 def start_growth(make: Callable[[], Simulation]) -> float:

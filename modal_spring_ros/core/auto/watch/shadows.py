@@ -10,7 +10,9 @@ from __future__ import annotations
 import math
 import time
 
-from modal_spring_ros.core.auto.watch.amplification import Growth, perturbed, twin_samples
+from modal_spring_ros.core.auto.watch.amplification import (Growth, perturbed,
+                                                            stepped_displacement,
+                                                            twin_samples)
 from modal_spring_ros.core.auto.watch.windows import WatchedWindow, WatchReference
 from modal_spring_ros.core.simulations import DivergenceError, RunState, Simulation
 import numpy as np
@@ -71,12 +73,7 @@ class Shadows:
         return True
 
     def _sample(self, which: int) -> np.ndarray:
-        run = self._runs[which]
-        run.step(self._per[which])
-        u = run.displacement()
-        if not np.isfinite(u).all():
-            raise DivergenceError('non-finite state', run.time, run.steps)
-        return u
+        return stepped_displacement(self._runs[which], self._per[which])
 
     def _finish(self, error: float) -> bool:
         ref = self.reference
