@@ -10,14 +10,14 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from modal_spring_ros.core.auto.budget import (modes_work, PlanningBudget, setup_work,
-                                               unplanned_full)
+from modal_spring_ros.core.auto.budget import modes_work, PlanningBudget, setup_work
 from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.pilot import Pilot, PILOT_MARGIN, SAMPLES as PILOT_SAMPLES
 from modal_spring_ros.core.auto.pilot_window import pilot_window
 from modal_spring_ros.core.auto.plan import PlanSettings
 from modal_spring_ros.core.auto.step_error import (predicted_step, predicting_hz, predicts,
                                                    StepPrediction)
+from modal_spring_ros.core.auto.unplanned_full import unplanned_full
 from modal_spring_ros.core.auto.watch.run_watch import twin_reference
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis, Progress
 from modal_spring_ros.core.bases.basis_choice import choose_basis
@@ -188,6 +188,11 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
                                PILOT_MARGIN * config.tolerance, None if config.dt else longest.dt)
                 if predicting and predicts(model, basis) else None)
     predicted = predict()
+    if predicted is not None and predicted.misses(full_dt, config.tolerance):
+        # the default step misses: the run a plan replaces is the full run at the step
+        # predicted within the tolerance, dearer: planning may spend its share of that one
+        budget.rebase(full(predicted.step, horizon_s), horizon_s)
+        why = why and _not_worth_planning(model, budget, basis, sampled)
     choice = None
     if not why:
         # a large scene's band solves for its modes as the budget affords (each solve charged)

@@ -3,9 +3,10 @@ Users pay whole runs: auto's planning spends at most a share of the full run it 
 
 The budget's arithmetic; a run too short to measure a plan for runs the full run at the step
 ``method full`` takes (checked, within the tolerance); a default step that misses the tolerance
-lifts the budget; a long run is measured within its budget; a plan's step is never refined
-below the full run's own converged step; a band cut at ``max_modes`` is not trusted on a richer
-plan alone; a plan's set-up and every solve for more modes are priced, and not made beyond it.
+lifts the budget to a share of the full run at the step predicted within it; a long run is
+measured within its budget; a plan's step is never refined below the full run's own converged
+step; a band cut at ``max_modes`` is not trusted on a richer plan alone; a plan's set-up and
+every solve for more modes are priced, and not made beyond it.
 """
 from __future__ import annotations
 
@@ -13,15 +14,16 @@ import math
 import re
 
 from helpers import head_start_gap
-from modal_spring_ros.core.auto import budget as budget_module, pilot, sibling_check
+from modal_spring_ros.core.auto import pilot, sibling_check, unplanned_full as unplanned_module
 from modal_spring_ros.core.auto.budget import (modes_work, PLANNING_SHARE, PlanningBudget,
-                                               REFERENCE_RUNS, setup_work, unplanned_full)
+                                               REFERENCE_RUNS, setup_work)
 from modal_spring_ros.core.auto.full_candidate import by_step_doubling
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.auto.plan import NOT_FOUND, PlanSettings, TOUCHES_UNSEEN
 from modal_spring_ros.core.auto.step_error import (NONLINEAR, predicts, StepErrorPredictor,
                                                    StepPrediction)
+from modal_spring_ros.core.auto.unplanned_full import unplanned_full
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis
 from modal_spring_ros.core.bases.mode_selection import STABILITY_SAFETY
@@ -62,6 +64,21 @@ def test_the_budget_is_a_share_of_the_full_run_over_the_run():
     assert budget.spent_us == pytest.approx(0.25 * work_per_second(full))
     assert budget.remaining_us == pytest.approx(budget.limit_us - budget.spent_us)
     assert not budget.affords(budget.remaining_us * 1.01)
+    # a dearer full run found to be the one replaced (the default step misses): the same
+    # share of it, what was spent kept; a cheaper one changes nothing
+    assert budget.full_dt == math.inf
+    spent, finer = budget.spent_us, full.with_dt(0.25 * full.dt)
+    budget.rebase(finer, 4.0)
+    assert budget.full_us == pytest.approx(work_per_second(finer) * 4.0)
+    assert budget.full_us == pytest.approx(4.0 * work_per_second(full) * 4.0, rel=1e-6)
+    assert budget.limit_us == pytest.approx(PLANNING_SHARE * budget.full_us)
+    assert budget.spent_us == spent and budget.full_dt == finer.dt
+    budget.rebase(full, 4.0)
+    assert budget.full_dt == finer.dt and budget.limit_us == pytest.approx(
+        PLANNING_SHARE * work_per_second(finer) * 4.0)
+    stream = PlanningBudget.for_run(full, None)
+    stream.rebase(finer, 4.0)
+    assert not stream.bounded
     # no length (a stream), or no share: not budgeted
     assert not PlanningBudget.for_run(full, None).bounded
     assert not PlanningBudget.for_run(full, 4.0, None).bounded
@@ -142,6 +159,10 @@ def test_a_default_step_that_misses_takes_the_step_predicted_and_checks_its_star
     assert 'sought over the whole window' not in report.reason
     assert 'predicted over a 3 s run' in report.describe()
     assert sim.dt < 0.1 * sim.stability_limit()
+    # planning may spend its share of the run it replaces: the full run at that step (not at
+    # its longest stable step, 40 times cheaper, which misses)
+    full_s = float(re.search(r"of the full run's ([0-9.]+) s", report.planning)[1])
+    assert full_s == pytest.approx(work_per_second(sim) * 3.0 / 1e6, rel=1e-2)
     measured = error_against_converged(scene, sim, 3.0)
     assert measured <= TOLERANCE
     # the printed error is the run's, within the prediction's measured accuracy
@@ -182,15 +203,15 @@ def test_a_search_over_the_whole_window_costs_at_most_what_the_run_does(monkeypa
     its error not measured, said why, and the search is bounded by what it was allowed.
     """
     monkeypatch.setattr(StepErrorPredictor, '_run', lambda self, dt: self._exact)
-    monkeypatch.setattr(budget_module, 'SEARCH_FLOOR_US', 2e6)
+    monkeypatch.setattr(unplanned_module, 'SEARCH_FLOOR_US', 2e6)
     spent = []
-    original = budget_module.by_step_doubling
+    original = unplanned_module.by_step_doubling
 
     def counted(full, sample_s, samples, over_s, allowed, work_per_s, **kwargs):
         found = original(full, sample_s, samples, over_s, allowed, work_per_s, **kwargs)
         spent.append((samples * sample_s, work_per_s))
         return found
-    monkeypatch.setattr(budget_module, 'by_step_doubling', counted)
+    monkeypatch.setattr(unplanned_module, 'by_step_doubling', counted)
     scene = random_scene(0, max_particles=80)
     sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
                                                    horizon_s=3.0))
@@ -512,7 +533,7 @@ class _Disproved:
     """
 
     predictor = object()
-    beyond = StepPrediction.beyond
+    beyond, misses = StepPrediction.beyond, StepPrediction.misses
 
     def __init__(self, step: float, start: float, growth: float = 1.0):
         self.step, self.start, self.growth = step, start, growth

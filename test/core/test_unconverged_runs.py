@@ -17,7 +17,7 @@ import math
 import re
 
 from helpers import write_obj
-from modal_spring_ros.core.auto import budget as budget_module
+from modal_spring_ros.core.auto import unplanned_full as unplanned_module
 from modal_spring_ros.core.auto.full_candidate import by_step_doubling, STALLED, STEP_ORDER
 from modal_spring_ros.core.auto.measured_error import on_samples, trajectory, trajectory_error
 from modal_spring_ros.core.auto.plan import AMPLIFYING, BEYOND_MODES
@@ -150,12 +150,12 @@ def test_the_twin_is_stepped_at_the_default_step_whatever_step_the_start_was_che
     samples: a hair shorter).
     """
     steps = []
-    original = budget_module.start_growth
+    original = unplanned_module.start_growth
 
     def recorded(make):
         steps.append(make().dt)
         return original(make)
-    monkeypatch.setattr(budget_module, 'start_growth', recorded)
+    monkeypatch.setattr(unplanned_module, 'start_growth', recorded)
     default = build_simulation(skin, SimulationConfig(method='full'))
     sim, _ = planned(skin, 0.003)
     assert sim.pilot.unmeasured == AMPLIFYING

@@ -9,7 +9,8 @@ error estimate: the full run's cost over the run's length is known before anythi
 ``PLANNING_SHARE`` of it. Where even the cheapest measurement (the full reference over the
 pilot's window by step doubling, and the plan once) passes that, or would cost more than the
 plan could save, there is nothing to win: the full run is the answer, its step checked by its
-own step doubling over as much of the window as the budget affords (:func:`unplanned_full`).
+own step doubling over as much of the window as the budget affords
+(:func:`~modal_spring_ros.core.auto.unplanned_full.unplanned_full`).
 
 A run with no length (the node streams until it is stopped) has no budget: whatever planning
 costs, it is paid once and saved every second after.
@@ -20,18 +21,9 @@ length give the same choice on any machine and under any load.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
-from typing import Callable
 
-from modal_spring_ros.core.auto.full_candidate import (BY_ITSELF, by_step_doubling,
-                                                       head_start, STEP_ORDER)
-from modal_spring_ros.core.auto.plan import (AMPLIFYING, BEYOND_MODES, NOT_FOUND, PilotReport,
-                                             TOUCHES_UNSEEN, UNCONVERGED)
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK
-from modal_spring_ros.core.auto.step_error import StepPrediction
-from modal_spring_ros.core.auto.watch.amplification import (amplifies, describe_rate,
-                                                            start_growth, WINDOW_S as TWIN_S)
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.simulations import Simulation
 
@@ -51,12 +43,6 @@ SMALL_RUN_US = 1e6
 #: sample's training 200 us per spring at 0.3 %): per free DOF and mode solved; per free DOF;
 #: per spring (each plan of other coordinates trains its own).
 SETUP_US = {'modes': 1.35, 'derivatives': 140.0, 'training': 200.0}
-#: What a search for the step over the whole window may spend whatever its run costs (us,
-#: modelled): a small scene whose default step misses may need a tenth to a fortieth of it
-#: (random scene 0 over 3 s: 13 s of runs for the step that meets 1 %, its run 0.12 s).
-SEARCH_FLOOR_US = 3e7
-#: A step-doubling check of the full run covers at least this many samples.
-MIN_CHECK_SAMPLES = 2
 #: The full reference over a window costs its run at a step and at half of it: three runs' worth.
 REFERENCE_RUNS = 3.0
 
@@ -67,13 +53,15 @@ class PlanningBudget:
     Modelled work planning may spend, and what it has spent (us of one core).
 
     :ivar limit_us: what it may spend (``inf``: not budgeted).
-    :ivar full_us: the full run's projected work over the run (``inf``: no length).
+    :ivar full_us: the full run's projected work over the run (``inf``: no length), at
+        ``full_dt`` (``inf``: its longest stable step; shorter where that one misses).
     """
 
     limit_us: float = math.inf
     full_us: float = math.inf
     spent_us: float = 0.0
     widened: bool = False
+    full_dt: float = math.inf
 
     @classmethod
     def for_run(cls, full: Simulation, run_s: float | None,
@@ -124,13 +112,15 @@ class PlanningBudget:
         """Count ``sim`` stepped over ``seconds`` of simulated time."""
         self.spend(work_per_second(sim) * seconds)
 
-    def describe_left(self) -> str:
-        """
-        Say what planning may still spend, and of what budget (a refusal's "beyond ...").
+    def rebase(self, full: Simulation, run_s: float) -> None:
+        """Budget the same share of ``full`` over ``run_s``, the dearer full run replaced."""
+        projected = work_per_second(full) * run_s
+        if self.bounded and projected > self.full_us:
+            self.limit_us, self.full_us = self.limit_us * projected / self.full_us, projected
+            self.full_dt = full.dt
 
-        :meth:`affords` counts what was spent: a refusal names what was left, not only the
-        budget (a plan refused at 3.2 s against a budget of 3.6 s is refused for what is left).
-        """
+    def describe_left(self) -> str:
+        """Say what planning may still spend (:meth:`affords` counts what was spent), of what."""
         whole = (f'the planning budget of {self.limit_us / 1e6:.3g} s '
                  f"({self.limit_us / self.full_us:.0%} of the full run's)")
         if self.spent_us <= 0.0:
@@ -202,198 +192,3 @@ def worth_measuring(budget: PlanningBudget, full: Simulation, plan: Simulation,
         return (f'measuring a plan would cost {floor / 1e6:.3g} s of CPU (modelled), more than '
                 f'it could save ({max(saving, 0.0) / 1e6:.3g} s)')
     return ''
-
-
-def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningBudget,
-                   default_dt: float, window_s: float, horizon_s: float, tolerance: float,
-                   margin: float, samples: int, reason: str,
-                   prediction: StepPrediction | None = None) -> tuple[Simulation, PilotReport]:
-    """
-    Return the full run at the longest step that meets the tolerance, checked.
-
-    ``prediction`` is the longest stable step every mode, stepped under the scene's loads
-    with the period error and damping the integrator gives it, is predicted to keep within
-    ``margin * tolerance`` over the run (:mod:`~modal_spring_ros.core.auto.step_error`; from
-    the lowest modes only on a scene beyond the dense limit; None: no prediction, a scene with
-    colliders or driven too fast for the modes it has). The step run is that one
-    where it is longer than the default (``default_dt``: the one ``--method full`` takes, the
-    scene's or half the stability limit), else the default: a user pays no more than the full
-    run they would have run, and less where its default step is needlessly short.
-
-    That step is checked by step doubling (against its run at half the step) over as much of the
-    window's start as the budget affords, at least ``MIN_CHECK_SAMPLES`` of its ``samples``.
-    With a prediction, the check is of the prediction: where the start is within
-    :data:`~.step_error.AGREEMENT` times the error predicted over that start (or within
-    ``margin * tolerance``), the prediction holds where it was measured and the step is the
-    answer, its error the one predicted over the run (with what the start measured beyond the
-    modes a large scene's prediction has, grown over the run:
-    :meth:`~.step_error.StepPrediction.confirmed`), said so (a start's transient is often beyond
-    the tolerance of the whole run: judged against it, random scenes whose default step met the
-    tolerance had their step searched over the whole window, at up to ten times the run's cost).
-    A start can miss an error that grows later, which the prediction sees: where it puts the
-    default step beyond the tolerance itself, the step run is the longest predicted within the
-    margin, checked the same way.
-
-    Without a prediction, or where the start disproves it, the step is the answer where that
-    start is within ``margin * tolerance``, its error reported over the start it was measured
-    on (a drift fitted to a fraction of the slowest period extrapolates the start's transient,
-    not a drift); where the prediction left modes out (a scene beyond the dense limit), the
-    run's error is the modes' prediction plus what the start measured beyond it, grown over the
-    run (:meth:`~.step_error.StepPrediction.run_error`): the modes left out, rung by the
-    drive's start, drift over the run as a start alone cannot show. A step longer than the
-    default that misses is not halved (its half is shorter than the default): the default step
-    is run, its error the longer step's scaled by the square of the steps' ratio (the
-    integrator's order) where that is within the margin and the scene has no colliders, with
-    nothing stepped again, else measured by its own step doubling. Where the step run then
-    misses, the run misses the tolerance, so it is no baseline to stay near: the step is halved
-    by step doubling over the whole window, its error extrapolated over ``horizon_s``, whatever
-    that costs (on random scenes the full run needed a tenth to a fortieth of its stability
-    limit to meet 1 % over 3 s). A scene with colliders is checked over the whole window where
-    the budget affords it: its touches come when they come (a start checked a random scene's
-    default step at 0.05 % where it missed 0.3 % by 2.6 times once the object reached a
-    sphere). Where it does not (a short run: checking it whole costs twice the run), a start
-    that misses has its step sought as above, and one that meets the tolerance says nothing of
-    the touches: the default step, its error not measured (``TOUCHES_UNSEEN``).
-
-    Some runs have no error to promise. A start that moved far beyond what the modes predict
-    (:meth:`~.step_error.StepPrediction.beyond`; a soft skin crumpling: 1.72 % measured where
-    0.01 % was predicted) is no smooth motion: no step's error is scaled from another's there,
-    and where such a start passes its check it says nothing of the rest of the run (whose
-    finer runs may part by 30 %): the default step is run, its error not measured, said why
-    (``BEYOND_MODES``). Where halving the step stops shrinking its error
-    (:func:`~.full_candidate.by_step_doubling` stalls), the run converges in no step: the
-    default step, its error not measured (``UNCONVERGED``), planning bounded (it once halved
-    without end). The whole window's search costs at most what the run does at its default step
-    (or ``SEARCH_FLOOR_US``): where it finds no step within that, the default step, its error
-    not measured (``NOT_FOUND``; a soft mesh turned 90 degrees once searched it for over 8
-    minutes, the run at the default step costing 33 s, its halved runs still 49 % apart). Nor
-    is it made where a twin of the start moved by a hair parts from it exponentially
-    (:mod:`~.watch.amplification`; that mesh: e-fold every 0.013 s): ``AMPLIFYING``.
-    """
-    sample_s = window_s / samples
-    step = default_dt
-    if prediction is not None and prediction.error_at(default_dt) > tolerance:
-        # the default misses over the run: the longest step predicted within the margin, its
-        # start checked as the budget affords (a longer search would cost more than the run)
-        step = prediction.step
-        reason += (f'; the default step is predicted beyond the tolerance '
-                   f'({prediction.error_at(default_dt):.2%} over the run, the modes stepped with '
-                   f'the period error and damping of the step): the longest step predicted within '
-                   f'it ({step:.3g} s)')
-    elif prediction is not None and prediction.step > default_dt:
-        step = prediction.step
-        reason += (f'; the longest step predicted within the tolerance ({step:.3g} s, '
-                   f'{step / default_dt:.2g} times the default step)')
-    checked = full(step, sample_s)
-    rate = work_per_second(checked)
-    affordable = budget.remaining_us / (REFERENCE_RUNS * rate * sample_s) if rate > 0 else 0
-    count = int(min(samples, max(MIN_CHECK_SAMPLES, affordable)))
-    checked_s = count * sample_s
-    grown: StepPrediction | None = None     # where a start alone is grown over the run
-    beyond = False             # the start far beyond the modes' prediction: nothing scaled
-    stepped: dict = {}         # every run's samples, once: a second look steps nothing again
-
-    def doubling(samples_: int, over_s: float, allowed: float, work_per_s: float,
-                 first_dt: float) -> tuple[Simulation, float]:
-        before = len(stepped)
-        found = by_step_doubling(full, sample_s, samples_, over_s, allowed, work_per_s,
-                                 first_dt=first_dt, stepped=stepped)
-        if len(stepped) > before:
-            budget.charge(found[0], REFERENCE_RUNS * samples_ * sample_s)
-        return found
-
-    if prediction is not None and prediction.predictor is not None:
-        # the prediction checked where it is cheap: the start, against its run at half the step
-        sim, error = doubling(count, checked_s, math.inf, 0.0, step)
-        expected = prediction.start_error(sim.dt, checked_s)
-        predicted = prediction.confirmed(error, sim.dt, checked_s, margin * tolerance)
-        if math.isfinite(predicted):
-            told = prediction.describe()
-            reason += (f'; {told}' if told else '') + (
-                f'; {expected:.2%} predicted over the first {checked_s:.2g} s')
-            return sim, PilotReport(predicted, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0,
-                                    reason=reason, horizon_s=horizon_s, window_error=error,
-                                    tolerance=tolerance, predicted=True,
-                                    head_start=head_start(stepped, sim))
-        reason += (f'; the prediction missed over the first {checked_s:.2g} s ({error:.2%} '
-                   f'measured, {expected:.2%} predicted): the step was measured instead')
-        beyond = prediction.beyond(error, sim.dt, checked_s, margin * tolerance)
-        if count < samples and prediction.leaves_modes_out:
-            # a start measured alone, where the prediction left modes out: the run's error is
-            # the modes' prediction plus what the start measured beyond it, grown over the run
-            grown = prediction
-    over_s = horizon_s if count == samples else checked_s
-    allowed = margin * tolerance
-
-    def over_run(start_error: float, dt: float) -> float:
-        return grown.run_error(start_error, dt, checked_s) if grown else start_error
-
-    # a step longer than the default is measured as it is, never halved: its half is below
-    # the default step, which a user would have run in any case (nor where the start's error
-    # is grown over the run: the halving judges the start's alone)
-    halving = 0.0 if step > default_dt or grown else math.inf
-    sim, error = doubling(count, over_s, allowed, halving, step)
-    if over_run(error, sim.dt) > allowed and step > default_dt:
-        # a start's transient can miss where the run would not: the default step, its error
-        # the longer step's scaled by the step error's order (nothing stepped again) where
-        # that is within the margin, else checked by its own step doubling
-        checked = full(default_dt, sample_s)
-        scaled = error * (checked.dt / sim.dt) ** STEP_ORDER
-        reason += (f'; the longer step missed over the start ({error:.2%} against its run at '
-                   'half the step): the default step')
-        # (not where colliders are, nor far beyond the modes: no smooth motion scales so)
-        if (over_run(scaled, checked.dt) <= allowed and checked.model.scene.contact is None
-                and not beyond):
-            reason += (", its error that one scaled by the square of the steps' ratio "
-                       f'({scaled:.2%})')
-            sim, error = checked, scaled
-        else:
-            reason += ' was checked'
-            sim, error = doubling(count, over_s, allowed, 0.0 if grown else math.inf,
-                                  default_dt)
-
-    def unmeasured(why: str) -> tuple[Simulation, PilotReport]:
-        # the run a user would have run, its error not measured, said why
-        run = full(default_dt, sample_s)
-        return run, PilotReport(
-            math.nan, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0, reason=reason,
-            horizon_s=horizon_s, window_error=error if math.isfinite(error) else math.nan,
-            tolerance=tolerance, unmeasured=why, head_start=head_start(stepped, run))
-
-    missed = sim.dt < checked.dt * (1.0 - 1e-9) or over_run(error, sim.dt) > allowed
-    if count < samples and not missed and (beyond or checked.model.scene.contact is not None):
-        # far beyond the modes, or a start that sees none of the touches to come: no measure
-        reason += f'; the start met the tolerance ({error:.2%} over the first {checked_s:.2g} s)'
-        return unmeasured(BEYOND_MODES if beyond else TOUCHES_UNSEEN)
-    if missed and count < samples:
-        # a twin moved by a hair, at the default step: the motion's growth is the motion's, not
-        # the step's, and the halved step the check ended on cost twice as much for it
-        at_default = functools.partial(full, default_dt, sample_s)
-        growth = start_growth(at_default)
-        budget.charge(at_default(), 2.0 * TWIN_S)
-        reason += f'; the step missed the tolerance over the first {checked_s:.2g} s'
-        if amplifies(growth):     # no step converges: none is sought
-            reason += f', and {describe_rate(growth)} over the first {TWIN_S:g} s'
-            return unmeasured(AMPLIFYING)
-        reason += ': the step needed was sought over the whole window, beyond the budget'
-        # at most what the run costs at its default step, or ``SEARCH_FLOOR_US``
-        run_us = max(horizon_s * work_per_second(at_default()), SEARCH_FLOOR_US)
-        sim, error = doubling(samples, horizon_s, allowed, run_us / window_s, sim.dt)
-        checked_s, over_s, grown = window_s, horizon_s, None
-        if allowed < error < math.inf:
-            reason += (f', and not found at what the run itself costs ({error:.2%} at '
-                       f'{sim.dt:.3g} s)')
-            return unmeasured(NOT_FOUND)
-    if math.isinf(error):       # halving brings nothing, or a run diverged
-        return unmeasured(UNCONVERGED)
-    run_error = over_run(error, sim.dt)
-    if grown:
-        reason += (f"; over the {horizon_s:.3g} s run, the modes' prediction and what the start "
-                   f'measured beyond it, grown {grown.start_growth(checked_s):.2g} times')
-        over_s = horizon_s
-    if prediction is not None:
-        reason += (f'; {prediction.error_at(sim.dt):.2%} predicted over the {horizon_s:.3g} s '
-                   'run (the modes stepped with their period error)')
-    return sim, PilotReport(run_error, math.nan, checked_s, BY_ITSELF, (), 'full', 1.0,
-                            reason=reason, horizon_s=over_s, window_error=error,
-                            tolerance=tolerance, head_start=head_start(stepped, sim))

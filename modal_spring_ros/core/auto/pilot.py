@@ -24,11 +24,9 @@ adaptive ODE solvers trust no step until a second estimate says it is good, the 
 5. **The full run is a candidate** (:mod:`~modal_spring_ros.core.auto.full_candidate`): the
    cheaper of the two by a work model (no clock) that meets the tolerance is chosen; where it
    is the full run, the run goes on from where the pilot's run of it ended (a head start).
-6. **A budget** (:mod:`~modal_spring_ros.core.auto.budget`): every run is priced before it is
-   run, a run of known length spending at most a share of its full run on them; where the
-   cheapest measurement does not fit or would cost more than the plan could save, the full run.
-
-Everything here is deterministic: no wall-clock time enters a decision.
+6. **A budget** (:mod:`~modal_spring_ros.core.auto.budget`): every run priced before it is run,
+   at most a share of the full run it replaces; where the cheapest measurement does not fit or
+   would cost more than the plan could save, the full run. No wall-clock time enters a decision.
 """
 from __future__ import annotations
 
@@ -37,7 +35,7 @@ import math
 from typing import Callable
 
 from modal_spring_ros.core.auto.budget import (PlanningBudget, REFERENCE_RUNS, training_work,
-                                               unplanned_full, worth_measuring)
+                                               worth_measuring)
 from modal_spring_ros.core.auto.full_candidate import (against_reference, BY_ITSELF,
                                                        by_step_doubling, head_start)
 from modal_spring_ros.core.auto.measured_error import (bounded_trajectory, converged_trajectory,
@@ -49,6 +47,7 @@ from modal_spring_ros.core.auto.refinement import (lengthened, refinements, rich
                                                    shared_step_error, still_richer)
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK, full_run_start
 from modal_spring_ros.core.auto.step_error import StepPrediction
+from modal_spring_ros.core.auto.unplanned_full import unplanned_full
 from modal_spring_ros.core.auto.watch.windows import WatchReference
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.model.model import MassSpringModel
@@ -125,8 +124,9 @@ class Pilot:
         samples = max(1, int(math.ceil(self.window_s / sample_s)))
         if self.full is not None and self.budget.bounded:
             sibling = work_per_second(self._build(richer(plan, sim.dt, self.more_modes)))
-            why = worth_measuring(self.budget, self.full(math.inf, sample_s), sim, sibling,
-                                  self.window_s, self.horizon_s)
+            replaced = self.full(self.budget.full_dt, sample_s)    # what the plan replaces
+            why = worth_measuring(self.budget, replaced, sim, sibling, self.window_s,
+                                  self.horizon_s)
             if why:
                 return self._unplanned(why)
         found = self._reference(plan, sim, sample_s, samples)

@@ -16,7 +16,8 @@ It is a linear prediction: the springs' nonlinearity and the frame's Coriolis an
 coupling are left out. On the promise suite's random scenes it was 0.75-1.7 times the measured
 error of the default step (over the run, and over any start: 0.8-1.2 times), so a full run takes
 the step it predicts only where a check of the run's start, against its run at half the step,
-agrees with what it predicts there (:func:`~modal_spring_ros.core.auto.budget.unplanned_full`).
+agrees with what it predicts there
+(:func:`~modal_spring_ros.core.auto.unplanned_full.unplanned_full`).
 What the static response carries (gravity's sag, a slow drive's quasi-static part) has no period
 error, and a damped mode's error decays with it: the period error's growth alone,
 weighted by the modes' static shares (:func:`~modal_spring_ros.core.bases.mode_selection.
@@ -276,6 +277,10 @@ class StepPrediction:
         if self.predictor is not None and self.predictor.predicted(dt):
             return self.predictor.error(dt)
         return self.error * (dt / self.step) ** ORDER
+
+    def misses(self, dt: float, tolerance: float) -> bool:
+        """Tell whether the full run at ``dt`` is predicted beyond ``tolerance`` over the run."""
+        return self.error_at(dt) > tolerance
 
     def start_error(self, dt: float, over_s: float) -> float:
         """Return the error predicted at ``dt`` over the run's first ``over_s`` (nan: none)."""
