@@ -208,6 +208,27 @@ def random_band(rng: np.random.Generator, top_hz: float) -> dict:
             'acts_on': str(rng.choice(['output', 'load'])), 'damping': tuple(damping)}
 
 
+def niceness(pid: int) -> int:
+    """Return the niceness of process ``pid`` (from its ``/proc`` stat, Linux)."""
+    with open(f'/proc/{pid}/stat') as stat:
+        return int(stat.read().rsplit(')', 1)[1].split()[16])
+
+
+def spawned_niceness(pgid: int) -> list[int]:
+    """Return the niceness of each process in group ``pgid`` that ``multiprocessing`` spawned."""
+    found = []
+    for entry in os.listdir('/proc'):
+        try:
+            with open(f'/proc/{entry}/stat') as stat:
+                group = stat.read().rsplit(')', 1)[1].split()[2]
+            spawned = b'spawn_main' in Path(f'/proc/{entry}/cmdline').read_bytes()
+            if group == str(pgid) and spawned:
+                found.append(niceness(int(entry)))
+        except (OSError, IndexError, ValueError):
+            continue
+    return found
+
+
 def process_group(pgid: int, wait_s: float = 0.5) -> list[str]:
     """Return the processes still in group ``pgid`` after up to ``wait_s`` (pid and name)."""
     end = time.monotonic() + wait_s

@@ -30,9 +30,13 @@ from threadpoolctl import threadpool_limits
 
 #: How often a waiting call asks whether it was cancelled, s.
 POLL_S = 0.1
-#: The child's niceness: its long computations give way to the process that waits for them (a
-#: node's stream), which shares no lock with it.
+#: How much lower the child's priority is than its parent's once the parent streams
+#: (:meth:`WorkerProcess.give_way`): its long computations then give way to the stream, which
+#: shares no lock with them. Before that (a node's first modes, nothing streamed yet) it runs
+#: at the parent's priority: a user waits for it, and no stream does.
 WORKER_NICENESS = 10
+#: The lowest priority there is (the highest niceness).
+MAX_NICENESS = 19
 #: BLAS threads of the child's calls
 WORKER_THREADS = 1
 #: the signals the child ignores (its parent ends it)
@@ -47,19 +51,17 @@ class WorkerError(RuntimeError):
     """
 
 
-def _serve(conn: Connection) -> None:
+def _serve(conn: Connection, niceness: int) -> None:
     """
-    Child's main loop.
+    Child's main loop, ``niceness`` below its parent's priority.
 
     Answer ``(function, args)`` with ``(True, result)`` or ``(False, exception)`` until the pipe
     closes.
     """
     for number in IGNORED_SIGNALS:
         signal.signal(number, signal.SIG_IGN)
-    try:  # long work yields the CPU to the stream that waits for it (shares no lock with it)
-        os.nice(WORKER_NICENESS)
-    except OSError:
-        pass
+    if niceness:
+        _lower(0, niceness)
     while True:
         try:
             function, args = conn.recv()
@@ -72,6 +74,15 @@ def _serve(conn: Connection) -> None:
         except Exception as exc:  # handed back to the caller, raised there
             answer = (False, exc)
         conn.send(answer)
+
+
+def _lower(pid: int, niceness: int) -> None:
+    """Set process ``pid``'s priority (0: this one) ``niceness`` below this process's own."""
+    try:
+        own = os.getpriority(os.PRIO_PROCESS, 0)
+        os.setpriority(os.PRIO_PROCESS, pid, min(own + niceness, MAX_NICENESS))
+    except OSError:     # gone, or the system refuses: it keeps the priority it has
+        pass
 
 
 def _end(process: mp.process.BaseProcess) -> None:
@@ -99,7 +110,8 @@ class WorkerProcess:
     given, is asked every :data:`POLL_S` while a call runs; once it answers True the child is
     ended and the call raises :class:`WorkerError` (a node passes "its context is shut down",
     so that Ctrl-C does not wait for a long computation). :meth:`close` ends the child, and a
-    call in progress raises :class:`WorkerError` in its caller.
+    call in progress raises :class:`WorkerError` in its caller. The child runs at the parent's
+    priority until :meth:`give_way` (a node: once it streams), then ``WORKER_NICENESS`` below it.
     """
 
     def __init__(self, name: str = 'modal_spring_worker',
@@ -110,6 +122,7 @@ class WorkerProcess:
         self._conn: Connection | None = None
         self._lock = threading.Lock()
         self._closed = False
+        self._niceness = 0
 
     def call(self, function: Callable[..., Any], *args: Any) -> Any:
         """``function(*args)`` evaluated in the child; its exception is raised here."""
@@ -139,6 +152,20 @@ class WorkerProcess:
             return value
         raise value
 
+    def give_way(self) -> None:
+        """
+        Lower the child's priority (``WORKER_NICENESS`` below this process's) from now on.
+
+        A caller that streams calls it once the stream runs: the long computations it asks for
+        then give way to the stream on a busy machine; before, nothing streams and a user waits
+        for them. One way: a process may lower its child's priority, not raise it again; a
+        child started later starts lowered.
+        """
+        self._niceness = WORKER_NICENESS
+        process = self._process
+        if process is not None and process.pid is not None:
+            _lower(process.pid, WORKER_NICENESS)
+
     def close(self) -> None:
         """End the child now; a call in progress raises :class:`WorkerError` in its caller."""
         self._closed = True
@@ -161,7 +188,8 @@ class WorkerProcess:
     def _start(self) -> None:
         ctx = mp.get_context('spawn')
         parent, child = ctx.Pipe()
-        process = ctx.Process(target=_serve, args=(child,), name=self.name, daemon=True)
+        process = ctx.Process(target=_serve, args=(child, self._niceness), name=self.name,
+                              daemon=True)
         process.start()
         child.close()
         self._process, self._conn = process, parent

@@ -163,6 +163,7 @@ class ModalSpringNode(Node):
         for part in (self._thread, self._input_node, self._tf_node):
             if part is not None:
                 part.start()
+        self._worker.give_way()     # its long work gives way to the stream from now on
         self._params.prepare_asked()
 
     def _running(self) -> bool:

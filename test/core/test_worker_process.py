@@ -9,7 +9,8 @@ import time
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.threads import blas_threads
-from modal_spring_ros.core.worker import WORKER_THREADS, WorkerError, WorkerProcess
+from modal_spring_ros.core.worker import (MAX_NICENESS, WORKER_NICENESS, WORKER_THREADS,
+                                          WorkerError, WorkerProcess)
 from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
@@ -41,6 +42,43 @@ def test_a_child_that_dies_is_reported_and_replaced():
             worker.call(os.kill, child, signal.SIGSEGV)
 
 
+def _niceness() -> int:
+    return os.getpriority(os.PRIO_PROCESS, 0)
+
+
+def test_the_child_runs_at_its_parents_priority_until_it_gives_way_then_below_it():
+    """
+    Nothing streams yet: the child's work is what a user waits for, at the parent's priority.
+
+    Once the parent streams, the child's long work gives way to it: ``WORKER_NICENESS`` below
+    the parent, a call under way included, and a child started after (a crash) starts below.
+    """
+    own = _niceness()
+    below = min(own + WORKER_NICENESS, MAX_NICENESS)
+    assert below > own, 'this test needs a process that can be lowered'
+    with WorkerProcess() as worker:
+        child = worker.call(os.getpid)
+        assert worker.call(_niceness) == own
+        answers = []
+        caller = threading.Thread(target=lambda: answers.append(worker.call(
+            _sleep_then_niceness, 1.0)))
+        caller.start()
+        time.sleep(0.3)
+        worker.give_way()                      # while a call runs: that call gives way too
+        caller.join(timeout=120.0)
+        assert answers == [below] and worker.call(_niceness) == below
+        assert worker.call(os.getpid) == child
+        with pytest.raises(WorkerError, match='SIGKILL'):
+            worker.call(os.kill, child, signal.SIGKILL)
+        assert worker.call(os.getpid) != child and worker.call(_niceness) == below
+    assert _niceness() == own                  # the parent's own priority untouched
+
+
+def _sleep_then_niceness(seconds: float) -> int:
+    time.sleep(seconds)
+    return _niceness()
+
+
 def _sleep_and_count_threads(seconds: float) -> int:
     time.sleep(seconds)
     return blas_threads()
@@ -57,7 +95,7 @@ def test_the_groups_stop_signals_leave_the_child_to_its_parent_and_it_runs_on_on
         time.sleep(0.3)
         os.kill(child, signal.SIGTERM)
         os.kill(child, signal.SIGINT)
-        caller.join(timeout=120.0)     # the child is niced: beside busy processes it is slow
+        caller.join(timeout=120.0)     # beside busy processes it can be slow
         assert answers == [WORKER_THREADS] and worker.call(os.getpid) == child
 
 

@@ -12,7 +12,7 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from helpers import process_group, REPO
+from helpers import niceness, process_group, REPO, spawned_niceness
 import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
@@ -255,11 +255,11 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
     """
     sheet_100x100 starts with 32 modes.
 
-    A band up to mode 99 makes the node compute more (in the worker process) and build the
-    switch (in its change preparer's thread). The stream must go on meanwhile: in-process, the
-    eigensolver held the interpreter for 0.07-0.2 s at a time. (Rest modes: what the worker keeps
-    off the stream is measured here; the derivative basis adds the band's derivatives to the
-    request.)
+    A band up to mode 99 makes the node compute more (in the worker process, at a lower priority
+    than the stream's once it streams) and build the switch (in its change preparer's thread).
+    The stream must go on meanwhile: in-process, the eigensolver held the interpreter for
+    0.07-0.2 s at a time. (Rest modes: what the worker keeps off the stream is measured here;
+    the derivative basis adds the band's derivatives to the request.)
     """
     with node_with_client('scene:=sheet_100x100', 'integrator:=average', 'filter.type:=lowpass',
                           'filter.by:=index', 'filter.high_mode:=15', 'modal.basis:=rest',
@@ -286,6 +286,8 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
         mine = [(t, {kv.key: kv.value for kv in d.status[0].values}) for t, d in diags
                 if node_of(d.status[0]).startswith('/grow/')]
         assert int(mine[-1][1]['modes computed']) >= 100
+        # the worker that computed them gives way to the stream: 10 below the node's priority
+        assert spawned_niceness(node.proc.pid) == [min(niceness(node.proc.pid) + 10, 19)]
 
         def longest_gap(since: float, until: float) -> float:
             """Return the longest gap between two frames the node reported in a window."""
