@@ -6,7 +6,9 @@ worth of pilots to choose is a loss, so planning is budgeted as an adaptive solv
 error estimate: the full run's cost over the run's length is known before anything is measured
 (its step from its stability limit, its cost from the work model,
 :mod:`~modal_spring_ros.core.auto.work_model`), and measuring may spend at most
-``PLANNING_SHARE`` of it. Where even the cheapest measurement (the full reference over the
+``PLANNING_SHARE`` of it; where the modes predict that the step ``method full`` takes misses the
+tolerance, of the full run at the step they predict within it, the run a plan then replaces
+(:meth:`PlanningBudget.rebase`). Where even the cheapest measurement (the full reference over the
 pilot's window by step doubling, and the plan once) passes that, or would cost more than the
 plan could save, there is nothing to win: the full run is the answer, its step checked by its
 own step doubling over as much of the window as the budget affords
