@@ -82,15 +82,14 @@ def watch_of(sim: Simulation, interval_s: float | None, budget: float | None = N
     reference = sim.watch_reference
     if reference is None or interval_s == 0.0 or not watchable(sim.model):
         return None
-    if (reference.reference is None and run_s is not None
-            and reference.window_s > TWIN_SHARE * run_s):
-        run_s = None
+    dear = (reference.reference is None and run_s is not None
+            and reference.window_s > TWIN_SHARE * run_s)
     left = None if run_s is None else run_s - from_s
     if interval_s is not None:
-        return RunWatch(reference, interval_s, run_s=left)
+        return RunWatch(reference, interval_s, run_s=left, at_least_once=not dear)
     if budget is None:
         budget = WORK_SHARE * reference.plan_work
-    return RunWatch(reference, DEFAULT_INTERVAL_S, budget, left)
+    return RunWatch(reference, DEFAULT_INTERVAL_S, budget, left, at_least_once=not dear)
 
 
 def twin_reference(sim: Simulation, tolerance: float) -> 'WatchReference':
@@ -115,13 +114,15 @@ class RunWatch:
     """
 
     def __init__(self, reference: WatchReference, interval_s: float = DEFAULT_INTERVAL_S,
-                 budget: float | None = None, run_s: float | None = None):
+                 budget: float | None = None, run_s: float | None = None,
+                 at_least_once: bool = True):
         """
         Watch every ``interval_s`` of simulated time, or less often within ``budget``.
 
         ``budget``: the work watching may cost, us per simulated second (modelled; None: any).
         ``run_s``: the run's length (None: it streams until stopped). A run longer than one
-        window is watched at least once: its first window starts no later than one window
+        window is watched at least once (``at_least_once``; not where one window would cost
+        more than ``TWIN_SHARE`` of it): its first window starts no later than one window
         before its end (the pilot measured the first window from rest; this one starts from
         the state the run has reached, and ends with the run).
         """
@@ -135,8 +136,8 @@ class RunWatch:
             self.interval_s = max(self.interval_s, reference.window_s * reference.shadow_work
                                   / budget if budget > 0.0 else math.inf)
         #: when the first window starts, after the run's start (or a restart)
-        self.first_s = self.interval_s
-        if run_s is not None and run_s > reference.window_s * (1.0 + 1e-9):
+        self.first_s, self.run_s, self.at_least_once = self.interval_s, run_s, at_least_once
+        if at_least_once and run_s is not None and run_s > reference.window_s * (1.0 + 1e-9):
             self.first_s = min(self.interval_s, run_s - reference.window_s)
         self._next: float | None = None   # when the next window starts (None: the first)
         self._shadow: Shadows | None = None
@@ -282,10 +283,16 @@ class RunWatch:
     def describe(self) -> str:
         """Say what was watched: how many windows, the last and the largest error."""
         if self.last is None:
+            window = self.reference.window_s
+            if self.run_s is not None and self.first_s >= self.run_s:     # none in the run
+                return 'no window: ' + (
+                    f'one {window:.3g} s window of its twin would cost more than '
+                    f'{TWIN_SHARE:.0%} of the run' if not self.at_least_once else
+                    f'the run is no longer than one {window:.3g} s window')
             against = (f'against {self.reference.against}' if self.reference.against
                        else 'of its twin moved by a hair')
-            return (f'every {self.interval_s:.3g} s of the run: a {self.reference.window_s:.3g} '
-                    f's window {against} (none yet)')
+            return (f'every {self.interval_s:.3g} s of the run: a {window:.3g} s window '
+                    f'{against} (none yet)')
         worst = f'; largest {self.worst.describe()}' if self.worst not in (None, self.last) else ''
         amplified = (f'; amplifying first {self.amplifying.describe()}'
                      if self.amplifying not in (None, self.last) else '')
