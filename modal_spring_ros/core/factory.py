@@ -188,11 +188,6 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
                                PILOT_MARGIN * config.tolerance, None if config.dt else longest.dt)
                 if predicting and predicts(model, basis) else None)
     predicted = predict()
-    if predicted is not None and predicted.misses(full_dt, config.tolerance):
-        # the default step misses: the run a plan replaces is the full run at the step
-        # predicted within the tolerance, dearer: planning may spend its share of that one
-        budget.rebase(full(predicted.step, horizon_s), horizon_s)
-        why = why and _not_worth_planning(model, budget, basis, sampled)
     choice = None
     if not why:
         # a large scene's band solves for its modes as the budget affords (each solve charged)

@@ -3,10 +3,9 @@ Users pay whole runs: auto's planning spends at most a share of the full run it 
 
 The budget's arithmetic; a run too short to measure a plan for runs the full run at the step
 ``method full`` takes (checked, within the tolerance); a default step that misses the tolerance
-lifts the budget to a share of the full run at the step predicted within it; a long run is
-measured within its budget; a plan's step is never refined below the full run's own converged
-step; a band cut at ``max_modes`` is not trusted on a richer plan alone; a plan's set-up and
-every solve for more modes are priced, and not made beyond it.
+lifts the budget; a long run is measured within its budget; a plan's step is never refined
+below the full run's own converged step; a band cut at ``max_modes`` is not trusted on a richer
+plan alone; a plan's set-up and every solve for more modes are priced, and not made beyond it.
 """
 from __future__ import annotations
 
@@ -64,21 +63,6 @@ def test_the_budget_is_a_share_of_the_full_run_over_the_run():
     assert budget.spent_us == pytest.approx(0.25 * work_per_second(full))
     assert budget.remaining_us == pytest.approx(budget.limit_us - budget.spent_us)
     assert not budget.affords(budget.remaining_us * 1.01)
-    # a dearer full run found to be the one replaced (the default step misses): the same
-    # share of it, what was spent kept; a cheaper one changes nothing
-    assert budget.full_dt == math.inf
-    spent, finer = budget.spent_us, full.with_dt(0.25 * full.dt)
-    budget.rebase(finer, 4.0)
-    assert budget.full_us == pytest.approx(work_per_second(finer) * 4.0)
-    assert budget.full_us == pytest.approx(4.0 * work_per_second(full) * 4.0, rel=1e-6)
-    assert budget.limit_us == pytest.approx(PLANNING_SHARE * budget.full_us)
-    assert budget.spent_us == spent and budget.full_dt == finer.dt
-    budget.rebase(full, 4.0)
-    assert budget.full_dt == finer.dt and budget.limit_us == pytest.approx(
-        PLANNING_SHARE * work_per_second(finer) * 4.0)
-    stream = PlanningBudget.for_run(full, None)
-    stream.rebase(finer, 4.0)
-    assert not stream.bounded
     # no length (a stream), or no share: not budgeted
     assert not PlanningBudget.for_run(full, None).bounded
     assert not PlanningBudget.for_run(full, 4.0, None).bounded
@@ -159,10 +143,12 @@ def test_a_default_step_that_misses_takes_the_step_predicted_and_checks_its_star
     assert 'sought over the whole window' not in report.reason
     assert 'predicted over a 3 s run' in report.describe()
     assert sim.dt < 0.1 * sim.stability_limit()
-    # planning may spend its share of the run it replaces: the full run at that step (not at
-    # its longest stable step, 40 times cheaper, which misses)
+    # planning is budgeted on the cheapest full run, at its longest stable step, even here
+    # (budgeted on the dearer run a plan would replace, soft_block_3d over 1,000 s took a plan
+    # that cost 2.4 times that run as a whole process)
+    longest = on_samples(sim.with_dt(sim.dt), 3.0, STABILITY_SAFETY * sim.stability_limit())
     full_s = float(re.search(r"of the full run's ([0-9.]+) s", report.planning)[1])
-    assert full_s == pytest.approx(work_per_second(sim) * 3.0 / 1e6, rel=1e-2)
+    assert full_s == pytest.approx(work_per_second(longest) * 3.0 / 1e6, rel=1e-2)
     measured = error_against_converged(scene, sim, 3.0)
     assert measured <= TOLERANCE
     # the printed error is the run's, within the prediction's measured accuracy

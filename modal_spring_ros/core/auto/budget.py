@@ -6,13 +6,13 @@ worth of pilots to choose is a loss, so planning is budgeted as an adaptive solv
 error estimate: the full run's cost over the run's length is known before anything is measured
 (its step from its stability limit, its cost from the work model,
 :mod:`~modal_spring_ros.core.auto.work_model`), and measuring may spend at most
-``PLANNING_SHARE`` of it; where the modes predict that the step ``method full`` takes misses the
-tolerance, of the full run at the step they predict within it, the run a plan then replaces
-(:meth:`PlanningBudget.rebase`). Where even the cheapest measurement (the full reference over the
-pilot's window by step doubling, and the plan once) passes that, or would cost more than the
-plan could save, there is nothing to win: the full run is the answer, its step checked by its
-own step doubling over as much of the window as the budget affords
-(:func:`~modal_spring_ros.core.auto.unplanned_full.unplanned_full`).
+``PLANNING_SHARE`` of it: of the cheapest full run, at its longest stable step, even where the
+default step misses (priced on the dearer full run a plan then replaces, a plan the work model
+put at half that run's cost won, and cost 2.4 times it as a whole process). Where even the
+cheapest measurement (the full reference over the pilot's window by step doubling, and the plan
+once) passes that, or would cost more than the plan could save, there is nothing to win: the
+full run is the answer, its step checked by its own step doubling over as much of the window as
+the budget affords (:func:`~modal_spring_ros.core.auto.unplanned_full.unplanned_full`).
 
 A run with no length (the node streams until it is stopped) has no budget: whatever planning
 costs, it is paid once and saved every second after.
@@ -55,15 +55,13 @@ class PlanningBudget:
     Modelled work planning may spend, and what it has spent (us of one core).
 
     :ivar limit_us: what it may spend (``inf``: not budgeted).
-    :ivar full_us: the full run's projected work over the run (``inf``: no length), at
-        ``full_dt`` (``inf``: its longest stable step; shorter where that one misses).
+    :ivar full_us: the full run's projected work over the run (``inf``: no length).
     """
 
     limit_us: float = math.inf
     full_us: float = math.inf
     spent_us: float = 0.0
     widened: bool = False
-    full_dt: float = math.inf
 
     @classmethod
     def for_run(cls, full: Simulation, run_s: float | None,
@@ -113,13 +111,6 @@ class PlanningBudget:
     def charge(self, sim: Simulation, seconds: float) -> None:
         """Count ``sim`` stepped over ``seconds`` of simulated time."""
         self.spend(work_per_second(sim) * seconds)
-
-    def rebase(self, full: Simulation, run_s: float) -> None:
-        """Budget the same share of ``full`` over ``run_s``, the dearer full run replaced."""
-        projected = work_per_second(full) * run_s
-        if self.bounded and projected > self.full_us:
-            self.limit_us, self.full_us = self.limit_us * projected / self.full_us, projected
-            self.full_dt = full.dt
 
     def describe_left(self) -> str:
         """Say what planning may still spend (:meth:`affords` counts what was spent), of what."""

@@ -25,7 +25,7 @@ adaptive ODE solvers trust no step until a second estimate says it is good, the 
    cheaper of the two by a work model (no clock) that meets the tolerance is chosen; where it
    is the full run, the run goes on from where the pilot's run of it ended (a head start).
 6. **A budget** (:mod:`~modal_spring_ros.core.auto.budget`): every run priced before it is run,
-   at most a share of the full run it replaces; where the cheapest measurement does not fit or
+   at most a share of the full run; where the cheapest measurement does not fit or
    would cost more than the plan could save, the full run. No wall-clock time enters a decision.
 """
 from __future__ import annotations
@@ -124,9 +124,8 @@ class Pilot:
         samples = max(1, int(math.ceil(self.window_s / sample_s)))
         if self.full is not None and self.budget.bounded:
             sibling = work_per_second(self._build(richer(plan, sim.dt, self.more_modes)))
-            replaced = self.full(self.budget.full_dt, sample_s)    # what the plan replaces
-            why = worth_measuring(self.budget, replaced, sim, sibling, self.window_s,
-                                  self.horizon_s)
+            why = worth_measuring(self.budget, self.full(math.inf, sample_s), sim, sibling,
+                                  self.window_s, self.horizon_s)
             if why:
                 return self._unplanned(why)
         found = self._reference(plan, sim, sample_s, samples)
