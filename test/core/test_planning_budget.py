@@ -519,7 +519,7 @@ class _Disproved:
     """
 
     predictor = object()
-    beyond, misses = StepPrediction.beyond, StepPrediction.misses
+    beyond = StepPrediction.beyond
 
     def __init__(self, step: float, start: float, growth: float = 1.0):
         self.step, self.start, self.growth = step, start, growth

@@ -113,7 +113,12 @@ class PlanningBudget:
         self.spend(work_per_second(sim) * seconds)
 
     def describe_left(self) -> str:
-        """Say what planning may still spend (:meth:`affords` counts what was spent), of what."""
+        """
+        Say what planning may still spend, and of what budget (a refusal's "beyond ...").
+
+        :meth:`affords` counts what was spent: a refusal names what was left, not only the
+        budget (a plan refused at 3.2 s against a budget of 3.6 s is refused for what is left).
+        """
         whole = (f'the planning budget of {self.limit_us / 1e6:.3g} s '
                  f"({self.limit_us / self.full_us:.0%} of the full run's)")
         if self.spent_us <= 0.0:

@@ -278,10 +278,6 @@ class StepPrediction:
             return self.predictor.error(dt)
         return self.error * (dt / self.step) ** ORDER
 
-    def misses(self, dt: float, tolerance: float) -> bool:
-        """Tell whether the full run at ``dt`` is predicted beyond ``tolerance`` over the run."""
-        return self.error_at(dt) > tolerance
-
     def start_error(self, dt: float, over_s: float) -> float:
         """Return the error predicted at ``dt`` over the run's first ``over_s`` (nan: none)."""
         return self.predictor.error(dt, over_s) if self.predictor is not None else math.nan

@@ -100,7 +100,7 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     """
     sample_s = window_s / samples
     step = default_dt
-    if prediction is not None and prediction.misses(default_dt, tolerance):
+    if prediction is not None and prediction.error_at(default_dt) > tolerance:
         # the default misses over the run: the longest step predicted within the margin, its
         # start checked as the budget affords (a longer search would cost more than the run)
         step = prediction.step
