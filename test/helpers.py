@@ -208,10 +208,15 @@ def random_band(rng: np.random.Generator, top_hz: float) -> dict:
             'acts_on': str(rng.choice(['output', 'load'])), 'damping': tuple(damping)}
 
 
+def stat_fields(pid: int | str) -> list[str]:
+    """Return process ``pid``'s ``/proc`` stat fields from its state on (Linux; OSError: gone)."""
+    with open(f'/proc/{pid}/stat') as stat:
+        return stat.read().rsplit(')', 1)[1].split()
+
+
 def niceness(pid: int) -> int:
     """Return the niceness of process ``pid`` (from its ``/proc`` stat, Linux)."""
-    with open(f'/proc/{pid}/stat') as stat:
-        return int(stat.read().rsplit(')', 1)[1].split()[16])
+    return int(stat_fields(pid)[16])
 
 
 def spawned_niceness(pgid: int) -> list[int]:
@@ -219,8 +224,7 @@ def spawned_niceness(pgid: int) -> list[int]:
     found = []
     for entry in os.listdir('/proc'):
         try:
-            with open(f'/proc/{entry}/stat') as stat:
-                group = stat.read().rsplit(')', 1)[1].split()[2]
+            group = stat_fields(entry)[2]
             spawned = b'spawn_main' in Path(f'/proc/{entry}/cmdline').read_bytes()
             if group == str(pgid) and spawned:
                 found.append(niceness(int(entry)))
@@ -236,9 +240,8 @@ def process_group(pgid: int, wait_s: float = 0.5) -> list[str]:
         left = []
         for entry in os.listdir('/proc'):
             try:
-                with open(f'/proc/{entry}/stat') as stat:
-                    fields = stat.read().rsplit(')', 1)[1].split()
-                    name = open(f'/proc/{entry}/comm').read().strip()
+                fields = stat_fields(entry)
+                name = open(f'/proc/{entry}/comm').read().strip()
             except (OSError, IndexError, ValueError):
                 continue
             if fields[2] == str(pgid) and fields[0] != 'Z':

@@ -8,6 +8,7 @@ import sys
 import textwrap
 import time
 
+from helpers import stat_fields
 from modal_spring_ros.ros.process.companion_node import start_companion, stop_companion
 import pytest
 
@@ -19,8 +20,7 @@ linux_only = pytest.mark.skipif(not sys.platform.startswith('linux'),
 def running(pid: int) -> bool:
     """Return whether ``pid`` runs (a zombie waiting for its reaper does not)."""
     try:
-        with open(f'/proc/{pid}/stat') as stat:
-            return stat.read().rsplit(')', 1)[1].split()[0] not in ('Z', 'X')
+        return stat_fields(pid)[0] not in ('Z', 'X')
     except (FileNotFoundError, ProcessLookupError):
         return False
 
