@@ -5,14 +5,18 @@ import dataclasses
 import math
 
 from modal_spring_ros.core.auto import measured_error
-from modal_spring_ros.core.auto.full_candidate import by_step_doubling
-from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
-                                                       trajectory, trajectory_error)
+from modal_spring_ros.core.auto.full_candidate import (against_reference, at_predicted_step,
+                                                       by_step_doubling)
+from modal_spring_ros.core.auto.measured_error import (converged_trajectory, horizon_error,
+                                                       on_samples, trajectory, trajectory_error)
 from modal_spring_ros.core.auto.plan import PilotReport
 from modal_spring_ros.core.auto.sibling_check import DOUBLING_WORK, full_run_start, MIN_SHARE
+from modal_spring_ros.core.auto.step_error import predicted_step, StepPrediction
 from modal_spring_ros.core.auto.work_model import work_per_second
+from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.scenes.resources import load_scene
 import pytest
 
@@ -141,3 +145,57 @@ def test_the_full_run_over_the_window_start_is_as_long_as_its_work_affords(sheet
     assert trajectory_error(half, reference[:len(half)]) <= accuracy     # converged
     assert full_run_start(full, SAMPLE_S, SAMPLES, accuracy,
                           DOUBLING_WORK * one_window * 0.9 * MIN_SHARE) is None  # too short
+
+
+class _Disproved(StepPrediction):
+    """A prediction every window disproves."""
+
+    def confirmed(self, measured: float, dt: float, over_s: float, allowed: float) -> float:
+        return math.nan
+
+
+def test_the_full_candidate_is_never_shortened_below_the_step_its_modes_predict(sheet):
+    """
+    sheet_10x10 over 200 s at 1 %: its window's error, extrapolated as a drift, is no judge.
+
+    Against the converged run over its first 2 s, extrapolated over 200 s, the step is shortened
+    to 0.8 times the one every mode, stepped over the whole run with the step's period error,
+    predicts within the margin (the full run priced 1.25 times what it costs there). The window
+    confirms the prediction: that step is the candidate, its error the one predicted over the
+    run. A window that disproves it shortens the step on, as without a prediction.
+    """
+    full, reference = sheet
+    horizon, allowed = 200.0, 0.008
+    scene = load_scene('sheet_10x10')
+    model = MassSpringModel(scene)
+    default = full(math.inf, SAMPLE_S)
+    prediction = predicted_step(model, ModalBasis(model), 'explicit', 0.5 * default.dt, horizon,
+                                allowed, default.dt)
+    measured: dict = {}
+
+    def error_of(sim):
+        run = trajectory(sim, SAMPLE_S, SAMPLES)
+        measured[sim.dt] = trajectory_error(run, reference)
+        return horizon_error(run, reference, SAMPLE_S, horizon)
+
+    def window_of(sim):
+        return measured[sim.dt]
+    drift, drift_error = against_reference(full, error_of, SAMPLE_S, allowed, 0.0)
+    assert drift_error <= allowed and drift.dt < 0.9 * prediction.step        # shortened
+    sim, error, window = at_predicted_step(full, error_of, window_of, SAMPLE_S, allowed, 0.0,
+                                           prediction, SAMPLE_S * SAMPLES)
+    assert 0.97 * prediction.step <= sim.dt <= prediction.step
+    assert horizon_error(trajectory(sim, SAMPLE_S, SAMPLES), reference, SAMPLE_S,
+                         horizon) > allowed                       # the drift would not have it
+    assert error == pytest.approx(prediction.error_at(sim.dt)) and error <= allowed
+    assert window == measured[sim.dt] <= allowed
+    # a window that disproves it: shortened on below it, measured as without a prediction
+    disproved = _Disproved(prediction.step, prediction.error, prediction.predictor)
+    sim, error, window = at_predicted_step(full, error_of, window_of, SAMPLE_S, allowed, 0.0,
+                                           disproved, SAMPLE_S * SAMPLES)
+    assert sim.dt < 0.97 * prediction.step and math.isnan(window)
+    assert error == error_of(sim) <= allowed                      # measured, extrapolated
+    # none: as against the reference alone
+    sim, error, window = at_predicted_step(full, error_of, window_of, SAMPLE_S, allowed, 0.0,
+                                           None, SAMPLE_S * SAMPLES)
+    assert (sim.dt, error) == (drift.dt, drift_error) and math.isnan(window)

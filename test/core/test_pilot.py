@@ -13,6 +13,9 @@ from modal_spring_ros.core.auto import measured_error, pilot, pilot_window
 from modal_spring_ros.core.auto.budget import PlanningBudget
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
+from modal_spring_ros.core.auto.step_error import predicted_step
+from modal_spring_ros.core.auto.work_model import work_per_second
+from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.model.model import MassSpringModel
@@ -201,6 +204,33 @@ def test_the_full_run_chosen_after_a_plan_was_measured_goes_on_from_the_pilot_s_
     head = report.head_start
     assert head is not None and head.time == pytest.approx(report.window_s, rel=0.01)
     assert head_start_gap(sim, head) <= 1e-9
+
+
+def test_a_plan_is_weighed_against_the_full_run_at_the_step_its_modes_predict():
+    """
+    sheet_10x10 over 200 s at 1 %, a planning budget of a whole full run: a plan is measured.
+
+    The full run it is weighed against was shortened to 0.8 times the step the modes predict
+    within the margin (its window's error extrapolated as a drift over 200 s), which its window
+    confirms: priced 1.25 times what it costs there, it made the plan look 0.37 times its work
+    where it is 0.45. The candidate is now at the predicted step, and the plan's ratio against
+    it.
+    """
+    horizon = 200.0
+    scene = load_scene('sheet_10x10')
+    sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
+                                                   horizon_s=horizon, planning_share=1.0))
+    assert sim.method == 'modal', sim.pilot.describe()
+    model = MassSpringModel(scene)
+    full = build_simulation(scene, SimulationConfig(method='full'))
+    prediction = predicted_step(model, ModalBasis(model), 'explicit', full.dt, horizon,
+                                pilot.PILOT_MARGIN * TOLERANCE, 0.9 * full.stability_limit())
+    candidate = sim.watch_reference.fallback()
+    assert candidate.method == 'full' and prediction.step > 2.0 * full.dt
+    assert 0.95 * prediction.step <= candidate.dt <= prediction.step
+    assert sim.pilot.cost_ratio == pytest.approx(work_per_second(sim) / work_per_second(candidate),
+                                                 rel=0.05)
+    assert sim.pilot.error <= TOLERANCE
 
 
 def test_a_full_run_the_pilot_stepped_already_is_neither_stepped_nor_charged_again():

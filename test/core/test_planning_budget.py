@@ -20,6 +20,7 @@ from modal_spring_ros.core.auto.full_candidate import by_step_doubling
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
                                                        trajectory, trajectory_error)
 from modal_spring_ros.core.auto.plan import NOT_FOUND, PlanSettings, TOUCHES_UNSEEN
+from modal_spring_ros.core.auto.refinement import refinements
 from modal_spring_ros.core.auto.step_error import (NONLINEAR, predicts, StepErrorPredictor,
                                                    StepPrediction)
 from modal_spring_ros.core.auto.unplanned_full import unplanned_full
@@ -287,12 +288,8 @@ def test_a_long_run_is_measured_within_its_budget():
 
 def test_the_step_is_not_refined_below_the_full_runs_converged_step():
     plan = PlanSettings(40.0, 'rest', 16, 'exact', 1, 1e-3)
-    measuring = pilot.Pilot.__new__(pilot.Pilot)
-    measuring.can_halve_step, measuring.more_modes = True, lambda hz: None
-    measuring._reference_dt = 4e-4
-    assert 'half the step' in dict(measuring._refinements(plan))
-    measuring._reference_dt = 6e-4
-    assert 'half the step' not in dict(measuring._refinements(plan))
+    assert 'half the step' in dict(refinements(plan, lambda hz: None, True, 4e-4))
+    assert 'half the step' not in dict(refinements(plan, lambda hz: None, True, 6e-4))
 
 
 @pytest.mark.slow

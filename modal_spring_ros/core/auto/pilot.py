@@ -10,23 +10,22 @@ adaptive ODE solvers trust no step until a second estimate says it is good, the 
    clamp drive): a few periods of the slowest kept mode and of the drive, or a resonance's
    build-up, never longer than the run (:mod:`~modal_spring_ros.core.auto.pilot_window`).
 2. **A reference** for it: the full run converged in its step (step doubling) where the band
-   keeps everything and the budget affords it; otherwise the plan's richer sibling, an embedded
-   pair (:mod:`~modal_spring_ros.core.auto.refinement`), its share of the plan's step error
-   taken out (Richardson), checked against the full run over as much of the window's start as
-   the budget affords (:mod:`~modal_spring_ros.core.auto.sibling_check`): a sibling shares
-   what the modal coordinates cannot follow, so a plan is never measured against one alone
-   where the full run is a candidate (``ALONE``: the full run is taken).
+   keeps everything and the budget affords it; otherwise the plan's richer sibling
+   (:mod:`~.refinement`), its share of the plan's step error taken out (Richardson), checked
+   against the full run over the window's start as the budget affords (:mod:`~.sibling_check`;
+   it shares what the modes cannot follow): never one alone where the full run is a candidate.
 3. **The error**: relative L2 of the free-DOF displacement in the clamp's frame over the
    window's samples, extrapolated over the run by a drift model (:func:`horizon_error`).
 4. **Refinement** while above ``PILOT_MARGIN`` of the tolerance: each refinement left tried
    alone (abandoned once certain to do worse than the plan), the lowest (cheapest on a near tie)
    kept, for at most ``MAX_ROUNDS`` rounds; a plan well within it has its step lengthened.
-5. **The full run is a candidate** (:mod:`~modal_spring_ros.core.auto.full_candidate`): the
-   cheaper of the two by a work model (no clock) that meets the tolerance is chosen; where it
-   is the full run, the run goes on from where the pilot's run of it ended (a head start).
+5. **The full run is a candidate** (:mod:`~modal_spring_ros.core.auto.full_candidate`), at
+   the step the modes predict where its window confirms it: the cheaper of the two by a work
+   model (no clock) that meets the tolerance is chosen; the full run goes on from where the
+   pilot's run of it ended (a head start).
 6. **A budget** (:mod:`~modal_spring_ros.core.auto.budget`): every run priced before it is run,
-   at most a share of the full run; where the cheapest measurement does not fit or
-   would cost more than the plan could save, the full run. No wall-clock time enters a decision.
+   at most a share of the full run; where the cheapest measurement does not fit or would cost
+   more than the plan could save, the full run. No wall-clock time enters a decision.
 """
 from __future__ import annotations
 
@@ -36,7 +35,7 @@ from typing import Callable
 
 from modal_spring_ros.core.auto.budget import (PlanningBudget, REFERENCE_RUNS, training_work,
                                                worth_measuring)
-from modal_spring_ros.core.auto.full_candidate import (against_reference, BY_ITSELF,
+from modal_spring_ros.core.auto.full_candidate import (at_predicted_step, BY_ITSELF,
                                                        by_step_doubling, head_start)
 from modal_spring_ros.core.auto.measured_error import (bounded_trajectory, converged_trajectory,
                                                        horizon_error, on_samples, trajectory,
@@ -146,7 +145,8 @@ class Pilot:
             if error <= budget or len(refined) >= MAX_ROUNDS:
                 break
             options = []
-            for name, candidate in self._refinements(plan):
+            for name, candidate in refinements(plan, self.more_modes, self.can_halve_step,
+                                               self._reference_dt):
                 # a sampled plan of other coordinates trains its own sample when it is built
                 if candidate.forces == 'sampled' and name != 'half the step':
                     training = training_work(self.model)
@@ -229,13 +229,7 @@ class Pilot:
         return self.budget.affords(work_per_second(sim) * self.window_s)
 
     def _build(self, settings: PlanSettings) -> Simulation:
-        """
-        Build the run of ``settings`` on the pilot's sample grid.
-
-        A step cut to a stability limit lands anywhere; it is shortened to the next divisor of
-        the sampling interval, so that every run is compared at the same instants (and the run
-        measured is the run returned).
-        """
+        """Build ``settings``'s run, its step a divisor of the samples' (compared at them)."""
         return on_samples(self.make(settings), self._sample_s)
 
     def _error(self, sim: Simulation, reference: np.ndarray, sample_s: float,
@@ -338,9 +332,6 @@ class Pilot:
         reference, self._reference_dt = found
         return reference
 
-    def _refinements(self, plan: PlanSettings):
-        return refinements(plan, self.more_modes, self.can_halve_step, self._reference_dt)
-
     def _afforded(self) -> float:
         """Return what a full reference may cost, us: ``REFERENCE_WORK``, within the budget."""
         return min(REFERENCE_WORK, self.budget.remaining_us)
@@ -368,12 +359,14 @@ class Pilot:
         """
         Return the full run as a candidate, its error, and what that was measured against.
 
-        Against the pilot's reference (:func:`~.full_candidate.against_reference`), down to
-        the reference's step; without a full reference, against the richer sibling as the plan
-        is (pricing it at the sibling's step unmeasured made a full run that met the tolerance
-        at five times the step look three times dearer than a plan it cost a sixth of), unless
-        the plan never came within the tolerance: then the sibling is no reference, and the
-        full run is measured by its own step doubling (:func:`~.full_candidate.by_step_doubling`).
+        Against the pilot's reference down to its step, never below the one the modes predict
+        where the window confirms it (:func:`~.full_candidate.at_predicted_step`; against a
+        richer sibling as the plan is: priced at the sibling's step unmeasured, a full run
+        that met the tolerance at five times the step looked three times dearer than a plan it
+        cost a sixth of), unless the plan never came within the tolerance: then the sibling is
+        no reference, and the full run is measured by its own step doubling
+        (:func:`~.full_candidate.by_step_doubling`). Once the budget is spent, as where no
+        plan is made (:func:`~.unplanned_full.unplanned_full`).
         """
         sample_s, samples, reference, _ = self._sampling
         budget = PILOT_MARGIN * self.tolerance
@@ -395,5 +388,12 @@ class Pilot:
                                                 stepped=self._stepped)
             return full, full_error, BY_ITSELF
         shortest = self._reference_dt if against == 'the full run' else self._sibling[1]
-        return (*against_reference(self.full, lambda sim: self._error(
-            sim, reference, sample_s, stepped=self._stepped), sample_s, budget, shortest), against)
+        full, error, window = at_predicted_step(
+            self.full, lambda sim: self._error(sim, reference, sample_s, stepped=self._stepped),
+            lambda sim: self._measured[id(sim)][1], sample_s, budget, shortest, self.full_dt[1],
+            samples * sample_s)
+        if math.isfinite(window):     # the modes' prediction, confirmed over the window
+            self._checked = PilotReport(error, math.nan, samples * sample_s, against, (), 'full',
+                                        1.0, horizon_s=self.horizon_s, window_error=window,
+                                        predicted=True)
+        return full, error, against
