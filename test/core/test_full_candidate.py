@@ -189,6 +189,12 @@ def test_the_full_candidate_is_never_shortened_below_the_step_its_modes_predict(
                          horizon) > allowed                       # the drift would not have it
     assert error == pytest.approx(prediction.error_at(sim.dt)) and error <= allowed
     assert window == measured[sim.dt] <= allowed
+    # a reference coarser than that step (converged over the window, not over the run): the
+    # candidate still goes down to it
+    sim, error, window = at_predicted_step(full, error_of, window_of, SAMPLE_S, allowed,
+                                           1.2 * prediction.step, prediction, SAMPLE_S * SAMPLES)
+    assert 0.97 * prediction.step <= sim.dt <= prediction.step and error <= allowed
+    assert window == measured[sim.dt]
     # a window that disproves it: shortened on below it, measured as without a prediction
     disproved = _Disproved(prediction.step, prediction.error, prediction.predictor)
     sim, error, window = at_predicted_step(full, error_of, window_of, SAMPLE_S, allowed, 0.0,

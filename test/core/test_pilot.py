@@ -233,6 +233,32 @@ def test_a_plan_is_weighed_against_the_full_run_at_the_step_its_modes_predict():
     assert sim.pilot.error <= TOLERANCE
 
 
+def test_a_full_run_chosen_over_a_plan_at_its_predicted_step_says_what_its_window_measured():
+    """
+    sheet_10x10_swing with at most 2 modes over 200 s: no plan within 1 %, the full run taken.
+
+    It takes the step its modes predict within the margin (its window against the converged
+    run confirming it), its error the one predicted over the run, and the summary says what
+    the window measured (the predicted error was printed as the window's too).
+    """
+    horizon = 200.0
+    scene = load_scene('sheet_10x10_swing')
+    sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE, max_modes=2,
+                                                   horizon_s=horizon, planning_share=1.0))
+    report = sim.pilot
+    assert report.method == 'full' and report.predicted, report.describe()
+    assert report.against == 'the full run'
+    model = MassSpringModel(scene)
+    full = build_simulation(scene, SimulationConfig(method='full'))
+    prediction = predicted_step(model, ModalBasis(model), 'explicit', full.dt, horizon,
+                                pilot.PILOT_MARGIN * TOLERANCE, 0.9 * full.stability_limit())
+    assert 0.9 * prediction.step <= sim.dt <= prediction.step      # landed on the samples
+    assert report.error == pytest.approx(prediction.error_at(sim.dt), rel=0.01)
+    assert report.window_error != report.error and report.window_error <= TOLERANCE
+    assert (f'the prediction held where measured: {report.window_error:.2%} against the full '
+            'run') in report.describe()
+
+
 def test_a_full_run_the_pilot_stepped_already_is_neither_stepped_nor_charged_again():
     """
     The converged reference's first run is the full candidate's first run: kept, charged once.

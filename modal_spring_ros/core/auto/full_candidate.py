@@ -83,7 +83,10 @@ def at_predicted_step(full: Callable[[float, float], Simulation],
     :func:`against_reference` shortens it.
     """
     floor = prediction.step if prediction is not None and prediction.predictor else 0.0
-    sim, error = against_reference(full, error_of, sample_s, budget, shortest, floor)
+    # down to the predicted step also where it is below the reference's (a window converged to
+    # a tenth of the tolerance can drift beyond it over the run, as the prediction sees)
+    sim, error = against_reference(full, error_of, sample_s, budget,
+                                   min(shortest, floor) if floor else shortest, floor)
     if error <= budget or sim.dt > floor * (1.0 + 1e-9):
         return sim, error, math.nan
     window = window_of(sim)

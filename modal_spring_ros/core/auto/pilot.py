@@ -183,10 +183,12 @@ class Pilot:
             refined.extend(['a longer step'] if longer else [])
         self._sampling = (sample_s, samples, reference, against)
         sim, report = self._choose(sim, error, planned, against, tuple(refined))
-        window_error = report.error if report.method == 'full' else self._measured[id(sim)][1]
-        return sim, dataclasses.replace(report, horizon_s=self.horizon_s,
-                                        window_error=window_error, tolerance=self.tolerance,
-                                        planning=self.budget.describe())
+        checked = report.method == 'full' and self._checked is not None   # as its check said
+        window_error = (report.window_error if checked else report.error
+                        if report.method == 'full' else self._measured[id(sim)][1])
+        return sim, dataclasses.replace(
+            report, horizon_s=report.horizon_s if checked else self.horizon_s,
+            window_error=window_error, tolerance=self.tolerance, planning=self.budget.describe())
 
     def watch_reference(self, sim: Simulation) -> WatchReference:
         """
@@ -310,7 +312,8 @@ class Pilot:
         if self.full is not None and not self._start_sought:
             self._start_sought = True
             self._start = full_run_start(self.full, sample_s, samples,
-                                         REFERENCE_ACCURACY * self.tolerance, self._afforded())
+                                         REFERENCE_ACCURACY * self.tolerance,
+                                         min(REFERENCE_WORK, self.budget.remaining_us))
             if self._start is not None:
                 self.budget.charge(self.full(math.inf, sample_s),
                                    DOUBLING_WORK * len(self._start) * sample_s)
@@ -323,18 +326,14 @@ class Pilot:
         """Return the full run's converged trajectory, or None beyond ``REFERENCE_WORK``."""
         found = converged_trajectory(lambda dt: self.full(dt, sample_s),
                                      self.full(math.inf, sample_s).dt, sample_s, samples,
-                                     REFERENCE_ACCURACY * self.tolerance,
-                                     self._afforded() / self.window_s,
+                                     REFERENCE_ACCURACY * self.tolerance, min(
+                                         REFERENCE_WORK, self.budget.remaining_us) / self.window_s,
                                      lambda sim: self.budget.charge(sim, samples * sample_s),
                                      self._stepped)
         if found is None:
             return None
         reference, self._reference_dt = found
         return reference
-
-    def _afforded(self) -> float:
-        """Return what a full reference may cost, us: ``REFERENCE_WORK``, within the budget."""
-        return min(REFERENCE_WORK, self.budget.remaining_us)
 
     def _choose(self, sim: Simulation, error: float, planned: float, against: str,
                 refined: tuple[str, ...]) -> tuple[Simulation, PilotReport]:
