@@ -177,11 +177,12 @@ def _automatic(model: MassSpringModel, basis: ModalBasis, config: SimulationConf
     # the full run is predicted to meet the tolerance at over the run, within the pilot's
     # margin (a scene with colliders is checked over the whole window instead: a linear
     # prediction sees no touch) (a step the user gave is the longest); only a budgeted run
-    # takes the full run unmeasured
-    predicting = budget.bounded and model.scene.contact is None
+    # takes the full run unmeasured or solves more modes for it (an unbudgeted one uses the
+    # modes it has: its full candidate stops at the step they predict, where its window agrees)
+    predicting = measured and everything and model.scene.contact is None
 
     def predict() -> StepPrediction | None:
-        if predicting and not predicts(model, basis):
+        if predicting and budget.bounded and not predicts(model, basis):
             basis.ensure_frequency(predicting_hz(model), limit, affords_modes)
             charge_modes()
         return (predicted_step(model, basis, 'explicit', full_dt, horizon_s,

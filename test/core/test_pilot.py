@@ -206,20 +206,21 @@ def test_the_full_run_chosen_after_a_plan_was_measured_goes_on_from_the_pilot_s_
     assert head_start_gap(sim, head) <= 1e-9
 
 
-def test_a_plan_is_weighed_against_the_full_run_at_the_step_its_modes_predict():
+@pytest.mark.parametrize('share', [1.0, None])
+def test_a_plan_is_weighed_against_the_full_run_at_the_step_its_modes_predict(share):
     """
-    sheet_10x10 over 200 s at 1 %, a planning budget of a whole full run: a plan is measured.
+    sheet_10x10 over 200 s at 1 %, planning a whole full run's worth or unbudgeted: a plan.
 
     The full run it is weighed against was shortened to 0.8 times the step the modes predict
     within the margin (its window's error extrapolated as a drift over 200 s), which its window
     confirms: priced 1.25 times what it costs there, it made the plan look 0.37 times its work
     where it is 0.45. The candidate is now at the predicted step, and the plan's ratio against
-    it.
+    it (unbudgeted too: predicted from the modes it has).
     """
     horizon = 200.0
     scene = load_scene('sheet_10x10')
     sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
-                                                   horizon_s=horizon, planning_share=1.0))
+                                                   horizon_s=horizon, planning_share=share))
     assert sim.method == 'modal', sim.pilot.describe()
     model = MassSpringModel(scene)
     full = build_simulation(scene, SimulationConfig(method='full'))
