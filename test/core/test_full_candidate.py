@@ -162,7 +162,8 @@ def test_the_full_candidate_is_never_shortened_below_the_step_its_modes_predict(
     to 0.8 times the one every mode, stepped over the whole run with the step's period error,
     predicts within the margin (the full run priced 1.25 times what it costs there). The window
     confirms the prediction: that step is the candidate, its error the one predicted over the
-    run. A window that disproves it shortens the step on, as without a prediction.
+    run, also where the reference's own step is longer. A window that disproves it shortens the
+    step on, measured as without a prediction.
     """
     full, reference = sheet
     horizon, allowed = 200.0, 0.008

@@ -206,6 +206,14 @@ def test_the_full_run_chosen_after_a_plan_was_measured_goes_on_from_the_pilot_s_
     assert head_start_gap(sim, head) <= 1e-9
 
 
+def _predicted(scene, horizon_s: float):
+    """Return ``scene``'s full run at its default step, and the step its modes predict."""
+    full = build_simulation(scene, SimulationConfig(method='full'))
+    model = MassSpringModel(scene)
+    return full, predicted_step(model, ModalBasis(model), 'explicit', full.dt, horizon_s,
+                                pilot.PILOT_MARGIN * TOLERANCE, 0.9 * full.stability_limit())
+
+
 @pytest.mark.parametrize('share', [1.0, None])
 def test_a_plan_is_weighed_against_the_full_run_at_the_step_its_modes_predict(share):
     """
@@ -222,10 +230,7 @@ def test_a_plan_is_weighed_against_the_full_run_at_the_step_its_modes_predict(sh
     sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
                                                    horizon_s=horizon, planning_share=share))
     assert sim.method == 'modal', sim.pilot.describe()
-    model = MassSpringModel(scene)
-    full = build_simulation(scene, SimulationConfig(method='full'))
-    prediction = predicted_step(model, ModalBasis(model), 'explicit', full.dt, horizon,
-                                pilot.PILOT_MARGIN * TOLERANCE, 0.9 * full.stability_limit())
+    full, prediction = _predicted(scene, horizon)
     candidate = sim.watch_reference.fallback()
     assert candidate.method == 'full' and prediction.step > 2.0 * full.dt
     assert 0.95 * prediction.step <= candidate.dt <= prediction.step
@@ -249,10 +254,7 @@ def test_a_full_run_chosen_over_a_plan_at_its_predicted_step_says_what_its_windo
     report = sim.pilot
     assert report.method == 'full' and report.predicted, report.describe()
     assert report.against == 'the full run'
-    model = MassSpringModel(scene)
-    full = build_simulation(scene, SimulationConfig(method='full'))
-    prediction = predicted_step(model, ModalBasis(model), 'explicit', full.dt, horizon,
-                                pilot.PILOT_MARGIN * TOLERANCE, 0.9 * full.stability_limit())
+    _, prediction = _predicted(scene, horizon)
     assert 0.9 * prediction.step <= sim.dt <= prediction.step      # landed on the samples
     assert report.error == pytest.approx(prediction.error_at(sim.dt), rel=0.01)
     assert report.window_error != report.error and report.window_error <= TOLERANCE
