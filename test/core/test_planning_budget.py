@@ -1,11 +1,12 @@
 """
-Users pay whole runs: auto's planning spends at most a share of the full run it would replace.
+Users pay whole runs: auto's planning spends at most a share of the cheapest full run.
 
 The budget's arithmetic; a run too short to measure a plan for runs the full run at the step
 ``method full`` takes (checked, within the tolerance); a default step that misses the tolerance
-lifts the budget; a long run is measured within its budget; a plan's step is never refined
-below the full run's own converged step; a band cut at ``max_modes`` is not trusted on a richer
-plan alone; a plan's set-up and every solve for more modes are priced, and not made beyond it.
+runs the step predicted within it, still budgeted on the cheapest full run; a long run is
+measured within its budget; a plan's step is never refined below the full run's own converged
+step; a band cut at ``max_modes`` is not trusted on a richer plan alone; a plan's set-up and
+every solve for more modes are priced, and not made beyond it.
 """
 from __future__ import annotations
 
