@@ -11,6 +11,7 @@ import dataclasses
 import math
 
 from modal_spring_ros.core.auto.watch import amplification
+from modal_spring_ros.core.auto.watch.run_watch import TOOK_INPUT
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation, rebuild
 from modal_spring_ros.core.filter_band import FilterBand
@@ -107,3 +108,18 @@ def test_a_motion_that_amplifies_its_differences_is_a_warning_not_a_fallback(pla
     assert not fallen and report['watch_beyond'].startswith('automatic plan: watched ')
     assert report['watch_beyond'].endswith(amplification.UNBOUNDED)
     assert report['watched'].startswith('2 windows: last ')
+
+
+def test_an_input_the_run_takes_starts_a_window_at_once(plan):
+    """A user's input on the run watched starts a window (never due here), said as its cause."""
+    watch = PlanWatch(lambda window, settings: None)
+    sim = run_of(plan)
+    step_watched(watch, sim, 1.0, interval_s=1000.0)
+    watch.took_input(run_of(plan))                  # another run's input: not this watch's
+    step_watched(watch, sim, 1.2, interval_s=1000.0)
+    assert '(none yet)' in watch.report()['watched']
+    watch.took_input(sim)
+    step_watched(watch, sim, 1.3, interval_s=1000.0)
+    report = watch.report()['watched']
+    assert report.startswith('1 window: last ') and f'(started early: {TOOK_INPUT})' in report
+    assert 'from t = 1.2' in report

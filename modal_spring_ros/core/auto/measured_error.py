@@ -155,17 +155,26 @@ def worst_window(run: np.ndarray | None, reference: np.ndarray, sample_s: float)
     """
     if run is None:
         return math.inf
-    if len(reference) == 0:
-        return 0.0
-    count = min(len(reference), max(1, int(round(len(reference) * sample_s / PROMISE_WINDOW_S))))
-    starts = [window[0] for window in np.array_split(np.arange(len(reference)), count)]
-    # each window's squared sums at once (per sample, then per window)
-    difference = np.add.reduceat(np.einsum('ij,ij->i', run - reference, run - reference), starts)
-    motion = np.add.reduceat(np.einsum('ij,ij->i', reference, reference), starts)
-    if not np.all(np.isfinite(difference)):
-        return math.inf
+    return float(window_errors(np.einsum('ij,ij->i', run - reference, run - reference),
+                               np.einsum('ij,ij->i', reference, reference), sample_s).max())
+
+
+def window_errors(difference: np.ndarray, motion: np.ndarray, sample_s: float) -> np.ndarray:
+    """
+    Return the error of each of :func:`worst_window`'s windows, in order (inf: diverged).
+
+    From each sample's squared sums (of the difference, of the reference), for a caller that
+    steps its runs sample by sample and keeps only those (a watched window). No sample: one
+    window without error.
+    """
+    if len(motion) == 0:
+        return np.zeros(1)
+    count = min(len(motion), max(1, int(round(len(motion) * sample_s / PROMISE_WINDOW_S))))
+    starts = [window[0] for window in np.array_split(np.arange(len(motion)), count)]
+    difference = np.add.reduceat(np.asarray(difference, dtype=float), starts)
+    motion = np.add.reduceat(np.asarray(motion, dtype=float), starts)
     ratios = np.divide(difference, motion, out=np.zeros_like(difference), where=motion > 0)
-    return float(np.sqrt(ratios.max()))
+    return np.where(np.isfinite(difference), np.sqrt(ratios), math.inf)
 
 
 def converged_trajectory(run_at: Callable[[float], Simulation], step: float, sample_s: float,

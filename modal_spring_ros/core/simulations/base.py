@@ -124,16 +124,12 @@ class Simulation(LoadHolder, abc.ABC):
     #: PilotReport`), on a run it chose; None otherwise
     pilot = None
     #: what the run is watched against while it runs (:class:`~modal_spring_ros.core.auto.
-    #: run_watch.WatchReference`), on a modal run the automatic choice chose; None otherwise
+    #: watch.windows.WatchReference`), on a run the automatic choice chose; None otherwise
     watch_reference = None
 
     @property
     def evaluations_per_step(self) -> float:
-        """
-        Return the force evaluations a step has made so far (an implicit step iterates).
-
-        Before the first step (or after a reset), what the integrator is taken to make.
-        """
+        """Return the force evaluations a step has made (before any: the integrator's own)."""
         return (self._evaluations / self.steps if self.steps
                 else float(self._integrator.evaluations_per_step))
 
@@ -145,11 +141,7 @@ class Simulation(LoadHolder, abc.ABC):
     @property
     @abc.abstractmethod
     def kept_modes(self) -> np.ndarray:
-        """
-        Return the indices of the (computed) modes that take part.
-
-        Those of the band in a modal run, every one in a full run.
-        """
+        """Return the indices of the modes that take part (a full run: every one computed)."""
 
     @property
     def force_refresh(self) -> int:
@@ -206,10 +198,10 @@ class Simulation(LoadHolder, abc.ABC):
     def prepare_switch(self, band: FilterBand, transition_s: float | None = None,
                        dt_name: str = 'dt') -> None:
         """
-        Check ``band`` and do the slow part of switching to it ahead.
+        Check ``band`` and do the slow part of switching to it ahead, from any thread.
 
-        (computing the modes it needs, building operators), from any thread, while the run goes
-        on. Changes no state of the run; :meth:`set_band` then finds the work done.
+        (Computing the modes it needs, building operators) while the run goes on, changing none
+        of its state; :meth:`set_band` then finds the work done.
 
         :raises BandError: the band keeps no mode.
         :raises UnstableStepError: its highest mode is unstable at this ``dt`` (explicit), named
@@ -316,6 +308,11 @@ class Simulation(LoadHolder, abc.ABC):
 
     def max_strain(self) -> float:
         return self.model.max_strain(self.model.positions(self.displacement(), self.time))
+
+    def motion_size(self) -> tuple[float, float]:
+        """Return the state's mass-weighted sizes ``sqrt(u^T M u)``, ``sqrt(v^T M v)``."""
+        m, u, v = self.model.mass_dof, self.displacement(), self.velocity()
+        return math.sqrt(u @ (m * u)), math.sqrt(v @ (m * v))
 
     def take_over(self, other: 'Simulation') -> None:
         """Continue from another simulation's physical state and time (a settings change)."""

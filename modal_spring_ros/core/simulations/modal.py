@@ -188,7 +188,7 @@ class ModalSimulation(Simulation):
         """
         Return the indices of the computed modes ``band`` keeps (computing what it needs first).
 
-        Changes no state of the run, so it can check a band before it is applied.
+        Changes no state of the run (it checks a band before it is applied).
 
         :raises BandError: the band keeps no mode.
         """
@@ -251,10 +251,9 @@ class ModalSimulation(Simulation):
     def _build_set(self, modes: np.ndarray, settled: bool,
                    damping: tuple[str, ...]) -> SteppedSet:
         """
-        Build the operators of stepping ``modes``.
+        Build the operators of stepping ``modes`` (forces trained for a settled band only).
 
-        A force model that needs training only for a settled band (a fade is short: training
-        for it would cost more than it saves).
+        A fade is short: training for it would cost more than it saves.
         """
         forces = self.forces
         if not settled and force_model(forces).trained:
@@ -292,15 +291,13 @@ class ModalSimulation(Simulation):
     def _update_envelope(self) -> None:
         s = self._set
         self._envelope = 0.5 - 0.5 * np.cos(np.pi * s.progress)
-        self._fading_in = s.target & (s.progress < 1.0)
-        self._is_fading = s.fading
+        self._fading_in, self._is_fading = s.target & (s.progress < 1.0), s.fading
 
     def _advance_fade(self) -> None:
         """
-        Move every fading mode's progress one step.
+        Move every fading mode's progress one step (leaving ones' state follows it, no jump).
 
-        Leaving modes' state follows the envelope down to zero (no jump), and modes that reach zero
-        are dropped.
+        Modes whose envelope reaches zero are dropped.
         """
         s = self._set
         step = self.dt / self.transition_s
@@ -349,6 +346,9 @@ class ModalSimulation(Simulation):
 
     def velocity(self) -> np.ndarray:
         return self._phi @ self._v
+
+    def motion_size(self) -> tuple[float, float]:  # mass-orthonormal coordinates: q^T q = u^T M u
+        return math.sqrt(self._q @ self._q), math.sqrt(self._v @ self._v)
 
     @property
     def _last_max_strain(self) -> float:

@@ -110,6 +110,11 @@ class PlanWatch:
         self._watch = None
         self._on_beyond(window, settings)
 
+    def took_input(self, sim: Simulation) -> None:
+        """Tell the watch of ``sim`` that it took an input (see :meth:`RunWatch.took_input`)."""
+        if self._watch is not None and sim is self._sim:
+            self._watch.took_input(sim)
+
     def restart(self) -> None:
         """Watch again an interval on (the run went back to rest, or was recovered)."""
         if self._watch is not None:

@@ -54,6 +54,7 @@ def apply_request(host: RunHost, request: Request) -> str:
 def _take_input(host: RunHost, request: TakeInput) -> str:
     host.streak.refuse_while_held()
     message = request.kind.apply(host.sim, request.received, request.values)
+    host.plan_watch.took_input(host.sim)
     host.outputs.received(host.sim, recorded_messages(request.kind, request.received))
     return message
 

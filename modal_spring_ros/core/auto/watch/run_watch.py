@@ -42,6 +42,7 @@ from modal_spring_ros.core.auto.watch.amplification import (MIN_SAMPLES as TWIN_
                                                             SAMPLES as TWIN_SAMPLES,
                                                             twin_samples, TwinBeside,
                                                             WINDOW_S as TWIN_WINDOW_S)
+from modal_spring_ros.core.auto.watch.sentinel import Sentinel
 from modal_spring_ros.core.auto.watch.shadows import Shadows
 from modal_spring_ros.core.auto.watch.windows import WatchedWindow, WatchReference
 from modal_spring_ros.core.auto.work_model import work_per_second
@@ -54,6 +55,8 @@ DEFAULT_INTERVAL_S = 10.0
 #: Watching at the default interval costs at most this share of the run's own (modelled) work:
 #: the interval is lengthened where the shadow runs cost more than that over it.
 WORK_SHARE = 0.25
+#: Why a window started before it was due, where the run took an input (:meth:`took_input`).
+TOOK_INPUT = 'the run took an input no window measured'
 #: A full run the pilot chose is watched by its twin alone (over ``TWIN_WINDOW_S`` on
 #: ``TWIN_SAMPLES`` samples, stepped beside the run) in a run where it costs at most this share
 #: of it: runs of 5 s and more.
@@ -140,6 +143,11 @@ class RunWatch:
         if at_least_once and run_s is not None and run_s > reference.window_s * (1.0 + 1e-9):
             self.first_s = min(self.interval_s, run_s - reference.window_s)
         self._next: float | None = None   # when the next window starts (None: the first)
+        self._measured_until = -math.inf   # the end of the span the last window measures
+        self._input = False                 # the run took an input no window measured
+        #: starts a window where the run's motion outgrows what was measured (a plan's watch)
+        self.sentinel = (Sentinel(reference.sample_s, reference.window_s)
+                         if reference.reference is not None else None)
         self._shadow: Shadows | None = None
         self._beside: TwinBeside | None = None         # a twin stepped beside the run itself
         self._runs: list[Simulation] | None = None    # the shadows, kept from window to window
@@ -154,14 +162,29 @@ class RunWatch:
         """Tell whether a window is being stepped."""
         return self._shadow is not None or self._beside is not None
 
-    def _due(self, sim: Simulation) -> bool:
-        """Tell whether a window starts now (the first one's start set on the first call)."""
+    def _due(self, sim: Simulation) -> str | None:
+        """
+        Return why a window starts now, or None (the first one's start set on the first call).
+
+        It is due, or the run's motion outgrew what the windows (the pilot's from the watch's
+        start, as from rest) measured: see :mod:`~.sentinel`.
+        """
         if self._next is None:          # the pilot measured the first window from rest
             self._next = sim.time + self.first_s
-        if sim.time + 0.5 * sim.dt < self._next:
-            return False
+            self._measured_until = sim.time + self.reference.window_s
+        outgrown = self.sentinel is not None and self.sentinel.outgrown(sim, self._measured(sim))
+        if not (outgrown or self._input) and sim.time + 0.5 * sim.dt < self._next:
+            return None
         self._next = sim.time + self.interval_s
-        return True
+        self._measured_until = sim.time + self.reference.window_s
+        cause = (self.sentinel.describe_beyond() if outgrown
+                 else TOOK_INPUT if self._input else '')
+        self._input = False
+        return cause
+
+    def _measured(self, sim: Simulation) -> bool:
+        """Tell whether ``sim`` is within the span the last window (or the pilot's) measures."""
+        return sim.time <= self._measured_until + 0.5 * sim.dt
 
     def _kept(self, sim: Simulation, make: Callable[[], list[Simulation]]) -> list[Simulation]:
         """Return the shadows kept from the last window where they step as ``sim`` does."""
@@ -170,6 +193,8 @@ class RunWatch:
         return self._runs
 
     def _finished(self, window: WatchedWindow) -> WatchedWindow:
+        if window.rising:          # watched on from where it ended, until caught or back within
+            self._next = min(self._next, self._measured_until)
         self.windows += 1
         self.last = window
         if window.measured and (self.worst is None or not window.error <= self.worst.error):
@@ -185,12 +210,15 @@ class RunWatch:
         ``deadline``: monotonic time at which to hand back (the window goes on at the next call).
         """
         if self._shadow is None:
-            if not self._due(sim):
+            cause = self._due(sim)
+            if cause is None:
                 return None
             make = self.reference.reference
             self._shadow = Shadows(sim, self._kept(sim, lambda: (
                 [sim.with_dt(sim.dt)] + ([make()] if make is not None else [])
-                + [sim.with_dt(sim.dt)])), self.reference)
+                + [sim.with_dt(sim.dt)])), self.reference, cause)
+        elif self.sentinel is not None:     # the states the window under way measures
+            self.sentinel.outgrown(sim, self._measured(sim))
         if not self._shadow.advance(deadline):
             return None
         window, self._shadow = self._shadow.result, None
@@ -209,7 +237,7 @@ class RunWatch:
                 self._next = None
             self._beside = None
         if self._beside is None:
-            if not (starts and self._due(sim)):
+            if not (starts and self._due(sim) is not None):
                 return None
             ref = self.reference
             twin = self._kept(sim, lambda: [sim.with_dt(sim.dt)])[0]
@@ -243,6 +271,18 @@ class RunWatch:
             return None
         return self._end_beside()
 
+    def took_input(self, sim: Simulation) -> None:
+        """
+        Say that ``sim`` took an input no window measured (a user's pull, a wrench, a contact).
+
+        A plan's watch starts a window from the run's state as soon as none is under way (the
+        span measured ends now): a local load can take a plan off its promise with little
+        motion (a corner pulled aside by 5 N moves the sheet less than twice what its pilot saw).
+        """
+        if self.sentinel is not None:
+            self._measured_until = min(self._measured_until, sim.time)
+            self._input = True
+
     def restart(self) -> None:
         """
         Drop the window under way and watch again as from a start (a reset, a band change).
@@ -250,6 +290,8 @@ class RunWatch:
         The plan's copy is made again from the run's state then.
         """
         self._shadow = self._beside = self._runs = self._next = None
+        if self.sentinel is not None:
+            self.sentinel.restart()
 
     def before_step(self, sim: Simulation, sample_s: float | None = None
                     ) -> tuple[Simulation, WatchedWindow | None]:
@@ -297,4 +339,6 @@ class RunWatch:
         amplified = (f'; amplifying first {self.amplifying.describe()}'
                      if self.amplifying not in (None, self.last) else '')
         count = f"{self.windows} window{'s' if self.windows > 1 else ''}"
+        if self.sentinel is not None and self.sentinel.started:
+            count += f' ({self.sentinel.started} started as the motion outgrew the measured)'
         return f'{count}: last {self.last.describe()}{worst}{amplified}'

@@ -12,6 +12,7 @@ import dataclasses
 import math
 from typing import Callable, Mapping
 
+from modal_spring_ros.core.auto.measured_error import PROMISE_WINDOW_S, WINDOW_ALLOWANCE
 from modal_spring_ros.core.auto.watch.amplification import amplifies, describe_rate, UNBOUNDED
 from modal_spring_ros.core.simulations import Simulation
 
@@ -53,6 +54,11 @@ class WatchedWindow:
 
     ``growth``: how fast a hair's difference grew over it, e-folds per second
     (:mod:`~.amplification`). ``against`` empty: a window of the twin alone (no error measured).
+    ``cause``: why it started before it was due (:mod:`~.sentinel`; empty: it was due).
+    ``worst``: the error over its worst quarter second (the promise allows ``WINDOW_ALLOWANCE``
+    times the tolerance there: an error averaged over the window hides one that grows);
+    ``heading``: the error its quarter seconds' trend reaches one window on (beyond the
+    tolerance: the error is on its way up, and the next window follows at once).
     """
 
     start_s: float
@@ -61,6 +67,9 @@ class WatchedWindow:
     tolerance: float
     against: str
     growth: float = math.nan
+    cause: str = ''
+    worst: float = math.nan
+    heading: float = math.nan
 
     @property
     def measured(self) -> bool:
@@ -72,12 +81,19 @@ class WatchedWindow:
         return amplifies(self.growth)
 
     @property
+    def rising(self) -> bool:
+        """Tell whether a window within the promise is heading beyond the tolerance."""
+        return self.within and self.heading > self.tolerance
+
+    @property
     def within(self) -> bool:
         """Tell whether the plan met its tolerance (unmeasured and twin-only windows have)."""
-        return not self.against or not self.measured or self.error <= self.tolerance
+        return not self.against or not self.measured or (
+            self.error <= self.tolerance and not self.worst > WINDOW_ALLOWANCE * self.tolerance)
 
     def describe(self) -> str:
-        span = f'over {self.window_s:.3g} s from t = {self.start_s:.4g} s'
+        span = f'over {self.window_s:.3g} s from t = {self.start_s:.4g} s' + (
+            f' (started early: {self.cause})' if self.cause else '')
         amplified = f': {UNBOUNDED}' if self.amplifying else ''
         if not self.against:
             return f'{describe_rate(self.growth)} {span}{amplified}'
@@ -87,4 +103,6 @@ class WatchedWindow:
             return f'not measured {span}: the reference diverged{amplified}'
         if math.isinf(self.error):
             return f'the plan diverged {span}{amplified}'
-        return f'{self.error:.2%} {span}{amplified}'
+        worst = (f', {self.worst:.2%} over its worst {PROMISE_WINDOW_S:g} s'
+                 if self.worst > WINDOW_ALLOWANCE * self.tolerance else '')
+        return f'{self.error:.2%} {span}{worst}{amplified}'
