@@ -31,6 +31,14 @@ they share the run's model and basis, which are read, never written, while stepp
 that follows poses has a state of its own that a shadow would advance: such a run is not watched
 (:func:`watchable`). Nothing here reads a clock to decide anything: the same run gives the same
 windows and the same fallback on any machine.
+
+Between windows, a plan's watch keeps a sentinel (:mod:`~modal_spring_ros.core.auto.watch.
+sentinel`): a window starts at once where the run's motion outgrows twice the largest a window
+measured, or where the run took an input no window measured (:meth:`RunWatch.took_input`: a
+user's pull in the node); a window within the promise whose error is heading beyond the
+tolerance (:attr:`WatchedWindow.rising`) is followed at once by the next. A window is within
+the promise when its error is within the tolerance and its worst quarter second within
+``WINDOW_ALLOWANCE`` times it.
 """
 from __future__ import annotations
 
@@ -166,8 +174,8 @@ class RunWatch:
         """
         Return why a window starts now, or None (the first one's start set on the first call).
 
-        It is due, or the run's motion outgrew what the windows (the pilot's from the watch's
-        start, as from rest) measured: see :mod:`~.sentinel`.
+        It is due, the run took an input (:meth:`took_input`), or its motion outgrew what the
+        windows (the pilot's from the watch's start, as from rest) measured (:mod:`~.sentinel`).
         """
         if self._next is None:          # the pilot measured the first window from rest
             self._next = sim.time + self.first_s
@@ -290,6 +298,7 @@ class RunWatch:
         The plan's copy is made again from the run's state then.
         """
         self._shadow = self._beside = self._runs = self._next = None
+        self._input = False
         if self.sentinel is not None:
             self.sentinel.restart()
 
