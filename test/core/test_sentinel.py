@@ -172,3 +172,22 @@ def test_a_modal_run_s_motion_size_from_its_coordinates_is_the_physical_one(basi
     physical = Simulation.motion_size(sim)           # the contract's own, from u and v
     assert sizes[0] > 0.0 and sizes[1] > 0.0
     assert sizes == pytest.approx(physical, rel=1e-9)
+
+
+def test_a_stream_of_inputs_is_watched_no_more_often_than_the_budget_affords():
+    """Inputs every half second on a watch whose budget affords a window every 4 s: two."""
+    plan = planned(load_scene('sheet_10x10'))
+    reference = plan.watch_reference
+    watch = RunWatch(reference, NEVER_S, budget=reference.window_s * reference.shadow_work / 4.0)
+    assert watch.least_s == pytest.approx(4.0) and watch.interval_s == NEVER_S
+    sim, starts, told = plan.with_dt(plan.dt), [], -1
+    while sim.time < 7.0:
+        if int(sim.time / 0.5) > told:                  # a user's input every half second
+            told = int(sim.time / 0.5)
+            watch.took_input(sim)
+        sim, window = watch.before_step(sim)
+        if window is not None:
+            starts.append((window.start_s, window.cause))
+        sim.step()
+    assert [cause for _, cause in starts] == [TOOK_INPUT, TOOK_INPUT]
+    assert [start for start, _ in starts] == pytest.approx([0.0, 4.0], abs=2 * plan.dt)

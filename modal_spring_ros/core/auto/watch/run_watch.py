@@ -143,9 +143,12 @@ class RunWatch:
         self.reference = reference
         #: the interval, lengthened so that watching costs at most ``budget``
         self.interval_s = float(interval_s)
+        #: the shortest interval ``budget`` affords (an input's window waits for it)
+        self.least_s = 0.0
         if budget is not None:
-            self.interval_s = max(self.interval_s, reference.window_s * reference.shadow_work
-                                  / budget if budget > 0.0 else math.inf)
+            self.least_s = (reference.window_s * reference.shadow_work / budget if budget > 0.0
+                            else math.inf)
+            self.interval_s = max(self.interval_s, self.least_s)
         #: when the first window starts, after the run's start (or a restart)
         self.first_s, self.run_s, self.at_least_once = self.interval_s, run_s, at_least_once
         if at_least_once and run_s is not None and run_s > reference.window_s * (1.0 + 1e-9):
@@ -153,6 +156,7 @@ class RunWatch:
         self._next: float | None = None   # when the next window starts (None: the first)
         self._measured_until = -math.inf   # the end of the span the last window measures
         self._input = False                 # the run took an input no window measured
+        self._started = -math.inf           # when the last window started
         #: starts a window where the run's motion outgrows what was measured (a plan's watch)
         self.sentinel = (Sentinel(reference.sample_s, reference.window_s)
                          if reference.reference is not None else None)
@@ -181,12 +185,12 @@ class RunWatch:
             self._next = sim.time + self.first_s
             self._measured_until = sim.time + self.reference.window_s
         outgrown = self.sentinel is not None and self.sentinel.outgrown(sim, self._measured(sim))
-        if not (outgrown or self._input) and sim.time + 0.5 * sim.dt < self._next:
+        took = self._input and sim.time + 0.5 * sim.dt >= self._started + self.least_s
+        if not (outgrown or took) and sim.time + 0.5 * sim.dt < self._next:
             return None
-        self._next = sim.time + self.interval_s
+        self._next, self._started = sim.time + self.interval_s, sim.time
         self._measured_until = sim.time + self.reference.window_s
-        cause = (self.sentinel.describe_beyond() if outgrown
-                 else TOOK_INPUT if self._input else '')
+        cause = self.sentinel.describe_beyond() if outgrown else TOOK_INPUT if took else ''
         self._input = False
         return cause
 
@@ -283,9 +287,11 @@ class RunWatch:
         """
         Say that ``sim`` took an input no window measured (a user's pull, a wrench, a contact).
 
-        A plan's watch starts a window from the run's state as soon as none is under way (the
-        span measured ends now): a local load can take a plan off its promise with little
-        motion (a corner pulled aside by 5 N moves the sheet less than twice what its pilot saw).
+        A plan's watch starts a window from the run's state as soon as none is under way and
+        its budget affords one (:attr:`least_s` after the last one's start; the span measured
+        ends now): a local load can take a plan off its promise with little motion (a corner
+        pulled aside by 5 N moves the sheet less than twice what its pilot saw). A stream of
+        inputs is watched window after window, at most as often as the budget allows.
         """
         if self.sentinel is not None:
             self._measured_until = min(self._measured_until, sim.time)
@@ -298,7 +304,7 @@ class RunWatch:
         The plan's copy is made again from the run's state then.
         """
         self._shadow = self._beside = self._runs = self._next = None
-        self._input = False
+        self._input, self._started = False, -math.inf
         if self.sentinel is not None:
             self.sentinel.restart()
 
