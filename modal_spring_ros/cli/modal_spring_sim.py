@@ -180,9 +180,10 @@ def summary(sim, diverged: str, seconds_per_step: float, wall: float,
         lines.append(f'measured   {sim.pilot.describe()}')
     if watch is not None:
         fell = watch.last is not None and not watch.last.within
+        then = f', watched then: {watch.then.describe()}' if watch.then is not None else ''
         lines.append(f'watched    {watch.describe()}'
                      + (f'; beyond {watch.last.tolerance:.2%}: fell back to the {sim.method} '
-                        f'run' if fell else ''))
+                        f'run{then}' if fell else ''))
     ahead = (f" (from t = {ahead_s:.4g} s, where the pilot's run of it ended: not stepped "
              'again)' if ahead_s > 0.0 else '')
     lines.append(f'stepping   {sim.integrator} Newmark, dt {sim.dt:g} s '

@@ -104,8 +104,8 @@ def record(sim: Simulation, duration: float, *, frame_every: int = 1,
         if watch is not None:
             sim, window = watch.before_step(sim, frame_s)
             if window is not None:
-                if not window.within:
-                    watch = None                  # the fallback is what the plan is measured by
+                if not window.within:             # the fallback watched by its twin, or not
+                    watch = watch.after_fallback(sim)
                 if on_watch:
                     on_watch(window, sim)
         try:

@@ -90,7 +90,10 @@ def test_a_pull_beyond_the_plan_is_caught_and_the_run_falls_back_to_the_full_run
             pull_hard(now)      # after a window within the tolerance, the user pulls
 
     run = record(sim, 3 * INTERVAL_S + 0.5, frame_every=10, watch=watch, on_watch=on_watch)
-    (calm, kept), (pulled, fallback) = seen
+    (calm, kept), (pulled, fallback) = seen[:2]
+    # then the full run is watched by its twin alone, an interval on
+    assert [(window.against, now) for window, now in seen[2:]] == [('', fallback)]
+    assert seen[2][0].start_s == pytest.approx(3 * INTERVAL_S, abs=0.01)
     assert calm.within and 0.0 < calm.error <= TOLERANCE and kept is sim
     # the plan's twin was stepped beside it: a sheet swinging amplifies no difference
     assert calm.growth < 0.25 * AMPLIFYING_PER_S and not calm.amplifying

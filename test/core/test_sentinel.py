@@ -191,3 +191,31 @@ def test_a_stream_of_inputs_is_watched_no_more_often_than_the_budget_affords():
         sim.step()
     assert [cause for _, cause in starts] == [TOOK_INPUT, TOOK_INPUT]
     assert [start for start, _ in starts] == pytest.approx([0.0, 4.0], abs=2 * plan.dt)
+
+
+@pytest.mark.slow
+def test_the_full_run_fallen_back_to_is_watched_by_its_twin():
+    """
+    The shaken sheet over 20 s, watched every 3 s: after its fallback at 6 s, the full run.
+
+    Its step was measured over the pilot's window only; in the large deformation after 7.5 s a
+    hair's difference grows there (the full run at that step is 3-7 % off its converged
+    reference): its twin's windows, every 3 s from the fallback, say so.
+    """
+    plan = planned(shaken_harder())
+    watch = RunWatch(plan.watch_reference, 3.0, run_s=20.0)
+    seen = []
+    run = record(plan.with_dt(plan.dt), 20.0, frame_every=10, watch=watch, keep_frames=False,
+                 on_watch=lambda window, sim: seen.append((window, sim.method)))
+    fell = [k for k, (window, _) in enumerate(seen) if not window.within]
+    assert len(fell) == 1 and run.method == 'full'
+    caught = seen[fell[0]][0]
+    then = watch.then
+    assert then is not None and then.reference.reference is None     # its twin alone
+    twins = [window for window, method in seen[fell[0] + 1:]]
+    assert len(twins) == then.windows >= 4 and all(method == 'full' for _, method in seen[3:])
+    assert all(not window.against and not window.measured for window in twins)
+    assert [window.start_s for window in twins[:4]] == pytest.approx(
+        [caught.start_s + 3.0 * k for k in range(1, 5)], abs=0.01)
+    assert then.amplifying is not None and then.amplifying.start_s > 7.5
+    assert 'amplifying first' in then.describe() or then.last.amplifying

@@ -187,7 +187,8 @@ def resimulate(bag_path: str | Path, output: str | Path, topic: str = POINTS_TOP
         while sim.time < at - 0.5 * sim.dt:
             if watch is not None:
                 sim, window = watch.before_step(sim, frame_s)
-                watch = watch if window is None or window.within else None
+                watch = (watch if window is None or window.within
+                         else watch.after_fallback(sim))
             try:
                 sim.step()
             except DivergenceError:

@@ -143,6 +143,8 @@ class RunWatch:
         self.reference = reference
         #: the interval, lengthened so that watching costs at most ``budget``
         self.interval_s = float(interval_s)
+        #: the interval asked for (None: the default, within ``budget``)
+        self.asked_s = float(interval_s) if budget is None else None
         #: the shortest interval ``budget`` affords (an input's window waits for it)
         self.least_s = 0.0
         if budget is not None:
@@ -157,6 +159,9 @@ class RunWatch:
         self._measured_until = -math.inf   # the end of the span the last window measures
         self._input = False                 # the run took an input no window measured
         self._started = -math.inf           # when the last window started
+        self._began: float | None = None    # when the watch began (its first call)
+        #: the watch of the run this one fell back to (:meth:`after_fallback`), or None
+        self.then: RunWatch | None = None
         #: starts a window where the run's motion outgrows what was measured (a plan's watch)
         self.sentinel = (Sentinel(reference.sample_s, reference.window_s)
                          if reference.reference is not None else None)
@@ -183,6 +188,7 @@ class RunWatch:
         """
         if self._next is None:          # the pilot measured the first window from rest
             self._next = sim.time + self.first_s
+            self._began = sim.time if self._began is None else self._began
             self._measured_until = sim.time + self.reference.window_s
         outgrown = self.sentinel is not None and self.sentinel.outgrown(sim, self._measured(sim))
         took = self._input and sim.time + 0.5 * sim.dt >= self._started + self.least_s
@@ -282,6 +288,23 @@ class RunWatch:
             self._beside = None
             return None
         return self._end_beside()
+
+    def after_fallback(self, fallback: Simulation) -> 'RunWatch | None':
+        """
+        Return the watch of ``fallback``, the run this one's window fell back to (None: none).
+
+        A full run is watched by its twin alone, as a full run the pilot chose is (its step was
+        measured over the pilot's window only: a motion gone chaotic holds no tolerance, the
+        fallback's included), over what is left of the run, at the interval asked for (or the
+        default); the richer plan is not watched again. Kept as :attr:`then`.
+        """
+        if fallback.method != 'full' or not watchable(fallback.model):
+            return None
+        fallback.watch_reference = twin_reference(fallback, self.reference.tolerance)
+        left = (None if self.run_s is None or self._began is None
+                else self._began + self.run_s - fallback.time)
+        self.then = watch_of(fallback, self.asked_s, run_s=left)
+        return self.then
 
     def took_input(self, sim: Simulation) -> None:
         """
