@@ -67,6 +67,17 @@ def test_a_window_beyond_falls_back_once_with_the_settings_of_the_full_run(plan)
     report = watch.report()
     assert report['watch_beyond'].startswith('automatic plan beyond its tolerance 0.00%')
     assert report['watch_beyond'].endswith('; falling back to the full run')
+    # the full run the fallback set is watched on by its twin alone, the plan no longer
+    again.take_over(sim)
+    step_watched(watch, sim, 3.6)
+    assert watch.report()['watched'].startswith('automatic plan beyond')
+    step_watched(watch, again, 3.7)
+    assert again.watch_reference is not None and again.watch_reference.reference is None
+    assert again.watch_reference.tolerance == 1e-6
+    assert watch.report()['watched'] == ('every 1 s of the run: a 0.25 s window of its twin '
+                                         'moved by a hair (none yet)')
+    step_watched(watch, again, 5.0)
+    assert watch.report()['watched'].startswith("1 window: last a hair's difference ")
 
 
 def test_a_band_set_by_hand_is_no_longer_the_plan_and_is_not_watched(plan):

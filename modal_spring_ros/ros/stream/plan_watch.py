@@ -12,7 +12,9 @@ and the run goes on.
 
 A run is watched while it is the automatic plan the pilot measured: a band changed by hand on it
 is no longer that plan (it is not watched again until a new plan is made), a reset or a
-recovery restarts the watch, a new simulation brings its own (or none).
+recovery restarts the watch, a new simulation brings its own (or none). The full run a fallback
+sets is watched by its twin alone, as a full run the pilot chose is: its step was measured over
+the pilot's window only, and a motion gone chaotic holds no tolerance, the fallback's included.
 """
 from __future__ import annotations
 
@@ -20,7 +22,8 @@ import threading
 import time
 from typing import Callable, Mapping
 
-from modal_spring_ros.core.auto.watch.run_watch import RunWatch, watch_of, WatchedWindow
+from modal_spring_ros.core.auto.watch.run_watch import (RunWatch, twin_reference, watch_of,
+                                                        watchable, WatchedWindow)
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.parameters import CONFIG_NAMES
 from rcl_interfaces.msg import SetParametersResult
@@ -85,6 +88,7 @@ class PlanWatch:
         self._interval = 0.0
         self._unwatched: Simulation | None = None  # a run whose band was changed by hand
         self._beyond = ('', -float('inf'))         # (message, monotonic time)
+        self._fell: float | None = None            # the tolerance of a fallback under way
 
     def step(self, sim: Simulation, interval_s: float, deadline: float) -> None:
         """Step the watch of ``sim`` until ``deadline`` (monotonic), or do nothing."""
@@ -108,6 +112,7 @@ class PlanWatch:
         self._beyond = (beyond_message(window, settings), time.monotonic())
         self._unwatched = sim                      # once: the fallback replaces it
         self._watch = None
+        self._fell = window.tolerance if settings.get('method') == 'full' else None
         self._on_beyond(window, settings)
 
     def took_input(self, sim: Simulation) -> None:
@@ -138,6 +143,11 @@ class PlanWatch:
         if sim is self._unwatched:
             self._watch = None
         elif self._watch is None or self._sim is not sim or self._interval != interval_s:
+            if self._fell is not None and self._sim is not sim:      # the fallback's full run
+                if (sim.method == 'full' and sim.watch_reference is None
+                        and watchable(sim.model)):
+                    sim.watch_reference = twin_reference(sim, self._fell)
+                self._fell = None
             self._watch = watch_of(sim, interval_s, budget=CORE_SHARE * 1e6)
             self._sim, self._interval = sim, interval_s
         return self._watch
