@@ -2,7 +2,7 @@
 ``modal_spring_bench``: the project's benchmarks, as suites, with their results on disk.
 
     modal_spring_bench [--suite steps,stream,tradeoff,promise,promise_demanding,auto,response,
-                                scale,headline,peer,contact,meshes,storm]
+                                scale,headline,peer,contact,meshes,storm,watch]
                        [--quick]
                        [--case TEXT]
                        [--seeds LIST]
@@ -30,7 +30,9 @@ chart), ``meshes`` (a 10,000-vertex cloth and a
 10,000-particle solid brought as mesh files: load and precompute time with progress, the modal
 step and frame against the full run's, cost per simulated second), ``storm`` (four clients
 sending parameter requests without pause for 10 minutes: answer times, requests unanswered, the
-node's memory over the storm, with a PNG chart). Results are printed as tables and written to
+node's memory over the storm, with a PNG chart), ``watch`` (a plan whose motion outgrows what
+was measured, watched never due: the sentinel's windows, the fallback, the plan's error each
+quarter second unwatched, with CSV and a PNG chart). Results are printed as tables and written to
 ``DIR/<suite>.json``. Progress goes to stderr.
 """
 from __future__ import annotations
@@ -47,6 +49,7 @@ from modal_spring_ros.bench.accuracy import promise
 from modal_spring_ros.bench.accuracy import promise_demanding
 from modal_spring_ros.bench.accuracy import response
 from modal_spring_ros.bench.accuracy import tradeoff
+from modal_spring_ros.bench.accuracy import watched
 from modal_spring_ros.bench.costs import memory
 from modal_spring_ros.bench.costs import meshes
 from modal_spring_ros.bench.costs import steps
@@ -63,7 +66,7 @@ SUITES = {'steps': steps, 'stream': stream, 'tradeoff': tradeoff, 'promise': pro
           'promise_demanding': promise_demanding,
           'auto': auto_scenes, 'response': response, 'scale': memory,
           'headline': headline, 'peer': peer, 'contact': contact_drop, 'meshes': meshes,
-          'storm': storm}
+          'storm': storm, 'watch': watched}
 
 
 def main(argv: list[str] | None = None) -> int:

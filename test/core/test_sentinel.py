@@ -10,10 +10,11 @@ beyond the tolerance) can catch it, and they must catch it as it passes 2 T.
 """
 from __future__ import annotations
 
-from helpers import variant
+from modal_spring_ros.bench.accuracy.watched import (NEVER_S, plan_of, quarter_errors, RUN_S,
+                                                     shaken_harder, TOLERANCE)
 from modal_spring_ros.core.auto.measured_error import (WINDOW_ALLOWANCE, window_errors,
                                                        worst_window)
-from modal_spring_ros.core.auto.watch.run_watch import RunWatch, TOOK_INPUT
+from modal_spring_ros.core.auto.watch.run_watch import HEADING, RunWatch, TOOK_INPUT
 from modal_spring_ros.core.auto.watch.sentinel import RISE
 from modal_spring_ros.core.auto.watch.windows import WatchedWindow
 from modal_spring_ros.core.config import SimulationConfig
@@ -26,38 +27,6 @@ from modal_spring_ros.scenes.resources import load_scene
 import numpy as np
 import pytest
 
-TOLERANCE = 0.01
-#: longer than any run here: no window is ever due
-NEVER_S = 1000.0
-RUN_S = 9.0
-
-
-def shaken_harder():
-    return variant('sheet_10x10', anchor_motion=[
-        {'axis': 'x', 'amplitude': 0.02, 'frequency_hz': 0.7, 'ramp_s': 1.0},
-        {'axis': 'z', 'amplitude': 0.03, 'frequency_hz': 9.5, 'ramp_s': 12.0}])
-
-
-def planned(scene):
-    return build_simulation(scene, SimulationConfig(auto=True, tolerance=TOLERANCE,
-                                                    planning_share=None))
-
-
-def quarter_errors(plan, duration: float) -> tuple[np.ndarray, float]:
-    """Return the plan's error against its full reference each quarter second, and its length."""
-    reference = plan.watch_reference
-    runs = [plan.with_dt(plan.dt), reference.reference()]
-    samples = int(round(duration / reference.sample_s))
-    shapes = np.empty((2, samples, plan.model.n_free_dof))
-    for k in range(samples):
-        for which, run in enumerate(runs):
-            run.step(round(reference.sample_s / run.dt))
-            shapes[which, k] = run.displacement()
-    difference = np.einsum('ij,ij->i', shapes[0] - shapes[1], shapes[0] - shapes[1])
-    motion = np.einsum('ij,ij->i', shapes[1], shapes[1])
-    errors = window_errors(difference, motion, reference.sample_s)
-    return errors, duration / errors.size
-
 
 @pytest.mark.slow
 def test_a_motion_that_outgrows_the_measured_is_caught_as_its_error_passes_2_t():
@@ -67,9 +36,10 @@ def test_a_motion_that_outgrows_the_measured_is_caught_as_its_error_passes_2_t()
     The next follows at once while the error heads beyond the tolerance, until one falls back.
     (With no sentinel, no window at all: the interval is longer than the run.)
     """
-    plan = planned(shaken_harder())
+    plan = plan_of(shaken_harder())
     assert plan.method == 'modal'
-    errors, quarter_s = quarter_errors(plan, RUN_S)
+    errors = quarter_errors(plan, RUN_S)
+    quarter_s = RUN_S / errors.size
     passes = int(np.argmax(errors > WINDOW_ALLOWANCE * TOLERANCE))
     assert errors[passes] > WINDOW_ALLOWANCE * TOLERANCE and passes * quarter_s > 5.0
     assert errors[:passes // 2].max() < TOLERANCE         # within it for more than a window
@@ -85,7 +55,7 @@ def test_a_motion_that_outgrows_the_measured_is_caught_as_its_error_passes_2_t()
     assert plan.watch_reference.window_s < early.start_s < passes * quarter_s
     # the windows that follow it come at once while the error heads beyond the tolerance
     for before, after in zip(seen, seen[1:]):
-        assert before[0].rising
+        assert before[0].rising and after[0].cause == HEADING
         assert after[0].start_s == pytest.approx(before[0].start_s + before[0].window_s,
                                                  abs=plan.dt)
     # the last is beyond the promise: the run fell back within the first quarter second its
@@ -97,7 +67,7 @@ def test_a_motion_that_outgrows_the_measured_is_caught_as_its_error_passes_2_t()
 
 def test_a_steady_run_starts_no_window_early():
     """sheet_10x10 as built in (a steady shake): the sentinel stays quiet for 20 s."""
-    plan = planned(load_scene('sheet_10x10'))
+    plan = plan_of(load_scene('sheet_10x10'))
     watch = RunWatch(plan.watch_reference, NEVER_S)
     seen = []
     record(plan.with_dt(plan.dt), 20.0, frame_every=50, watch=watch, keep_frames=False,
@@ -114,7 +84,7 @@ def test_a_pull_taken_after_the_measured_span_began_is_not_counted_as_measured()
     (a corner held 5 N aside moves the sheet less than twice what its pilot saw) passes as
     measured and no window comes in the run.
     """
-    plan = planned(load_scene('sheet_10x10'))
+    plan = plan_of(load_scene('sheet_10x10'))
     corner = int(np.argmin(plan.model.scene.rest_positions[:, 0]
                            + plan.model.scene.rest_positions[:, 2]))
     for told in (True, False):
@@ -176,7 +146,7 @@ def test_a_modal_run_s_motion_size_from_its_coordinates_is_the_physical_one(basi
 
 def test_a_stream_of_inputs_is_watched_no_more_often_than_the_budget_affords():
     """Inputs every half second on a watch whose budget affords a window every 4 s: two."""
-    plan = planned(load_scene('sheet_10x10'))
+    plan = plan_of(load_scene('sheet_10x10'))
     reference = plan.watch_reference
     watch = RunWatch(reference, NEVER_S, budget=reference.window_s * reference.shadow_work / 4.0)
     assert watch.least_s == pytest.approx(4.0) and watch.interval_s == NEVER_S
@@ -202,7 +172,7 @@ def test_the_full_run_fallen_back_to_is_watched_by_its_twin():
     hair's difference grows there (the full run at that step is 3-7 % off its converged
     reference): its twin's windows, every 3 s from the fallback, say so.
     """
-    plan = planned(shaken_harder())
+    plan = plan_of(shaken_harder())
     watch = RunWatch(plan.watch_reference, 3.0, run_s=20.0)
     seen = []
     run = record(plan.with_dt(plan.dt), 20.0, frame_every=10, watch=watch, keep_frames=False,

@@ -65,6 +65,8 @@ DEFAULT_INTERVAL_S = 10.0
 WORK_SHARE = 0.25
 #: Why a window started before it was due, where the run took an input (:meth:`took_input`).
 TOOK_INPUT = 'the run took an input no window measured'
+#: ... and where the window before it was heading beyond the tolerance.
+HEADING = "the last window's error heading beyond the tolerance"
 #: A full run the pilot chose is watched by its twin alone (over ``TWIN_WINDOW_S`` on
 #: ``TWIN_SAMPLES`` samples, stepped beside the run) in a run where it costs at most this share
 #: of it: runs of 5 s and more.
@@ -158,6 +160,7 @@ class RunWatch:
         self._next: float | None = None   # when the next window starts (None: the first)
         self._measured_until = -math.inf   # the end of the span the last window measures
         self._input = False                 # the run took an input no window measured
+        self._heading = False               # the last window's error was heading beyond
         self._started = -math.inf           # when the last window started
         self._began: float | None = None    # when the watch began (its first call)
         #: the watch of the run this one fell back to (:meth:`after_fallback`), or None
@@ -196,8 +199,9 @@ class RunWatch:
             return None
         self._next, self._started = sim.time + self.interval_s, sim.time
         self._measured_until = sim.time + self.reference.window_s
-        cause = self.sentinel.describe_beyond() if outgrown else TOOK_INPUT if took else ''
-        self._input = False
+        cause = (self.sentinel.describe_beyond() if outgrown else TOOK_INPUT if took
+                 else HEADING if self._heading else '')
+        self._input = self._heading = False
         return cause
 
     def _measured(self, sim: Simulation) -> bool:
@@ -212,7 +216,7 @@ class RunWatch:
 
     def _finished(self, window: WatchedWindow) -> WatchedWindow:
         if window.rising:          # watched on from where it ended, until caught or back within
-            self._next = min(self._next, self._measured_until)
+            self._next, self._heading = min(self._next, self._measured_until), True
         self.windows += 1
         self.last = window
         if window.measured and (self.worst is None or not window.error <= self.worst.error):
@@ -327,7 +331,7 @@ class RunWatch:
         The plan's copy is made again from the run's state then.
         """
         self._shadow = self._beside = self._runs = self._next = None
-        self._input, self._started = False, -math.inf
+        self._input, self._heading, self._started = False, False, -math.inf
         if self.sentinel is not None:
             self.sentinel.restart()
 
