@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import Callable
 
 from modal_spring_ros.bench.charts import subplots
-from modal_spring_ros.core.auto.measured_error import WINDOW_ALLOWANCE, window_errors
+from modal_spring_ros.core.auto.measured_error import (trajectory, trajectory_windows,
+                                                       WINDOW_ALLOWANCE)
 from modal_spring_ros.core.auto.watch.run_watch import RunWatch
 from modal_spring_ros.core.auto.watch.sentinel import RISE
 from modal_spring_ros.core.config import SimulationConfig
@@ -55,16 +56,10 @@ def plan_of(scene: Scene):
 def quarter_errors(plan, duration: float) -> np.ndarray:
     """Return the plan's error from rest against its full reference, each quarter second."""
     reference = plan.watch_reference
-    runs = [plan.with_dt(plan.dt), reference.reference()]
     samples = int(round(duration / reference.sample_s))
-    shapes = np.empty((2, samples, plan.model.n_free_dof))
-    for k in range(samples):
-        for which, run in enumerate(runs):
-            run.step(round(reference.sample_s / run.dt))
-            shapes[which, k] = run.displacement()
-    difference = np.einsum('ij,ij->i', shapes[0] - shapes[1], shapes[0] - shapes[1])
-    motion = np.einsum('ij,ij->i', shapes[1], shapes[1])
-    return window_errors(difference, motion, reference.sample_s)
+    run = trajectory(plan.with_dt(plan.dt), reference.sample_s, samples)
+    truth = trajectory(reference.reference(), reference.sample_s, samples)
+    return trajectory_windows(run, truth, reference.sample_s)
 
 
 def watched_run(plan, duration: float) -> tuple[list[dict], dict]:

@@ -155,8 +155,13 @@ def worst_window(run: np.ndarray | None, reference: np.ndarray, sample_s: float)
     """
     if run is None:
         return math.inf
-    return float(window_errors(np.einsum('ij,ij->i', run - reference, run - reference),
-                               np.einsum('ij,ij->i', reference, reference), sample_s).max())
+    return float(trajectory_windows(run, reference, sample_s).max())
+
+
+def trajectory_windows(run: np.ndarray, reference: np.ndarray, sample_s: float) -> np.ndarray:
+    """Return the error of each of :func:`worst_window`'s windows of ``run``, in order."""
+    return window_errors(np.einsum('ij,ij->i', run - reference, run - reference),
+                         np.einsum('ij,ij->i', reference, reference), sample_s)
 
 
 def window_errors(difference: np.ndarray, motion: np.ndarray, sample_s: float) -> np.ndarray:

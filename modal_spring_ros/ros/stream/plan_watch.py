@@ -13,8 +13,8 @@ and the run goes on.
 A run is watched while it is the automatic plan the pilot measured: a band changed by hand on it
 is no longer that plan (it is not watched again until a new plan is made), a reset or a
 recovery restarts the watch, a new simulation brings its own (or none). The full run a fallback
-sets is watched by its twin alone, as a full run the pilot chose is: its step was measured over
-the pilot's window only, and a motion gone chaotic holds no tolerance, the fallback's included.
+sets is watched by its twin alone (:func:`~modal_spring_ros.core.auto.watch.run_watch.
+twin_watched`).
 """
 from __future__ import annotations
 
@@ -22,8 +22,8 @@ import threading
 import time
 from typing import Callable, Mapping
 
-from modal_spring_ros.core.auto.watch.run_watch import (RunWatch, twin_reference, watch_of,
-                                                        watchable, WatchedWindow)
+from modal_spring_ros.core.auto.watch.run_watch import (RunWatch, twin_watched, watch_of,
+                                                        WatchedWindow)
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.parameters import CONFIG_NAMES
 from rcl_interfaces.msg import SetParametersResult
@@ -144,9 +144,7 @@ class PlanWatch:
             self._watch = None
         elif self._watch is None or self._sim is not sim or self._interval != interval_s:
             if self._fell is not None and self._sim is not sim:      # the fallback's full run
-                if (sim.method == 'full' and sim.watch_reference is None
-                        and watchable(sim.model)):
-                    sim.watch_reference = twin_reference(sim, self._fell)
+                twin_watched(sim, self._fell)
                 self._fell = None
             self._watch = watch_of(sim, interval_s, budget=CORE_SHARE * 1e6)
             self._sim, self._interval = sim, interval_s

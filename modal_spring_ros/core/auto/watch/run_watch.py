@@ -117,6 +117,21 @@ def twin_reference(sim: Simulation, tolerance: float) -> 'WatchReference':
                           tolerance, work, 2.0 * work)
 
 
+def twin_watched(fallback: Simulation, tolerance: float) -> bool:
+    """
+    Give the full run a plan fell back to its twin to be watched by; tell whether it has one.
+
+    As a full run the pilot chose (:func:`twin_reference`): its step was measured over the
+    pilot's window only, and a motion gone chaotic holds no tolerance, the fallback's included.
+    A run with a reference of its own keeps it.
+    """
+    if fallback.method != 'full' or not watchable(fallback.model):
+        return False
+    if fallback.watch_reference is None:
+        fallback.watch_reference = twin_reference(fallback, tolerance)
+    return True
+
+
 class RunWatch:
     """
     Watch one run: a shadow window every ``interval_s`` of simulated time, from its state.
@@ -297,14 +312,12 @@ class RunWatch:
         """
         Return the watch of ``fallback``, the run this one's window fell back to (None: none).
 
-        A full run is watched by its twin alone, as a full run the pilot chose is (its step was
-        measured over the pilot's window only: a motion gone chaotic holds no tolerance, the
-        fallback's included), over what is left of the run, at the interval asked for (or the
-        default); the richer plan is not watched again. Kept as :attr:`then`.
+        A full run is watched by its twin alone (:func:`twin_watched`), over what is left of the
+        run, at the interval asked for (or the default); the richer plan is not watched again.
+        Kept as :attr:`then`.
         """
-        if fallback.method != 'full' or not watchable(fallback.model):
+        if not twin_watched(fallback, self.reference.tolerance):
             return None
-        fallback.watch_reference = twin_reference(fallback, self.reference.tolerance)
         left = (None if self.run_s is None or self._began is None
                 else self._began + self.run_s - fallback.time)
         self.then = watch_of(fallback, self.asked_s, run_s=left)

@@ -86,10 +86,9 @@ class Shadows:
         ref = self.reference
         if ref.reference is None:
             return math.nan, math.nan, math.nan
-        difference, motion = sum(self._differences), sum(self._motions)
-        error = math.sqrt(difference / motion) if motion > 0.0 else 0.0
-        quarters = window_errors(np.array(self._differences), np.array(self._motions),
-                                 ref.sample_s)
+        difference, motion = np.array(self._differences), np.array(self._motions)
+        error = math.sqrt(difference.sum() / motion.sum()) if motion.sum() > 0.0 else 0.0
+        quarters = window_errors(difference, motion, ref.sample_s)
         heading = quarters[-1]
         late = quarters[len(quarters) // 2:]
         if late.size >= 2 and np.all(np.isfinite(late)):
