@@ -208,7 +208,8 @@ class RunWatch:
             self._next = sim.time + self.first_s
             self._began = sim.time if self._began is None else self._began
             self._measured_until = sim.time + self.reference.window_s
-        outgrown = self.sentinel is not None and self.sentinel.outgrown(sim, self._measured(sim))
+        outgrown = (self.sentinel is not None and sim.time + 0.5 * sim.dt >= self.sentinel.next_s
+                    and self.sentinel.outgrown(sim, self._measured(sim)))  # once a sample
         took = self._input and sim.time + 0.5 * sim.dt >= self._started + self.least_s
         if not (outgrown or took) and sim.time + 0.5 * sim.dt < self._next:
             return None
@@ -330,8 +331,7 @@ class RunWatch:
         A plan's watch starts a window from the run's state as soon as none is under way and
         its budget affords one (:attr:`least_s` after the last one's start; the span measured
         ends now): a local load can take a plan off its promise with little motion (a corner
-        pulled aside by 5 N moves the sheet less than twice what its pilot saw). A stream of
-        inputs is watched window after window, at most as often as the budget allows.
+        pulled aside by 5 N). A stream of inputs is watched no more often than the budget allows.
         """
         if self.sentinel is not None:
             self._measured_until = min(self._measured_until, sim.time)

@@ -61,11 +61,12 @@ class Sentinel:
         #: the sizes beyond the envelope that started the last window, and how many it started
         self.beyond: np.ndarray | None = None
         self.started = 0
-        self._next = -math.inf
+        #: when the run is read next (a caller stepping one step at a time checks it first)
+        self.next_s = -math.inf
 
     def restart(self) -> None:
         """Read the run again from its next sample (a reset); the envelope is kept."""
-        self._next = -math.inf
+        self.next_s = -math.inf
 
     def outgrown(self, sim: Simulation, measured: bool) -> bool:
         """
@@ -75,9 +76,9 @@ class Sentinel:
         widens the envelope. Outside, a motion beyond ``RISE`` times the envelope is outgrown:
         the window that starts now measures it (the envelope takes it).
         """
-        if sim.time + 0.5 * sim.dt < self._next:
+        if sim.time + 0.5 * sim.dt < self.next_s:
             return False
-        self._next = sim.time + self.sample_s
+        self.next_s = sim.time + self.sample_s
         if self.envelope is None:
             self.envelope = floor(sim, self.window_s)
         size = np.array(sim.motion_size())
