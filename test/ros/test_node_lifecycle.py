@@ -289,23 +289,30 @@ def test_a_band_needing_new_modes_keeps_the_stream_going():
         # the worker that computed them gives way to the stream: 10 below the node's priority
         assert spawned_niceness(node.proc.pid) == [min(niceness(node.proc.pid) + 10, 19)]
 
-        def longest_gap(since: float, until: float) -> float:
-            """Return the longest gap between two frames the node reported in a window."""
-            return max(float(v['longest gap between frames (s)']) for t, v in mine
-                       if since < t <= until)
+        def gaps(since: float, until: float) -> np.ndarray:
+            """Return the longest gap between two frames of each report in a window."""
+            return np.array([float(v['longest gap between frames (s)']) for t, v in mine
+                             if since < t <= until])
         # the node's own account of its frames (a frame a busy test process is too slow to
         # take is overwritten in the publisher's history: a gap here, not in the stream)
-        steady = longest_gap(start - 3.0, start)
+        steady = gaps(start - 3.0, start)
         # while the modes are computed and the switch is made (after it, a run of 100 modes is a
         # heavier run: whether it keeps real time is reported apart, not a stall)
-        worst = longest_gap(start, done)
+        working = gaps(start, done)
         received = np.array([stamp_s(m) for t, m in points if start < t <= done])
-        print(f'longest gap {worst:.3f} s (steady: {steady:.3f} s; between frames received: '
+        print(f'longest gap a report while working {np.round(working, 3)} s (steady: '
+              f'{np.round(steady, 3)} s; between frames received: '
               f'{np.diff(received).max():.3f} s)')
-        # here about 0.05-0.2 s; within five of the same run's longest steady gaps (what the
-        # eigensolver in the node's own interpreter once did: 0.07-0.2 s at each hold, every time)
-        assert worst < 5.0 * max(steady, 1.0 / 60.0), (
-            worst, steady, [d.status[0].message for t, d in diags if start < t <= done])
+        # The eigensolver in the node's own interpreter once held it 0.07-0.2 s at each hold,
+        # every time: most reports while working had a gap of several frames. Here a report's
+        # gap is typically that of the steady stream; a busy machine's stall may lengthen one
+        # report's (it did, to 0.185 s beside two busy processes), not most of them.
+        bound = 5.0 * max(steady.max(), 1.0 / 60.0)
+        typical = float(np.median(working))
+        assert typical < bound, (
+            typical, bound, [d.status[0].message for t, d in diags if start < t <= done])
+        # and no report's gap is a hold of half a second or more
+        assert working.max() < max(bound, 0.5), (working.max(), steady)
 
 
 @pytest.mark.parametrize('scene, stage, never', [
