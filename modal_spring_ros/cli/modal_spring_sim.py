@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import os
 import sys
 import time
 
@@ -27,6 +28,8 @@ except ImportError as missing:    # pip install without the ros extra: runs, but
 from modal_spring_ros.core.auto.watch.run_watch import RunWatch, watch_of, WatchedWindow
 from modal_spring_ros.core.config import MAX_HORIZON_S
 from modal_spring_ros.core.factory import build_simulation
+from modal_spring_ros.core.memory_estimate import gib
+from modal_spring_ros.runs.frame_store import check_room, frame_count, IN_MEMORY_BYTES
 from modal_spring_ros.runs.response_chart import draw_response
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.runs.sample_cache import sample_cache
@@ -88,6 +91,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.bag:
             bag = RunBagWriter(args.bag, sim.model.scene, config, dt=sim.dt,
                                frame_every=args.frame_every, duration=duration)
+        if args.output:
+            check_room(args.output, frame_count(duration, sim.dt, args.frame_every),
+                       sim.model.scene.n_particles, f'--output {args.output}')
         start = time.perf_counter()
         ahead = head_start(sim, duration, keeps_frames=bool(args.output or args.bag))
         run_s = duration - ahead
@@ -101,7 +107,9 @@ def main(argv: list[str] | None = None) -> int:
                          on_watch=None if args.quiet else
                          lambda window, now: print(f'[{PROG}] {watched_line(window, now)}',
                                                    file=sys.stderr),
-                         keep_frames=bool(args.output))
+                         keep_frames=bool(args.output),
+                         frames_dir=os.path.dirname(os.path.abspath(args.output))
+                         if args.output else None)
             shown(run.simulation.time, final=True)
             if bag:
                 bag.close()
@@ -114,6 +122,9 @@ def main(argv: list[str] | None = None) -> int:
         steps = max(sim.steps, 1)
         print(summary(sim, run.diverged, wall / steps, wall, watch, ahead))
         if args.output:
+            if not args.quiet and run.positions.nbytes > IN_MEMORY_BYTES:
+                print(f'[{PROG}] writing {args.output}: {run.t.size:,} frames '
+                      f'({gib(run.positions.nbytes)}, stored uncompressed)', file=sys.stderr)
             write_output(args.output, '--output', lambda: run.save_npz(args.output))
             print(f'wrote {args.output} ({run.t.size} frames)')
         if args.bag:

@@ -7,10 +7,12 @@ refused at once with one line, and a failed command leaves no file behind.
 from __future__ import annotations
 
 import os
+import shutil
 import stat
 
 from helpers import BAGS
 from modal_spring_ros.cli import modal_spring_compare, modal_spring_sim
+import numpy as np
 import pytest
 
 FULL = str(BAGS / 'sheet_10x10_full')
@@ -71,3 +73,36 @@ def test_a_failed_comparison_leaves_no_output_file(tmp_path, capsys):
     err = _error(modal_spring_compare.main, [str(chain), FULL, '--json', str(out)], capsys)
     assert 'different scenes' in err
     assert not out.exists()
+
+
+def test_a_run_without_room_for_its_frames_is_refused_before_it_starts(tmp_path, capsys,
+                                                                       monkeypatch):
+    """Its frames, its disk's free space and a --frame-every that fits are named; no file."""
+    out = tmp_path / 'long.npz'
+    free = shutil.disk_usage(tmp_path).free
+    # sheet_10x10 over 2 s at 0.5 ms: 4,001 frames of 100 particles, 9.6 MB
+    room = _usage_with_free(monkeypatch, 3_000_000)
+    err = _error(modal_spring_sim.main, ['--method', 'full', '--duration', '2', '--output',
+                                         str(out), '--quiet'], capsys)
+    assert room.asked and all(os.path.samefile(p, tmp_path) for p in room.asked), room.asked
+    assert f'--output {out}: the run keeps 4,001 frames of 100 particles' in err
+    assert 'free: keep fewer frames (--frame-every 4 or more)' in err
+    assert not out.exists()
+    room.free = free                      # --frame-every 4 fits: it runs and writes
+    assert modal_spring_sim.main(['--method', 'full', '--duration', '2', '--frame-every', '4',
+                                  '--output', str(out), '--quiet']) == 0
+    assert np.load(out)['positions'].shape == (1001, 100, 3)
+
+
+def _usage_with_free(monkeypatch, free: int):
+    """Make shutil.disk_usage say ``free`` bytes are free; return what records the calls."""
+    class Usage:
+        asked: list[str] = []
+
+        def __call__(self, path):
+            self.asked.append(os.fspath(path))
+            return real(path)._replace(free=self.free)
+    real, usage = shutil.disk_usage, Usage()
+    usage.free = free
+    monkeypatch.setattr(shutil, 'disk_usage', usage)
+    return usage
