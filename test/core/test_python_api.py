@@ -32,7 +32,8 @@ WAYS = [pytest.param((sys.executable, HIDE_ROS), id='ros-hidden'),
 def test_the_documented_example_runs_without_ros(way):
     python, prelude = way
     page = (REPO / 'docs' / 'python_api.md').read_text()
-    (example,) = re.findall(r'```python\n(.*?)```', page, flags=re.S)
+    # the page's examples, run in turn (the later ones go on with the first one's run)
+    example = '\n'.join(re.findall(r'```python\n(.*?)```', page, flags=re.S))
     done = subprocess.run([python, '-c', prelude + example], capture_output=True,
                           text=True, timeout=300, cwd=REPO)
     assert done.returncode == 0, done.stderr[-2000:]

@@ -10,6 +10,7 @@ from modal_spring_ros.core.simulations import FullSimulation, ModalSettings, Mod
 from modal_spring_ros.core.threads import (blas_threads, process_threads, STEP_THREADS,
                                            stepping_threads)
 import numpy as np
+from threadpoolctl import OpenBLASController, threadpool_limits, ThreadpoolController
 
 
 def test_holders_nest_and_overlap_and_the_setting_comes_back_after_the_last(two_blas_threads):
@@ -77,3 +78,25 @@ def test_the_process_limit_is_the_stepping_one_so_steps_inside_it_nest(two_blas_
             assert blas_threads() == 1          # steps on one, whatever the user set
         assert blas_threads() == 2
     assert blas_threads() == 2
+
+
+def test_a_library_already_on_one_thread_is_left_alone_and_one_on_two_set_and_set_back(
+        two_blas_threads, monkeypatch):
+    """A step taken one at a time switches each library once each way, or not at all."""
+    calls = []
+    real = OpenBLASController.set_num_threads
+
+    def counted(self, count):
+        calls.append(count)
+        return real(self, count)
+    monkeypatch.setattr(OpenBLASController, 'set_num_threads', counted)
+    with stepping_threads():
+        assert blas_threads() == 1
+    libraries = len(ThreadpoolController().select(user_api='blas').lib_controllers)
+    assert libraries >= 1 and calls == [1] * libraries + [2] * libraries
+    assert blas_threads() == 2
+    with threadpool_limits(1, user_api='blas'):     # a user's OPENBLAS_NUM_THREADS=1
+        calls.clear()
+        with stepping_threads():
+            assert blas_threads() == 1
+        assert calls == [] and blas_threads() == 1
