@@ -19,7 +19,7 @@ from modal_spring_ros.core.motion.anchor_motion import (AnchorMotion, RotationCo
                                                         SineComponent)
 from modal_spring_ros.scenes.fields.bending_fields import listed_bending
 from modal_spring_ros.scenes.fields.contact_fields import contact_field
-from modal_spring_ros.scenes.fields.fixed_regions import fixed_particles
+from modal_spring_ros.scenes.fields.fixed_regions import check_held, fixed_particles
 from modal_spring_ros.scenes.fields.limits import (available_memory, BYTES_PER_PARTICLE, LIMITS,
                                                    MAX_STEPS)
 from modal_spring_ros.scenes.fields.mesh_fields import mesh_network
@@ -89,7 +89,7 @@ class _SceneParser(FieldReader):
             bending = listed_bending(self, data.get('bending'), positions)
         rest_length = self.check_springs(pairs, positions)
         fixed = fixed_particles(self, data.get('fixed'), positions)
-        self.check_connected(pairs, positions.shape[0])
+        check_held(self, pairs, positions, fixed)
 
         gravity = self.vector3(data.get('gravity', [0.0, 0.0, 0.0]), 'gravity',
                                LIMITS['gravity'])
@@ -314,13 +314,6 @@ class _SceneParser(FieldReader):
         if need > have:
             raise self.fail(field, f'{particles:,} particles need at least {gib(need)} to build '
                             f'and run, and {gib(have)} are available')
-
-    def check_connected(self, pairs: np.ndarray, n: int) -> None:
-        degree = np.bincount(pairs.ravel(), minlength=n)
-        lonely = np.flatnonzero(degree == 0)
-        if lonely.size:
-            listed = ', '.join(str(i) for i in lonely[:10]) + (' ...' if lonely.size > 10 else '')
-            raise self.fail('springs', f'{lonely.size} particle(s) no spring reaches: {listed}')
 
     def damping(self, spec: Any) -> Damping:
         spec = self.mapping(spec or {}, 'damping')

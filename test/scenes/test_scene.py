@@ -143,6 +143,11 @@ def _chain(**override):
      'springs.pairs[1]: connects particle 1 to itself'),
     ({'springs__pairs': [[0, 1]], 'springs__stiffness': 1.0},
      'springs: 1 particle(s) no spring reaches: 2'),
+    ({'particles__positions': [[0, 0], [1, 0], [1, 1], [2, 1]],
+      'springs__pairs': [[0, 1], [2, 3]], 'springs__stiffness': 10.0},
+     "fixed: 1 of the object's 2 parts (particles joined by springs) holds no fixed particle, "
+     'so nothing holds it: the largest, 2 particles around (1.5, 0, 1), is particles 2, 3; fix '
+     'a particle of each part, or join it to a held one with springs'),
     ({'fixed': {'indices': []}}, 'fixed: no particle is fixed'),
     ({'fixed': None}, 'fixed: missing: at least one particle must be fixed'),
     ({'fixed': {'indices': [7]}}, 'fixed.indices[0]: particle index 7 out of range (0..2)'),

@@ -9,7 +9,9 @@ fixed: {near: {point: [x, y, z], radius: r}}  # within r of a point; a list of t
 ```
 
 Any of them together: a particle is fixed when any of them holds it. Each region must hold at
-least one particle (a region that misses the object is a typo, not a choice).
+least one particle (a region that misses the object is a typo, not a choice), and every part of
+the object (the particles springs join) must hold one (:func:`check_held`): a part held by
+nothing floats off, and its stiffness has rigid-body zero modes.
 """
 from __future__ import annotations
 
@@ -18,6 +20,8 @@ from typing import Any
 from modal_spring_ros.scenes.fields.limits import LIMITS
 from modal_spring_ros.scenes.fields.reader import AXES, FieldReader
 import numpy as np
+import scipy.sparse
+from scipy.sparse.csgraph import connected_components
 
 FIXED_KEYS = ('indices', 'face', 'box', 'near')
 
@@ -94,3 +98,39 @@ def _held(reader: FieldReader, field: str, mask: np.ndarray) -> np.ndarray:
     if not mask.any():
         raise reader.fail(field, 'holds no particle: the region misses the object')
     return mask
+
+
+def check_held(reader: FieldReader, pairs: np.ndarray, positions: np.ndarray,
+               fixed: np.ndarray) -> None:
+    """
+    Check that a spring reaches every particle, and that every part of the object is held.
+
+    A part is a set of particles springs join (a mesh of two bodies, a lattice cut in two); one
+    without a fixed particle is named: how many parts are loose, the largest one's size, centre
+    and first particles.
+    """
+    n = positions.shape[0]
+    lonely = np.flatnonzero(np.bincount(pairs.ravel(), minlength=n) == 0)
+    if lonely.size:
+        raise reader.fail('springs', f'{lonely.size} particle(s) no spring reaches: '
+                          + _listed(lonely))
+    graph = scipy.sparse.coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])),
+                                    shape=(n, n))
+    parts, labels = connected_components(graph, directed=False)
+    held = np.zeros(parts, dtype=bool)
+    held[labels[fixed]] = True
+    loose = np.flatnonzero(~held)
+    if loose.size:
+        sizes = np.bincount(labels, minlength=parts)
+        largest = np.flatnonzero(labels == loose[np.argmax(sizes[loose])])
+        centre = ', '.join(f'{c:.3g}' for c in positions[largest].mean(axis=0))
+        verb = 'holds' if loose.size == 1 else 'hold'
+        raise reader.fail('fixed', f'{loose.size} of the object\'s {parts} parts (particles '
+                          f'joined by springs) {verb} no fixed particle, so nothing holds it: '
+                          f'the largest, {largest.size} particles around ({centre}), is '
+                          f'particles {_listed(largest)}; fix a particle of each part, or join '
+                          'it to a held one with springs')
+
+
+def _listed(indices: np.ndarray) -> str:
+    return ', '.join(str(i) for i in indices[:10]) + (' ...' if indices.size > 10 else '')
