@@ -125,7 +125,7 @@ def check_held(reader: FieldReader, pairs: np.ndarray, positions: np.ndarray,
         largest = np.flatnonzero(labels == loose[np.argmax(sizes[loose])])
         centre = ', '.join(f'{c:.3g}' for c in positions[largest].mean(axis=0))
         verb = 'holds' if loose.size == 1 else 'hold'
-        raise reader.fail('fixed', f'{loose.size} of the object\'s {parts} parts (particles '
+        raise reader.fail('fixed', f"{loose.size} of the object's {parts} parts (particles "
                           f'joined by springs) {verb} no fixed particle, so nothing holds it: '
                           f'the largest, {largest.size} particles around ({centre}), is '
                           f'particles {_listed(largest)}; fix a particle of each part, or join '
