@@ -62,7 +62,7 @@ class stepping_threads(contextlib.ContextDecorator):   # noqa: N801 (used as a f
     A context manager and a decorator. Each library's count is read and set through
     threadpoolctl's controller of it (a call into the library), not through a limiter (which
     reads every library's full description: 16 us, paid on every step by a caller that steps
-    one at a time, against 6 us now), and a library already at the count is left alone.
+    one at a time, against 8 us now), and a library already at the count is left alone.
     """
 
     def __enter__(self) -> None:

@@ -52,7 +52,7 @@ class Run:
 
         Frames beyond what memory should hold (``IN_MEMORY_BYTES``) are stored uncompressed:
         streamed from where they are kept, as a run's positions compress by a few percent at
-        about 15 MB/s (a 1.3 GB run: 8 % smaller after a minute).
+        about 20 MB/s (a 1.3 GB run: 8 % smaller after a minute).
         """
         s = self.scene
         save = np.savez_compressed if self.positions.nbytes <= IN_MEMORY_BYTES else np.savez
