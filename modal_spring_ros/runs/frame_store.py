@@ -111,10 +111,10 @@ class FrameStore:
 
     @property
     def times(self) -> np.ndarray:
-        """The frames' times, s (a view)."""
+        """Return the frames' times, s (a view)."""
         return self._times[:self.count]
 
     @property
     def positions(self) -> np.ndarray:
-        """The frames' positions, (frames, n, 3) (a view: in the file where the store has one)."""
+        """Return the frames' positions, (frames, n, 3) (a view: in the file if there is one)."""
         return self._positions[:self.count]

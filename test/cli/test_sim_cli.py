@@ -281,10 +281,11 @@ def test_a_plan_the_run_outgrows_is_caught_by_its_watch_and_falls_back(tmp_path,
                  '--planning-share', 'none']) == 0      # the plan is measured, then watched
     out, err = capsys.readouterr()
     within = [line for line in err.splitlines() if line.startswith('[modal_spring_sim] watched')]
-    assert len(within) == 1 and ' from t = 3 s against the full run' in within[0]
+    told = out + err[-3000:]                                # what a failure shows
+    assert len(within) == 1 and ' from t = 3 s against the full run' in within[0], told
     warning = [line for line in err.splitlines() if 'WARN: watched:' in line]
     assert len(warning) == 1 and 'beyond the tolerance 1.00%: the run falls back to the full' in (
-        warning[0])
+        warning[0]), told
     error = float(warning[0].split('watched: ')[1].split('%')[0]) / 100
     start = float(warning[0].split('from t = ')[1].split(' s')[0])
     assert error > 0.01 and start == pytest.approx(6.0, abs=0.01)
