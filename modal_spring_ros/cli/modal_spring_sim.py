@@ -29,7 +29,7 @@ from modal_spring_ros.core.auto.watch.run_watch import RunWatch, watch_of, Watch
 from modal_spring_ros.core.config import MAX_HORIZON_S
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.memory_estimate import gib
-from modal_spring_ros.runs.frame_store import check_room, frame_count, IN_MEMORY_BYTES
+from modal_spring_ros.runs.frame_store import check_room, frame_count
 from modal_spring_ros.runs.response_chart import draw_response
 from modal_spring_ros.runs.run import record
 from modal_spring_ros.runs.sample_cache import sample_cache
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         steps = max(sim.steps, 1)
         print(summary(sim, run.diverged, wall / steps, wall, watch, ahead))
         if args.output:
-            if not args.quiet and run.positions.nbytes > IN_MEMORY_BYTES:
+            if not (args.quiet or run.compressed):
                 print(f'[{PROG}] writing {args.output}: {run.t.size:,} frames '
                       f'({gib(run.positions.nbytes)}, stored uncompressed)', file=sys.stderr)
             write_output(args.output, '--output', lambda: run.save_npz(args.output))

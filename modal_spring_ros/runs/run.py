@@ -46,6 +46,11 @@ class Run:
     #: the simulation the run ended on (not saved: a watched run may have fallen back)
     simulation: Simulation | None = dataclasses.field(default=None, repr=False, compare=False)
 
+    @property
+    def compressed(self) -> bool:
+        """Tell whether :meth:`save_npz` compresses the run (its frames fit in memory)."""
+        return self.positions.nbytes <= IN_MEMORY_BYTES
+
     def save_npz(self, path: str | Path) -> None:
         """
         Write the run to ``path`` (``.npz``, compressed where its frames are few).
@@ -55,7 +60,7 @@ class Run:
         about 20 MB/s (a 1.3 GB run: 8 % smaller after a minute).
         """
         s = self.scene
-        save = np.savez_compressed if self.positions.nbytes <= IN_MEMORY_BYTES else np.savez
+        save = np.savez_compressed if self.compressed else np.savez
         path = Path(path)
         with open(path, 'wb') as fh:  # np.savez would append ".npz" to other names
             save(fh, t=self.t, positions=np.asarray(self.positions, dtype=np.float64),
