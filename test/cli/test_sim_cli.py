@@ -290,10 +290,13 @@ def test_a_plan_the_run_outgrows_is_caught_by_its_watch_and_falls_back(tmp_path,
     start = float(warning[0].split('from t = ')[1].split(' s')[0])
     assert error > 0.01 and start == pytest.approx(6.0, abs=0.01)
     watched = [line for line in out.splitlines() if line.startswith('watched ')]
-    # the full run fallen back to is watched by its twin, where a window costs little enough
-    assert len(watched) == 1 and watched[0].endswith(
-        'beyond 1.00%: fell back to the full run, watched then: no window: one 0.25 s window of '
-        'its twin would cost more than 5% of the run')
+    # the full run fallen back to is watched by its twin (a window costs a twelfth of the 3 s
+    # left), once, over the run's last quarter second
+    assert len(watched) == 1, told
+    fallen, then = watched[0].split(' watched then: ')
+    assert fallen.endswith('beyond 1.00%: fell back to the full run,'), told
+    assert then.startswith("1 window: last a hair's difference did not grow"), told
+    assert then.endswith('over 0.25 s from t = 8.751 s'), told
     assert 'method     full physical (180 DOF)' in out
     again = tmp_path / 'again'
     resimulate(bag, again)

@@ -124,18 +124,19 @@ def test_the_twin_starts_a_hair_from_the_run_and_the_same_for_the_same_run():
 def test_a_short_run_is_not_watched_by_its_twin_where_a_window_costs_more_than_its_share(
         stiff_ring):
     sim = stiff_ring
-    # the twin stepped beside the run costs it one window: 0.25 s of a 5 s run is 5 %
-    assert watch_of(sim, 1.0, run_s=4.9).first_s == 1.0           # not forced into the run
-    assert watch_of(sim, 20.0, run_s=5.1).first_s == pytest.approx(5.1 - TWIN_WINDOW_S)
+    # the twin stepped beside the run costs it one window: 0.25 s of a 2.5 s run is a tenth
+    assert watch_of(sim, 1.0, run_s=2.4).first_s == 1.0           # not forced into the run
+    assert watch_of(sim, 20.0, run_s=2.6).first_s == pytest.approx(2.6 - TWIN_WINDOW_S)
+    assert watch_of(sim, 20.0, run_s=4.9).first_s == pytest.approx(4.9 - TWIN_WINDOW_S)
     # a run no window falls in says so, and why (not "none yet": the run has ended)
-    assert watch_of(sim, None, run_s=4.9).describe() == (
-        'no window: one 0.25 s window of its twin would cost more than 5% of the run')
+    assert watch_of(sim, None, run_s=2.4).describe() == (
+        'no window: one 0.25 s window of its twin would cost more than 10% of the run')
     assert watch_of(sim, None, run_s=0.2).describe() == (
-        'no window: one 0.25 s window of its twin would cost more than 5% of the run')
+        'no window: one 0.25 s window of its twin would cost more than 10% of the run')
     assert RunWatch(sim.watch_reference, 10.0, run_s=0.2).describe() == (
         'no window: the run is no longer than one 0.25 s window')
-    assert watch_of(sim, 20.0, run_s=5.1).describe().startswith('every 20 s of the run')
-    assert watch_of(sim, 1.0, run_s=4.9).describe().startswith('every 1 s of the run')
+    assert watch_of(sim, 20.0, run_s=2.6).describe().startswith('every 20 s of the run')
+    assert watch_of(sim, 1.0, run_s=2.4).describe().startswith('every 1 s of the run')
 
 
 def test_a_full_run_watched_by_its_twin_never_falls_back(stiff_ring):

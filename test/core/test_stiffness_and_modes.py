@@ -9,6 +9,7 @@ from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.stiffness import (assemble_stiffness, element_stiffness,
                                                    local_stiffness_2d, rotation_matrix_2d)
 from modal_spring_ros.scenes.resources import load_scene
+from modal_spring_ros.scenes.sized import sized_scene
 import numpy as np
 import pytest
 
@@ -107,8 +108,10 @@ def test_modes_up_to_a_frequency_are_solved_for_only_as_far_as_affordable():
     assert basis.count == grown and basis.frequencies_hz[-1] <= 10.0 * top
 
 
-@pytest.mark.parametrize('name', ['sheet_32x32', 'sheet_100x100'])
-def test_the_modes_reaching_a_frequency_are_estimated_from_how_their_count_grew(name):
+@pytest.mark.parametrize('scene', [lambda: load_scene('sheet_32x32'),
+                                   lambda: sized_scene('sheet', 64)],
+                         ids=['sheet_32x32', 'sheet_64x64'])
+def test_the_modes_reaching_a_frequency_are_estimated_from_how_their_count_grew(scene):
     """
     ``reaching``: the count of the lowest modes up to a frequency, from the 32 there are.
 
@@ -116,7 +119,7 @@ def test_the_modes_reaching_a_frequency_are_estimated_from_how_their_count_grew(
     more) covers the modes really up to twice the highest, without twice as many again, and
     ``ensure_frequency`` reaches there in one solve (doubling took two: 64, then 128).
     """
-    model = MassSpringModel(load_scene(name))
+    model = MassSpringModel(scene())
     basis = ModalBasis(model, initial_modes=32)
     target = 2.0 * float(basis.frequencies_hz[-1])
     estimate = basis.reaching(target)

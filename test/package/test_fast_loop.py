@@ -6,6 +6,7 @@ runs every test, the slow ones included.
 """
 from __future__ import annotations
 
+import functools
 import os
 from pathlib import Path
 import subprocess
@@ -17,6 +18,7 @@ from helpers import REPO
 import pytest
 
 
+@functools.lru_cache(maxsize=None)
 def _collected(*args: str) -> dict[str, set[str]]:
     """
     Return the test ids pytest collects with ``args``, each with its marks (``marker_listing``).

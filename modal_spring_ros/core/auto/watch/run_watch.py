@@ -69,8 +69,9 @@ TOOK_INPUT = 'the run took an input no window measured'
 HEADING = "the last window's error heading beyond the tolerance"
 #: A full run the pilot chose is watched by its twin alone (over ``TWIN_WINDOW_S`` on
 #: ``TWIN_SAMPLES`` samples, stepped beside the run) in a run where it costs at most this share
-#: of it: runs of 5 s and more.
-TWIN_SHARE = 0.05
+#: of it: runs of 2.5 s and more (what planning may spend: ``PLANNING_SHARE`` in
+#: :mod:`~modal_spring_ros.core.auto.budget`).
+TWIN_SHARE = 0.1
 
 
 def watchable(model: MassSpringModel) -> bool:
