@@ -80,6 +80,32 @@ def test_a_turning_clamp_carries_its_particles_rigidly():
                                rtol=1e-13)
 
 
+def test_a_full_run_in_the_world_shows_where_its_particles_are_without_the_frame():
+    """
+    A full run of a turning clamp steps world positions: it shows them as they are.
+
+    They are the positions its displacement in the clamp's frame gives (the round trip it once
+    took for every frame), to round-off, and its fixed particles are where the clamp carries
+    them, in 2D and in 3D.
+    """
+    turn = {'rotation': 'y', 'amplitude_deg': 60.0, 'frequency_hz': 0.8, 'pivot': [0.0, 0.0, 0.0]}
+    scenes = [load_scene('sheet_10x10_swing'), variant('cantilever_3d', anchor_motion=[turn])]
+    for scene in scenes:
+        model = MassSpringModel(scene)
+        assert model.rotates
+        full = FullSimulation(model, ModalBasis(model, initial_modes=8), dt=5e-4)
+        full.step(1500)                                 # 0.75 s: turned and deformed
+        shown = full.positions()
+        through_frame = model.positions3(model.positions(full.displacement(), full.time))
+        size = float(np.abs(shown).max())
+        np.testing.assert_allclose(shown, through_frame, rtol=0, atol=1e-12 * size)
+        frame = model.frame(full.time)
+        np.testing.assert_allclose(
+            shown[model.fixed_particles][:, model.axes],
+            frame.carry(model.rest[model.fixed_particles]), rtol=0, atol=1e-15 * size)
+        assert np.abs(full.displacement()).max() > 1e-6          # it did deform
+
+
 @pytest.mark.slow
 def test_every_mode_in_the_clamps_frame_converges_to_the_full_run_in_the_world():
     """

@@ -281,6 +281,11 @@ class FullSimulation(Simulation):
             return self._world.to_frame(self._u, self._v, self.time)[0]
         return self._u.copy()
 
+    def positions(self) -> np.ndarray:
+        if self._world is not None:     # stepped in the world: where the particles are
+            return self.model.positions3(self._world.positions(self._u, self.time))
+        return super().positions()
+
     def velocity(self) -> np.ndarray:
         if self._world is not None:
             return self._world.to_frame(self._u, self._v, self.time)[1]

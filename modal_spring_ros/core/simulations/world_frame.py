@@ -117,6 +117,19 @@ class WorldFrameRun:
         x = self.model.positions(u, t)[self.model.free_particles]
         return ((x - self._free_rest).ravel(), self.model.world_velocity(u, v, t))
 
+    def positions(self, u: np.ndarray, t: float) -> np.ndarray:
+        """
+        Return every particle's (n, d) world position at world displacement ``u``.
+
+        The free particles where they are, the fixed ones where the clamp carries them: no
+        round trip through the clamp's frame (a frame written every step paid it every step).
+        """
+        x = self.model.rest.copy()
+        fixed = self.model.fixed_particles
+        x[fixed] = self.model.frame(t).carry(x[fixed])
+        x[self.model.free_particles] = self._free_rest + u.reshape(-1, self.model.dimension)
+        return x
+
     def _frame_velocity(self, u: np.ndarray, frame: RigidFrame) -> np.ndarray:
         x = self._free_rest + u.reshape(-1, self.model.dimension)
         y = (x - frame.translation) @ frame.rotation
