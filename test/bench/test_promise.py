@@ -12,7 +12,8 @@ import pytest
 
 
 @pytest.mark.slow
-def test_one_random_scene_is_planned_checked_and_charted(tmp_path):
+def test_one_random_scene_is_planned_checked_and_charted(tmp_path, monkeypatch):
+    monkeypatch.setattr(cli_runs, 'REPEATS', 1)          # each process once (their median: below)
     row = promise.measure(seed=1, tolerance=0.01)
     assert row['refused'] == ''
     # the independent check: over 3 s against the converged full run, within 2 T
@@ -121,3 +122,19 @@ def test_a_process_is_costed_by_its_cpu_time_and_a_failed_one_is_said(tmp_path):
     failing = [sys.executable, '-c', 'import sys; print("nope", file=sys.stderr); sys.exit(3)']
     with pytest.raises(RuntimeError, match='exited with 3: nope'):
         cli_runs.cpu_seconds(failing, env)
+
+
+def test_a_process_cost_is_the_median_of_its_runs_each_with_a_cache_of_its_own(monkeypatch):
+    """``--auto`` and ``--method full`` in turn, ``REPEATS`` times; nothing cached is shared."""
+    ran = []
+    seconds = iter([0.9, 0.7, 3.0, 0.8, 1.0, 5.0])                 # auto, full, auto, ...
+
+    def cost(args, env):
+        ran.append(('--auto' in args, env[CACHE_ENV]))
+        return next(seconds)
+    monkeypatch.setattr(cli_runs, 'cli_cpu_seconds', cost)
+    monkeypatch.setattr(cli_runs, 'REPEATS', 3)
+    scene = promise.random_scene(1, promise.MAX_PARTICLES)
+    assert cli_runs.process_costs(scene, 0.01, 3.0) == (1.0, 0.8)  # medians, not the first
+    assert [auto for auto, _ in ran] == [True, False] * 3
+    assert len({cache for _, cache in ran}) == 6
