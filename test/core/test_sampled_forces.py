@@ -85,7 +85,7 @@ def test_sheet_100x100_samples_few_springs_and_follows_the_exact_forces(sheet_10
 
 
 @pytest.mark.slow
-def test_non_negative_weights_keep_an_undamped_run_s_energy(sheet_100x100):
+def test_non_negative_weights_keep_an_undamped_run_s_energy():
     """
     Released from rest under gravity with no damping, 30 s.
 
