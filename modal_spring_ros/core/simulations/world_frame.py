@@ -106,8 +106,7 @@ class WorldFrameRun:
                  ) -> tuple[np.ndarray, np.ndarray]:
         """World displacement and velocity of the free DOF -> the clamp's frame's."""
         frame, d = self.model.frame(t), self.model.dimension
-        x = self._free_rest + u.reshape(-1, d)
-        y = (x - frame.translation) @ frame.rotation
+        y = (self._free_world(u) - frame.translation) @ frame.rotation
         relative = (v.reshape(-1, d) - frame.point_velocity(y)) @ frame.rotation
         return (y - self._free_rest).ravel(), relative.ravel()
 
@@ -127,12 +126,15 @@ class WorldFrameRun:
         x = self.model.rest.copy()
         fixed = self.model.fixed_particles
         x[fixed] = self.model.frame(t).carry(x[fixed])
-        x[self.model.free_particles] = self._free_rest + u.reshape(-1, self.model.dimension)
+        x[self.model.free_particles] = self._free_world(u)
         return x
 
+    def _free_world(self, u: np.ndarray) -> np.ndarray:
+        """Return the free particles' (p, d) world positions at world displacement ``u``."""
+        return self._free_rest + u.reshape(-1, self.model.dimension)
+
     def _frame_velocity(self, u: np.ndarray, frame: RigidFrame) -> np.ndarray:
-        x = self._free_rest + u.reshape(-1, self.model.dimension)
-        y = (x - frame.translation) @ frame.rotation
+        y = (self._free_world(u) - frame.translation) @ frame.rotation
         return frame.point_velocity(y).ravel()
 
     def _into(self, v: np.ndarray) -> np.ndarray:
