@@ -517,6 +517,7 @@ class _Disproved:
     """
 
     predictor = object()
+    holds = True                      # the modes' motion a small displacement
     beyond = StepPrediction.beyond
 
     def __init__(self, step: float, start: float, growth: float = 1.0):

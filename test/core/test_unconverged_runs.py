@@ -4,12 +4,13 @@ A run that converges in no step: ``--auto`` says its error is not measured, and 
 A soft skin hung by its top (an ellipsoid's surface, no bending stiffness, 3 kPa) crumples
 under gravity and a sideways shake: its full runs at a step and at half of it part by 30 % over
 every half second after the first, however short the step (a motion that amplifies its
-differences). Its start moves a hundred times beyond what its modes predict. Planned for 10 s,
-the step doubling that looked for a step meeting 0.3 % halved without end (over five minutes of
-CPU for a run of 0.08 s); it stops where halving the step stops shrinking its error, and is not
+differences). Its modes' own motion sags it by many times its springs' length (no small
+displacement: nothing is predicted from them). Planned for 10 s, the step doubling that looked
+for a step meeting 0.3 % once halved without end (over five minutes of CPU for a run of
+0.08 s); it stops where halving the step stops shrinking its error, and is not
 made where a twin of the start moved by a hair parts from it exponentially; the run takes the
-default step with its error said to be unmeasured, as it does where a start that far beyond the
-modes passed its check (a start says nothing of such a run's rest).
+default step with its error said to be unmeasured, as it does where its start passed its check
+(a start says nothing of such a run's rest).
 """
 from __future__ import annotations
 
@@ -20,8 +21,8 @@ from helpers import write_obj
 from modal_spring_ros.core.auto import unplanned_full as unplanned_module
 from modal_spring_ros.core.auto.full_candidate import by_step_doubling, STALLED, STEP_ORDER
 from modal_spring_ros.core.auto.measured_error import on_samples, trajectory, trajectory_error
-from modal_spring_ros.core.auto.plan import AMPLIFYING, BEYOND_MODES
-from modal_spring_ros.core.auto.step_error import NONLINEAR
+from modal_spring_ros.core.auto.plan import AMPLIFYING, BEYOND_LINEAR
+from modal_spring_ros.core.auto.step_error import LINEAR_REACH
 from modal_spring_ros.core.auto.watch.amplification import AMPLIFYING_PER_S
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.config import SimulationConfig
@@ -108,17 +109,18 @@ def test_auto_says_the_error_is_not_measured_and_takes_the_default_step(skin):
     """
     ``--auto`` prints no error for the skin, and takes the default step.
 
-    Planned at 0.3 %: the start misses, and a twin of it moved by a hair parts from it
+    Its modes' motion sags it by many times its springs' length: no step is predicted from
+    them. Planned at 0.1 %: the start misses, and a twin of it moved by a hair parts from it
     exponentially: no step is sought (over the whole run, none converges), the default step
     (``--method full``'s) is taken, its error not measured, said why, planning a third of the
-    full run (it once halved without end, then took sixteen runs' worth to stop). At 1 % and
-    3 %: the start passes its check, but moved a hundred times beyond what the modes predict:
-    no error printed from it (it printed 0.62 % and 1.72 % for a run whose finer runs part by
-    30 %), the default step taken.
+    full run (it once halved without end, then took sixteen runs' worth to stop). At 0.3 %,
+    1 % and 3 %: the start passes its check, and says nothing of the rest (it printed 0.62 %
+    and 1.72 % for a run whose finer runs part by 30 %, where the modes, predicting it, were
+    disproved a hundred times over): the default step, its error not measured.
     """
     default = build_simulation(skin, SimulationConfig(method='full'))
     full_run_s = work_per_second(default) * RUN_S / 1e6
-    sim, spent = planned(skin, 0.003)
+    sim, spent = planned(skin, 0.001)
     assert sim.method == 'full' and 0.9 * default.dt <= sim.dt <= default.dt
     assert math.isnan(sim.pilot.error) and sim.pilot.unmeasured == AMPLIFYING
     assert 'its step error not measured (its motion amplifies its differences from its ' \
@@ -127,15 +129,14 @@ def test_auto_says_the_error_is_not_measured_and_takes_the_default_step(skin):
                                  sim.pilot.reason).group(1))
     assert rate >= AMPLIFYING_PER_S
     assert spent <= 0.5 * full_run_s
-    for tolerance in (0.01, 0.03):
+    for tolerance in (0.003, 0.01, 0.03):
         sim, spent = planned(skin, tolerance)
         assert sim.method == 'full' and 0.9 * default.dt <= sim.dt <= default.dt
-        assert math.isnan(sim.pilot.error) and sim.pilot.unmeasured == BEYOND_MODES, (
+        assert math.isnan(sim.pilot.error) and sim.pilot.unmeasured == BEYOND_LINEAR, (
             sim.pilot.reason)
-        measured, predicted = map(float, re.search(
-            r'the prediction missed over the first [0-9.]+ s \(([0-9.]+)% measured, '
-            r'([0-9.]+)% predicted\)', sim.pilot.reason).groups())
-        assert measured >= NONLINEAR * predicted
+        reach = float(re.search(r"moves springs' ends apart by up to ([0-9.]+) times",
+                                sim.pilot.reason).group(1))
+        assert reach >= LINEAR_REACH
         assert spent <= 1.0 * full_run_s
 
 
@@ -145,7 +146,7 @@ def test_the_twin_is_stepped_at_the_default_step_whatever_step_the_start_was_che
     """
     The twin measures the motion, which is the same at any step that resolves it.
 
-    At 0.3 % the skin's start is checked down to half the default step before the twin is
+    At 0.1 % the skin's start is checked down to half the default step before the twin is
     stepped; stepped there, the twin cost twice what it does at the default step (landed on the
     samples: a hair shorter).
     """
@@ -157,7 +158,7 @@ def test_the_twin_is_stepped_at_the_default_step_whatever_step_the_start_was_che
         return original(make)
     monkeypatch.setattr(unplanned_module, 'start_growth', recorded)
     default = build_simulation(skin, SimulationConfig(method='full'))
-    sim, _ = planned(skin, 0.003)
+    sim, _ = planned(skin, 0.001)
     assert sim.pilot.unmeasured == AMPLIFYING
     (step,) = steps
     assert 0.9 * default.dt <= step <= default.dt

@@ -82,7 +82,8 @@ def at_predicted_step(full: Callable[[float, float], Simulation],
     plan was measured or not. Where the window disproves it, the step is shortened on as
     :func:`against_reference` shortens it.
     """
-    floor = prediction.step if prediction is not None and prediction.predictor else 0.0
+    floor = (prediction.step if prediction is not None and prediction.predictor
+             and prediction.holds else 0.0)
     # down to the predicted step also where it is below the reference's (a window converged to
     # a tenth of the tolerance can drift beyond it over the run, as the prediction sees)
     sim, error = against_reference(full, error_of, sample_s, budget,

@@ -4,7 +4,7 @@ An automatic plan (what it sets) and what its pilot run measured about it.
 :class:`PlanSettings` is what :mod:`~modal_spring_ros.core.auto.pilot` refines;
 :class:`PilotReport` is what it found, printed in the summary and on ``/diagnostics``, and
 where a full run's error is not measured, why (``UNCONVERGED``, ``NOT_FOUND``, ``AMPLIFYING``,
-``BEYOND_MODES``, ``TOUCHES_UNSEEN``).
+``BEYOND_MODES``, ``BEYOND_LINEAR``, ``TOUCHES_UNSEEN``).
 """
 from __future__ import annotations
 
@@ -30,6 +30,11 @@ TOUCHES_UNSEEN = ('the scene has colliders and its start sees none of the touche
                   'while checking the whole window (its run at half the step, twice the run) '
                   "would cost more than the planning budget ('--planning-share none' checks "
                   f'it); {_DEFAULT_STEP}')
+#: Why a run whose modes' motion is no small displacement has no error measured.
+BEYOND_LINEAR = ("its modes' motion moves springs' ends apart by their own length or more (large "
+                 "deformation): no step's error is predicted from them, and its start says "
+                 'nothing of the rest of the run, which would cost more to check than to run; '
+                 f'{_DEFAULT_STEP}')
 #: Why a run whose start moved far beyond its modes' prediction has no error measured.
 BEYOND_MODES = ('its start moved far beyond what its modes predict, and says nothing of the '
                 f'rest of the run, which would cost more to check than to run; {_DEFAULT_STEP}')

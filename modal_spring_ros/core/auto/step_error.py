@@ -13,10 +13,10 @@ difference of the two displacements over the run's samples, in the clamp's frame
 measured (:mod:`~modal_spring_ros.core.auto.measured_error`), is the step's predicted error.
 
 It is a linear prediction: the springs' nonlinearity and the frame's Coriolis and centrifugal
-coupling are left out. On the promise suite's random scenes it was 0.75-1.7 times the measured
-error of the default step (over the run, and over any start: 0.8-1.2 times), so a full run takes
-the step it predicts only where a check of the run's start, against its run at half the step,
-agrees with what it predicts there
+coupling are left out, and nothing is predicted where the modes' own motion is no small
+displacement (``LINEAR_REACH``). On the promise suite's random scenes it was 0.75-1.7 times the
+measured error of the default step (over any start: 0.8-1.2 times), so a full run takes the step
+it predicts only where a check of its start, against its run at half the step, agrees
 (:func:`~modal_spring_ros.core.auto.unplanned_full.unplanned_full`).
 What the static response carries (gravity's sag, a slow drive's quasi-static part) has no period
 error, and a damped mode's error decays with it: the period error's growth alone,
@@ -43,8 +43,8 @@ import scipy.special
 MAX_INSTANTS = 1500
 #: Instants per period of the fastest drive term, at least; and the longest interval, s.
 PER_DRIVE_PERIOD, LONGEST_INTERVAL_S = 16, 0.02
-#: A step's error grows as its square (second-order schemes): the step predicted to meet a
-#: tolerance is found from one prediction, then confirmed once.
+#: A step's error grows as its square (second-order schemes): a step within a tolerance is
+#: found from one prediction, then confirmed once.
 ORDER = 2
 #: Predictions made at most while looking for it, and how far under the order's step each goes.
 MAX_PREDICTIONS, SETTLE = 4, 0.97
@@ -59,6 +59,11 @@ QUASI_STATIC = 4.0
 #: A start measured within this many times its predicted error agrees with the prediction (over
 #: starts of random scenes the prediction was 0.8-1.2 times the measured error).
 AGREEMENT = 1.5
+#: Where the modes' exact motion moves springs' ends apart by this share of their length or
+#: more (at the ``REACH_INSTANTS`` instants it is largest), it is no small displacement, and
+#: nothing is predicted from them (over 100 random scenes: 0.52-1.56 times the measured error
+#: below it, 0.34-4.5 times at or beyond it, four of ten diverging at their default step).
+LINEAR_REACH, REACH_INSTANTS = 1.0, 16
 #: A start off its prediction by more than this many times moved beyond the modes' linear
 #: motion (large strain, buckling): it never confirms the prediction, and no step's error is
 #: scaled from another's there.
@@ -176,13 +181,18 @@ class StepErrorPredictor:
         sigma = 0.5 * self._damping
         with stepping_threads():          # many small products: one BLAS thread
             self._loads = np.array([frame.loads(k * self._h) for k in range(count + 1)])
-            self._exact = self._response(
-                np.sqrt(np.maximum(self._omega ** 2 - sigma ** 2, 0.0)), sigma)
+            exact = self._response(np.sqrt(np.maximum(self._omega ** 2 - sigma ** 2, 0.0)),
+                                   sigma, by_metric=False)
+        self._exact = exact @ self._metric.T
+        #: the modes' exact motion's reach where it is largest (``LINEAR_REACH``, ``.holds``)
+        largest = np.argsort(np.einsum('km,km->k', self._exact, self._exact))[-REACH_INSTANTS:]
+        self.reach = model.spring_reach(basis.vectors @ exact[largest].T)
         self._runs: dict[float, np.ndarray | None] = {}   # each step's run, once
 
-    def _response(self, omega: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    def _response(self, omega: np.ndarray, sigma: np.ndarray, by_metric: bool = True
+                  ) -> np.ndarray:
         """
-        Return the displacement at every instant after the first (count, n_free_dof).
+        Return the displacement at every instant after the first as ``R q`` (or ``q``).
 
         Stepped exactly with the load linear between instants (a held load's jumps would
         ring every mode, the fast ones most: a smooth drive does not, and the fast modes'
@@ -203,7 +213,7 @@ class StepErrorPredictor:
             u, v = (phi[:, 0, 0] * u + phi[:, 0, 1] * v + forced_q[k],
                     phi[:, 1, 0] * u + phi[:, 1, 1] * v + forced_v[k])
             q[k] = u
-        return q @ self._metric.T
+        return q @ self._metric.T if by_metric else q
 
     def _run(self, dt: float) -> np.ndarray | None:
         """Return the modes' displacement stepped as ``dt`` steps them (None: unstable)."""
@@ -251,9 +261,8 @@ def drift_growth(horizon_s: float, start_s: float, decay: float) -> float:
     A transient of decay rate ``decay`` (1/s) stepped with a period error drifts in phase in
     proportion to time: its error at ``t`` is ``t exp(-decay t)`` (times its amplitude and the
     frequency's error), and over a run its RMS, ``sqrt(int_0^T t^2 exp(-2 decay t) dt / T)``. The
-    ratio of the two runs' RMS: ``horizon_s / start_s`` undamped, less where the transient
-    decays (the reference's own norm taken as steady), and never below 1 (a start's share is
-    not taken to shrink over the run).
+    ratio of the two runs' RMS: ``horizon_s / start_s`` undamped, less where it decays (the
+    reference's own norm taken as steady), and never below 1.
     """
     def rms(t: float) -> float:
         a = 2.0 * decay * t
@@ -278,6 +287,11 @@ class StepPrediction:
             return self.predictor.error(dt)
         return self.error * (dt / self.step) ** ORDER
 
+    @property
+    def holds(self) -> bool:
+        """Tell whether the modes' motion is a small displacement (``LINEAR_REACH``)."""
+        return self.predictor is None or self.predictor.reach < LINEAR_REACH
+
     def start_error(self, dt: float, over_s: float) -> float:
         """Return the error predicted at ``dt`` over the run's first ``over_s`` (nan: none)."""
         return self.predictor.error(dt, over_s) if self.predictor is not None else math.nan
@@ -289,15 +303,15 @@ class StepPrediction:
         The start (its first ``over_s``) confirms the prediction where it is within ``allowed``
         or within ``AGREEMENT`` times what the prediction puts there (a start's transient can be
         beyond the run's tolerance where the prediction sees it too), and never where it moved
-        beyond the modes (:meth:`beyond`: what they predict says nothing of it). With modes
-        left out (a scene beyond the dense limit), what the start measured beyond the
-        prediction is theirs, and it is taken to grow as a phase drift of a transient decaying
-        no faster than the slowest the scene damps (:func:`drift_growth`; in proportion to time
-        undamped, the most a period error gives): the run's error is the modes' prediction plus
-        that (:meth:`run_error`), confirmed only within ``allowed``. ``AGREEMENT`` decides only
-        whether the start agrees, never how much of it is left uncounted.
+        beyond the modes (:meth:`beyond`) or they moved beyond small displacements
+        (:attr:`holds`). With modes left out (a scene beyond the dense limit), what the start
+        measured beyond the prediction is theirs, grown as a phase drift of a transient
+        decaying no faster than the slowest the scene damps (:func:`drift_growth`): the run's
+        error is the modes' prediction plus that (:meth:`run_error`), confirmed only within
+        ``allowed``. ``AGREEMENT`` decides only whether the start agrees, never how much of it
+        is left uncounted.
         """
-        if self.predictor is None:
+        if self.predictor is None or not self.holds:
             return math.nan
         expected = self.start_error(dt, over_s)
         if (measured > max(allowed, AGREEMENT * expected)
@@ -363,11 +377,10 @@ def predicted_step(model: MassSpringModel, basis: ModalBasis, name: str, dt: flo
     """
     Return the longest step predicted to keep a full run within ``tolerance``.
 
-    From ``dt``'s prediction (the default step) and the error's order in the step: shorter
-    where ``dt`` is predicted beyond the tolerance (found in ``MAX_PREDICTIONS`` at most), and
-    where it is within, the longer step the order gives up to ``longest_dt`` (the stability
-    limit's share), kept where its own prediction confirms it. Each step predicted costs a run
-    of every mode over the run: a few, so that planning stays a small share of what it plans.
+    From ``dt``'s prediction (the default step) and the error's order: shorter where ``dt`` is
+    predicted beyond the tolerance (in ``MAX_PREDICTIONS`` at most), else the longer step the
+    order gives up to ``longest_dt``, kept where its own prediction confirms it (each costs a
+    run of every mode: a few, so that planning stays a small share of what it plans).
     """
     predictor = StepErrorPredictor(model, basis, name, horizon_s)
     step, error = dt, predictor.error(dt)

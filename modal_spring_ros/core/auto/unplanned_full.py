@@ -16,8 +16,8 @@ from typing import Callable
 from modal_spring_ros.core.auto.budget import PlanningBudget, REFERENCE_RUNS
 from modal_spring_ros.core.auto.full_candidate import (BY_ITSELF, by_step_doubling,
                                                        head_start, STEP_ORDER)
-from modal_spring_ros.core.auto.plan import (AMPLIFYING, BEYOND_MODES, NOT_FOUND, PilotReport,
-                                             TOUCHES_UNSEEN, UNCONVERGED)
+from modal_spring_ros.core.auto.plan import (AMPLIFYING, BEYOND_LINEAR, BEYOND_MODES, NOT_FOUND,
+                                             PilotReport, TOUCHES_UNSEEN, UNCONVERGED)
 from modal_spring_ros.core.auto.step_error import StepPrediction
 from modal_spring_ros.core.auto.watch.amplification import (amplifies, describe_rate,
                                                             start_growth, WINDOW_S as TWIN_S)
@@ -88,7 +88,11 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     0.01 % was predicted) is no smooth motion: no step's error is scaled from another's there,
     and where such a start passes its check it says nothing of the rest of the run (whose
     finer runs may part by 30 %): the default step is run, its error not measured, said why
-    (``BEYOND_MODES``). Where halving the step stops shrinking its error
+    (``BEYOND_MODES``). Nor is anything predicted where the modes' own motion is no small
+    displacement (:attr:`~.step_error.StepPrediction.holds`: it moves springs' ends apart by
+    their length or more; a sheet turned 30 degrees, 49 % strain, was predicted at a quarter of
+    what its step measured): the default step, and where only its start is checked, its error
+    not measured (``BEYOND_LINEAR``). Where halving the step stops shrinking its error
     (:func:`~.full_candidate.by_step_doubling` stalls), the run converges in no step: the
     default step, its error not measured (``UNCONVERGED``), planning bounded (it once halved
     without end). The whole window's search costs at most what the run does at its default step
@@ -100,6 +104,14 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     """
     sample_s = window_s / samples
     step = default_dt
+    # a start far beyond the modes, or modes whose motion is no small displacement: no smooth
+    # motion is predicted, and a start within the tolerance says nothing of the run
+    beyond = nonlinear = prediction is not None and not prediction.holds
+    if nonlinear:
+        reason += (f"; the modes' motion moves springs' ends apart by up to "
+                   f'{prediction.predictor.reach:.2g} times their length: no step is predicted '
+                   'from them')
+        prediction = None
     if prediction is not None and prediction.error_at(default_dt) > tolerance:
         # the default misses over the run: the longest step predicted within the margin, its
         # start checked as the budget affords (a longer search would cost more than the run)
@@ -118,7 +130,6 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     count = int(min(samples, max(MIN_CHECK_SAMPLES, affordable)))
     checked_s = count * sample_s
     grown: StepPrediction | None = None     # where a start alone is grown over the run
-    beyond = False             # the start far beyond the modes' prediction: nothing scaled
     stepped: dict = {}         # every run's samples, once: a second look steps nothing again
 
     def doubling(samples_: int, over_s: float, allowed: float, work_per_s: float,
@@ -192,7 +203,8 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     if count < samples and not missed and (beyond or checked.model.scene.contact is not None):
         # far beyond the modes, or a start that sees none of the touches to come: no measure
         reason += f'; the start met the tolerance ({error:.2%} over the first {checked_s:.2g} s)'
-        return unmeasured(BEYOND_MODES if beyond else TOUCHES_UNSEEN)
+        return unmeasured(BEYOND_LINEAR if nonlinear else BEYOND_MODES if beyond
+                          else TOUCHES_UNSEEN)
     if missed and count < samples:
         # a twin moved by a hair, at the default step: the motion's growth is the motion's, not
         # the step's, and the halved step the check ended on cost twice as much for it

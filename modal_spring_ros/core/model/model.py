@@ -254,6 +254,19 @@ class MassSpringModel:
         """Total force on the free DOF (springs, eq. 20, plus gravity) for displacement ``u``."""
         return self.physical_forces(u, t)
 
+    def spring_reach(self, u: np.ndarray) -> float:
+        """
+        Return how far displacements move springs' ends apart, as a share of their length.
+
+        ``u``: free-DOF displacements in the clamp's frame (n_free_dof,) or one per column
+        (n_free_dof, K); the largest ``|u_j - u_i| / l`` over springs and columns (stretch and
+        turn alike: a small-displacement model holds only well below 1).
+        """
+        moved = self.spring_difference @ u.reshape(self.n_free_dof, -1)
+        moved = moved.reshape(self.dimension, self._l.size, -1)
+        reach = np.sqrt(np.einsum('aek,aek->ek', moved, moved)) * self._inv_l[:, None]
+        return float(reach.max(initial=0.0))
+
     def max_strain(self, x: np.ndarray) -> float:
         """Largest relative spring elongation or compression ``|L - l| / l``."""
         _, length = self.spring_vectors(x)
