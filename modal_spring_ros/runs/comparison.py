@@ -12,9 +12,12 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+import zipfile
 
 from modal_spring_ros.core.laws import scene_law
 from modal_spring_ros.core.model.scene import Scene
+from modal_spring_ros.runs.run_memory import (check_fits, npz_positions, positions_budget,
+                                              RunTooLarge)
 from modal_spring_ros.scenes.files.scene_archive import recorded_scene
 import numpy as np
 
@@ -41,11 +44,22 @@ class RunData:
         return self.scene.rest_positions if self.scene is not None else self.positions[0]
 
 
-def load_npz_run(path: str | Path) -> RunData:
-    """Return a ``modal_spring_sim`` ``.npz`` run as arrays. Raises RunError."""
+def load_npz_run(path: str | Path, budget: int | None = None) -> RunData:
+    """
+    Return a ``modal_spring_sim`` ``.npz`` run as arrays. Raises RunError.
+
+    Its positions' size is read from their header first, and a run beyond ``budget`` bytes
+    (:func:`~modal_spring_ros.runs.run_memory.positions_budget` by default) is refused unread.
+    """
     path = Path(path)
     try:
-        data = np.load(path)
+        declared = npz_positions(path)
+        shape = declared.shape
+        if len(shape) != 3 or shape[2] != 3:
+            raise ValueError(f"'positions' has the shape {shape}, not (frames, particles, 3)")
+        check_fits(declared.nbytes, str(path), shape[0], shape[1],
+                   positions_budget() if budget is None else budget)
+        data = np.load(path, allow_pickle=False)
         scene = recorded_scene(
             data['scene_archive'].tobytes() if 'scene_archive' in data else None,
             str(data['scene_yaml']) if 'scene_yaml' in data else None, f'{path} (scene)')
@@ -55,7 +69,9 @@ def load_npz_run(path: str | Path) -> RunData:
             band = (float(kept.min()), float(kept.max()))
         run = RunData(path.name, data['t'], data['positions'], scene, band,
                       f"{data['method']} {data['band']}")
-    except (OSError, KeyError, ValueError) as exc:
+    except RunTooLarge as exc:
+        raise RunError(str(exc)) from None
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
         raise RunError(f'{path}: not a modal_spring_sim .npz run: {exc}') from None
     if not np.isfinite(run.positions).all():
         raise RunError(f'{path}: damaged: its positions hold non-finite values')

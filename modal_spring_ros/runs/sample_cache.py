@@ -17,6 +17,7 @@ from typing import Mapping
 import zipfile
 
 from modal_spring_ros.core.forces.samples import CacheEntryError
+from modal_spring_ros.scenes.files.npz_headers import declared_arrays
 import numpy as np
 
 #: environment variable naming the cache folder ("" disables the cache)
@@ -51,6 +52,7 @@ class SampleCache:
         if not path.is_file():
             return None
         try:
+            declared_arrays(path)           # headers first: a damaged one is never allocated
             with np.load(path, allow_pickle=False) as data:
                 return {name: np.asarray(data[name]) for name in data.files}
         except (OSError, KeyError, ValueError, TypeError, EOFError,

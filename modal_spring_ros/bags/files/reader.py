@@ -22,6 +22,7 @@ from modal_spring_ros.bags.files.writer import BagError, RUN_RECORD
 from modal_spring_ros.bags.messages.pointcloud import xyz
 from modal_spring_ros.bags.messages.stamps import to_nanoseconds, to_seconds
 from modal_spring_ros.core.model.scene import Scene
+from modal_spring_ros.runs.run_memory import check_fits
 from modal_spring_ros.scenes.files.scene_archive import recorded_scene
 import numpy as np
 import yaml
@@ -297,13 +298,16 @@ class BagReader:
                               str(rec['scene_yaml']) if 'scene_yaml' in rec else None,
                               f'{self.path} (scene)')
 
-    def points(self, topic: str = '/points',
-               times: dict[int, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def points(self, topic: str = '/points', times: dict[int, float] | None = None,
+               max_bytes: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """
         Return (F,) header stamps in seconds and (F, n, 3) float64 positions of a cloud topic.
 
         With ``times`` ({stamp ns: time s}, ``bags/files/sim_time.py``) each frame's stamp is
-        replaced by its time there, and frames it lacks are left out.
+        replaced by its time there, and frames it lacks are left out. With ``max_bytes``, the
+        positions may take that much at most: a topic whose message count says it holds more,
+        or whose frames pass it as they are read, is refused
+        (:class:`~modal_spring_ros.runs.run_memory.RunTooLarge`).
         """
         if topic not in self.topics:
             raise BagError(f'{self.path}: no topic {topic} (topics: '
@@ -319,6 +323,10 @@ class BagReader:
             if times is not None and ns not in times:
                 continue
             cloud = xyz(msg)
+            if max_bytes is not None:
+                held = max(self.topics[topic].count, len(frames) + 1)
+                check_fits(held * cloud.nbytes, f'{self.path} ({topic})', held, len(cloud),
+                           max_bytes)
             if not np.isfinite(cloud).all():
                 raise BagError(f'{self.path}: message on {topic} at log time '
                                f'{m.log_time_ns} ns is damaged: its cloud holds non-finite '

@@ -14,6 +14,7 @@ from modal_spring_ros.bags.files.writer import BagError
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.runs.comparison import load_npz_run, RunData
+from modal_spring_ros.runs.run_memory import positions_budget
 from modal_spring_ros.runs.sample_cache import sample_cache
 from modal_spring_ros.scenes.fields.limits import available_memory
 
@@ -31,7 +32,8 @@ def load_run(path: str | Path, topic: str = '/points') -> RunData:
     if path.suffix == '.npz':
         return load_npz_run(path)
     bag = BagReader(path)
-    stamps, frames = bag.points(topic, simulation_times(bag, topic) or None)  # simulation time
+    stamps, frames = bag.points(topic, simulation_times(bag, topic) or None,  # simulation time
+                                max_bytes=positions_budget())
     rec = bag.run_record()
     scene = bag.scene()
     label, band = '', None

@@ -22,6 +22,7 @@ import io
 import zipfile
 
 from modal_spring_ros.core.model.scene import Scene, SceneError
+from modal_spring_ros.scenes.files.npz_headers import declared_arrays
 from modal_spring_ros.scenes.files.writing import (ARRAY_PLACES, DUMPER, scene_arrays,
                                                    scene_header, with_arrays)
 from modal_spring_ros.scenes.files.yaml_reading import load_yaml
@@ -100,6 +101,8 @@ def _entries(data: bytes, source: str) -> dict[str, np.ndarray]:
             raise SceneError(f'{source}: scene archive has {what} (entries: '
                              f"{', '.join(sorted(known))})")
         declared = sum(info.file_size for info in infos)
+        if declared <= MAX_ARCHIVE_BYTES:
+            declared_arrays(data)       # headers first: a damaged one is never allocated
         if declared > MAX_ARCHIVE_BYTES:
             raise SceneError(f'{source}: scene archive of {declared:,} bytes is beyond the '
                              f'{MAX_ARCHIVE_BYTES:,} a scene may have')
