@@ -527,6 +527,9 @@ class _Disproved:
     def run_error(self, measured: float, dt: float, over_s: float) -> float:
         return measured * self.growth
 
+    def sampled(self, sample_s: float) -> '_Disproved':
+        return self
+
     def start_growth(self, over_s: float) -> float:
         return self.growth
 

@@ -82,6 +82,7 @@ def at_predicted_step(full: Callable[[float, float], Simulation],
     plan was measured or not. Where the window disproves it, the step is shortened on as
     :func:`against_reference` shortens it.
     """
+    prediction = prediction.sampled(sample_s) if prediction is not None else None
     floor = (prediction.step if prediction is not None and prediction.predictor
              and prediction.holds else 0.0)
     # down to the predicted step also where it is below the reference's (a window converged to

@@ -112,6 +112,8 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
                    f'{prediction.predictor.reach:.2g} times their length: no step is predicted '
                    'from them')
         prediction = None
+    if prediction is not None:      # its starts read on the check's own samples
+        prediction = prediction.sampled(sample_s)
     if prediction is not None and prediction.error_at(default_dt) > tolerance:
         # the default misses over the run: the longest step predicted within the margin, its
         # start checked as the budget affords (a longer search would cost more than the run)
