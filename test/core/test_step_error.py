@@ -10,8 +10,8 @@ from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_
                                                        WINDOW_ALLOWANCE, worst_window)
 from modal_spring_ros.core.auto.plan import BEYOND_LINEAR
 from modal_spring_ros.core.auto.step_error import (AGREEMENT, drift_growth, LINEAR_REACH,
-                                                   predicted_step, predicted_step_error,
-                                                   predicts, StepErrorPredictor)
+                                                   predicted_step, predicts,
+                                                   StepErrorPredictor)
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.config import SimulationConfig
@@ -27,6 +27,11 @@ import pytest
 from toy_integrators import SymplecticEuler
 
 DURATION_S, SAMPLE_S = 3.0, 0.02
+
+
+def _predicted_error(model, basis, name: str, dt: float, horizon_s: float) -> float:
+    """Return the error a full run at ``dt`` is predicted to make over ``horizon_s``."""
+    return StepErrorPredictor(model, basis, name, horizon_s).error(dt)
 
 
 def test_the_integrators_own_step_gives_its_period_error():
@@ -104,7 +109,7 @@ def test_the_prediction_is_the_measured_error_of_the_default_step(seed):
     default = build_simulation(scene, SimulationConfig(method='full'))
     whole, window = _measured_error(scene, default)
     measured = max(whole, window / WINDOW_ALLOWANCE)     # the promise, as predicted
-    predicted = predicted_step_error(model, basis, 'explicit', default.dt, DURATION_S)
+    predicted = _predicted_error(model, basis, 'explicit', default.dt, DURATION_S)
     assert 0.8 * measured <= predicted <= 1.8 * measured
 
 
@@ -117,13 +122,13 @@ def test_the_predicted_step_meets_the_tolerance_with_the_steps_square():
     prediction = predicted_step(model, basis, 'explicit', default, DURATION_S, 0.01)
     step = prediction.step
     assert step < 0.2 * default
-    error = predicted_step_error(model, basis, 'explicit', step, DURATION_S)
+    error = _predicted_error(model, basis, 'explicit', step, DURATION_S)
     assert 0.5 * 0.01 <= error <= 0.01 and prediction.error == error
     assert prediction.error_at(0.5 * step) == pytest.approx(0.25 * error)
     # a step within the tolerance is the answer as given
     assert predicted_step(model, basis, 'explicit', step, DURATION_S, 0.01).step == step
-    assert predicted_step_error(model, basis, 'explicit', 1.01 * 2.0 / basis.omega[-1],
-                                DURATION_S) == math.inf
+    assert _predicted_error(model, basis, 'explicit', 1.01 * 2.0 / basis.omega[-1],
+                            DURATION_S) == math.inf
 
 
 @pytest.mark.slow
@@ -162,11 +167,11 @@ def test_a_default_step_well_within_the_tolerance_is_lengthened_up_to_the_longes
     prediction = predicted_step(model, basis, 'explicit', default, DURATION_S, 0.003, longest)
     assert default < prediction.step <= longest
     assert prediction.error <= 0.003
-    assert prediction.error == predicted_step_error(model, basis, 'explicit', prediction.step,
-                                                    DURATION_S)
+    assert prediction.error == _predicted_error(model, basis, 'explicit', prediction.step,
+                                                DURATION_S)
     # the default's own prediction is kept, not extrapolated
-    assert prediction.error_at(default) == predicted_step_error(model, basis, 'explicit',
-                                                                default, DURATION_S)
+    assert prediction.error_at(default) == _predicted_error(model, basis, 'explicit',
+                                                            default, DURATION_S)
     # no longest step given (a user's step): the step given is the longest
     assert predicted_step(model, basis, 'explicit', default, DURATION_S, 0.003).step == default
 

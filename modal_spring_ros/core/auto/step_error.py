@@ -128,7 +128,8 @@ class StepErrorPredictor:
     """
 
     def __init__(self, model: MassSpringModel, basis: ModalBasis, name: str, horizon_s: float,
-                 least_instants: int = 1):
+                 least_instants: int = 1, parent: StepErrorPredictor | None = None):
+        """``parent``: the run's predictor a start's shares its metric, loads and reach with."""
         self.name, self._model, self._basis = name, model, basis
         #: a start's own predictor, and its instants per sample, by (span, sample interval)
         self._starts: dict[tuple[float, float], tuple[StepErrorPredictor, int]] = {}
@@ -147,18 +148,21 @@ class StepErrorPredictor:
         # the displacement's Euclidean norm from the modal coordinates: ||Phi q|| = ||R q||
         # with R^T R = Phi^T Phi (the modes are mass-normalised, not orthonormal), so a run is
         # kept as (instants, modes), whatever the scene's size
-        self._metric = scipy.linalg.cholesky(basis.vectors.T @ basis.vectors, lower=False)
+        self._metric = (parent._metric if parent is not None else
+                        scipy.linalg.cholesky(basis.vectors.T @ basis.vectors, lower=False))
         self._h, count = _instants(model, horizon_s, least_instants)
-        frame = FrameLoads(model, basis.vectors, coupling=False)
+        self._frame = (parent._frame if parent is not None
+                       else FrameLoads(model, basis.vectors, coupling=False))
         sigma = 0.5 * self._damping
         with stepping_threads():          # many small products: one BLAS thread
-            self._loads = np.array([frame.loads(k * self._h) for k in range(count + 1)])
+            self._loads = np.array([self._frame.loads(k * self._h) for k in range(count + 1)])
             exact = self._response(np.sqrt(np.maximum(self._omega ** 2 - sigma ** 2, 0.0)),
                                    sigma, by_metric=False)
         self._exact = exact @ self._metric.T
         #: the modes' exact motion's reach where it is largest (``LINEAR_REACH``, ``.holds``)
         largest = np.argsort(np.einsum('km,km->k', self._exact, self._exact))[-REACH_INSTANTS:]
-        self.reach = model.spring_reach(basis.vectors @ exact[largest].T)
+        self.reach = (parent.reach if parent is not None
+                      else model.spring_reach(basis.vectors @ exact[largest].T))
         self._runs: dict[float, np.ndarray | None] = {}   # each step's run, once
 
     def _response(self, omega: np.ndarray, sigma: np.ndarray, by_metric: bool = True
@@ -232,18 +236,13 @@ class StepErrorPredictor:
             samples = max(1, round(over_s / sample_s))
             per = min(_instants(self._model, sample_s)[1], max(1, MAX_INSTANTS // samples))
             self._starts[(over_s, sample_s)] = (StepErrorPredictor(
-                self._model, self._basis, self.name, samples * sample_s, samples * per), per)
+                self._model, self._basis, self.name, samples * sample_s, samples * per, self),
+                per)
         start, per = self._starts[(over_s, sample_s)]
         run = start._run(dt)
         if run is None:
             return math.inf
         return trajectory_error(run[per - 1::per], start._exact[per - 1::per])
-
-
-def predicted_step_error(model: MassSpringModel, basis: ModalBasis, name: str, dt: float,
-                         horizon_s: float) -> float:
-    """Return the error predicted for a full run at ``dt`` (:meth:`StepErrorPredictor.error`)."""
-    return StepErrorPredictor(model, basis, name, horizon_s).error(dt)
 
 
 def drift_growth(horizon_s: float, start_s: float, decay: float) -> float:
