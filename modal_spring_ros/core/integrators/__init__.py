@@ -5,6 +5,8 @@ A contract, a name-to-class registry, one integrator a module.
 
 * ``explicit`` (:class:`ExplicitNewmark`, beta = 0): the paper's scheme.
 * ``average`` (:class:`AverageAcceleration`, beta = 1/4): implicit, unconditionally stable.
+
+``mode_step`` reads what a registered integrator's step does to a vibration mode.
 """
 from __future__ import annotations
 
