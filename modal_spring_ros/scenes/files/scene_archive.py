@@ -101,11 +101,10 @@ def _entries(data: bytes, source: str) -> dict[str, np.ndarray]:
             raise SceneError(f'{source}: scene archive has {what} (entries: '
                              f"{', '.join(sorted(known))})")
         declared = sum(info.file_size for info in infos)
-        if declared <= MAX_ARCHIVE_BYTES:
-            declared_arrays(data)       # headers first: a damaged one is never allocated
         if declared > MAX_ARCHIVE_BYTES:
             raise SceneError(f'{source}: scene archive of {declared:,} bytes is beyond the '
                              f'{MAX_ARCHIVE_BYTES:,} a scene may have')
+        declared_arrays(data)           # headers first: a damaged one is never allocated
         with np.load(io.BytesIO(data), allow_pickle=False) as npz:
             return {name: npz[name] for name in npz.files}
     except SceneError:
