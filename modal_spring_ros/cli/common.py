@@ -338,6 +338,11 @@ def progress_bar(prog: str, total: float, unit: str, what: str, quiet: bool = Fa
     return show
 
 
+def beside_bar(prog: str, line: str) -> None:
+    """Print ``line`` on stderr on a line of its own, above a progress bar shown (tqdm's)."""
+    tqdm.write(f'[{prog}] {line}', file=sys.stderr)
+
+
 #: a benchmark's count of its jobs at the start of a progress line: ``promise 41/100: ...``
 COUNTED = re.compile(r'^(\w+) (\d+)/(\d+):')
 

@@ -16,8 +16,9 @@ import os
 import sys
 import time
 
-from modal_spring_ros.cli.common import (add_simulation_options, claimed_outputs, config_from_args,
-                                         progress_bar, run_main, script_parser, write_output)
+from modal_spring_ros.cli.common import (add_simulation_options, beside_bar, claimed_outputs,
+                                         config_from_args, progress_bar, run_main, script_parser,
+                                         write_output)
 from modal_spring_ros.cli.launcher import install_hint
 try:
     from modal_spring_ros.bags.files.capture import RunBagWriter
@@ -105,8 +106,7 @@ def main(argv: list[str] | None = None) -> int:
                          on_progress=lambda fraction: shown(ahead + fraction * run_s),
                          on_frame=bag.frame if bag else None, watch=watch,
                          on_watch=None if args.quiet else
-                         lambda window, now: print(f'[{PROG}] {watched_line(window, now)}',
-                                                   file=sys.stderr),
+                         lambda window, now: beside_bar(PROG, watched_line(window, now)),
                          keep_frames=bool(args.output),
                          frames_dir=os.path.dirname(os.path.abspath(args.output))
                          if args.output else None)

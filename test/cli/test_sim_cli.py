@@ -280,9 +280,12 @@ def test_a_plan_the_run_outgrows_is_caught_by_its_watch_and_falls_back(tmp_path,
                  '--watch', '3', '--frame-every', '40', '--bag', str(bag),
                  '--planning-share', 'none']) == 0      # the plan is measured, then watched
     out, err = capsys.readouterr()
-    within = [line for line in err.splitlines() if line.startswith('[modal_spring_sim] watched')]
+    # each window on a line of its own, above the progress bar where one is shown
+    lines = err.splitlines()
+    within = [line for line in lines if line.startswith('[modal_spring_sim] watched')]
     told = out + err[-3000:]                                # what a failure shows
-    assert len(within) == 1 and ' from t = 3 s against the full run' in within[0], told
+    assert len(within) == 2 and ' from t = 3 s against the full run' in within[0], told
+    assert within[1].startswith("[modal_spring_sim] watched: a hair's difference"), told
     warning = [line for line in err.splitlines() if 'WARN: watched:' in line]
     assert len(warning) == 1 and 'beyond the tolerance 1.00%: the run falls back to the full' in (
         warning[0]), told
