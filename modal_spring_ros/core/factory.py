@@ -18,7 +18,7 @@ from modal_spring_ros.core.auto.plan import PlanSettings
 from modal_spring_ros.core.auto.step_error import (predicted_step, predicting_hz, predicts,
                                                    StepPrediction)
 from modal_spring_ros.core.auto.unplanned_full import unplanned_full
-from modal_spring_ros.core.auto.watch.run_watch import twin_reference
+from modal_spring_ros.core.auto.watch.twin_watch import twin_reference
 from modal_spring_ros.core.bases.basis import INITIAL_MODES, ModalBasis, Progress
 from modal_spring_ros.core.bases.basis_choice import choose_basis
 from modal_spring_ros.core.bases.mode_selection import (choose_modes, choose_refresh, choose_step,

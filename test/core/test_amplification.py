@@ -22,8 +22,9 @@ from modal_spring_ros.core.auto.watch.amplification import (AMPLIFYING_PER_S, de
                                                             FLOOR_M, Growth, perturbed,
                                                             RELATIVE, start_growth,
                                                             twin_samples, UNBOUNDED)
-from modal_spring_ros.core.auto.watch.run_watch import (RunWatch, TWIN_SAMPLES, TWIN_WINDOW_S,
-                                                        watch_of, WatchedWindow)
+from modal_spring_ros.core.auto.watch.run_watch import RunWatch, watch_of, WatchedWindow
+from modal_spring_ros.core.auto.watch.twin_watch import (SHORTEST_TWIN_S, TWIN_SAMPLES,
+                                                         TWIN_SHARE, TWIN_WINDOW_S)
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.simulations import RunState
@@ -124,22 +125,50 @@ def test_the_twin_starts_a_hair_from_the_run_and_the_same_for_the_same_run():
     assert float(np.sqrt(np.mean(at_rest.u ** 2))) == pytest.approx(RELATIVE * FLOOR_M)
 
 
-def test_a_short_run_is_not_watched_by_its_twin_where_a_window_costs_more_than_its_share(
-        stiff_ring):
+def test_a_short_run_is_watched_by_its_twin_over_a_window_within_its_share(stiff_ring):
     sim = stiff_ring
     # the twin stepped beside the run costs it one window: 0.25 s of a 2.5 s run is a tenth
-    assert watch_of(sim, 1.0, run_s=2.4).first_s == 1.0           # not forced into the run
     assert watch_of(sim, 20.0, run_s=2.6).first_s == pytest.approx(2.6 - TWIN_WINDOW_S)
     assert watch_of(sim, 20.0, run_s=4.9).first_s == pytest.approx(4.9 - TWIN_WINDOW_S)
-    # a run no window falls in says so, and why (not "none yet": the run has ended)
-    assert watch_of(sim, None, run_s=2.4).describe() == (
-        'no window: one 0.25 s window of its twin would cost more than 10% of the run')
-    assert watch_of(sim, None, run_s=0.2).describe() == (
-        'no window: one 0.25 s window of its twin would cost more than 10% of the run')
+    assert watch_of(sim, 20.0, run_s=2.6).reference.window_s == pytest.approx(TWIN_WINDOW_S)
+    # a shorter run's window is a tenth of it, on as many samples, down to 0.1 s (a 1 s run)
+    for run_s in (2.4, 1.5, 1.0):
+        watch = watch_of(sim, 20.0, run_s=run_s)
+        assert watch.reference.window_s == pytest.approx(TWIN_SHARE * run_s)
+        assert watch.reference.samples == TWIN_SAMPLES
+        assert watch.first_s == pytest.approx(run_s * (1.0 - TWIN_SHARE))
+    assert watch_of(sim, 1.0, run_s=2.4).first_s == 1.0            # due within the run
+    assert sim.watch_reference.window_s == pytest.approx(TWIN_WINDOW_S)     # its own unchanged
+    # below it, none; a run no window falls in says so, and why (not "none yet": it has ended)
+    for run_s in (0.99, 0.2):
+        assert watch_of(sim, None, run_s=run_s).describe() == (
+            f'no window: a window of its twin within 10% of the run would be shorter than '
+            f'{SHORTEST_TWIN_S:g} s')
     assert RunWatch(sim.watch_reference, 10.0, run_s=0.2).describe() == (
         'no window: the run is no longer than one 0.25 s window')
     assert watch_of(sim, 20.0, run_s=2.6).describe().startswith('every 20 s of the run')
-    assert watch_of(sim, 1.0, run_s=2.4).describe().startswith('every 1 s of the run')
+    assert watch_of(sim, None, run_s=1.5).describe().endswith(
+        'a 0.15 s window of its twin moved by a hair (none yet)')
+
+
+@pytest.mark.parametrize('stiffness, amplifying', [(8e4, True), (8e5, False)])
+def test_a_run_shorter_than_two_windows_and_a_half_is_watched_by_its_twin(tmp_path, stiffness,
+                                                                          amplifying):
+    """A 2 s run: its twin over its last 0.2 s sees the soft ring tumble, the stiff one not."""
+    run_s = 2.0
+    sim = build_simulation(ring(tmp_path, stiffness),
+                           SimulationConfig(auto=True, tolerance=0.01, horizon_s=run_s))
+    assert sim.method == 'full' and sim.watch_reference.reference is None
+    watch, windows = watch_of(sim, None, run_s=run_s), []
+    record(sim, run_s, frame_every=50, watch=watch, on_watch=lambda w, now: windows.append(w))
+    assert len(windows) == 1 and windows[0].start_s == pytest.approx(1.8, abs=sim.dt)
+    assert windows[0].window_s == pytest.approx(0.2, rel=0.1) and windows[0].within
+    if amplifying:
+        assert windows[0].growth >= 2 * AMPLIFYING_PER_S, windows[0].growth
+        assert UNBOUNDED in watch.describe()
+    else:
+        assert windows[0].growth < 0.25 * AMPLIFYING_PER_S, windows[0].growth
+        assert watch.amplifying is None
 
 
 def test_a_full_run_watched_by_its_twin_never_falls_back(stiff_ring):

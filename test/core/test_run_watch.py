@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from modal_spring_ros.core.auto.measured_error import on_samples, trajectory_error
 from modal_spring_ros.core.auto.watch.amplification import AMPLIFYING_PER_S
-from modal_spring_ros.core.auto.watch.run_watch import RunWatch, watch_of, watchable
+from modal_spring_ros.core.auto.watch.run_watch import RunWatch, watch_of
+from modal_spring_ros.core.auto.watch.twin_watch import watchable
 from modal_spring_ros.core.config import ConfigError, SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.loads.pull import make_pull

@@ -13,7 +13,7 @@ and the run goes on.
 A run is watched while it is the automatic plan the pilot measured: a band changed by hand on it
 is no longer that plan (it is not watched again until a new plan is made), a reset or a
 recovery restarts the watch, a new simulation brings its own (or none). The full run a fallback
-sets is watched by its twin alone (:func:`~modal_spring_ros.core.auto.watch.run_watch.
+sets is watched by its twin alone (:func:`~modal_spring_ros.core.auto.watch.twin_watch.
 twin_watched`).
 """
 from __future__ import annotations
@@ -22,8 +22,8 @@ import threading
 import time
 from typing import Callable, Mapping
 
-from modal_spring_ros.core.auto.watch.run_watch import (RunWatch, twin_watched, watch_of,
-                                                        WatchedWindow)
+from modal_spring_ros.core.auto.watch.run_watch import RunWatch, watch_of, WatchedWindow
+from modal_spring_ros.core.auto.watch.twin_watch import twin_watched
 from modal_spring_ros.core.simulations import Simulation
 from modal_spring_ros.ros.parameters import CONFIG_NAMES
 from rcl_interfaces.msg import SetParametersResult

@@ -20,10 +20,10 @@ differences (a chaotic one: a soft solid turned far, a skin crumpling), no run k
 within the tolerance for long, the full run's included: the window says so
 (:attr:`WatchedWindow.amplifying`), the run is not fallen back (no other run would hold the
 tolerance either), and the error printed for it does not hold. Where the pilot chose the full
-run, the run is watched by its twin alone (:func:`twin_reference`), where that costs at most
-``TWIN_SHARE`` of the run: stepped beside the run itself where the caller steps the run one
-step at a time (:meth:`RunWatch.before_step`, :class:`~.amplification.TwinBeside`), the run
-being its own copy.
+run, the run is watched by its twin alone (:mod:`~.twin_watch`), over a window that costs at
+most ``TWIN_SHARE`` of the run: stepped beside the run itself where the caller steps the run
+one step at a time (:meth:`RunWatch.before_step`, :class:`~.amplification.TwinBeside`), the
+run being its own copy.
 
 The shadows step in slices (:meth:`RunWatch.advance` takes a wall-clock deadline), so that a
 caller that streams frames steps them in its idle time between two frames, on its own thread:
@@ -47,15 +47,12 @@ from typing import Callable
 
 from modal_spring_ros.core.auto.measured_error import on_samples
 from modal_spring_ros.core.auto.watch.amplification import (MIN_SAMPLES as TWIN_MIN_SAMPLES,
-                                                            SAMPLES as TWIN_SAMPLES,
-                                                            twin_samples, TwinBeside,
-                                                            WINDOW_S as TWIN_WINDOW_S)
+                                                            twin_samples, TwinBeside)
 from modal_spring_ros.core.auto.watch.sentinel import Sentinel
 from modal_spring_ros.core.auto.watch.shadows import Shadows
+from modal_spring_ros.core.auto.watch.twin_watch import (SHORTEST_TWIN_S, TWIN_SHARE,
+                                                         twin_watched, watchable, within_share)
 from modal_spring_ros.core.auto.watch.windows import WatchedWindow, WatchReference
-from modal_spring_ros.core.auto.work_model import work_per_second
-from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.motion.anchor_motion import AnchorMotion
 from modal_spring_ros.core.simulations import Simulation
 
 #: Simulated seconds between the starts of two watched windows, by default.
@@ -67,16 +64,6 @@ WORK_SHARE = 0.25
 TOOK_INPUT = 'the run took an input no window measured'
 #: ... and where the window before it was heading beyond the tolerance.
 HEADING = "the last window's error heading beyond the tolerance"
-#: A full run the pilot chose is watched by its twin alone (over ``TWIN_WINDOW_S`` on
-#: ``TWIN_SAMPLES`` samples, stepped beside the run) in a run where it costs at most this share
-#: of it: runs of 2.5 s and more (what planning may spend: ``PLANNING_SHARE`` in
-#: :mod:`~modal_spring_ros.core.auto.budget`).
-TWIN_SHARE = 0.1
-
-
-def watchable(model: MassSpringModel) -> bool:
-    """Tell whether a run of ``model`` can be watched (its clamp moves as a function of time)."""
-    return isinstance(model.motion, AnchorMotion)
 
 
 def watch_of(sim: Simulation, interval_s: float | None, budget: float | None = None,
@@ -89,48 +76,24 @@ def watch_of(sim: Simulation, interval_s: float | None, budget: float | None = N
     length, where it has one (a run longer than the pilot's window is watched at least once),
     watched from ``from_s`` on (a run that went on from where its pilot's run ended).
     None is returned for a run that is not an automatic plan, an interval of 0, or a clamp
-    that follows poses. A run watched by its twin alone is not watched in a run of ``run_s``
-    where one window would cost more than ``TWIN_SHARE`` of it (a run of given length is stepped
-    one step at a time: its twin beside it costs the twin alone).
+    that follows poses. A run watched by its twin alone is watched over a window that costs at
+    most ``TWIN_SHARE`` of a run of ``run_s`` (:func:`within_share`; a run of given length is
+    stepped one step at a time: its twin beside it costs the twin alone), and not where that
+    window would be shorter than ``SHORTEST_TWIN_S``.
     """
     reference = sim.watch_reference
     if reference is None or interval_s == 0.0 or not watchable(sim.model):
         return None
-    dear = (reference.reference is None and run_s is not None
-            and reference.window_s > TWIN_SHARE * run_s)
+    dear = False
+    if reference.reference is None and run_s is not None:
+        within = within_share(reference, run_s)
+        dear, reference = within is None, within or reference
     left = None if run_s is None else run_s - from_s
     if interval_s is not None:
         return RunWatch(reference, interval_s, run_s=left, at_least_once=not dear)
     if budget is None:
         budget = WORK_SHARE * reference.plan_work
     return RunWatch(reference, DEFAULT_INTERVAL_S, budget, left, at_least_once=not dear)
-
-
-def twin_reference(sim: Simulation, tolerance: float) -> 'WatchReference':
-    """
-    Return what the full run ``sim`` the pilot chose is watched against: its twin alone.
-
-    Its step's error was measured over its start, and the step the pilot found is what a
-    fallback would take: the watch measures only whether the motion amplifies its differences.
-    """
-    work = work_per_second(sim)
-    return WatchReference(None, None, {}, '', TWIN_WINDOW_S / TWIN_SAMPLES, TWIN_SAMPLES, 1.0,
-                          tolerance, work, 2.0 * work)
-
-
-def twin_watched(fallback: Simulation, tolerance: float) -> bool:
-    """
-    Give the full run a plan fell back to its twin to be watched by; tell whether it has one.
-
-    As a full run the pilot chose (:func:`twin_reference`): its step was measured over the
-    pilot's window only, and a motion gone chaotic holds no tolerance, the fallback's included.
-    A run with a reference of its own keeps it.
-    """
-    if fallback.method != 'full' or not watchable(fallback.model):
-        return False
-    if fallback.watch_reference is None:
-        fallback.watch_reference = twin_reference(fallback, tolerance)
-    return True
 
 
 class RunWatch:
@@ -384,8 +347,8 @@ class RunWatch:
             window = self.reference.window_s
             if self.run_s is not None and self.first_s >= self.run_s:     # none in the run
                 return 'no window: ' + (
-                    f'one {window:.3g} s window of its twin would cost more than '
-                    f'{TWIN_SHARE:.0%} of the run' if not self.at_least_once else
+                    f'a window of its twin within {TWIN_SHARE:.0%} of the run would be shorter '
+                    f'than {SHORTEST_TWIN_S:g} s' if not self.at_least_once else
                     f'the run is no longer than one {window:.3g} s window')
             against = (f'against {self.reference.against}' if self.reference.against
                        else 'of its twin moved by a hair')
