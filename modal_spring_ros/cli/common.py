@@ -10,6 +10,7 @@ import re
 import sys
 import time
 from typing import Callable, Iterator, NoReturn
+import weakref
 
 from modal_spring_ros.core.auto.budget import PLANNING_SHARE
 from modal_spring_ros.core.config import DEFAULT_WATCH_S, SimulationConfig
@@ -30,6 +31,8 @@ EXIT_USAGE = 2
 PROBE_BYTES = 4096
 #: Long work shows a progress bar once it has taken this long, s (a short run shows none).
 PROGRESS_DELAY_S = 1.0
+#: The progress bars open (a line printed beside them is printed above one shown).
+_BARS: 'weakref.WeakSet[tqdm]' = weakref.WeakSet()
 
 #: the core's defaults, which the options take (one place for each)
 DEFAULTS = SimulationConfig()
@@ -328,6 +331,7 @@ def progress_bar(prog: str, total: float, unit: str, what: str, quiet: bool = Fa
                delay=delay_s, leave=True, dynamic_ncols=True,
                bar_format='{desc}: {percentage:3.0f}%|{bar}| {n:.4g}/{total:.4g} {unit} '
                           '[{elapsed}<{remaining}]')
+    _BARS.add(bar)
 
     def show(done: float, final: bool = False) -> None:
         if bar.disable:
@@ -339,8 +343,16 @@ def progress_bar(prog: str, total: float, unit: str, what: str, quiet: bool = Fa
 
 
 def beside_bar(prog: str, line: str) -> None:
-    """Print ``line`` on stderr on a line of its own, above a progress bar shown (tqdm's)."""
-    tqdm.write(f'[{prog}] {line}', file=sys.stderr)
+    """
+    Print ``line`` on stderr on a line of its own, above a progress bar shown (tqdm's).
+
+    Where no bar is shown yet (a short run's waits for its delay), a plain line: tqdm's write
+    would show a waiting bar, which its close then leaves without its end of line.
+    """
+    if any(not bar.disable and bar.last_print_t >= bar.start_t + bar.delay for bar in _BARS):
+        tqdm.write(f'[{prog}] {line}', file=sys.stderr)
+    else:
+        print(f'[{prog}] {line}', file=sys.stderr, flush=True)
 
 
 #: a benchmark's count of its jobs at the start of a progress line: ``promise 41/100: ...``

@@ -5,7 +5,8 @@ import subprocess
 import sys
 
 from helpers import HIDE_ROS, sheet_on_a_table, variant
-from modal_spring_ros.cli.common import parse_mode_range, progress_bar, progress_lines, run_main
+from modal_spring_ros.cli.common import (beside_bar, parse_mode_range, progress_bar,
+                                         progress_lines, run_main)
 from modal_spring_ros.cli.modal_spring_sim import head_start, main, watched_line
 from modal_spring_ros.core.auto.watch.amplification import UNBOUNDED
 from modal_spring_ros.core.auto.watch.run_watch import WatchedWindow
@@ -178,6 +179,22 @@ def test_a_long_run_shows_a_bar_with_the_time_left_and_a_quiet_one_nothing(capsy
     quiet = progress_bar('modal_spring_sim', 4.0, 's', 'simulated', quiet=True, delay_s=0.0)
     quiet(4.0, final=True)
     assert capsys.readouterr().err == ''
+
+
+def test_a_line_beside_a_bar_is_a_line_of_its_own_shown_or_not(capsys):
+    """Above a bar shown; plain where the bar waits for its delay (and then shows nothing)."""
+    waiting = progress_bar('modal_spring_sim', 4.0, 's', 'simulated', delay_s=60.0)
+    waiting(1.0)
+    beside_bar('modal_spring_sim', 'WARN: watched')
+    waiting(4.0)
+    assert capsys.readouterr().err == '[modal_spring_sim] WARN: watched\n'
+    shown = progress_bar('modal_spring_sim', 4.0, 's', 'simulated', delay_s=0.0)
+    shown(1.0)
+    beside_bar('modal_spring_sim', 'WARN: watched')
+    shown(4.0)
+    lines = capsys.readouterr().err.replace('\r', '\n').split('\n')
+    assert '[modal_spring_sim] WARN: watched' in lines
+    assert lines[-1] == '' and '4/4 s' in lines[-2]          # the bar ends on its own line
 
 
 def test_a_benchmark_s_counted_jobs_say_the_time_they_have_left(capsys):
