@@ -5,13 +5,13 @@ import math
 import re
 
 from modal_spring_ros.core.auto.full_candidate import by_step_doubling
-from modal_spring_ros.core.auto.measured_error import (converged_trajectory, on_samples,
-                                                       trajectory, trajectory_error,
-                                                       WINDOW_ALLOWANCE, worst_window)
+from modal_spring_ros.core.auto.measured_error import (converged_trajectory, drift_growth,
+                                                       on_samples, trajectory,
+                                                       trajectory_error, WINDOW_ALLOWANCE,
+                                                       worst_window)
 from modal_spring_ros.core.auto.plan import BEYOND_LINEAR
-from modal_spring_ros.core.auto.step_error import (AGREEMENT, drift_growth, LINEAR_REACH,
-                                                   predicted_step, predicts,
-                                                   StepErrorPredictor)
+from modal_spring_ros.core.auto.step_error import (AGREEMENT, LINEAR_REACH, predicted_step,
+                                                   predicts, StepErrorPredictor)
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.config import SimulationConfig
@@ -240,6 +240,26 @@ def test_a_large_scene_is_predicted_from_its_lowest_modes_where_the_rest_follow_
     assert math.isnan(prediction.confirmed(max(allowed, AGREEMENT * expected) * 1.01, dt, start,
                                            allowed))
     assert 'its 16 lowest modes' in prediction.describe()
+
+
+def test_a_start_is_predicted_on_the_modes_the_run_was_predicted_on_after_the_basis_grew():
+    """
+    A band's solve grows a large scene's basis after its step was predicted from its lowest.
+
+    The start's predictor, made later on the check's samples, steps the modes the run's
+    predictor stepped (its loads, metric and reach are that predictor's): the same error as
+    from a basis that never grew (it once met 16 modes' loads with the 40 solved since, and
+    ``--auto`` failed on a mesh shaken beyond its first modes).
+    """
+    model = MassSpringModel(load_scene('sheet_32x32_resonance'))
+    grown, kept = ModalBasis(model, initial_modes=16), ModalBasis(model, initial_modes=16)
+    dt = 0.9 * 2.0 / kept.omega_max_estimate()
+    prediction = predicted_step(model, grown, 'explicit', dt, 2.0, 0.008)
+    expected = predicted_step(model, kept, 'explicit', dt, 2.0, 0.008).sampled(0.01)
+    assert grown.ensure_count(40) and grown.count >= 40
+    start = prediction.sampled(0.01).start_error(dt, 0.2)
+    assert start > 0.0 and start == pytest.approx(expected.start_error(dt, 0.2), rel=1e-6)
+    assert prediction.predictor.count == 16 and 'its 16 lowest modes' in prediction.describe()
 
 
 def _oscillator(gravity: float):

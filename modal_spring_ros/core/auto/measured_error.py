@@ -5,7 +5,8 @@ Runs are compared on one grid of sample instants (:func:`on_samples` lands a run
 it), by the relative L2 error of the free-DOF displacement in the clamp's frame
 (:func:`trajectory_error`), against a reference converged in its step
 (:func:`converged_trajectory`). An error measured over a window is extrapolated to a longer
-run by a drift model (:func:`horizon_error`); a run already beyond what could be chosen is
+run by a drift model (:func:`horizon_error`; a transient's, decaying as the scene damps:
+:func:`drift_growth`); a run already beyond what could be chosen is
 abandoned part-way by an exact lower bound (:func:`error_at_least`).
 """
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Callable, NamedTuple
 from modal_spring_ros.core.auto.work_model import work_per_second
 from modal_spring_ros.core.simulations import DivergenceError, RunState, Simulation
 import numpy as np
+import scipy.special
 
 #: Blocks of the window's second half the drift model is fitted to.
 DRIFT_BLOCKS = 4
@@ -249,3 +251,22 @@ def horizon_error(run: np.ndarray | None, reference: np.ndarray, sample_s: float
     beyond = power * (horizon_s - window_s)
     errors = float(squared.sum()) + power * (integral(horizon_s) - integral(window_s))
     return max(error, math.sqrt(errors / (float(motion.sum()) + beyond)))
+
+
+def drift_growth(horizon_s: float, start_s: float, decay: float) -> float:
+    """
+    Return how much more a drift's relative L2 error is over ``horizon_s`` than over ``start_s``.
+
+    A transient of decay rate ``decay`` (1/s) stepped with a period error drifts in phase in
+    proportion to time: its error at ``t`` is ``t exp(-decay t)`` (times its amplitude and the
+    frequency's error), and over a run its RMS, ``sqrt(int_0^T t^2 exp(-2 decay t) dt / T)``. The
+    ratio of the two runs' RMS: ``horizon_s / start_s`` undamped, less where it decays (the
+    reference's own norm taken as steady), and never below 1.
+    """
+    def rms(t: float) -> float:
+        a = 2.0 * decay * t
+        if a < 1e-6:
+            return t / math.sqrt(3.0)
+        # int_0^t tau^2 exp(-a tau / t) dtau = 2 t^3 P(3, a) / a^3 (the regularised gamma)
+        return t * math.sqrt(2.0 * scipy.special.gammainc(3.0, a) / a ** 3)
+    return max(1.0, rms(horizon_s) / rms(start_s)) if start_s > 0.0 else math.inf

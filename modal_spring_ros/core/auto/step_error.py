@@ -29,8 +29,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from modal_spring_ros.core.auto.measured_error import (trajectory_error, WINDOW_ALLOWANCE,
-                                                       worst_window)
+from modal_spring_ros.core.auto.measured_error import (drift_growth, trajectory_error,
+                                                       WINDOW_ALLOWANCE, worst_window)
 from modal_spring_ros.core.bases.basis import ModalBasis
 from modal_spring_ros.core.integrators.mode_step import scheme_frequencies
 from modal_spring_ros.core.model.model import MassSpringModel
@@ -38,7 +38,6 @@ from modal_spring_ros.core.motion.frame_loads import FrameLoads
 from modal_spring_ros.core.threads import stepping_threads
 import numpy as np
 import scipy.linalg
-import scipy.special
 
 #: Instants the modes are stepped at over the run, at most (the loads are sampled there).
 MAX_INSTANTS = 1500
@@ -133,18 +132,24 @@ class StepErrorPredictor:
         self.name, self._model, self._basis = name, model, basis
         #: a start's own predictor, and its instants per sample, by (span, sample interval)
         self._starts: dict[tuple[float, float], tuple[StepErrorPredictor, int]] = {}
-        self._omega = basis.omega
-        damping = model.scene.damping
-        self._damping = (damping.modal_coefficients(self._omega)
-                         if damping is not None else np.zeros_like(self._omega))
-        self.complete, self.count, self.horizon_s = bool(basis.complete), basis.count, horizon_s
-        self.highest_hz = float(basis.frequencies_hz[-1]) if basis.count else 0.0
-        #: the slowest decay rate (1/s) an error beyond the modes can have: the modes' own, and
-        #: the scene's Rayleigh terms' beyond the highest (a ratio is not counted there: where
-        #: the scene is too large for every mode, the modes beyond have a fitted term)
-        beyond = (damping.rayleigh_alpha + damping.rayleigh_beta * self._omega[-1] ** 2
-                  if damping is not None and basis.count else 0.0)
-        self.slowest_decay = 0.5 * float(min(self._damping.min(initial=math.inf), beyond))
+        self.horizon_s = horizon_s
+        if parent is not None:    # its modes (the basis may have grown since: a band's solve)
+            self._omega, self._damping, self.complete, self.count, self.highest_hz = (
+                parent._omega, parent._damping, parent.complete, parent.count, parent.highest_hz)
+            self.slowest_decay = parent.slowest_decay
+        else:
+            self._omega = basis.omega
+            damping = model.scene.damping
+            self._damping = (damping.modal_coefficients(self._omega)
+                             if damping is not None else np.zeros_like(self._omega))
+            self.complete, self.count = bool(basis.complete), basis.count
+            self.highest_hz = float(basis.frequencies_hz[-1]) if basis.count else 0.0
+            #: the slowest decay rate (1/s) an error beyond the modes can have: the modes' own,
+            #: and the scene's Rayleigh terms' beyond the highest (a ratio is not counted there:
+            #: where the scene is too large for every mode, the modes beyond have a fitted term)
+            beyond = (damping.rayleigh_alpha + damping.rayleigh_beta * self._omega[-1] ** 2
+                      if damping is not None and basis.count else 0.0)
+            self.slowest_decay = 0.5 * float(min(self._damping.min(initial=math.inf), beyond))
         # the displacement's Euclidean norm from the modal coordinates: ||Phi q|| = ||R q||
         # with R^T R = Phi^T Phi (the modes are mass-normalised, not orthonormal), so a run is
         # kept as (instants, modes), whatever the scene's size
@@ -243,25 +248,6 @@ class StepErrorPredictor:
         if run is None:
             return math.inf
         return trajectory_error(run[per - 1::per], start._exact[per - 1::per])
-
-
-def drift_growth(horizon_s: float, start_s: float, decay: float) -> float:
-    """
-    Return how much more a drift's relative L2 error is over ``horizon_s`` than over ``start_s``.
-
-    A transient of decay rate ``decay`` (1/s) stepped with a period error drifts in phase in
-    proportion to time: its error at ``t`` is ``t exp(-decay t)`` (times its amplitude and the
-    frequency's error), and over a run its RMS, ``sqrt(int_0^T t^2 exp(-2 decay t) dt / T)``. The
-    ratio of the two runs' RMS: ``horizon_s / start_s`` undamped, less where it decays (the
-    reference's own norm taken as steady), and never below 1.
-    """
-    def rms(t: float) -> float:
-        a = 2.0 * decay * t
-        if a < 1e-6:
-            return t / math.sqrt(3.0)
-        # int_0^t tau^2 exp(-a tau / t) dtau = 2 t^3 P(3, a) / a^3 (the regularised gamma)
-        return t * math.sqrt(2.0 * scipy.special.gammainc(3.0, a) / a ** 3)
-    return max(1.0, rms(horizon_s) / rms(start_s)) if start_s > 0.0 else math.inf
 
 
 @dataclasses.dataclass(frozen=True)
