@@ -6,7 +6,7 @@ import math
 
 from modal_spring_ros.core.auto import measured_error
 from modal_spring_ros.core.auto.full_candidate import (against_reference, at_predicted_step,
-                                                       by_step_doubling)
+                                                       by_step_doubling, halvings_work)
 from modal_spring_ros.core.auto.measured_error import (converged_trajectory, horizon_error,
                                                        on_samples, trajectory, trajectory_error)
 from modal_spring_ros.core.auto.plan import PilotReport
@@ -59,7 +59,12 @@ def test_out_of_work_it_returns_the_coarser_run_with_its_estimate(sheet):
 
 
 def test_a_halving_beyond_its_work_is_not_run(sheet, monkeypatch):
-    """The first pair always runs; a finer run only where the work stays within its bound."""
+    """
+    The first pair always runs; a finer run only where the work stays within its bound.
+
+    And only where the halvings the budget needs stay within it: each halving shrinks a
+    second-order error four times (counted as eight), for a run of twice the work.
+    """
     full, _ = sheet
     calls = []
 
@@ -68,16 +73,27 @@ def test_a_halving_beyond_its_work_is_not_run(sheet, monkeypatch):
         return trajectory(*args, **kwargs)
     monkeypatch.setattr(measured_error, 'trajectory', counted)
     first = full(math.inf, SAMPLE_S)
+    sim, paired = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES, 1e-12, 0.0)
+    assert len(calls) == 2 and sim.dt == pytest.approx(first.dt)     # the pair: no bound
+    assert halvings_work(paired, paired / 3.5) == 2.0                 # one halving
+    assert halvings_work(paired, paired / 20.0) == 6.0                # two: 2 + 4
+    assert halvings_work(paired, paired / 100.0) == 14.0              # three: 2 + 4 + 8
+    assert halvings_work(math.inf, 1e-3) == 0.0 and halvings_work(1.0, 0.0) == math.inf
     pair = work_per_second(first) + work_per_second(full(first.dt / 2.0, SAMPLE_S))
     # the pair and one halving afforded, not the next (its run would pass the bound)
     within = pair + work_per_second(full(first.dt / 4.0, SAMPLE_S)) * 1.5
-    sim, estimate = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES, 1e-12, within)
-    assert calls == pytest.approx([first.dt, first.dt / 2.0, first.dt / 4.0], rel=1e-6)
-    # the finest pair's coarser run, with its estimate (beyond the budget: it says so)
-    assert sim.dt == pytest.approx(first.dt / 2.0) and estimate > 1e-12
     calls.clear()
-    sim, estimate = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES, 1e-12, 0.0)
-    assert len(calls) == 2 and sim.dt == pytest.approx(first.dt)     # the pair: no bound
+    sim, estimate = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES,
+                                     paired / 3.5, within)
+    assert calls == pytest.approx([first.dt, first.dt / 2.0, first.dt / 4.0], rel=1e-6)
+    assert sim.dt == pytest.approx(first.dt / 2.0) and estimate <= paired / 3.5
+    # a budget two halvings away: they would pass the bound, so not even the first is run;
+    # the pair's coarser run, with its estimate (beyond the budget: it says so)
+    calls.clear()
+    sim, estimate = by_step_doubling(full, SAMPLE_S, SAMPLES, SAMPLE_S * SAMPLES,
+                                     paired / 20.0, within)
+    assert calls == pytest.approx([first.dt, first.dt / 2.0], rel=1e-6)
+    assert sim.dt == pytest.approx(first.dt) and estimate == paired
 
 
 def test_a_second_look_at_the_same_start_steps_only_what_it_has_not(sheet, monkeypatch):

@@ -35,6 +35,9 @@ BY_ITSELF = 'its own run at half the step'
 STALLED = 0.75
 #: Halvings in a row that stall before a run is taken not to converge in its step.
 STALLS = 2
+#: The most a halving is counted to shrink a step error by, where the halvings a search still
+#: needs are counted (:func:`halvings_work`): twice what the order gives.
+BEST_SHRINK = 2.0 ** (STEP_ORDER + 1)
 
 
 def against_reference(full: Callable[[float, float], Simulation],
@@ -110,7 +113,10 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
     the difference to the run at half the step, over ``horizon_s`` as :func:`horizon_error`
     extrapolates it) is over the budget and the runs' modelled work (us per simulated second,
     summed) stays within ``work_per_s``: the first pair is always run, a finer run only where
-    it keeps within it. Where it never meets the budget, the finest pair's coarser run is
+    it keeps within it, and none where the halvings the budget needs would not
+    (:func:`halvings_work`: a long run's step missing its tolerance 1,000 times over once
+    halved at the cost of the run itself before it stopped). Where it never meets the
+    budget, the finest pair's coarser run is
     returned with its estimate, which then says so. Where ``STALLS`` halvings in a row each
     leave more than ``STALLED`` of the estimate, the run does not converge in its step (a
     motion that amplifies its differences: halving costs twice as much and brings nothing):
@@ -145,7 +151,29 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
         if stalls >= STALLS:
             return first, math.inf
         last = (coarse, error)
+        # the halvings the order says the budget needs, each run twice the last's work: where
+        # even those cost more than is left, none is run
+        if spent + work_per_second(fine) * halvings_work(error, budget) > work_per_s:
+            return last
         coarse, coarse_run, before = fine, fine_run, error
+
+
+def halvings_work(error: float, budget: float) -> float:
+    """
+    Return what the halvings that take ``error`` within ``budget`` cost, in the finer run's work.
+
+    A step error of order ``STEP_ORDER`` shrinks four times a halving in its asymptotic range
+    (less before it, on random scenes' searches); counted as ``BEST_SHRINK`` times, so that no
+    search whose error falls faster is cut short: ``n`` halvings step finer runs of 2, 4, ...
+    ``2 ** n`` times the last one's work. 0 where the error is not finite (a diverged run is
+    halved to find a stable step, whatever the order says).
+    """
+    if not math.isfinite(error):
+        return 0.0
+    if not budget > 0.0:
+        return math.inf
+    needed = max(1, math.ceil(math.log(error / budget) / math.log(BEST_SHRINK) - 1e-9))
+    return 2.0 ** (needed + 1) - 2.0
 
 
 def head_start(stepped: dict, sim: Simulation) -> RunState | None:
