@@ -113,10 +113,11 @@ class RunWatch:
 
         ``budget``: the work watching may cost, us per simulated second (modelled; None: any).
         ``run_s``: the run's length (None: it streams until stopped). A run longer than one
-        window is watched at least once (``at_least_once``; not where one window would cost
-        more than ``TWIN_SHARE`` of it): its first window starts no later than one window
-        before its end (the pilot measured the first window from rest; this one starts from
-        the state the run has reached, and ends with the run).
+        window is watched at least once (``at_least_once``; not where a twin's window within
+        ``TWIN_SHARE`` of it would be shorter than ``SHORTEST_TWIN_S``: :func:`watch_of`): its
+        first window starts no later than one window before its end (the pilot measured the
+        first window from rest; this one starts from the state the run has reached, and ends
+        with the run).
         """
         if not (math.isfinite(interval_s) and interval_s > 0.0):
             raise ValueError(f'watch interval ({interval_s}) must be a positive number of '
