@@ -344,6 +344,33 @@ def test_a_run_longer_than_its_pilot_window_is_watched_at_least_once(capsys):
     assert 0.0 < error <= 0.01
 
 
+@pytest.mark.parametrize('duration, window', [(1.5, 0.15), (3.0, 0.25)])
+def test_a_short_full_run_is_watched_once_by_its_twin_over_a_tenth_of_it(capsys, duration,
+                                                                         window):
+    """
+    sheet_10x10 over 1.5 s and 3 s: the full run, its twin over its last tenth (a quarter second).
+
+    A twin window costs the run the twin alone: within a tenth of the run, down to 0.1 s.
+    """
+    assert main(['--auto', '--duration', str(duration), '--quiet']) == 0
+    out = capsys.readouterr().out
+    assert 'method     full physical (180 DOF)' in out
+    watched = [line for line in out.splitlines() if line.startswith('watched ')]
+    assert len(watched) == 1, watched
+    assert watched[0].startswith("watched    1 window: last a hair's difference did not grow")
+    start = float(watched[0].split('from t = ')[1].split(' s')[0])
+    span = float(watched[0].split(' over ')[1].split(' s')[0])
+    assert span == pytest.approx(window, rel=0.05)
+    assert start == pytest.approx(duration - window, abs=0.01)
+
+
+def test_a_full_run_below_a_second_has_no_twin_window_and_says_why(capsys):
+    """A tenth of the run is below 0.1 s: no window, and the summary's line says why."""
+    assert main(['--auto', '--duration', '0.8', '--quiet']) == 0
+    assert ('watched    no window: a window of its twin within 10% of the run would be shorter '
+            'than 0.1 s') in capsys.readouterr().out
+
+
 def test_running_out_of_memory_is_one_line_and_exit_2(capsys):
     """An allocation too large for the machine ends the command as any refusal does."""
     def body() -> int:
