@@ -115,15 +115,14 @@ def by_step_doubling(full: Callable[[float, float], Simulation], sample_s: float
     summed) stays within ``work_per_s``: the first pair is always run, a finer run only where
     it keeps within it, and none where the halvings the budget needs would not
     (:func:`halvings_work`: a long run's step missing its tolerance 1,000 times over once
-    halved at the cost of the run itself before it stopped). Where it never meets the
-    budget, the finest pair's coarser run is
-    returned with its estimate, which then says so. Where ``STALLS`` halvings in a row each
-    leave more than ``STALLED`` of the estimate, the run does not converge in its step (a
-    motion that amplifies its differences: halving costs twice as much and brings nothing):
-    the first run is returned, its error infinite, as where a run diverges. ``stepped``: the
-    runs kept between calls (:func:`~.measured_error.stepped_trajectory`), so that a
-    second look at the same start steps nothing again (and a run can go on from where one
-    ended: :func:`head_start`).
+    halved at the cost of the run itself before it stopped). Where it never meets the budget,
+    the finest pair's coarser run is returned with its estimate, which then says so. Where
+    ``STALLS`` halvings in a row each leave more than ``STALLED`` of the estimate, the run does
+    not converge in its step (a motion that amplifies its differences: halving costs twice as
+    much and brings nothing): the first run is returned, its error infinite, as where a run
+    diverges. ``stepped``: the runs kept between calls
+    (:func:`~.measured_error.stepped_trajectory`), so that a second look at the same start
+    steps nothing again (and a run can go on from where one ended: :func:`head_start`).
     """
     share = 1.0 / (1.0 - 0.5 ** STEP_ORDER)       # the coarse run's error / the difference
     stepped = {} if stepped is None else stepped
