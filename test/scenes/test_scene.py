@@ -292,3 +292,19 @@ def test_a_ramped_motion_starts_and_ends_its_ramp_without_a_step_in_the_load():
         steady = np.abs(at_end(0.5 + 1e-9)).max()
         assert steady > 1e-3
         np.testing.assert_allclose(at_end(0.5 - 1e-9), at_end(0.5 + 1e-9), rtol=1e-6)
+
+
+@pytest.mark.parametrize('ramp_s', [1e-300, 5e-324])
+def test_a_ramp_too_short_to_square_is_a_motion_without_a_ramp(ramp_s):
+    """A scene's ramp of 1e-300 s (its square underflows) built and stepped: no division by 0."""
+    data = scene_to_dict(load_scene('sheet_10x10_resonance'))
+    runs = []
+    for ramp in (ramp_s, 0.0):
+        data['anchor_motion'][0]['ramp_s'] = ramp
+        scene = scene_from_dict(copy.deepcopy(data))
+        assert scene.anchor_motion.acceleration(0.0).tolist() == [0.0, 0.0, 0.0]
+        model = MassSpringModel(scene)
+        runs.append(FullSimulation(model, dt=5e-4, basis=ModalBasis(model)))
+        runs[-1].step(20)
+    np.testing.assert_array_equal(runs[0].displacement(), runs[1].displacement())
+    assert np.abs(runs[0].displacement()).max() > 0.0

@@ -44,7 +44,8 @@ def ramped_sine(t: float, amplitude: float, w: float, phase: float, ramp_s: floa
     x = max(t, 0.0) / ramp_s
     r = x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
     dr = 30.0 * x * x * (1.0 - x) ** 2 / ramp_s
-    ddr = 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x) / (ramp_s * ramp_s)
+    # divided twice: a ramp shorter than 1e-154 s has a square that underflows to 0
+    ddr = 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x) / ramp_s / ramp_s
     return r * s, dr * s + r * ds, ddr * s + 2.0 * dr * ds + r * dds
 
 
