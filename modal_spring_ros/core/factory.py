@@ -35,7 +35,7 @@ from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Scene
 from modal_spring_ros.core.motion.clamp_follower import ClampFollower
 from modal_spring_ros.core.simulations import (DEFAULT_MAX_MODES, FullSimulation, ModalSettings,
-                                               ModalSimulation, Simulation)
+                                               ModalSimulation, Simulation, step_from_limit)
 from modal_spring_ros.core.simulations.coordinates import AddedCoordinateBank, shared_bank
 from modal_spring_ros.core.simulations.early_step_check import check_step_before_modes, mode_cap
 from modal_spring_ros.core.worker import WorkerProcess
@@ -85,8 +85,8 @@ def rebuild(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig,
 
 def _within_stability(sim: Simulation) -> Simulation:
     """``sim`` at ``AUTO_DT_SAFETY`` of its stability limit (no step was given)."""
-    limit = sim.stability_limit()
-    return sim.with_dt(AUTO_DT_SAFETY * limit if math.isfinite(limit) else 1e-3)
+    return sim.with_dt(step_from_limit(sim.stability_limit(), AUTO_DT_SAFETY,
+                                       sim.model.scene.name))
 
 
 def _modal(model: MassSpringModel, basis: ModalBasis, config: SimulationConfig,

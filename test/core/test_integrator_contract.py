@@ -14,7 +14,7 @@ from helpers import oscillator
 from modal_spring_ros.core import integrators
 from modal_spring_ros.core.config import SimulationConfig
 from modal_spring_ros.core.factory import build_simulation
-from modal_spring_ros.core.simulations.base import UnstableStepError
+from modal_spring_ros.core.simulations.step_limits import UnstableStepError
 import numpy as np
 import pytest
 from toy_integrators import SymplecticEuler

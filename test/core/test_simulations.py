@@ -191,6 +191,24 @@ def test_a_step_that_cannot_advance_time_is_refused(sheet):
         sim.with_dt(1e-300)
 
 
+@pytest.mark.parametrize('method', ['full', 'modal'])
+def test_a_scene_too_light_to_step_names_its_masses_not_a_step(method):
+    """
+    Particles of 1e-300 kg: the stability limit (1e-152 s) is below any step a run takes.
+
+    The refusal names the limit and the masses (a step nobody gave was named before); the same
+    sheet at its own mass builds at ``AUTO_DT_SAFETY`` of its limit.
+    """
+    light = dataclasses.replace(load_scene('sheet_10x10'), default_dt=None)
+    light = dataclasses.replace(light, mass=np.full_like(light.mass, 1e-300))
+    with pytest.raises(ValueError, match=r'explicit stability limit \(\d.*e-15\d s\) is below '
+                                         r'the shortest step .* masses are too light'):
+        build_simulation(light, SimulationConfig(method=method))
+    sim = build_simulation(dataclasses.replace(light, mass=load_scene('sheet_10x10').mass),
+                           SimulationConfig(method='full'))
+    assert sim.dt == pytest.approx(AUTO_DT_SAFETY * sim.stability_limit())
+
+
 def test_a_band_unstable_at_dt_is_refused_having_computed_modes_only_up_to_the_limit():
     """
     ``sheet_32x32`` from 32 modes (to 66 Hz), dt 4 ms: the limit 1 / (pi dt) is 79.6 Hz.

@@ -29,14 +29,12 @@ from modal_spring_ros.core.loads.contact import contact_load, ContactLoad
 from modal_spring_ros.core.loads.holder import LoadHolder
 from modal_spring_ros.core.model.model import MassSpringModel
 from modal_spring_ros.core.model.scene import Damping
+from modal_spring_ros.core.simulations.step_limits import check_step, MIN_DT_S, stable_step_limit
 from modal_spring_ros.core.threads import stepping_threads
 import numpy as np
 
 #: Default spring strain treated as divergence (the simulation has left any meaningful regime).
 DEFAULT_STRAIN_LIMIT = 1.0
-
-#: Smallest time step, s: below it ``t + dt`` stops advancing within a long run's time range.
-MIN_DT_S = 1e-8
 
 
 class DivergenceError(RuntimeError):
@@ -45,27 +43,6 @@ class DivergenceError(RuntimeError):
     def __init__(self, reason: str, time: float, step: int):
         super().__init__(f'diverged at t = {time:.6g} s (step {step}): {reason}')
         self.reason, self.time, self.step = reason, time, step
-
-
-class UnstableStepError(ValueError):
-    """The run's integrator would be unstable for the coordinates stepped at this ``dt``."""
-
-
-def check_step(integrator: str, dt: float, omega_max: float, method: str, dt_name: str = 'dt'
-               ) -> None:
-    """Refuse a step at or above ``integrator``'s stability limit up to ``omega_max`` rad/s."""
-    limit = stable_step(integrator, omega_max)
-    if dt >= limit:
-        raise UnstableStepError(
-            f'{dt_name} ({dt:g} s) is at or above the {integrator} stability limit '
-            f"{limit:.4g} s of the {method} run's highest mode "
-            f'({omega_max / (2.0 * math.pi):.4g} Hz): lower {dt_name}, keep fewer high modes '
-            f"(a lower upper band edge), or use the 'average' integrator")
-
-
-def stable_step_limit(omega_max: float) -> float:
-    """Return the explicit step's limit up to ``omega_max`` (what a run's stability limit is)."""
-    return stable_step('explicit', omega_max)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -14,7 +14,7 @@ import math
 from modal_spring_ros.core.bases.basis import DEFAULT_MAX_MODES, ModalBasis
 from modal_spring_ros.core.filter_band import FilterBand
 from modal_spring_ros.core.integrators import conditionally_stable, stable_step
-from modal_spring_ros.core.simulations.base import check_step
+from modal_spring_ros.core.simulations.step_limits import check_step
 
 
 def mode_cap(basis: ModalBasis, max_modes: int | None) -> int:

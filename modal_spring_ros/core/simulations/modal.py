@@ -8,10 +8,9 @@ nonlinear spring forces and gravity in physical space (eq. 20), projects them ba
 gives the basis; the dynamics stay nonlinear. All modes kept = the full run, to round-off.
 
 Changing the band while running is smooth: a mode that leaves the band fades out over
-``transition_s`` (its amplitude follows a raised-cosine envelope to zero, so positions do not
-jump); a mode that enters starts from rest and takes on its load along the same envelope, so it
-eases into place rather than dropping. Modes not computed yet are computed when a band first
-needs them (at most ``max_modes``).
+``transition_s`` (a raised-cosine envelope to zero: positions do not jump); a mode that enters
+starts from rest and takes on its load along the same envelope, easing into place. Modes not
+computed yet are computed when a band first needs them (at most ``max_modes``).
 
 With ``basis_kind="derivatives"`` each band also steps the coordinates it adds
 (:mod:`modal_spring_ros.core.bases.derivatives`: the kept modes' second-order response and the
@@ -36,7 +35,7 @@ from modal_spring_ros.core.filter_band import BandError, FilterBand
 from modal_spring_ros.core.forces import force_model
 from modal_spring_ros.core.loads.applied import of_shapes
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.core.simulations.base import check_step, Simulation, stable_step_limit
+from modal_spring_ros.core.simulations.base import Simulation
 from modal_spring_ros.core.simulations.coordinates import (ActiveSet, ADDED_ID,
                                                            AddedCoordinateBank, EMPTY_SET)
 from modal_spring_ros.core.simulations.early_step_check import check_step_before_modes, mode_cap
@@ -44,6 +43,8 @@ from modal_spring_ros.core.simulations.modal_settings import ModalSettings
 from modal_spring_ros.core.simulations.mode_gains import (coordinate_damping, coordinate_gains,
                                                           GainFade)
 from modal_spring_ros.core.simulations.prepared_sets import PreparedSets
+from modal_spring_ros.core.simulations.step_limits import (check_step, stable_step_limit,
+                                                           step_from_limit)
 from modal_spring_ros.core.simulations.stepped_set import SteppedSet
 import numpy as np
 
@@ -89,7 +90,7 @@ class ModalSimulation(Simulation):
         coordinates = self.coordinates_for(self.select_modes(band))
         if settings.step_share is not None:  # the step from what is stepped: the set built once
             limit = stable_step_limit(float(self._bank.omega(coordinates).max(initial=0.0)))
-            self.dt = settings.step_share * limit if math.isfinite(limit) else self.dt
+            self.dt = step_from_limit(limit, settings.step_share, model.scene.name, self.dt)
             self.settings = dataclasses.replace(settings, dt=self.dt, step_share=None)
         self._install(ActiveSet.settled(coordinates), None, self._band)
         self.reset()
@@ -234,8 +235,7 @@ class ModalSimulation(Simulation):
                                 method=self.method, dt_name=dt_name)
         coordinates = self.coordinates_for(self.select_modes(band))
         omega = self._bank.omega(coordinates)
-        check_step(self.integrator, self.dt, float(omega.max()),
-                   self.method, dt_name)
+        check_step(self.integrator, self.dt, float(omega.max()), self.method, dt_name)
         return coordinates
 
     def prepare_switch(self, band: FilterBand, transition_s: float | None = None,
