@@ -530,7 +530,7 @@ class _Disproved:
     def sampled(self, sample_s: float) -> '_Disproved':
         return self
 
-    def start_growth(self, over_s: float) -> float:
+    def start_growth(self, over_s: float, dt: float) -> float:
         return self.growth
 
     def error_at(self, dt: float) -> float:
@@ -539,7 +539,8 @@ class _Disproved:
     def start_error(self, dt: float, over_s: float) -> float:
         return self.start
 
-    def confirmed(self, measured: float, dt: float, over_s: float, allowed: float) -> float:
+    def confirmed(self, measured: float, dt: float, over_s: float, allowed: float,
+                  longer: bool = False) -> float:
         return math.nan
 
     def describe(self) -> str:

@@ -19,7 +19,7 @@ from modal_spring_ros.core.factory import build_simulation
 from modal_spring_ros.core.integrators import INTEGRATORS
 from modal_spring_ros.core.integrators.mode_step import scheme_frequencies
 from modal_spring_ros.core.model.model import MassSpringModel
-from modal_spring_ros.scenes.generator import random_scene
+from modal_spring_ros.scenes.generator import demanding_scene, random_scene
 from modal_spring_ros.scenes.resources import load_scene
 from modal_spring_ros.scenes.schema import scene_from_dict
 import numpy as np
@@ -174,6 +174,57 @@ def test_a_default_step_well_within_the_tolerance_is_lengthened_up_to_the_longes
                                                             default, DURATION_S)
     # no longest step given (a user's step): the step given is the longest
     assert predicted_step(model, basis, 'explicit', default, DURATION_S, 0.003).step == default
+
+
+def test_a_longer_step_counts_what_its_start_measured_beyond_the_prediction_grown():
+    """
+    Random scene 12 at 0.3 %, its longer step: a start 1.4 times its prediction (it agrees).
+
+    At the default step or shorter the prediction stands; a longer step (a saving the
+    prediction alone offers) counts the start's excess, grown over the run as the prediction
+    grows from that start, and is refused where that passes what is allowed.
+    """
+    scene = random_scene(12, max_particles=80)
+    model = MassSpringModel(scene)
+    default = build_simulation(scene, SimulationConfig(method='full')).dt
+    prediction = predicted_step(model, ModalBasis(model), 'explicit', default, DURATION_S, 0.003,
+                                1.8 * default)
+    dt, start = prediction.step, 0.25
+    run, expected = prediction.predictor.error(dt), prediction.start_error(dt, start)
+    assert dt > default and 0.0 < expected < run
+    assert prediction.start_growth(start, dt) == pytest.approx(run / expected)
+    measured = 1.4 * expected
+    assert measured < AGREEMENT * expected
+    roomy, tight = 2.0 * run, 1.2 * run
+    assert prediction.confirmed(measured, dt, start, roomy) == run
+    counted = prediction.confirmed(measured, dt, start, roomy, longer=True)
+    assert counted == pytest.approx(1.4 * run)
+    assert prediction.confirmed(measured, dt, start, tight) == run
+    assert math.isnan(prediction.confirmed(measured, dt, start, tight, longer=True))
+    # a start below its prediction never lowers the run's
+    assert prediction.confirmed(0.5 * expected, dt, start, roomy, longer=True) == run
+
+
+def test_a_curved_shell_beyond_its_prediction_keeps_its_default_step(tmp_path):
+    """
+    A curved shell from a mesh under gravity (the demanding generator's seed 38), 4 s at 0.3 %.
+
+    Its modes predict 0.20 % at 1.8 times the default step, and its start (0.125 s) measured
+    1.47 times what they put there: it agrees, but that step measures 2.9 times the tolerance
+    over the run. Counted and grown over the run, the start's excess refuses the longer step:
+    the default step, within the tolerance of the full run at a quarter of it.
+    """
+    scene = demanding_scene(38, tmp_path)
+    default = build_simulation(scene, SimulationConfig(method='full'))
+    sim = build_simulation(scene, SimulationConfig(auto=True, tolerance=0.003, horizon_s=4.0))
+    assert sim.method == 'full' and sim.dt <= default.dt * (1.0 + 1e-9)
+    assert 'the step was measured instead' in sim.pilot.reason
+    sample_s, samples = 0.025, 160
+    reference = trajectory(on_samples(default, sample_s, default.dt / 4.0), sample_s, samples)
+    chosen = trajectory(on_samples(sim, sample_s), sample_s, samples)
+    longer = trajectory(on_samples(default, sample_s, 1.8 * default.dt), sample_s, samples)
+    assert trajectory_error(chosen, reference) <= 0.003
+    assert trajectory_error(longer, reference) > 2.5 * 0.003
 
 
 @pytest.mark.parametrize('decay', [0.0, 0.3, 1.0, 4.0])
