@@ -96,6 +96,10 @@ class PlanningBudget:
             self.limit_us = max(self.limit_us, min(WIDEN * self.limit_us,
                                                    SAVING_SHARE * saving_us))
 
+    def raise_to(self, limit_us: float) -> None:
+        """Let planning spend up to ``limit_us`` in all where that is more (a saving pays)."""
+        self.limit_us = max(self.limit_us, limit_us)
+
     def affords(self, work_us: float) -> bool:
         """Tell whether ``work_us`` more stays within the limit."""
         return self.spent_us + work_us <= self.limit_us

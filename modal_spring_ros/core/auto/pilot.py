@@ -378,7 +378,7 @@ class Pilot:
             full, report = unplanned_full(self.full, self.budget, self.full_dt[0],
                                           self.window_s, self.horizon_s, self.tolerance,
                                           PILOT_MARGIN, SAMPLES, 'the budget was spent',
-                                          self.full_dt[1])
+                                          self.full_dt[1], saving_pays=False)
             self._checked = report
             return full, report.error, report.against
         if against != 'the full run' and error > self.tolerance:
