@@ -143,7 +143,8 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
                    f'{step / default_dt:.2g} times the default step)')
     checked = full(step, sample_s)
     rate = work_per_second(checked)
-    if step > default_dt and saving_pays:   # a saving the prediction offers pays for a start
+    longer = step > default_dt     # a saving the prediction alone offers
+    if longer and saving_pays:     # pays for a start long enough to see it
         saving = (work_per_second(full(default_dt, sample_s)) - rate) * horizon_s
         budget.raise_to(budget.spent_us + LONGER_CHECK_SHARE * saving)
     affordable = budget.remaining_us / (REFERENCE_RUNS * rate * sample_s) if rate > 0 else 0
@@ -165,7 +166,6 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
         # the prediction checked where it is cheap: the start, against its run at half the step
         sim, error = doubling(count, checked_s, math.inf, 0.0, step)
         expected = prediction.start_error(sim.dt, checked_s)
-        longer = step > default_dt
         predicted = prediction.confirmed(error, sim.dt, checked_s, margin * tolerance, longer)
         if math.isfinite(predicted):
             told = prediction.describe()
@@ -194,9 +194,9 @@ def unplanned_full(full: Callable[[float, float], Simulation], budget: PlanningB
     # a step longer than the default is measured as it is, never halved: its half is below
     # the default step, which a user would have run in any case (nor where the start's error
     # is grown over the run: the halving judges the start's alone)
-    halving = 0.0 if step > default_dt or grown else math.inf
+    halving = 0.0 if longer or grown else math.inf
     sim, error = doubling(count, over_s, allowed, halving, step)
-    if over_run(error, sim.dt) > allowed and step > default_dt:
+    if over_run(error, sim.dt) > allowed and longer:
         # a start's transient can miss where the run would not: the default step, its error
         # the longer step's scaled by the step error's order (nothing stepped again) where
         # that is within the margin, else checked by its own step doubling
